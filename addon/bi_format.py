@@ -1,0 +1,540 @@
+"""Reader and writer of the thesis' `.bi` scene files (SPEC section 8).
+
+A file is plain UTF-8 text (a byte-order mark is allowed), one record a line: a
+key, then numbers separated by blanks. Records, in this order:
+
+    V w h                  viewport size: positive integers
+    C x y z                camera position
+    A x y z                camera target (must differ from the position)
+    U x y z                camera up vector (must not be zero)
+    B h v                  opening angles in degrees, each in (0, 180)
+    L n                    number of lights, then n times:
+        C r g b            light colour
+        P x y z            light position
+        I b                brightness (>= 0)
+    O n                    number of objects, then n times:
+        T 0                object type: 0 sphere (1, polyhedron, is refused)
+        C x y z            sphere centre
+        R r                radius (> 0)
+        S                  surface block follows: the seven records
+        #C r g b  #A ka  #D kd  #S ks  #T kt  #E exponent  #N ior
+
+Rules chosen where SPEC section 8 is silent:
+
+- Header, light and object records come in exactly the order above (the key `C`
+  means three different things, so only the position can tell them apart).
+- The seven `#` records of a surface come each exactly once, in any order, right
+  after `S`; the block ends at the first line whose key does not start with `#`.
+  A missing one is reported on the `S` line, a duplicate on its second line.
+- Comments are `/* ... */`, C style (not nested): before, between or after
+  records, and they may span lines. A comment separates tokens like a blank.
+  An unterminated comment is reported on the line where it starts.
+- Keys are case-sensitive. Counts and the viewport size are integers written
+  without a decimal point; every other value is a decimal number (no nan, inf).
+- Ranges: colours, brightness, ka, kd, ks and the exponent >= 0; kt in [0, 1];
+  radius and ior > 0. An ior <= 1 or kt = 0 is a legal (non-lens) sphere.
+- Colour scale, decided per file: if any colour component in the file (light or
+  surface) is greater than 1, the whole file is in 0-255 and every colour is
+  divided by 255 (`Scene.color_scale = 255.0`); otherwise it is in 0-1
+  (`color_scale = 1.0`). The division is done exactly on the decimal text, so
+  writing multiplies back to the very same numbers.
+- The format has no names and no light radius: `Sphere.name`/`Light.name` are
+  left "" and `Light.radius` 0 on read; the writer does not store them.
+
+Writing then reading gives an equal `Scene` (floats are written as the shortest
+text that reads back to the same double). The writer keeps `scene.color_scale`
+unless the file would read back in the other scale (0-255 colours all <= 1, or
+0-1 colours above 1); then it switches scale and only `color_scale` differs.
+
+Errors: `BiFormatError` (a `ValueError`) is the only exception the reader lets
+out, whatever the input; its text is "FILE:LINE: what was expected". A record
+missing at the end of the file is reported on the file's last line.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from decimal import Context, Decimal, localcontext
+from fractions import Fraction
+from typing import Callable, Optional, Union
+
+from .scene import Camera, Light, Scene, Sphere, Surface
+
+__all__ = ["BiFormatError", "read_bi", "parse_bi", "write_bi", "format_bi"]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+class BiFormatError(ValueError):
+    """A `.bi` file that cannot be read: `str(e)` is "FILE:LINE: message"."""
+
+    def __init__(self, path: str, line: Optional[int], message: str):
+        self.path = path
+        self.line = line
+        self.message = message
+        where = f"{path}:{line}" if line is not None else f"{path}"
+        super().__init__(f"{where}: {message}")
+
+
+# --------------------------------------------------------------------------- #
+# Record descriptions: shared by the reader's messages and the writer's checks.
+
+# A check is (predicate, text shown in the message), e.g. (> 0, "> 0").
+Check = tuple[Callable[[float], bool], str]
+ANY: Optional[Check] = None
+NON_NEGATIVE: Check = (lambda v: v >= 0.0, ">= 0")
+POSITIVE: Check = (lambda v: v > 0.0, "> 0")
+UNIT: Check = (lambda v: 0.0 <= v <= 1.0, "in [0, 1]")
+ANGLE: Check = (lambda v: 0.0 < v < 180.0, "in (0, 180)")
+
+
+@dataclass(frozen=True)
+class Rec:
+    key: str
+    args: tuple[str, ...]     # names of the values, shown as <name>
+    what: str                 # what the record means, for messages
+    check: Optional[Check] = ANY
+
+    @property
+    def usage(self) -> str:
+        return " ".join([self.key] + [f"<{a}>" for a in self.args])
+
+
+XYZ = ("x", "y", "z")
+RGB = ("r", "g", "b")
+
+VIEWPORT = Rec("V", ("width", "height"), "viewport size in pixels", POSITIVE)
+CAM_POS = Rec("C", XYZ, "camera position")
+CAM_TARGET = Rec("A", XYZ, "camera target point")
+CAM_UP = Rec("U", XYZ, "camera up vector")
+CAM_FOV = Rec("B", ("horizontal", "vertical"), "camera opening angles in degrees", ANGLE)
+N_LIGHTS = Rec("L", ("count",), "number of lights", NON_NEGATIVE)
+LIGHT_COLOR = Rec("C", RGB, "light colour", NON_NEGATIVE)
+LIGHT_POS = Rec("P", XYZ, "light position")
+LIGHT_BRIGHT = Rec("I", ("brightness",), "light brightness", NON_NEGATIVE)
+N_OBJECTS = Rec("O", ("count",), "number of objects", NON_NEGATIVE)
+OBJ_TYPE = Rec("T", ("type",), "object type: 0 sphere")
+SPH_CENTER = Rec("C", XYZ, "sphere centre")
+SPH_RADIUS = Rec("R", ("radius",), "sphere radius", POSITIVE)
+SURFACE = Rec("S", (), "surface definition follows")
+
+# Surface records in the order they are written; each maps to a Surface field.
+SURFACE_RECS = {
+    "#C": (Rec("#C", RGB, "surface colour", NON_NEGATIVE), "color"),
+    "#A": (Rec("#A", ("ka",), "ambient coefficient", NON_NEGATIVE), "ambient"),
+    "#D": (Rec("#D", ("kd",), "diffuse coefficient", NON_NEGATIVE), "diffuse"),
+    "#S": (Rec("#S", ("ks",), "specular coefficient", NON_NEGATIVE), "specular"),
+    "#T": (Rec("#T", ("kt",), "transmission coefficient", UNIT), "transmission"),
+    "#E": (Rec("#E", ("exponent",), "Phong exponent", NON_NEGATIVE), "exponent"),
+    "#N": (Rec("#N", ("n",), "index of refraction", POSITIVE), "ior"),
+}
+
+# Strict ASCII number syntax: float() alone would also take "nan", "1_0", "١".
+_FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+_INT_RE = re.compile(r"[+-]?\d{1,30}", re.ASCII)
+
+
+# --------------------------------------------------------------------------- #
+# Reading
+
+@dataclass
+class _Line:
+    number: int
+    tokens: list[str]
+
+
+def _strip_comments(text: str, path: str) -> str:
+    """Replace every /* ... */ by a blank, keeping its newlines (line numbers)."""
+    parts = []
+    pos = 0
+    while True:
+        start = text.find("/*", pos)
+        if start < 0:
+            parts.append(text[pos:])
+            return "".join(parts)
+        end = text.find("*/", start + 2)
+        if end < 0:
+            line = text.count("\n", 0, start) + 1
+            raise BiFormatError(path, line, "unterminated comment: '/*' without a closing '*/'")
+        parts.append(text[pos:start])
+        parts.append(" " + "\n" * text.count("\n", start, end))
+        pos = end + 2
+
+
+def _show(text: str, limit: int = 40) -> str:
+    """Text of the offending line for a message: one line, printable, short."""
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                   for c in text)
+
+
+class _Reader:
+    """Walks the records of one file; every error names the current line."""
+
+    def __init__(self, text: str, path: str):
+        self.path = path
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+        raw_lines = text.split("\n")
+        if raw_lines and raw_lines[-1] == "":
+            raw_lines.pop()                      # a final newline ends the last line
+        self.last_line = max(1, len(raw_lines))  # where "missing at end" is reported
+        self.line_no = 1                         # line of the record being read
+        lines = _strip_comments("\n".join(raw_lines), path).split("\n")
+        self.records = [_Line(i, ln.split()) for i, ln in enumerate(lines, 1) if ln.split()]
+        self.pos = 0
+        self.colors: list[tuple[list[str], Callable[[tuple], None]]] = []
+
+    # -- errors ----------------------------------------------------------------
+    def error(self, message: str, line: Optional[int] = None) -> BiFormatError:
+        return BiFormatError(self.path, self.line_no if line is None else line, message)
+
+    # -- records ---------------------------------------------------------------
+    def peek(self) -> Optional[_Line]:
+        return self.records[self.pos] if self.pos < len(self.records) else None
+
+    def take(self, rec: Rec, what: str = "") -> list[str]:
+        """The value tokens of the next record, which must be `rec`; `what`
+        replaces its meaning in a message (first record of light 2 of 3...)."""
+        expected = f"expected '{rec.usage}' ({what or rec.what})"
+        line = self.peek()
+        if line is None:
+            self.line_no = self.last_line
+            raise self.error(f"{expected}, got end of file")
+        self.pos += 1
+        self.line_no = line.number
+        if line.tokens[0] != rec.key or len(line.tokens) != 1 + len(rec.args):
+            raise self.error(f"{expected}, got '{_show(' '.join(line.tokens))}'")
+        return line.tokens[1:]
+
+    # -- values ----------------------------------------------------------------
+    def number(self, rec: Rec, name: str, token: str) -> float:
+        if not _FLOAT_RE.fullmatch(token):
+            raise self.error(f"expected a number for <{name}> in '{rec.usage}' "
+                             f"({rec.what}), got '{_show(token)}'")
+        value = float(token)
+        if not math.isfinite(value):
+            raise self.error(f"expected a finite number for <{name}> ({rec.what}), "
+                             f"got '{_show(token)}'")
+        self.check(rec, name, token, value)
+        return value
+
+    def integer(self, rec: Rec, name: str, token: str) -> int:
+        if not _INT_RE.fullmatch(token):
+            raise self.error(f"expected an integer for <{name}> in '{rec.usage}' "
+                             f"({rec.what}), got '{_show(token)}'")
+        value = int(token)
+        self.check(rec, name, token, value)
+        return value
+
+    def check(self, rec: Rec, name: str, token: str, value: float) -> None:
+        if rec.check is not None and not rec.check[0](value):
+            raise self.error(f"expected <{name}> {rec.check[1]} ({rec.what}), "
+                             f"got '{_show(token)}'")
+
+    def floats(self, rec: Rec) -> tuple[float, ...]:
+        return tuple(self.number(rec, n, t) for n, t in zip(rec.args, self.take(rec)))
+
+    def ints(self, rec: Rec) -> tuple[int, ...]:
+        return tuple(self.integer(rec, n, t) for n, t in zip(rec.args, self.take(rec)))
+
+    def color(self, rec: Rec, store: Callable[[tuple], None], what: str = "") -> None:
+        """Check a colour now; convert it once the whole file's scale is known."""
+        tokens = self.take(rec, what)
+        for name, token in zip(rec.args, tokens):
+            self.number(rec, name, token)
+        self.colors.append((tokens, store))
+
+    # -- blocks ----------------------------------------------------------------
+    def scene(self) -> Scene:
+        width, height = self.ints(VIEWPORT)
+        camera = self.camera()
+        (n_lights,) = self.ints(N_LIGHTS)
+        # No list is built from a count up front: "L 999999999" fails at the
+        # first missing light, naming how many the count announced.
+        lights = []
+        while len(lights) < n_lights:
+            lights.append(self.light(len(lights) + 1, n_lights))
+        (n_objects,) = self.ints(N_OBJECTS)
+        objects = []
+        while len(objects) < n_objects:
+            objects.append(self.sphere(len(objects) + 1, n_objects))
+        extra = self.peek()
+        if extra is not None:
+            self.line_no = extra.number
+            raise self.error(f"expected end of file after {n_objects} object(s) "
+                             f"(O {n_objects}), got '{_show(' '.join(extra.tokens))}'")
+        scale = self.color_scale()
+        for tokens, store in self.colors:
+            store(tuple(_color_from_text(t, scale) for t in tokens))
+        return Scene(width=width, height=height, camera=camera, lights=lights,
+                     objects=objects, color_scale=scale)
+
+    def camera(self) -> Camera:
+        position = self.floats(CAM_POS)
+        target = self.floats(CAM_TARGET)
+        if target == position:
+            raise self.error("expected a camera target different from the camera position")
+        up = self.floats(CAM_UP)
+        if up == (0.0, 0.0, 0.0):
+            raise self.error("expected a non-zero camera up vector")
+        fov = self.floats(CAM_FOV)
+        return Camera(position=position, target=target, up=up, fov_deg=fov)
+
+    def light(self, index: int, count: int) -> Light:
+        light = Light(position=(0.0, 0.0, 0.0))
+        self.color(LIGHT_COLOR, lambda c: setattr(light, "color", c),
+                   f"colour of light {index} of {count}")
+        light.position = self.floats(LIGHT_POS)
+        (light.brightness,) = self.floats(LIGHT_BRIGHT)
+        return light
+
+    def sphere(self, index: int, count: int) -> Sphere:
+        tokens = self.take(OBJ_TYPE, f"type of object {index} of {count}: 0 sphere")
+        if tokens[0] == "1":
+            raise self.error("polyhedron objects (T 1) are not supported; only spheres (T 0)")
+        if tokens[0] != "0":
+            raise self.error(f"expected 'T 0' ({OBJ_TYPE.what}), got 'T {_show(tokens[0])}'")
+        center = self.floats(SPH_CENTER)
+        (radius,) = self.floats(SPH_RADIUS)
+        self.take(SURFACE)
+        return Sphere(center=center, radius=radius, surface=self.surface(index))
+
+    def surface(self, index: int) -> Surface:
+        s_line = self.line_no
+        surface = Surface()
+        seen: dict[str, int] = {}
+        while (line := self.peek()) is not None and line.tokens[0].startswith("#"):
+            key = line.tokens[0]
+            self.line_no = line.number
+            if key not in SURFACE_RECS:
+                raise self.error(f"expected one of {' '.join(SURFACE_RECS)} (surface record), "
+                                 f"got '{_show(' '.join(line.tokens))}'")
+            if key in seen:
+                raise self.error(f"duplicate '{key}' in the surface of object {index} "
+                                 f"(first at line {seen[key]})")
+            seen[key] = line.number
+            rec, attr = SURFACE_RECS[key]
+            if key == "#C":
+                self.color(rec, lambda c: setattr(surface, "color", c))
+            else:
+                (value,) = self.floats(rec)
+                setattr(surface, attr, value)
+        missing = [k for k in SURFACE_RECS if k not in seen]
+        if missing:
+            rec = SURFACE_RECS[missing[0]][0]
+            raise self.error(f"the surface of object {index} is missing '{rec.usage}' "
+                             f"({rec.what})", line=s_line)
+        return surface
+
+    def color_scale(self) -> float:
+        above_one = any(float(t) > 1.0 for tokens, _ in self.colors for t in tokens)
+        return 255.0 if above_one else 1.0
+
+
+def _color_from_text(token: str, scale: float) -> float:
+    """A colour component in 0-1. Dividing the exact decimal by 255 and rounding
+    once makes the writer's text for `value * 255` read back bit for bit."""
+    value = float(token)
+    if scale == 1.0 or value == 0.0:   # also avoids Fraction("1e-999999999")
+        return value
+    # Via Decimal: Fraction("1.000...") would hit int()'s 4300-digit limit.
+    return float(Fraction(Decimal(token)) / 255)
+
+
+def parse_bi(text: str, path: str = "<string>") -> Scene:
+    """Parse the text of a `.bi` file; errors name `path` and the line."""
+    reader = None
+    try:
+        reader = _Reader(text, path)
+        return reader.scene()
+    except BiFormatError:
+        raise
+    except Exception as exc:  # a safety net: no other exception may escape
+        line = reader.line_no if reader is not None else None
+        raise BiFormatError(path, line, f"cannot read this line ({type(exc).__name__}: "
+                                        f"{_show(str(exc), 80)})") from exc
+
+
+def _decode(data: bytes, path: str) -> str:
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise BiFormatError(path, line, "expected UTF-8 text (the file has bytes "
+                                        "that are not UTF-8)") from exc
+
+
+def read_bi(path: PathLike) -> Scene:
+    """Read a `.bi` file. A file that cannot be opened is a BiFormatError too."""
+    name = os.fspath(path)
+    try:
+        with open(name, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise BiFormatError(name, None, f"cannot read the file: {exc.strerror or exc}") from exc
+    return parse_bi(_decode(data, name), name)
+
+
+# --------------------------------------------------------------------------- #
+# Writing
+
+def _float_text(value: float) -> str:
+    """Shortest text that reads back to the same double; integral values short."""
+    if value.is_integer() and abs(value) < 1e16:
+        return str(int(value))
+    return repr(value)
+
+
+def _color_text(value: float, scale: float) -> str:
+    """Text of a colour component that `_color_from_text` maps back to `value`."""
+    if scale == 1.0 or value == 0.0:
+        return _float_text(value)
+    with localcontext(Context(prec=2000)):
+        exact = Decimal(value) * 255        # exact: a double has < 800 digits
+    # The exact product always works; look for the shortest decimal that does.
+    for digits in range(1, 2000):
+        candidate = Context(prec=digits).plus(exact)
+        if float(Fraction(candidate) / 255) == value:
+            break
+    if candidate == candidate.to_integral_value() and abs(candidate) < 10**16:
+        return str(int(candidate))
+    return format(candidate, "g").replace("E", "e")
+
+
+class _Writer:
+    """Checks each value as the reader would, so a written file always reads."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+        self.where = ""
+
+    def fail(self, rec: Rec, name: str, value) -> ValueError:
+        cond = f" {rec.check[1]}" if rec.check is not None else ""
+        return ValueError(f"cannot write {self.where}{rec.what}: expected <{name}> "
+                          f"a finite number{cond}, got {value!r}")
+
+    def value(self, rec: Rec, name: str, value) -> float:
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise self.fail(rec, name, value) from None
+        if not math.isfinite(value) or (rec.check and not rec.check[0](value)):
+            raise self.fail(rec, name, value)
+        return value
+
+    def integer(self, rec: Rec, name: str, value) -> int:
+        try:
+            ok = not isinstance(value, bool) and int(value) == value
+        except (TypeError, ValueError, OverflowError):
+            ok = False
+        if not ok or (rec.check and not rec.check[0](value)):
+            raise ValueError(f"cannot write {self.where}{rec.what}: expected <{name}> "
+                             f"an integer{' ' + rec.check[1] if rec.check else ''}, "
+                             f"got {value!r}")
+        return int(value)
+
+    def record(self, rec: Rec, values, comment: str = "") -> None:
+        texts = [_float_text(self.value(rec, n, v))
+                 for n, v in zip(rec.args, self.sized(rec, values))]
+        self.emit(rec, texts, comment)
+
+    def int_record(self, rec: Rec, values, comment: str = "") -> None:
+        texts = [str(self.integer(rec, n, v))
+                 for n, v in zip(rec.args, self.sized(rec, values))]
+        self.emit(rec, texts, comment)
+
+    def color(self, rec: Rec, values, scale: float) -> None:
+        values = [self.value(rec, n, v) for n, v in zip(rec.args, self.sized(rec, values))]
+        texts = [_color_text(v, scale) for v in values]
+        for name, text, v in zip(rec.args, texts, values):
+            if not math.isfinite(float(text)):       # v * 255 beyond the largest double
+                raise self.fail(rec, name, v)
+        self.emit(rec, texts)
+
+    def sized(self, rec: Rec, values) -> tuple:
+        values = tuple(values)
+        if len(values) != len(rec.args):
+            raise ValueError(f"cannot write {self.where}{rec.what}: expected "
+                             f"{len(rec.args)} values, got {len(values)}")
+        return values
+
+    def emit(self, rec: Rec, texts: list[str], comment: str = "") -> None:
+        line = " ".join([rec.key] + texts)
+        self.lines.append(f"{line:<24}/* {comment} */" if comment else line)
+
+
+def _scene_colors(scene: Scene) -> list[float]:
+    colors = [c for light in scene.lights for c in light.color]
+    colors += [c for sphere in scene.objects for c in sphere.surface.color]
+    return [float(c) for c in colors]
+
+
+def _write_scale(scene: Scene) -> float:
+    """The scale to write in: the scene's own, unless reading would not give it back."""
+    colors = _scene_colors(scene)
+    if any(not math.isfinite(c) for c in colors):
+        return 1.0                                   # the writer reports the value
+    if any(c > 1.0 for c in colors):
+        return 255.0                                 # only 0-255 can say "above 1"
+    if scene.color_scale == 255.0 and \
+            any(float(_color_text(c, 255.0)) > 1.0 for c in colors):
+        return 255.0
+    return 1.0
+
+
+def format_bi(scene: Scene) -> str:
+    """The text of a `.bi` file for `scene`. Raises ValueError for a scene that
+    the reader would refuse (non-finite numbers, radius <= 0, ...)."""
+    scale = _write_scale(scene)
+    w = _Writer()
+    w.lines.append(f"/* Lens Lights scene; colours in 0-{255 if scale == 255.0 else 1} */")
+    w.int_record(VIEWPORT, (scene.width, scene.height), "viewport width height")
+    cam = scene.camera
+    w.record(CAM_POS, cam.position, "camera position")
+    w.record(CAM_TARGET, cam.target, "camera target")
+    w.record(CAM_UP, cam.up, "camera up vector")
+    w.record(CAM_FOV, cam.fov_deg, "opening angles h v (degrees)")
+    w.lines.append("")
+    w.int_record(N_LIGHTS, (len(scene.lights),), "number of lights")
+    for index, light in enumerate(scene.lights, 1):
+        w.where = f"light {index}: "
+        w.lines += ["", f"/* light {index} */"]
+        w.color(LIGHT_COLOR, light.color, scale)
+        w.record(LIGHT_POS, light.position)
+        w.record(LIGHT_BRIGHT, (light.brightness,))
+    w.where = ""
+    w.lines.append("")
+    w.int_record(N_OBJECTS, (len(scene.objects),), "number of objects")
+    for index, sphere in enumerate(scene.objects, 1):
+        w.where = f"object {index}: "
+        w.lines += ["", f"/* object {index}: sphere */"]
+        w.lines.append("T 0")
+        w.record(SPH_CENTER, sphere.center)
+        w.record(SPH_RADIUS, (sphere.radius,))
+        w.lines.append("S")
+        for key, (rec, attr) in SURFACE_RECS.items():
+            value = getattr(sphere.surface, attr)
+            if key == "#C":
+                w.color(rec, value, scale)
+            else:
+                w.record(rec, (value,))
+    _check_camera(scene.camera)
+    return "\n".join(w.lines) + "\n"
+
+
+def _check_camera(cam: Camera) -> None:
+    """The camera checks the reader makes beyond the single values."""
+    if tuple(map(float, cam.target)) == tuple(map(float, cam.position)):
+        raise ValueError("cannot write the camera: the target equals the position")
+    if all(float(c) == 0.0 for c in cam.up):
+        raise ValueError("cannot write the camera: the up vector is zero")
+
+
+def write_bi(scene: Scene, path: PathLike) -> None:
+    """Write `scene` to a `.bi` file (UTF-8, `\\n` line ends)."""
+    text = format_bi(scene)
+    with open(os.fspath(path), "w", encoding="utf-8", newline="\n") as f:
+        f.write(text)

@@ -1,0 +1,100 @@
+"""`./lens-lights SUBCOMMAND …`: the project's command line (run by the launcher
+with the pinned environment's python).
+
+Subcommands:
+  phase1 SCENE.bi [--json]   secondary light sources of a `.bi` scene
+  test [PYTEST ARGS]         the whole test suite
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+EXIT_BAD_INPUT = 2
+
+
+def _fail(message: str) -> int:
+    print(f"lens-lights: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+# --------------------------------------------------------------------------- phase1
+
+def _fmt_vec(v) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+
+
+def format_phase1_table(result) -> str:
+    """A readable report of phase 1: one row per source, then the skipped pairs."""
+    lines = [f"{len(result.sources)} secondary light source(s), "
+             f"{len(result.skipped)} light × sphere pair(s) skipped", ""]
+    if result.sources:
+        header = (f"{'light':>5} {'lens':>4}  {'kind':<10} {'position':<28} "
+                  f"{'spread°':>8} {'R_C':>8} {'intensity':>9}  shadow")
+        lines += [header, "-" * len(header)]
+        for s in result.sources:
+            rc = f"{s.cylinder_radius:.4g}" if s.cylinder_radius is not None else "-"
+            shadow = "full" if s.full else "non-full, blocked by " + ", ".join(
+                f"sphere {k}" for k in s.shadow_list)
+            lines.append(f"{s.light:>5} {s.lens:>4}  {s.kind:<10} "
+                         f"{_fmt_vec(s.position):<28} {s.spread_deg:>8.4g} {rc:>8} "
+                         f"{s.intensity:>9.4g}  {shadow}")
+    if result.skipped:
+        lines += ["", "skipped:"]
+        lines += [f"  light {k.light} × sphere {k.lens}: {k.reason}" for k in result.skipped]
+    return "\n".join(lines)
+
+
+def cmd_phase1(args) -> int:
+    from addon.bi_format import BiFormatError, read_bi
+    from addon.phase1 import compute_phase1
+    try:
+        scene = read_bi(args.scene)
+    except BiFormatError as e:
+        return _fail(str(e))
+    except OSError as e:
+        return _fail(f"{args.scene}: {e.strerror or e}")
+    result = compute_phase1(scene)
+    if args.json:
+        json.dump(result.to_json(), sys.stdout, indent=2)
+        print()
+    else:
+        print(format_phase1_table(result))
+    return 0
+
+
+# --------------------------------------------------------------------------- test
+
+def cmd_test(args, extra) -> int:
+    cmd = [sys.executable, "-m", "pytest", str(ROOT / "tests"), "-q", *extra]
+    return subprocess.call(cmd, cwd=ROOT)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="lens-lights", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("phase1", help="secondary light sources of a .bi scene")
+    p.add_argument("scene", help="a .bi scene file")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+    sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
+
+    args, extra = parser.parse_known_args(argv)
+    if args.command == "test":
+        return cmd_test(args, extra)
+    if extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    return {"phase1": cmd_phase1}[args.command](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
