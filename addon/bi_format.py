@@ -132,7 +132,8 @@ SURFACE_RECS = {
 }
 
 # Strict ASCII number syntax: float() alone would also take "nan", "1_0", "١".
-_FLOAT_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+# Written so that no digit can match two ways (no quadratic backtracking).
+_FLOAT_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _INT_RE = re.compile(r"[+-]?\d{1,30}", re.ASCII)
 
 
@@ -474,9 +475,12 @@ def _scene_colors(scene: Scene) -> list[float]:
 
 def _write_scale(scene: Scene) -> float:
     """The scale to write in: the scene's own, unless reading would not give it back."""
-    colors = _scene_colors(scene)
-    if any(not math.isfinite(c) for c in colors):
+    try:
+        colors = _scene_colors(scene)
+    except (TypeError, ValueError):
         return 1.0                                   # the writer reports the value
+    if any(not math.isfinite(c) for c in colors):
+        return 1.0
     if any(c > 1.0 for c in colors):
         return 255.0                                 # only 0-255 can say "above 1"
     if scene.color_scale == 255.0 and \

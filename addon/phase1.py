@@ -20,6 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .geometry import (angle_between, cap_overlap_fraction, radial_angle,  # noqa: F401
+                       tangent_length)
+from .obstruction import find_blockers
 from .scene import Scene
 
 REAL, VIRTUAL, COLLIMATED = "real", "virtual", "collimated"
@@ -29,8 +32,6 @@ SURFACE_TOLERANCE = 1e-9
 #: Default switch to the collimated representation: when the image lies farther
 #: from the lens than this many times the scene's size.
 COLLIMATION_RATIO = 1e4
-#: Obstruction is evaluated in blocks of lenses × spheres of about this many cells.
-_BLOCK_CELLS = 1 << 21
 
 
 @dataclass
@@ -88,38 +89,7 @@ class Skipped:
         return {"light": self.light, "lens": self.lens, "reason": self.reason}
 
 
-@dataclass
-class Phase1Result:
-    sources: list[SecondarySource] = field(default_factory=list)
-    skipped: list[Skipped] = field(default_factory=list)
-
-    def to_json(self) -> dict:
-        return {"sources": [s.to_json() for s in self.sources],
-                "skipped": [s.to_json() for s in self.skipped]}
-
-
-# --------------------------------------------------------------------------- helpers
-
-def radial_angle(distance, radius):
-    """Half-angle under which a point at `distance` from a centre sees a sphere.
-
-    `atan2(R, sqrt((D − R)(D + R)))`: exact far away and near grazing, where
-    `acos(R_T / D)` loses every digit (SPEC §4.2). NaN where D < R (caller masks).
-    """
-    with np.errstate(invalid="ignore"):
-        return np.arctan2(radius, np.sqrt((distance - radius) * (distance + radius)))
-
-
-def tangent_length(distance, radius):
-    """`R_T = sqrt(D² − R²)`, in the cancellation-free product form."""
-    with np.errstate(invalid="ignore"):
-        return np.sqrt((distance - radius) * (distance + radius))
-
-
-def angle_between(a, b):
-    """Angle between direction arrays `a`, `b` (…, 3): `atan2(|a×b|, a·b)`."""
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
-
+# --------------------------------------------------------------------------- optics
 
 def ball_lens_power(radius, ior):
     """Power of a ball lens, both principal planes at its centre: `2(n − 1)/(n R)`."""
@@ -140,56 +110,7 @@ def brightness_factor(radius, ior, kt):
     return np.exp(-(1.0 - kt) * radius * (1.0 + cos_delta))
 
 
-def cap_overlap_fraction(alpha, beta, gamma):
-    """Share of a spherical cap (angular radius α) covered by another (β) at γ apart.
-
-    Both caps live on the unit sphere of directions around the light; because an
-    isotropic light's flux is uniform in solid angle, this is the share of the
-    lens's flux that the obstacle blocks. Exact spherical geometry, written with
-    atan2 of stable quantities (no acos of numbers near 1): the overlap is the
-    sum of two "cap segments" cut by the plane through both circles' intersection.
-    Works elementwise on broadcastable arrays; caps must have radius < π/2.
-    """
-    alpha, beta, gamma = np.broadcast_arrays(*(np.asarray(x, dtype=float)
-                                               for x in (alpha, beta, gamma)))
-    out = np.zeros(alpha.shape)
-    cap_a = _cap_area(alpha)
-    inside = beta >= gamma + alpha                      # obstacle covers the lens
-    contained = (alpha >= gamma + beta) & ~inside       # obstacle within the lens
-    partial = (alpha + beta > gamma) & ~inside & ~contained
-    out[inside] = 1.0
-    out[contained] = _cap_area(beta[contained]) / cap_a[contained]
-    if np.any(partial):
-        a, b, g = alpha[partial], beta[partial], gamma[partial]
-        out[partial] = (_segment_area(a, b, g) + _segment_area(b, a, g)) / cap_a[partial]
-    return np.clip(out, 0.0, 1.0)
-
-
-def _cap_area(a):
-    """Solid angle of a cap of angular radius a: `2π(1 − cos a) = 4π sin²(a/2)`."""
-    return 4.0 * np.pi * np.sin(0.5 * a) ** 2
-
-
-def _segment_area(a, b, g):
-    """Solid angle of the part of cap `a` beyond the great circle through the two
-    points where the rims of caps `a` and `b` (centres γ apart) cross.
-
-    With ω the angle at a's centre between the arc to b's centre and the arc to a
-    crossing point (spherical half-angle formula, stable for thin triangles), the
-    segment is the sector `2ω(1 − cos a)` minus the isosceles triangle, which
-    simplifies to `π − 2ρ − 2ω cos a` with the base angle `ρ = atan2(cos ω,
-    cos a sin ω)` (Napier's rule); it also holds for ω > π/2.
-    """
-    s = 0.5 * (a + b + g)
-    sin_half = np.sqrt(np.maximum(np.sin(s - a) * np.sin(s - g), 0.0))
-    cos_half = np.sqrt(np.maximum(np.sin(s) * np.sin(s - b), 0.0))
-    omega = 2.0 * np.arctan2(sin_half, cos_half)
-    cos_a = np.cos(a)
-    rho = np.arctan2(np.cos(omega), cos_a * np.sin(omega))
-    return np.pi - 2.0 * rho - 2.0 * omega * cos_a
-
-
-# --------------------------------------------------------------------------- phase 1
+# --------------------------------------------------------------------------- input
 
 @dataclass
 class SceneArrays:
@@ -235,21 +156,164 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
     return size if size > 0 and math.isfinite(size) else 1.0
 
 
-def _sphere_problem(center, radius, ior, kt) -> str | None:
-    """Why a sphere cannot be a lens, or None (the reasons reported per pair)."""
-    if not (np.all(np.isfinite(center)) and math.isfinite(radius)
-            and math.isfinite(ior) and math.isfinite(kt)):
-        return "invalid sphere (non-finite number)"
-    if radius <= 0:
-        return f"invalid sphere (radius {radius:g} ≤ 0)"
-    if kt <= 0:
-        return "opaque (kt = 0)"
-    if kt > 1:
-        return f"invalid transmission (kt = {kt:g} > 1)"
-    if ior <= 1:
-        return f"not a converging lens (n = {ior:g} ≤ 1)"
-    return None
+# --------------------------------------------------------------------------- reasons
 
+# Why a light × sphere pair yields no source. Codes keep the skip table columnar
+# (a scene of 100 000 opaque spheres skips 100 000 pairs per light); the text is
+# made only when asked for.
+(INVALID_LIGHT, INVALID_SPHERE_NONFINITE, INVALID_SPHERE_RADIUS, OPAQUE, INVALID_KT,
+ NOT_CONVERGING, LIGHT_INSIDE, LIGHT_ON_SURFACE, LIGHT_INSIDE_OTHER,
+ LIGHT_ON_OTHER, TOTALLY_BLOCKED) = range(11)
+
+
+def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> str:
+    return {
+        INVALID_LIGHT: "invalid light (non-finite number)",
+        INVALID_SPHERE_NONFINITE: "invalid sphere (non-finite number)",
+        INVALID_SPHERE_RADIUS: f"invalid sphere (radius {radius:g} ≤ 0)",
+        OPAQUE: "opaque (kt = 0)",
+        INVALID_KT: f"invalid transmission (kt = {kt:g} > 1)",
+        NOT_CONVERGING: f"not a converging lens (n = {ior:g} ≤ 1)",
+        LIGHT_INSIDE: "light inside the sphere",
+        LIGHT_ON_SURFACE: "light on the sphere's surface",
+        LIGHT_INSIDE_OTHER: f"light inside sphere {other}",
+        LIGHT_ON_OTHER: f"light on the surface of sphere {other}",
+        TOTALLY_BLOCKED: f"totally blocked by sphere {other}",
+    }[code]
+
+
+def sphere_problems(a: SceneArrays) -> np.ndarray:
+    """Per sphere: the reason code that keeps it from being a lens, or −1."""
+    code = np.full(a.radius.shape, -1, dtype=np.int64)
+    # Later assignments win only where nothing earlier applied: go from least to
+    # most fundamental and overwrite.
+    code[a.ior <= 1] = NOT_CONVERGING
+    code[a.kt > 1] = INVALID_KT
+    code[a.kt <= 0] = OPAQUE
+    code[a.radius <= 0] = INVALID_SPHERE_RADIUS
+    finite = (np.all(np.isfinite(a.center), axis=1) & np.isfinite(a.radius)
+              & np.isfinite(a.ior) & np.isfinite(a.kt))
+    code[~finite] = INVALID_SPHERE_NONFINITE
+    return code
+
+
+# --------------------------------------------------------------------------- output
+
+@dataclass
+class SourceTable:
+    """All secondary sources as columns (N sources), ordered by (light, lens)."""
+    light: np.ndarray               # (N,) int
+    lens: np.ndarray                # (N,) int
+    kind: np.ndarray                # (N,) 0 real, 1 virtual, 2 collimated
+    position: np.ndarray            # (N, 3)
+    axis: np.ndarray                # (N, 3)
+    spread: np.ndarray              # (N,) θ in radians
+    cylinder_radius: np.ndarray     # (N,) R_C, NaN unless collimated
+    intensity: np.ndarray
+    color: np.ndarray               # (N, 3)
+    brightness_factor: np.ndarray
+    distance: np.ndarray
+    lens_center: np.ndarray         # (N, 3)
+    lens_radius: np.ndarray
+    ior: np.ndarray
+    vergence: np.ndarray
+    alpha: np.ndarray               # radians
+    unblocked_fraction: np.ndarray
+    shadow_offsets: np.ndarray      # (N + 1,) CSR into shadow_spheres
+    shadow_spheres: np.ndarray
+
+    KINDS = (REAL, VIRTUAL, COLLIMATED)
+
+    def __len__(self) -> int:
+        return int(self.light.size)
+
+    def shadow_list(self, t: int) -> list[int]:
+        return self.shadow_spheres[self.shadow_offsets[t]:self.shadow_offsets[t + 1]].tolist()
+
+    def source(self, t: int) -> SecondarySource:
+        kind = self.KINDS[self.kind[t]]
+        col = kind == COLLIMATED
+        V, D = float(self.vergence[t]), float(self.distance[t])
+        shadow = self.shadow_list(t)
+        return SecondarySource(
+            light=int(self.light[t]), lens=int(self.lens[t]), kind=kind,
+            position=self.position[t].copy(), axis=self.axis[t].copy(),
+            spread_deg=float(np.degrees(self.spread[t])),
+            cylinder_radius=float(self.cylinder_radius[t]) if col else None,
+            intensity=float(self.intensity[t]),
+            color=tuple(float(c) for c in self.color[t]),
+            full=not shadow, shadow_list=shadow,
+            brightness_factor=float(self.brightness_factor[t]), distance=D,
+            lens_center=self.lens_center[t].copy(), lens_radius=float(self.lens_radius[t]),
+            ior=float(self.ior[t]), vergence=V,
+            image_distance=None if col else 1.0 / V,
+            magnification=None if col else -1.0 / (V * D),
+            alpha_deg=float(np.degrees(self.alpha[t])),
+            unblocked_fraction=float(self.unblocked_fraction[t]),
+        )
+
+
+@dataclass
+class SkipTable:
+    """Every light × sphere pair without a source, as columns, by (light, lens)."""
+    light: np.ndarray
+    lens: np.ndarray
+    code: np.ndarray
+    other: np.ndarray               # the other sphere a reason names, or −1
+
+    def __len__(self) -> int:
+        return int(self.light.size)
+
+
+class Phase1Result:
+    """Phase 1's answer: `table` and `skip_table` (columns, for code that scales),
+    `sources` and `skipped` (lists of dataclasses, made on first use)."""
+
+    def __init__(self, table: SourceTable, skip_table: SkipTable, arrays: SceneArrays):
+        self.table = table
+        self.skip_table = skip_table
+        self._arrays = arrays
+        self._sources: list[SecondarySource] | None = None
+        self._skipped: list[Skipped] | None = None
+
+    @property
+    def sources(self) -> list[SecondarySource]:
+        if self._sources is None:
+            self._sources = [self.table.source(t) for t in range(len(self.table))]
+        return self._sources
+
+    @property
+    def skipped(self) -> list[Skipped]:
+        if self._skipped is None:
+            a, s = self._arrays, self.skip_table
+            self._skipped = [
+                Skipped(int(j), int(i), reason_text(int(c), float(a.radius[i]),
+                                                    float(a.ior[i]), float(a.kt[i]), int(k)))
+                for j, i, c, k in zip(s.light, s.lens, s.code, s.other)]
+        return self._skipped
+
+    def skip_counts(self) -> dict[str, int]:
+        """How many pairs were skipped for each kind of reason (numbers left out)."""
+        names = {INVALID_LIGHT: "invalid light", INVALID_SPHERE_NONFINITE: "invalid sphere",
+                 INVALID_SPHERE_RADIUS: "invalid sphere", OPAQUE: "opaque",
+                 INVALID_KT: "invalid transmission", NOT_CONVERGING: "not a converging lens",
+                 LIGHT_INSIDE: "light inside the sphere",
+                 LIGHT_ON_SURFACE: "light on the sphere's surface",
+                 LIGHT_INSIDE_OTHER: "light inside another sphere",
+                 LIGHT_ON_OTHER: "light on another sphere",
+                 TOTALLY_BLOCKED: "totally blocked"}
+        counts: dict[str, int] = {}
+        codes, n = np.unique(self.skip_table.code, return_counts=True)
+        for c, k in zip(codes, n):
+            counts[names[int(c)]] = counts.get(names[int(c)], 0) + int(k)
+        return counts
+
+    def to_json(self) -> dict:
+        return {"sources": [s.to_json() for s in self.sources],
+                "skipped": [s.to_json() for s in self.skipped]}
+
+
+# --------------------------------------------------------------------------- phase 1
 
 def compute_phase1(scene: Scene | SceneArrays,
                    collimation_ratio: float = COLLIMATION_RATIO) -> Phase1Result:
@@ -263,70 +327,67 @@ def compute_phase1(scene: Scene | SceneArrays,
     """
     a = scene if isinstance(scene, SceneArrays) else SceneArrays.from_scene(scene)
     n_lights, n_spheres = len(a.light_brightness), len(a.radius)
-
     valid_light = (np.all(np.isfinite(a.light_position), axis=1)
                    & np.isfinite(a.light_brightness)
                    & np.all(np.isfinite(a.light_color), axis=1))
-    sphere_problem = [_sphere_problem(a.center[i], a.radius[i], a.ior[i], a.kt[i])
-                      for i in range(n_spheres)]
-    valid_sphere = np.array([p is None or not p.startswith("invalid sphere")
-                             for p in sphere_problem], dtype=bool)
-    lens_ids = np.array([i for i, p in enumerate(sphere_problem) if p is None], dtype=int)
+    problem = sphere_problems(a)
+    valid_sphere = (problem != INVALID_SPHERE_NONFINITE) & (problem != INVALID_SPHERE_RADIUS)
     far = collimation_ratio * scene_size(a, valid_light, valid_sphere)
 
-    result = Phase1Result()
+    parts, skips = [], []
+    all_spheres = np.arange(n_spheres)
+    not_lens = problem >= 0
     for j in range(n_lights):
         if not valid_light[j]:
-            result.skipped += [Skipped(j, i, "invalid light (non-finite number)")
-                               for i in range(n_spheres)]
+            skips.append((j, all_spheres, np.full(n_spheres, INVALID_LIGHT), -1))
             continue
-        result.skipped += [Skipped(j, i, p) for i, p in enumerate(sphere_problem)
-                           if p is not None]
-        _light_sources(a, j, lens_ids, valid_sphere, far, result)
-    result.skipped.sort(key=lambda s: (s.light, s.lens))
-    return result
+        skips.append((j, all_spheres[not_lens], problem[not_lens], -1))
+        parts.append(_light_sources(a, j, problem, valid_sphere, far, skips))
+    return Phase1Result(_concat_sources(parts), _skip_table(skips), a)
 
 
-def _light_sources(a: SceneArrays, j: int, lens_ids: np.ndarray, valid_sphere,
-                   far: float, result: Phase1Result) -> None:
-    """Secondary sources of light j through every lens, appended to `result`."""
+def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) -> dict:
+    """Columns of the secondary sources of light j through every lens."""
     light = a.light_position[j]
-    # Geometry of every sphere as seen from the light (obstacles need it too).
-    to_center = a.center - light                                   # (S, 3)
+    to_center = a.center - light                                     # (S, 3)
     dist = np.linalg.norm(to_center, axis=1)
     rad = a.radius
-    surface = np.abs(dist - rad) <= SURFACE_TOLERANCE * rad
-    inside = (dist < rad) & ~surface
+    with np.errstate(invalid="ignore"):
+        surface = valid_sphere & (np.abs(dist - rad) <= SURFACE_TOLERANCE * rad)
+        inside = valid_sphere & (dist < rad) & ~surface
     outside = valid_sphere & ~inside & ~surface
     with np.errstate(invalid="ignore", divide="ignore"):
         direction = to_center / dist[:, None]
-    ang = np.where(outside, radial_angle(dist, rad), 0.0)          # α or β
-    tlen = np.where(outside, tangent_length(dist, rad), 0.0)       # R_T
+    ang = np.where(outside, radial_angle(dist, rad), 0.0)            # α or β
+    tlen = np.where(outside, tangent_length(dist, rad), 0.0)         # R_T
 
-    # The light inside or on another sphere: the tangent construction is void.
-    enclosing = np.flatnonzero(valid_sphere & (inside | surface))
-    ok = []
-    for i in lens_ids:
-        if inside[i]:
-            result.skipped.append(Skipped(j, int(i), "light inside the sphere"))
-        elif surface[i]:
-            result.skipped.append(Skipped(j, int(i), "light on the sphere's surface"))
-        elif enclosing.size:
-            k = int(enclosing[0])
-            where = "inside" if inside[k] else "on the surface of"
-            result.skipped.append(Skipped(j, int(i), f"light {where} sphere {k}"))
-        else:
-            ok.append(i)
-    lenses = np.asarray(ok, dtype=int)
-    if lenses.size == 0:
-        return
+    lens = (problem < 0)
+    for mask, code in ((lens & inside, LIGHT_INSIDE), (lens & surface, LIGHT_ON_SURFACE)):
+        if mask.any():
+            skips.append((j, np.flatnonzero(mask), np.full(mask.sum(), code), -1))
+    lens &= outside
+    # The light inside (or on) some other sphere: the tangent construction is void.
+    enclosing = np.flatnonzero(inside | surface)
+    if enclosing.size and lens.any():
+        k = int(enclosing[0])
+        ids = np.flatnonzero(lens)
+        code = LIGHT_INSIDE_OTHER if inside[k] else LIGHT_ON_OTHER
+        skips.append((j, ids, np.full(ids.size, code), k))
+        lens[:] = False
+    lenses = np.flatnonzero(lens)
 
-    blocked_by, shadows, unblocked = _obstruction(lenses, direction, ang, tlen, outside)
+    blk = find_blockers(lenses, direction, ang, tlen, outside)
+    total = blk.total_blocker >= 0
+    if total.any():
+        skips.append((j, lenses[total], np.full(total.sum(), TOTALLY_BLOCKED),
+                      blk.total_blocker[total]))
+    keep = ~total
+    rows = np.flatnonzero(keep)
+    lenses = lenses[keep]
 
     # Optics, vectorised over this light's lenses.
     D, R, n = dist[lenses], rad[lenses], a.ior[lenses]
-    u = direction[lenses]
-    C = a.center[lenses]
+    u, C = direction[lenses], a.center[lenses]
     V = ball_lens_power(R, n) - 1.0 / D
     collimated = np.abs(V) * far <= 1.0
     alpha = ang[lenses]
@@ -334,71 +395,51 @@ def _light_sources(a: SceneArrays, j: int, lens_ids: np.ndarray, valid_sphere,
     height = R * np.sin(phi)                                 # d of eq. 5.10 (signed)
     theta = np.where(collimated, 0.0,
                      np.arctan2(np.abs(height * V), np.abs(R * np.cos(phi) * V - 1.0)))
-    with np.errstate(divide="ignore"):
-        image = np.where(collimated, 0.0, 1.0 / np.where(collimated, 1.0, V))
-    position = np.where(collimated[:, None], C + R[:, None] * u, C + image[:, None] * u)
+    image = np.where(collimated, R, 1.0 / np.where(collimated, 1.0, V))
     factor = brightness_factor(R, n, a.kt[lenses])
-    intensity = a.light_brightness[j] * factor
-    color = tuple(float(c) for c in a.light_color[j])
-
-    for t, i in enumerate(lenses):
-        if blocked_by[t] >= 0:
-            result.skipped.append(
-                Skipped(j, int(i), f"totally blocked by sphere {int(blocked_by[t])}"))
-            continue
-        is_col = bool(collimated[t])
-        kind = COLLIMATED if is_col else (REAL if V[t] > 0 else VIRTUAL)
-        result.sources.append(SecondarySource(
-            light=j, lens=int(i), kind=kind,
-            position=position[t].copy(), axis=u[t].copy(),
-            spread_deg=float(np.degrees(theta[t])),
-            cylinder_radius=float(abs(height[t])) if is_col else None,
-            intensity=float(intensity[t]), color=color,
-            full=not shadows[t], shadow_list=shadows[t],
-            brightness_factor=float(factor[t]), distance=float(D[t]),
-            lens_center=C[t].copy(), lens_radius=float(R[t]), ior=float(n[t]),
-            vergence=float(V[t]),
-            image_distance=None if is_col else float(image[t]),
-            magnification=None if is_col else float(-image[t] / D[t]),
-            alpha_deg=float(np.degrees(alpha[t])),
-            unblocked_fraction=float(unblocked[t]),
-        ))
+    starts = blk.shadow_offsets[rows]
+    counts = blk.shadow_offsets[rows + 1] - starts
+    shadow = blk.shadow_spheres[np.repeat(starts, counts)
+                                + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)]
+    m = lenses.size
+    return dict(
+        light=np.full(m, j), lens=lenses,
+        kind=np.where(collimated, 2, np.where(V > 0, 0, 1)),
+        position=C + image[:, None] * u, axis=u, spread=theta,
+        cylinder_radius=np.where(collimated, np.abs(height), np.nan),
+        intensity=a.light_brightness[j] * factor,
+        color=np.broadcast_to(a.light_color[j], (m, 3)),
+        brightness_factor=factor, distance=D, lens_center=C, lens_radius=R, ior=n,
+        vergence=V, alpha=alpha, unblocked_fraction=blk.unblocked_fraction[rows],
+        shadow_counts=counts, shadow_spheres=shadow,
+    )
 
 
-def _obstruction(lenses, direction, ang, tlen, outside):
-    """Thesis §5.5 for one light: blockers of each lens, vectorised lens × sphere.
+def _concat_sources(parts: list[dict]) -> SourceTable:
+    names = [f for f in SourceTable.__dataclass_fields__ if not f.startswith("shadow")]
+    if not parts:
+        parts = [dict({k: np.zeros((0, 3) if k in ("position", "axis", "color", "lens_center")
+                                   else 0) for k in names},
+                      shadow_counts=np.zeros(0, dtype=np.int64),
+                      shadow_spheres=np.zeros(0, dtype=np.int64))]
+    cols = {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in names}
+    counts = np.concatenate([p["shadow_counts"] for p in parts]).astype(np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    cols["light"] = cols["light"].astype(np.int64)
+    cols["lens"] = cols["lens"].astype(np.int64)
+    cols["kind"] = cols["kind"].astype(np.int64)
+    return SourceTable(**cols, shadow_offsets=offsets,
+                       shadow_spheres=np.concatenate([p["shadow_spheres"] for p in parts])
+                       .astype(np.int64))
 
-    Sphere k blocks (part of) lens i iff it is nearer the light (R_T,k < R_T,i) and
-    their angular discs overlap (α + β ≥ γ); it blocks all of it iff β ≥ γ + α.
-    Returns (index of the nearest total blocker or −1, sorted shadow list, share
-    of the lens's flux left unblocked) per lens. The unblocked share treats
-    blockers as independent (product of their single coverings).
-    """
-    n_lens, n_sph = lenses.size, direction.shape[0]
-    blocked_by = np.full(n_lens, -1, dtype=int)
-    shadows: list[list[int]] = [[] for _ in range(n_lens)]
-    unblocked = np.ones(n_lens)
-    obstacles = np.flatnonzero(outside)
-    if obstacles.size <= 1:
-        return blocked_by, shadows, unblocked
-    step = max(1, _BLOCK_CELLS // obstacles.size)
-    w_k, beta, t_k = direction[obstacles], ang[obstacles], tlen[obstacles]
-    for start in range(0, n_lens, step):
-        rows = lenses[start:start + step]
-        alpha = ang[rows][:, None]
-        gamma = angle_between(direction[rows][:, None, :], w_k[None, :, :])
-        nearer = (t_k[None, :] < tlen[rows][:, None]) & (obstacles[None, :] != rows[:, None])
-        blocks = nearer & (alpha + beta[None, :] >= gamma)
-        total = blocks & (beta[None, :] >= gamma + alpha)
-        for r in np.flatnonzero(blocks.any(axis=1)):
-            t = start + r
-            ks = np.flatnonzero(blocks[r])
-            tk = np.flatnonzero(total[r])
-            if tk.size:
-                blocked_by[t] = int(obstacles[tk[np.argmin(t_k[tk])]])
-                unblocked[t] = 0.0
-                continue
-            shadows[t] = [int(k) for k in obstacles[ks]]
-            cover = cap_overlap_fraction(alpha[r, 0], beta[ks], gamma[r, ks])
-            unblocked[t] = float(np.prod(1.0 - cover))
-    return blocked_by, shadows, unblocked
+
+def _skip_table(skips) -> SkipTable:
+    if not skips:
+        z = np.zeros(0, dtype=np.int64)
+        return SkipTable(z, z, z, z)
+    light = np.concatenate([np.full(np.size(ids), j) for j, ids, _, _ in skips])
+    lens = np.concatenate([np.asarray(ids) for _, ids, _, _ in skips])
+    code = np.concatenate([np.asarray(c) for _, _, c, _ in skips])
+    other = np.concatenate([np.broadcast_to(k, np.size(ids)) for _, ids, _, k in skips])
+    order = np.lexsort((lens, light))
+    return SkipTable(*(x[order].astype(np.int64) for x in (light, lens, code, other)))

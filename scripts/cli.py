@@ -73,7 +73,9 @@ def cmd_phase1(args) -> int:
 # --------------------------------------------------------------------------- test
 
 def cmd_test(args, extra) -> int:
-    cmd = [sys.executable, "-m", "pytest", str(ROOT / "tests"), "-q", *extra]
+    # Paths given on the command line replace the default (the whole suite).
+    targets = [] if any(not a.startswith("-") for a in extra) else [str(ROOT / "tests")]
+    cmd = [sys.executable, "-m", "pytest", *targets, "-q", *extra]
     return subprocess.call(cmd, cwd=ROOT)
 
 
@@ -97,4 +99,8 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except BrokenPipeError:          # `… | head` closed the pipe: not an error
+        sys.stderr.close()
+        sys.exit(0)

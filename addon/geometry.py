@@ -1,0 +1,77 @@
+"""Small, numerically stable geometry of spheres seen from a point (SPEC §4.2).
+
+No `acos` of numbers near 1 anywhere: every angle is an `atan2` of quantities
+computed without cancellation.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+def radial_angle(distance, radius):
+    """Half-angle under which a point at `distance` from a centre sees a sphere.
+
+    `atan2(R, sqrt((D − R)(D + R)))`: exact far away and near grazing, where
+    `acos(R_T / D)` loses every digit (SPEC §4.2). NaN where D < R (caller masks).
+    """
+    with np.errstate(invalid="ignore"):
+        return np.arctan2(radius, np.sqrt((distance - radius) * (distance + radius)))
+
+
+def tangent_length(distance, radius):
+    """`R_T = sqrt(D² − R²)`, in the cancellation-free product form."""
+    with np.errstate(invalid="ignore"):
+        return np.sqrt((distance - radius) * (distance + radius))
+
+
+def angle_between(a, b):
+    """Angle between direction arrays `a`, `b` (…, 3): `atan2(|a×b|, a·b)`."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+def cap_overlap_fraction(alpha, beta, gamma):
+    """Share of a spherical cap (angular radius α) covered by another (β) at γ apart.
+
+    Both caps live on the unit sphere of directions around the light; because an
+    isotropic light's flux is uniform in solid angle, this is the share of the
+    lens's flux that the obstacle blocks. Exact spherical geometry, written with
+    atan2 of stable quantities (no acos of numbers near 1): the overlap is the
+    sum of two "cap segments" cut by the plane through both circles' intersection.
+    Works elementwise on broadcastable arrays; caps must have radius < π/2.
+    """
+    alpha, beta, gamma = np.broadcast_arrays(*(np.asarray(x, dtype=float)
+                                               for x in (alpha, beta, gamma)))
+    out = np.zeros(alpha.shape)
+    cap_a = _cap_area(alpha)
+    inside = beta >= gamma + alpha                      # obstacle covers the lens
+    contained = (alpha >= gamma + beta) & ~inside       # obstacle within the lens
+    partial = (alpha + beta > gamma) & ~inside & ~contained
+    out[inside] = 1.0
+    out[contained] = _cap_area(beta[contained]) / cap_a[contained]
+    if np.any(partial):
+        a, b, g = alpha[partial], beta[partial], gamma[partial]
+        out[partial] = (_segment_area(a, b, g) + _segment_area(b, a, g)) / cap_a[partial]
+    return np.clip(out, 0.0, 1.0)
+
+
+def _cap_area(a):
+    """Solid angle of a cap of angular radius a: `2π(1 − cos a) = 4π sin²(a/2)`."""
+    return 4.0 * np.pi * np.sin(0.5 * a) ** 2
+
+
+def _segment_area(a, b, g):
+    """Solid angle of the part of cap `a` beyond the great circle through the two
+    points where the rims of caps `a` and `b` (centres γ apart) cross.
+
+    With ω the angle at a's centre between the arc to b's centre and the arc to a
+    crossing point (spherical half-angle formula, stable for thin triangles), the
+    segment is the sector `2ω(1 − cos a)` minus the isosceles triangle, which
+    simplifies to `π − 2ρ − 2ω cos a` with the base angle `ρ = atan2(cos ω,
+    cos a sin ω)` (Napier's rule); it also holds for ω > π/2.
+    """
+    s = 0.5 * (a + b + g)
+    sin_half = np.sqrt(np.maximum(np.sin(s - a) * np.sin(s - g), 0.0))
+    cos_half = np.sqrt(np.maximum(np.sin(s) * np.sin(s - b), 0.0))
+    omega = 2.0 * np.arctan2(sin_half, cos_half)
+    cos_a = np.cos(a)
+    rho = np.arctan2(np.cos(omega), cos_a * np.sin(omega))
+    return np.pi - 2.0 * rho - 2.0 * omega * cos_a
