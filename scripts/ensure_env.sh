@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Creates (once) the pinned virtual environment and prints its python's path.
 # Progress goes to stderr; stdout carries only the path.
+# Usage: ensure_env.sh [EXTRA_REQUIREMENTS]   (e.g. bench/requirements.txt: the
+# benchmarks' extra packages go into an environment of their own).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 REQ="$ROOT/scripts/requirements.txt"
+EXTRA="${1:-}"
 HOME_DIR="${LENS_LIGHTS_HOME:-$HOME/.cache/lens-lights}"
-KEY="$(sha256sum "$REQ" | cut -c1-12)"
+KEY="$(cat "$REQ" ${EXTRA:+"$EXTRA"} | sha256sum | cut -c1-12)"
 VENV="$HOME_DIR/venv-py3.11-$KEY"
 
 if [ -f "$VENV/.complete" ]; then
@@ -36,7 +39,8 @@ if [ ! -f "$VENV/.complete" ]; then
   echo "lens-lights: creating the environment in $VENV (once; bpy is about 1 GB) ..." >&2
   rm -rf "$VENV"
   "$PYTHON" -m venv "$VENV" >&2
-  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ" >&2
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ" \
+    ${EXTRA:+-r "$EXTRA"} >&2
   touch "$VENV/.complete"
   echo "lens-lights: environment ready." >&2
 fi
