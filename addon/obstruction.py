@@ -7,6 +7,7 @@ identical to the full loop: the broad phase is conservative (see `_candidate_pai
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,9 +16,6 @@ from .geometry import angle_between, cap_overlap_fraction
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
-#: A disc more than this many times the 99th-percentile disc is an outlier and is
-#: tested against every sphere instead of being put into the grid.
-_OUTLIER_FACTOR = 4.0
 
 
 @dataclass
@@ -81,71 +79,64 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     """Unordered pairs (a, b) of spheres whose angular discs may overlap.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
-    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect,
-    and two intersecting boxes share a grid cell when both are at most one cell
-    wide. Outliers (discs much bigger than the rest) are paired with everything.
+    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect.
+    A hierarchy of uniform grids (cell sizes c₀·2^ℓ) holds each box in the level
+    whose cells are at least twice its width, so a box touches at most 8 cells of
+    its own level and of every coarser one. Each box is looked up in its own and
+    all coarser levels: two intersecting boxes always share a cell of the coarser
+    one's level. Near and far spheres (discs of very different sizes) thus cost
+    no more than uniform ones.
     """
     active = np.flatnonzero(obstacle | lens_mask)
+    empty = np.zeros(0, dtype=np.int64)
     if active.size < 2:
-        empty = np.zeros(0, dtype=np.int64)
         return empty, empty
-    rho = ang[active]
-    q99 = float(np.quantile(rho, 0.99))
-    limit = _OUTLIER_FACTOR * q99
-    outlier = rho > limit
-    cell = max(2.0 * float(rho[~outlier].max(initial=0.0)), _MIN_CELL)
-
-    in_grid = active[~outlier]
-    pa, pb = _grid_pairs(direction[in_grid], ang[in_grid], cell)
-    pairs_a, pairs_b = [in_grid[pa]], [in_grid[pb]]
-
-    big = active[outlier]
-    for k in big:      # few by construction
-        others = active[active != k]
-        pairs_a.append(np.full(others.size, k, dtype=np.int64))
-        pairs_b.append(others)
-    a = np.concatenate(pairs_a)
-    b = np.concatenate(pairs_b)
-    # pairs of two outliers appear twice; the grid gives each pair once per cell
-    key = np.unique(np.minimum(a, b) * direction.shape[0] + np.maximum(a, b))
-    return key // direction.shape[0], key % direction.shape[0]
-
-
-def _grid_pairs(w, rho, cell):
-    """Index pairs (i < j) of boxes [w − ρ, w + ρ] sharing a cell of a uniform grid."""
-    n = w.shape[0]
-    lo = np.floor((w - rho[:, None]) / cell).astype(np.int64)
-    hi = np.floor((w + rho[:, None]) / cell).astype(np.int64)
-    base = lo.min(axis=0)
-    lo -= base
-    hi -= base
-    dims = hi.max(axis=0) + 1
-    keys, owners = [], []
-    for dx in (0, 1):
-        for dy in (0, 1):
-            for dz in (0, 1):
-                c = lo + (dx, dy, dz)
-                ok = np.all(c <= hi, axis=1)
-                keys.append((c[ok, 0] * dims[1] + c[ok, 1]) * dims[2] + c[ok, 2])
-                owners.append(np.flatnonzero(ok))
-    keys = np.concatenate(keys)
-    owners = np.concatenate(owners)
-    order = np.argsort(keys, kind="stable")
-    keys, owners = keys[order], owners[order]
-    # For the entry at position p in a cell [start, end): pair it with p+1 … end−1.
-    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-    ends = np.r_[starts[1:], keys.size]
-    size = ends - starts
-    end_of = np.repeat(ends, size)
-    pos = np.arange(keys.size)
-    count = end_of - pos - 1
-    total = int(count.sum())
-    if total == 0:
-        empty = np.zeros(0, dtype=np.int64)
+    w, rho = direction[active], ang[active]
+    c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
+    level = np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * rho / c0, 1.0)))).astype(np.int64)
+    pa, pb = [], []
+    for lvl in np.unique(level):
+        cell = c0 * 2.0 ** lvl
+        owners = np.flatnonzero(level == lvl)
+        queries = np.flatnonzero(level <= lvl)
+        e_keys, e_idx = _cell_keys(w[owners], rho[owners], cell)
+        q_keys, q_idx = _cell_keys(w[queries], rho[queries], cell)
+        order = np.argsort(e_keys, kind="stable")
+        e_keys, e_own = e_keys[order], owners[e_idx[order]]
+        lo = np.searchsorted(e_keys, q_keys, side="left")
+        hi = np.searchsorted(e_keys, q_keys, side="right")
+        count = hi - lo
+        total = int(count.sum())
+        if total == 0:
+            continue
+        q = np.repeat(queries[q_idx], count)
+        e = e_own[np.repeat(lo, count) + np.arange(total)
+                  - np.repeat(np.cumsum(count) - count, count)]
+        pa.append(q)
+        pb.append(e)
+    if not pa:
         return empty, empty
-    first = np.repeat(pos, count)
-    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-    second = first + 1 + offset
-    i, j = owners[first], owners[second]
-    key = np.unique(np.minimum(i, j) * n + np.maximum(i, j))
+    a, b = np.concatenate(pa), np.concatenate(pb)
+    distinct = a != b
+    a, b = active[a[distinct]], active[b[distinct]]
+    n = direction.shape[0]
+    key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
     return key // n, key % n
+
+
+def _cell_keys(w, rho, cell):
+    """Keys of the (at most 8) cells of a grid of size `cell` that each box
+    [w − ρ, w + ρ] touches (2ρ ≤ cell), with the index of the box each key is for.
+    The grid is fixed in space (origin below −1, since |w| = 1), so keys of
+    different box sets on the same level agree."""
+    dims = int(math.ceil(2.5 / cell)) + 2
+    lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
+    hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
+    keys, idx = [], []
+    for d in ((0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1),
+              (1, 0, 0), (1, 0, 1), (1, 1, 0), (1, 1, 1)):
+        c = lo + d
+        ok = np.all(c <= hi, axis=1)
+        keys.append((c[ok, 0] * dims + c[ok, 1]) * dims + c[ok, 2])
+        idx.append(np.flatnonzero(ok))
+    return np.concatenate(keys), np.concatenate(idx)

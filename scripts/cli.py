@@ -4,6 +4,12 @@ with the pinned environment's python).
 Subcommands:
   phase1 SCENE.bi [--json]   secondary light sources of a `.bi` scene
   test [PYTEST ARGS]         the whole test suite
+  render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
+                             [--engine cycles|eevee] [--samples N] [--resolution WxH]
+                             [--no-lens-lights | --compare]
+  demo [--out DIR]           render the showcase scene without and with lens lights
+  build [ARGS]               build the extension's zip (scripts/build_extension.py)
+  bench NAME [ARGS]          a benchmark of bench/ (e.g. `bench scale`), report in reports/
 """
 from __future__ import annotations
 
@@ -79,6 +85,39 @@ def cmd_test(args, extra) -> int:
     return subprocess.call(cmd, cwd=ROOT)
 
 
+# --------------------------------------------------------------------------- bench
+
+def cmd_bench(args, extra) -> int:
+    script = ROOT / "bench" / f"{args.name}.py"
+    if not script.is_file():
+        names = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_"))
+        return _fail(f"no benchmark {args.name!r}; there are: {', '.join(names)}")
+    return subprocess.call([sys.executable, str(script), *extra], cwd=ROOT)
+
+
+# --------------------------------------------------------------------------- render, demo, build
+
+def _load_script(name: str):
+    """A module of scripts/ by file (cli.py may run from anywhere)."""
+    import importlib.util
+    path = ROOT / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"lens_lights_scripts_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def cmd_render(args) -> int:
+    """`render` and `demo`: scripts/render.py, in this process (bpy is imported there)."""
+    return _load_script("render").run(args)
+
+
+def cmd_build(args, extra) -> int:
+    if not (ROOT / "scripts" / "build_extension.py").is_file():
+        return _fail("scripts/build_extension.py is missing")
+    return _load_script("build_extension").main(extra) or 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="lens-lights", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -90,12 +129,28 @@ def main(argv=None) -> int:
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 
+    p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
+    p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
+
+    render = _load_script("render")
+    render.add_render_arguments(sub.add_parser(
+        "render", help="render a .blend or .bi scene (with lens lights by default)"))
+    render.add_demo_arguments(sub.add_parser(
+        "demo", help="render the showcase scene without and with lens lights"))
+    sub.add_parser("build", add_help=False,
+                   help="build the extension's zip (args go to scripts/build_extension.py)")
+
     args, extra = parser.parse_known_args(argv)
+    if args.command == "build":
+        return cmd_build(args, extra)
     if args.command == "test":
         return cmd_test(args, extra)
+    if args.command == "bench":
+        return cmd_bench(args, extra)
     if extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
-    return {"phase1": cmd_phase1}[args.command](args)
+    return {"phase1": cmd_phase1, "render": cmd_render,
+            "demo": cmd_render}[args.command](args)
 
 
 if __name__ == "__main__":
