@@ -14,16 +14,14 @@ def test_caught_fraction_matches_cap_solid_angle_and_survives_far_lights():
     assert math.isclose(caught_fraction(1.0, 1e12), 0.25e-24, rel_tol=1e-12)
 
 
-SIDEWAYS = np.array([0.0, 10.0, 25.0, 45.0])
-
-
 def _row_scene(distances, radius=0.5):
-    n = len(distances)
-    centers = np.stack([np.asarray(distances, float), np.full(n, 0.0), np.zeros(n)], 1)
-    # Spread the lenses sideways (in different directions) so none blocks another.
-    centers[:, 1] = SIDEWAYS[:n]
+    """Lenses at the given distances from the light, 25° apart in direction so
+    that none blocks another (α + β < γ for every pair)."""
+    d = np.asarray(distances, float)
+    ang = np.radians(25.0) * np.arange(d.size)
+    centers = np.stack([d * np.cos(ang), d * np.sin(ang), np.zeros(d.size)], 1)
     return SceneArrays(np.zeros((1, 3)), np.ones(1), np.ones((1, 3)), centers,
-                       np.full(n, radius), np.full(n, 1.5), np.full(n, 1.0))
+                       np.full(d.size, radius), np.full(d.size, 1.5), np.full(d.size, 1.0))
 
 
 def test_cutoff_and_cap_keep_the_strongest():
@@ -31,8 +29,8 @@ def test_cutoff_and_cap_keep_the_strongest():
     table = compute_phase1(a).table
     power = [100.0]
     flux = source_flux(table, power)
-    # kt = 1: flux = P · caught fraction; lens at D = hypot(x, y) from the light
-    D = np.hypot([3.0, 6.0, 12.0, 24.0], SIDEWAYS)
+    # kt = 1 and nothing blocked: flux = P · caught fraction
+    D = np.array([3.0, 6.0, 12.0, 24.0])
     expected = 100.0 * np.array([caught_fraction(0.5, d) for d in D])
     np.testing.assert_allclose(flux, expected, rtol=1e-12)
     cut = expected[1] / 100.0          # keeps sources 0 and 1 (flux decreases with D)
