@@ -10,17 +10,17 @@ import numpy as np
 def radial_angle(distance, radius):
     """Half-angle under which a point at `distance` from a centre sees a sphere.
 
-    `atan2(R, sqrt((D − R)(D + R)))`: exact far away and near grazing, where
+    `atan2(R, sqrt(D − R)·sqrt(D + R))`: exact far away and near grazing, where
     `acos(R_T / D)` loses every digit (SPEC §4.2). NaN where D < R (caller masks).
     """
     with np.errstate(invalid="ignore"):
-        return np.arctan2(radius, np.sqrt((distance - radius) * (distance + radius)))
+        return np.arctan2(radius, np.sqrt(distance - radius) * np.sqrt(distance + radius))
 
 
 def tangent_length(distance, radius):
     """`R_T = sqrt(D² − R²)`, in the cancellation-free product form."""
     with np.errstate(invalid="ignore"):
-        return np.sqrt((distance - radius) * (distance + radius))
+        return np.sqrt(distance - radius) * np.sqrt(distance + radius)
 
 
 def angle_between(a, b):

@@ -150,7 +150,8 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
         lo.append((c - r).min(axis=0)); hi.append((c + r).max(axis=0))
     if not lo:
         return 1.0
-    size = float(np.linalg.norm(np.max(hi, axis=0) - np.min(lo, axis=0)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = float(_norm((np.max(hi, axis=0) - np.min(lo, axis=0))[None, :])[0])
     if np.any(valid_spheres):
         size = max(size, float(arrays.radius[valid_spheres].max()))
     return size if size > 0 and math.isfinite(size) else 1.0
@@ -163,7 +164,7 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
 # made only when asked for.
 (INVALID_LIGHT, INVALID_SPHERE_NONFINITE, INVALID_SPHERE_RADIUS, OPAQUE, INVALID_KT,
  NOT_CONVERGING, LIGHT_INSIDE, LIGHT_ON_SURFACE, LIGHT_INSIDE_OTHER,
- LIGHT_ON_OTHER, TOTALLY_BLOCKED) = range(11)
+ LIGHT_ON_OTHER, TOTALLY_BLOCKED, OUT_OF_RANGE) = range(12)
 
 
 def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> str:
@@ -179,6 +180,7 @@ def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> 
         LIGHT_INSIDE_OTHER: f"light inside sphere {other}",
         LIGHT_ON_OTHER: f"light on the surface of sphere {other}",
         TOTALLY_BLOCKED: f"totally blocked by sphere {other}",
+        OUT_OF_RANGE: "out of range (the light's distance overflows floating point)",
     }[code]
 
 
@@ -301,7 +303,7 @@ class Phase1Result:
                  LIGHT_ON_SURFACE: "light on the sphere's surface",
                  LIGHT_INSIDE_OTHER: "light inside another sphere",
                  LIGHT_ON_OTHER: "light on another sphere",
-                 TOTALLY_BLOCKED: "totally blocked"}
+                 TOTALLY_BLOCKED: "totally blocked", OUT_OF_RANGE: "out of range"}
         counts: dict[str, int] = {}
         codes, n = np.unique(self.skip_table.code, return_counts=True)
         for c, k in zip(codes, n):
@@ -349,9 +351,15 @@ def compute_phase1(scene: Scene | SceneArrays,
 def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) -> dict:
     """Columns of the secondary sources of light j through every lens."""
     light = a.light_position[j]
-    to_center = a.center - light                                     # (S, 3)
-    dist = np.linalg.norm(to_center, axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        to_center = a.center - light                                 # (S, 3)
+        dist = _norm(to_center)
     rad = a.radius
+    overflow = valid_sphere & ~(np.isfinite(dist) & np.all(np.isfinite(to_center), axis=1))
+    if overflow.any():
+        skips.append((j, np.flatnonzero(overflow & (problem < 0)),
+                      np.full(int((overflow & (problem < 0)).sum()), OUT_OF_RANGE), -1))
+        valid_sphere = valid_sphere & ~overflow
     with np.errstate(invalid="ignore"):
         surface = valid_sphere & (np.abs(dist - rad) <= SURFACE_TOLERANCE * rad)
         inside = valid_sphere & (dist < rad) & ~surface
@@ -413,6 +421,13 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
         vergence=V, alpha=alpha, unblocked_fraction=blk.unblocked_fraction[rows],
         shadow_counts=counts, shadow_spheres=shadow,
     )
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """Row norms that do not overflow before the result does (huge coordinates)."""
+    scale = np.max(np.abs(v), axis=1)
+    safe = np.where(scale > 0, scale, 1.0)
+    return scale * np.linalg.norm(v / safe[:, None], axis=1)
 
 
 def _concat_sources(parts: list[dict]) -> SourceTable:

@@ -10,6 +10,7 @@ Subcommands:
   demo [--out DIR]           render the showcase scene without and with lens lights
   build [ARGS]               build the extension's zip (scripts/build_extension.py)
   bench NAME [ARGS]          a benchmark of bench/ (e.g. `bench scale`), report in reports/
+  fuzz [--count N]           fuzz the .bi reader and `phase1` (100 000 inputs by default)
 """
 from __future__ import annotations
 
@@ -129,6 +130,8 @@ def main(argv=None) -> int:
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 
+    sub.add_parser("fuzz", help="fuzz the .bi reader and phase1 (extra args go to it)")
+
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
 
@@ -147,6 +150,8 @@ def main(argv=None) -> int:
         return cmd_test(args, extra)
     if args.command == "bench":
         return cmd_bench(args, extra)
+    if args.command == "fuzz":
+        return subprocess.call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
     if extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     return {"phase1": cmd_phase1, "render": cmd_render,
