@@ -173,7 +173,7 @@ def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> 
         INVALID_SPHERE_NONFINITE: "invalid sphere (non-finite number)",
         INVALID_SPHERE_RADIUS: f"invalid sphere (radius {radius:g} ≤ 0)",
         OPAQUE: "opaque (kt = 0)",
-        INVALID_KT: f"invalid transmission (kt = {kt:g} > 1)",
+        INVALID_KT: f"invalid transmission (kt = {kt:g} outside 0…1)",
         NOT_CONVERGING: f"not a converging lens (n = {ior:g} ≤ 1)",
         LIGHT_INSIDE: "light inside the sphere",
         LIGHT_ON_SURFACE: "light on the sphere's surface",
@@ -190,8 +190,8 @@ def sphere_problems(a: SceneArrays) -> np.ndarray:
     # Later assignments win only where nothing earlier applied: go from least to
     # most fundamental and overwrite.
     code[a.ior <= 1] = NOT_CONVERGING
-    code[a.kt > 1] = INVALID_KT
-    code[a.kt <= 0] = OPAQUE
+    code[(a.kt > 1) | (a.kt < 0)] = INVALID_KT
+    code[a.kt == 0] = OPAQUE
     code[a.radius <= 0] = INVALID_SPHERE_RADIUS
     finite = (np.all(np.isfinite(a.center), axis=1) & np.isfinite(a.radius)
               & np.isfinite(a.ior) & np.isfinite(a.kt))
