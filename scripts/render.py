@@ -1,0 +1,560 @@
+"""Batch renders: `./lens-lights render …` and `./lens-lights demo …` (needs bpy).
+
+Run by the launcher with the pinned environment's python (bpy 5.0.1 as a module),
+or inside a Blender binary:
+
+    blender -b --python scripts/render.py -- SCENE.blend|SCENE.bi -o OUT.png [--compare]
+
+If the extension is not installed (the bpy module, a fresh Blender), it is loaded
+from this checkout and registered for the run.
+
+render SCENE -o OUT.png   render a `.blend` or `.bi` scene with lens lights
+  --engine cycles|eevee   render engine (default: the file's for a .blend, else cycles)
+  --samples N             samples per pixel (default: the file's; 64 for a .bi)
+  --resolution WxH        image size in pixels (default: the file's / the .bi viewport)
+  --no-lens-lights        render without lens lights (removes any generated ones)
+  --compare               one image: without | with lens lights, side by side, labelled
+
+demo [--out DIR]          build the showcase scene, render it without and with lens
+                          lights; writes DIR/showcase.blend, showcase_without.png,
+                          showcase_with.png, showcase_compare.png (default DIR: out/)
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = "lens_lights"
+EXIT_BAD_INPUT = 2
+EXIT_FAILED = 1
+DEFAULT_BI_SAMPLES = 64
+DEFAULT_OUT = ROOT / "out"
+DEMO_ENGINE, DEMO_SAMPLES = "cycles", 64
+
+LABEL_WITHOUT, LABEL_WITH = "WITHOUT LENS LIGHTS", "WITH LENS LIGHTS"
+SHORT_WITHOUT, SHORT_WITH = "WITHOUT", "WITH"
+
+
+class RenderError(Exception):
+    """A failure with a message for the terminal (no traceback)."""
+
+    def __init__(self, message: str, code: int = EXIT_FAILED):
+        super().__init__(message)
+        self.code = code
+
+
+_t0 = time.monotonic()
+
+
+def say(message: str) -> None:
+    """Progress on the terminal (stderr, so stdout carries only results)."""
+    print(f"lens-lights [{time.monotonic() - _t0:6.1f} s] {message}", file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------- arguments
+
+def resolution(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().replace("×", "x").split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, e.g. 640x480, got '{text}'")
+    if not (4 <= w <= 65536 and 4 <= h <= 65536):
+        raise argparse.ArgumentTypeError(f"width and height must be 4–65536 pixels, got '{text}'")
+    return w, h
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got '{text}'")
+    return value
+
+
+def add_engine_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--engine", choices=("cycles", "eevee"),
+                   help="render engine (default: the .blend's own; cycles for a .bi)")
+    p.add_argument("--samples", type=positive_int, metavar="N",
+                   help=f"samples per pixel (default: the .blend's own; "
+                        f"{DEFAULT_BI_SAMPLES} for a .bi)")
+    p.add_argument("--resolution", type=resolution, metavar="WxH",
+                   help="image size in pixels (default: the scene's)")
+
+
+def add_render_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", help="a .blend or .bi scene")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.png",
+                   help="the PNG to write")
+    add_engine_arguments(p)
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--no-lens-lights", action="store_true",
+                       help="render without lens lights (removes generated ones)")
+    group.add_argument("--compare", action="store_true",
+                       help="one image: without | with lens lights, labelled")
+
+
+def add_demo_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", default=str(DEFAULT_OUT), metavar="DIR",
+                   help=f"output directory (default: {DEFAULT_OUT})")
+    p.add_argument("--engine", choices=("cycles", "eevee"),
+                   help=f"render engine (default: {DEMO_ENGINE})")
+    p.add_argument("--samples", type=positive_int, metavar="N",
+                   help=f"samples per pixel (default: {DEMO_SAMPLES})")
+    p.add_argument("--resolution", type=resolution, metavar="WxH",
+                   help="image size in pixels (default: the showcase's 480x270)")
+
+
+# --------------------------------------------------------------------------- extension
+
+def _has_operator(module: str, name: str) -> bool:
+    import bpy
+    try:
+        getattr(getattr(bpy.ops, module), name).get_rna_type()
+        return True
+    except (KeyError, AttributeError):
+        return False
+
+
+def ensure_extension():
+    """The Lens Lights package, registering it from this checkout unless Blender
+    already has it (an installed extension). Returns the package module or None."""
+    if _has_operator("import_scene", "bi") and _has_operator("lens_lights", "generate"):
+        return None
+    if PACKAGE in sys.modules:
+        module = sys.modules[PACKAGE]
+    else:
+        spec = importlib.util.spec_from_file_location(
+            PACKAGE, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[PACKAGE] = module
+        spec.loader.exec_module(module)
+    if not _has_operator("import_scene", "bi"):
+        module.register()
+    return module
+
+
+def _run_operator(op, what: str) -> None:
+    """Call an operator; its error report becomes a RenderError (no traceback)."""
+    try:
+        result = op()
+    except RuntimeError as e:
+        message = str(e).strip()
+        if message.startswith("Error: "):
+            message = message[len("Error: "):]
+        raise RenderError(f"{what}: {message}") from None
+    if "FINISHED" not in result:
+        raise RenderError(f"{what}: cancelled ({', '.join(sorted(result))})")
+
+
+# --------------------------------------------------------------------------- scenes
+
+def new_empty_file() -> None:
+    import bpy
+    # Factory startup but the user's preferences (keeps installed extensions).
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+
+
+def load_scene(path: str) -> bool:
+    """Open a .blend or import a .bi into an empty file. Returns True for .bi."""
+    import bpy
+    if not os.path.isfile(path):
+        raise RenderError(f"{path}: no such file", EXIT_BAD_INPUT)
+    suffix = Path(path).suffix.lower()
+    if suffix == ".blend":
+        try:
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path), load_ui=False)
+        except RuntimeError as e:
+            raise RenderError(f"{path}: cannot open ({str(e).strip()})", EXIT_BAD_INPUT) from None
+        ensure_extension()
+        return False
+    if suffix == ".bi":
+        new_empty_file()
+        ensure_extension()
+        try:
+            _run_operator(lambda: bpy.ops.import_scene.bi(filepath=os.path.abspath(path)),
+                          "import")
+        except RenderError as e:
+            raise RenderError(str(e).removeprefix("import: "), EXIT_BAD_INPUT) from None
+        return True
+    raise RenderError(f"{path}: expected a .blend or .bi file", EXIT_BAD_INPUT)
+
+
+def eevee_engine() -> str:
+    import bpy
+    return "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
+
+
+def configure(scene, engine: str | None, samples: int | None,
+              size: tuple[int, int] | None, is_bi: bool) -> None:
+    """Engine, samples and size; a .bi scene gets Cycles and 64 samples by default."""
+    if engine is None and is_bi:
+        engine = "cycles"
+    if engine == "cycles":
+        scene.render.engine = "CYCLES"
+    elif engine == "eevee":
+        scene.render.engine = eevee_engine()
+    if scene.render.engine == "CYCLES":
+        scene.cycles.device = "CPU"
+    if samples is None and is_bi:
+        samples = DEFAULT_BI_SAMPLES
+    if samples is not None:
+        if scene.render.engine == "CYCLES":
+            scene.cycles.samples = samples
+            scene.cycles.preview_samples = samples
+        else:
+            scene.eevee.taa_render_samples = samples
+    if size is not None:
+        scene.render.resolution_x, scene.render.resolution_y = size
+        scene.render.resolution_percentage = 100
+    if scene.camera is None:
+        raise RenderError("the scene has no camera", EXIT_BAD_INPUT)
+
+
+def describe(scene) -> str:
+    r = scene.render
+    w = r.resolution_x * r.resolution_percentage // 100
+    h = r.resolution_y * r.resolution_percentage // 100
+    if r.engine == "CYCLES":
+        return f"Cycles, {w}×{h}, {scene.cycles.samples} samples"
+    return f"EEVEE, {w}×{h}, {scene.eevee.taa_render_samples} samples"
+
+
+def set_lens_lights(on: bool) -> str:
+    """Generate (on) or clear (off) the scene's lens lights; a short report."""
+    import bpy
+    if not on:
+        if _has_operator("lens_lights", "clear"):
+            _run_operator(bpy.ops.lens_lights.clear, "removing lens lights")
+        return "no lens lights"
+    if not _has_operator("lens_lights", "generate"):
+        raise RenderError("the Lens Lights generator (bpy.ops.lens_lights.generate) "
+                          "is not available")
+    before = {o.name for o in bpy.data.objects}
+    _run_operator(bpy.ops.lens_lights.generate, "generating lens lights")
+    lights = [o for o in bpy.context.scene.objects
+              if o.type == "LIGHT" and o.name not in before]
+    return f"{len(lights)} lens light(s)"
+
+
+class _SampleProgress:
+    """Blender's render statistics ("Remaining: … | Sample 8/64") on the terminal,
+    at most every `interval` seconds (a `render_stats` handler)."""
+
+    def __init__(self, interval: float = 3.0):
+        self.interval = interval
+        self.last = 0.0
+
+    def __call__(self, stats, *_):
+        text = str(stats)
+        if "Sample" not in text:
+            return
+        now = time.monotonic()
+        final = "Sample" in text and text.split("Sample")[-1].strip().split("/")[0] == \
+            text.split("/")[-1].strip()
+        if now - self.last < self.interval and not final:
+            return
+        self.last = now
+        parts = [p.strip() for p in text.split("|")]
+        keep = [p for p in parts if p.startswith(("Sample", "Remaining"))]
+        say("  " + ", ".join(keep).lower())
+
+
+def render_to(scene, path: str, label: str) -> float:
+    """Render the scene's camera view to a PNG; returns seconds taken."""
+    import bpy
+    settings = scene.render.image_settings
+    settings.file_format = "PNG"
+    settings.color_mode = "RGBA" if scene.render.film_transparent else "RGB"
+    settings.color_depth = "8"
+    scene.render.use_file_extension = False
+    scene.render.filepath = os.path.abspath(path)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    say(f"rendering {label} ({describe(scene)}) ...")
+    start = time.monotonic()
+    progress = _SampleProgress()
+    bpy.app.handlers.render_stats.append(progress)
+    try:
+        bpy.ops.render.render(write_still=True)
+    except RuntimeError as e:
+        raise RenderError(f"render failed: {str(e).strip()}") from None
+    finally:
+        bpy.app.handlers.render_stats.remove(progress)
+    seconds = time.monotonic() - start
+    if not os.path.isfile(path):
+        raise RenderError(f"render failed: {path} was not written")
+    say(f"rendered {label} in {seconds:.1f} s → {path}")
+    return seconds
+
+
+# --------------------------------------------------------------------------- images
+
+def read_png(path: str) -> np.ndarray:
+    """An 8-bit PNG as a float array (rows top to bottom, RGB, values byte/255)."""
+    import bpy
+    image = bpy.data.images.load(os.path.abspath(path), check_existing=False)
+    try:
+        w, h = image.size
+        pixels = np.empty(w * h * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    rgba = pixels.reshape(h, w, 4)[::-1]
+    rgb, alpha = rgba[..., :3], rgba[..., 3:]
+    return rgb * alpha       # a transparent film composes over black
+
+
+def write_png(rgb: np.ndarray, path: str) -> None:
+    """Write a float RGB array (rows top to bottom, 0–1) as an 8-bit PNG, as is."""
+    import bpy
+    h, w, _ = rgb.shape
+    rgba = np.concatenate([np.clip(rgb, 0.0, 1.0), np.ones((h, w, 1))], axis=2)[::-1]
+    # Round to bytes here so that the saved bytes are exactly these values.
+    rgba = np.round(rgba * 255.0) / 255.0
+    image = bpy.data.images.new("lens-lights compare", w, h, alpha=False)
+    try:
+        image.pixels.foreach_set(rgba.astype(np.float32).ravel())
+        image.filepath_raw = os.path.abspath(path)
+        image.file_format = "PNG"
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        image.save()
+    finally:
+        bpy.data.images.remove(image)
+
+
+# 5×7 bitmap font: each glyph is 7 rows of 5 columns ("#" = ink).
+_FONT_ROWS = {
+    "A": ".###.|#...#|#...#|#####|#...#|#...#|#...#",
+    "B": "####.|#...#|#...#|####.|#...#|#...#|####.",
+    "C": ".###.|#...#|#....|#....|#....|#...#|.###.",
+    "D": "####.|#...#|#...#|#...#|#...#|#...#|####.",
+    "E": "#####|#....|#....|####.|#....|#....|#####",
+    "F": "#####|#....|#....|####.|#....|#....|#....",
+    "G": ".###.|#...#|#....|#.###|#...#|#...#|.###.",
+    "H": "#...#|#...#|#...#|#####|#...#|#...#|#...#",
+    "I": ".###.|..#..|..#..|..#..|..#..|..#..|.###.",
+    "J": "..###|...#.|...#.|...#.|...#.|#..#.|.##..",
+    "K": "#...#|#..#.|#.#..|##...|#.#..|#..#.|#...#",
+    "L": "#....|#....|#....|#....|#....|#....|#####",
+    "M": "#...#|##.##|#.#.#|#.#.#|#...#|#...#|#...#",
+    "N": "#...#|#...#|##..#|#.#.#|#..##|#...#|#...#",
+    "O": ".###.|#...#|#...#|#...#|#...#|#...#|.###.",
+    "P": "####.|#...#|#...#|####.|#....|#....|#....",
+    "Q": ".###.|#...#|#...#|#...#|#.#.#|#..#.|.##.#",
+    "R": "####.|#...#|#...#|####.|#.#..|#..#.|#...#",
+    "S": ".####|#....|#....|.###.|....#|....#|####.",
+    "T": "#####|..#..|..#..|..#..|..#..|..#..|..#..",
+    "U": "#...#|#...#|#...#|#...#|#...#|#...#|.###.",
+    "V": "#...#|#...#|#...#|#...#|#...#|.#.#.|..#..",
+    "W": "#...#|#...#|#...#|#.#.#|#.#.#|#.#.#|.#.#.",
+    "X": "#...#|#...#|.#.#.|..#..|.#.#.|#...#|#...#",
+    "Y": "#...#|#...#|.#.#.|..#..|..#..|..#..|..#..",
+    "Z": "#####|....#|...#.|..#..|.#...|#....|#####",
+    "0": ".###.|#...#|#..##|#.#.#|##..#|#...#|.###.",
+    "1": "..#..|.##..|..#..|..#..|..#..|..#..|.###.",
+    "2": ".###.|#...#|....#|...#.|..#..|.#...|#####",
+    "3": "#####|...#.|..#..|...#.|....#|#...#|.###.",
+    "4": "...#.|..##.|.#.#.|#..#.|#####|...#.|...#.",
+    "5": "#####|#....|####.|....#|....#|#...#|.###.",
+    "6": "..##.|.#...|#....|####.|#...#|#...#|.###.",
+    "7": "#####|....#|...#.|..#..|.#...|.#...|.#...",
+    "8": ".###.|#...#|#...#|.###.|#...#|#...#|.###.",
+    "9": ".###.|#...#|#...#|.####|....#|...#.|.##..",
+    " ": ".....|.....|.....|.....|.....|.....|.....",
+    ".": ".....|.....|.....|.....|.....|.##..|.##..",
+    ",": ".....|.....|.....|.....|.##..|..#..|.#...",
+    ":": ".....|.##..|.##..|.....|.##..|.##..|.....",
+    "-": ".....|.....|.....|#####|.....|.....|.....",
+    "/": "....#|....#|...#.|..#..|.#...|#....|#....",
+    "(": "...#.|..#..|.#...|.#...|.#...|..#..|...#.",
+    ")": ".#...|..#..|...#.|...#.|...#.|..#..|.#...",
+    "|": "..#..|..#..|..#..|..#..|..#..|..#..|..#..",
+    "?": ".###.|#...#|....#|...#.|..#..|.....|..#..",
+}
+FONT = {ch: np.array([[c == "#" for c in row] for row in rows.split("|")], dtype=bool)
+        for ch, rows in _FONT_ROWS.items()}
+GLYPH_W, GLYPH_H, GLYPH_GAP = 5, 7, 1
+
+
+def text_width(text: str, scale: int) -> int:
+    return max(0, len(text) * (GLYPH_W + GLYPH_GAP) - GLYPH_GAP) * scale
+
+
+def text_mask(text: str, scale: int) -> np.ndarray:
+    """A boolean bitmap (rows top to bottom) of `text` in the built-in font;
+    characters it lacks are drawn as '?'; lower case as upper case."""
+    width = text_width(text, 1)
+    mask = np.zeros((GLYPH_H, max(width, 1)), dtype=bool)
+    for i, ch in enumerate(text.upper()):
+        glyph = FONT.get(ch, FONT["?"])
+        x = i * (GLYPH_W + GLYPH_GAP)
+        mask[:, x:x + GLYPH_W] = glyph
+    return np.kron(mask, np.ones((scale, scale), dtype=bool))
+
+
+def label_scale(width: int) -> int:
+    """Glyph scale (1–4) for a label over a panel `width` pixels wide."""
+    return max(1, min(4, width // 240 + 1))
+
+
+def _fit_label(labels: tuple[str, ...], width: int, scale: int) -> tuple[str, int] | None:
+    """The first label that fits `width` pixels at `scale` or, failing that, at a
+    smaller scale; None if even the shortest label does not fit at scale 1."""
+    for s in range(scale, 0, -1):
+        for label in labels:
+            if text_width(label, s) <= width - 2:
+                return label, s
+    return None
+
+
+def compose_side_by_side(left: np.ndarray, right: np.ndarray,
+                         labels=((LABEL_WITHOUT, SHORT_WITHOUT), (LABEL_WITH, SHORT_WITH)),
+                         gap: int = 4) -> np.ndarray:
+    """One image: `left | right` (RGB float arrays, top row first, same height),
+    each under a dark band with its label in white."""
+    h = max(left.shape[0], right.shape[0])
+    panels = []
+    for image, names in zip((left, right), labels):
+        pad = np.zeros((h, image.shape[1], 3), dtype=np.float32)
+        pad[:image.shape[0]] = image
+        panels.append((pad, names))
+    scale = label_scale(min(image.shape[1] for image, _ in panels))
+    fits = [_fit_label(names, image.shape[1], scale) for image, names in panels]
+    scale = min([f[1] for f in fits if f] or [1])
+    margin = max(2, 2 * scale)
+    band_h = GLYPH_H * scale + 2 * margin
+    band_color, ink = np.float32(0.08), np.float32(1.0)
+    columns = []
+    for (image, names), fit in zip(panels, fits):
+        band = np.full((band_h, image.shape[1], 3), band_color, dtype=np.float32)
+        if fit:
+            mask = text_mask(fit[0], scale)
+            x0 = max(0, (image.shape[1] - mask.shape[1]) // 2)
+            band[margin:margin + mask.shape[0], x0:x0 + mask.shape[1]][mask] = ink
+        columns.append(np.concatenate([band, image.astype(np.float32)], axis=0))
+    separator = np.full((h + band_h, gap, 3), band_color, dtype=np.float32)
+    return np.concatenate([columns[0], separator, columns[1]], axis=1)
+
+
+def compare_png(without_png: str, with_png: str, out_png: str) -> None:
+    write_png(compose_side_by_side(read_png(without_png), read_png(with_png)), out_png)
+
+
+# --------------------------------------------------------------------------- commands
+
+def cmd_render(args) -> int:
+    import bpy
+    say(f"loading {args.scene}")
+    is_bi = load_scene(args.scene)
+    scene = bpy.context.scene
+    configure(scene, args.engine, args.samples, args.resolution, is_bi)
+    out = os.path.abspath(args.output)
+    if not args.compare:
+        on = not args.no_lens_lights
+        say(f"{'generating' if on else 'removing'} lens lights ...")
+        say(set_lens_lights(on))
+        render_to(scene, out, "with lens lights" if on else "without lens lights")
+        print(out)
+        return 0
+    with tempfile.TemporaryDirectory(prefix="lens-lights-") as tmp:
+        without_png, with_png = os.path.join(tmp, "without.png"), os.path.join(tmp, "with.png")
+        say(set_lens_lights(False))
+        render_to(scene, without_png, "without lens lights")
+        say("generating lens lights ...")
+        say(set_lens_lights(True))
+        render_to(scene, with_png, "with lens lights")
+        compare_png(without_png, with_png, out)
+    say(f"wrote the comparison → {out}")
+    print(out)
+    return 0
+
+
+def load_showcase():
+    """`build_showcase(scene)` from examples/showcase.py."""
+    package = sys.modules.get(PACKAGE)
+    if package is not None:
+        try:
+            return importlib.import_module(f"{PACKAGE}.examples.showcase").build_showcase
+        except ModuleNotFoundError as e:
+            if e.name not in (f"{PACKAGE}.examples", f"{PACKAGE}.examples.showcase"):
+                raise
+    path = ROOT / "examples" / "showcase.py"
+    if not path.is_file():
+        raise RenderError(f"{path}: the showcase scene is missing")
+    spec = importlib.util.spec_from_file_location(f"{PACKAGE}.examples.showcase", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module.build_showcase
+
+
+def cmd_demo(args) -> int:
+    import bpy
+    out_dir = Path(args.out).resolve()
+    say(f"building the showcase scene (output: {out_dir})")
+    new_empty_file()
+    ensure_extension()
+    build_showcase = load_showcase()
+    build_showcase(bpy.context.scene)
+    scene = bpy.context.scene
+    configure(scene, args.engine or DEMO_ENGINE, args.samples or DEMO_SAMPLES,
+              args.resolution, is_bi=False)
+    if scene.render.engine == "CYCLES":
+        scene.cycles.use_denoising = True
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = {k: str(out_dir / f"showcase_{k}.png") for k in ("without", "with", "compare")}
+    blend = str(out_dir / "showcase.blend")
+    say(set_lens_lights(False))
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    render_to(scene, paths["without"], "without lens lights")
+    say("generating lens lights ...")
+    say(set_lens_lights(True))
+    render_to(scene, paths["with"], "with lens lights")
+    compare_png(paths["without"], paths["with"], paths["compare"])
+    say("done")
+    print(f"showcase scene:       {blend}")
+    print(f"without lens lights:  {paths['without']}")
+    print(f"with lens lights:     {paths['with']}")
+    print(f"side by side:         {paths['compare']}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="render.py", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_render_arguments(sub.add_parser("render", help="render a .blend or .bi scene"))
+    add_demo_arguments(sub.add_parser("demo", help="render the showcase scene"))
+    return parser
+
+
+def run(args) -> int:
+    """Run a parsed `render` or `demo` command; errors become a message and an exit code."""
+    try:
+        return {"render": cmd_render, "demo": cmd_demo}[args.command](args)
+    except RenderError as e:
+        print(f"lens-lights: {e}", file=sys.stderr)
+        return e.code
+
+
+def main(argv=None) -> int:
+    if argv is None:
+        # Inside Blender: `blender -b --python render.py -- ARGS`.
+        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+        if argv and argv[0] not in ("render", "demo", "-h", "--help"):
+            argv = ["render", *argv]
+    return run(build_parser().parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
