@@ -62,16 +62,19 @@ def _segment_area(a, b, g):
     """Solid angle of the part of cap `a` beyond the great circle through the two
     points where the rims of caps `a` and `b` (centres γ apart) cross.
 
-    With ω the angle at a's centre between the arc to b's centre and the arc to a
-    crossing point (spherical half-angle formula, stable for thin triangles), the
-    segment is the sector `2ω(1 − cos a)` minus the isosceles triangle, which
-    simplifies to `π − 2ρ − 2ω cos a` with the base angle `ρ = atan2(cos ω,
-    cos a sin ω)` (Napier's rule); it also holds for ω > π/2.
+    ω, the angle at a's centre between the arc to b's centre and the arc to a
+    crossing point, comes from the spherical half-angle formula (stable for thin
+    triangles, with the half-perimeter differences formed directly). The segment
+    is the sector `4ω sin²(a/2)` minus the isosceles triangle of legs a and apex
+    angle 2ω, whose excess is `E = 2 atan2(t² sin 2ω, 1 + t² cos 2ω)`, t = tan(a/2).
+    Both terms scale as a², so tiny caps (far lenses) keep their relative
+    precision; for ω > π/2 the excess turns negative and the sum still holds.
     """
     s = 0.5 * (a + b + g)
-    sin_half = np.sqrt(np.maximum(np.sin(s - a) * np.sin(s - g), 0.0))
-    cos_half = np.sqrt(np.maximum(np.sin(s) * np.sin(s - b), 0.0))
+    s_a, s_b, s_g = 0.5 * (b + g - a), 0.5 * (a + g - b), 0.5 * (a + b - g)
+    sin_half = np.sqrt(np.maximum(np.sin(s_a) * np.sin(s_g), 0.0))
+    cos_half = np.sqrt(np.maximum(np.sin(s) * np.sin(s_b), 0.0))
     omega = 2.0 * np.arctan2(sin_half, cos_half)
-    cos_a = np.cos(a)
-    rho = np.arctan2(np.cos(omega), cos_a * np.sin(omega))
-    return np.pi - 2.0 * rho - 2.0 * omega * cos_a
+    t2 = np.tan(0.5 * a) ** 2
+    excess = 2.0 * np.arctan2(t2 * np.sin(2.0 * omega), 1.0 + t2 * np.cos(2.0 * omega))
+    return 4.0 * omega * np.sin(0.5 * a) ** 2 - excess
