@@ -1,0 +1,110 @@
+"""Settings and bookkeeping stored in the .blend file.
+
+* ``scene.lens_lights`` (:class:`LensLightsSceneSettings`): the generator's settings,
+  the last run's figures, and the registry of what the extension created (objects
+  and collections). Clear/regenerate remove only what is in the registry *and*
+  carries the extension's mark, so a user's own lights — and even a user's
+  duplicate of a lens light (it copies the mark but is not in the registry) — are
+  never touched.
+* ``object.lens_lights`` (:class:`LensLightsObjectSettings`): per object, whether it
+  is a lens (Auto / Always / Never) and an IOR override; on the lights the
+  extension creates, where they came from (primary light, lens, kind, full …).
+"""
+import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
+                       IntProperty, PointerProperty, StringProperty)
+
+from ..addon.light_models import DEFAULT_ENERGY_MODEL, DEFAULT_SPOT_BLEND, energy_model_items
+
+#: Custom property set on every collection the extension creates; its value says
+#: which kind ("lights": the "Lens Lights" collection, "link": a linking collection).
+COLLECTION_MARK = "lens_lights_created"
+
+LENS_MODES = [
+    ("AUTO", "Auto", "A lens when its material refracts (transmission > 0 and IOR > 1)"),
+    ("ALWAYS", "Always", "Always a lens, whatever the material says "
+                         "(IOR from the override, else the material, else 1.5)"),
+    ("NEVER", "Never", "Never a lens; as a sphere it still blocks light"),
+]
+
+_ENERGY_MODEL_ITEMS = energy_model_items()   # keep a reference: Blender needs it alive
+
+
+class LensLightsCreatedObject(bpy.types.PropertyGroup):
+    object: PointerProperty(type=bpy.types.Object)
+
+
+class LensLightsCreatedCollection(bpy.types.PropertyGroup):
+    collection: PointerProperty(type=bpy.types.Collection)
+
+
+class LensLightsSceneSettings(bpy.types.PropertyGroup):
+    energy_model: EnumProperty(
+        name="Energy model", items=_ENERGY_MODEL_ITEMS, default=DEFAULT_ENERGY_MODEL,
+        description="How bright a lens light is")
+    min_brightness: FloatProperty(
+        name="Minimum brightness", default=0.01, min=0.0, soft_max=1.0, precision=3,
+        description=("Leave out lens lights whose caustic is dimmer than this share of "
+                     "the primary light's irradiance at the lens"))
+    max_lights: IntProperty(
+        name="Maximum lens lights", default=64, min=1, soft_max=512, max=100000,
+        description="Create at most this many lens lights (the brightest)")
+    spot_blend: FloatProperty(
+        name="Spot blend", default=DEFAULT_SPOT_BLEND, min=0.0, max=1.0,
+        description="Softness of the edge of each lens light's cone")
+
+    # The last run's figures (shown in the panel).
+    last_run: BoolProperty(default=False, options={'HIDDEN'})
+    last_created: IntProperty(name="Created", default=0)
+    last_sources: IntProperty(name="Secondary sources", default=0)
+    last_skipped: IntProperty(name="Skipped pairs", default=0)
+    last_primaries: IntProperty(name="Point lights", default=0)
+    last_lenses: IntProperty(name="Lenses", default=0)
+    last_left_out: IntProperty(name="Left out", default=0)
+    last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
+    last_report: StringProperty(name="Last report", default="")
+
+    created_objects: CollectionProperty(type=LensLightsCreatedObject, options={'HIDDEN'})
+    created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={'HIDDEN'})
+
+
+class LensLightsObjectSettings(bpy.types.PropertyGroup):
+    lens_mode: EnumProperty(name="Lens", items=LENS_MODES, default="AUTO",
+                            description="Whether this object is a lens")
+    use_ior_override: BoolProperty(name="Override IOR", default=False,
+                                   description="Use this index of refraction instead of the material's")
+    ior_override: FloatProperty(name="IOR", default=1.5, min=1.0, soft_max=3.0, precision=4,
+                                description="Index of refraction used instead of the material's")
+
+    # Set on the lights the extension creates.
+    is_lens_light: BoolProperty(default=False, options={'HIDDEN'})
+    source_light: StringProperty(name="Primary light")
+    source_lens: StringProperty(name="Lens")
+    kind: StringProperty(name="Kind", description="real, virtual or collimated")
+    full: BoolProperty(name="Full", description="Nothing blocks the light on its way to the lens")
+    unblocked_fraction: FloatProperty(name="Unblocked", precision=4)
+    energy_model: StringProperty(name="Energy model")
+    relative_brightness: FloatProperty(name="Relative brightness", precision=4)
+    note: StringProperty(name="Note")
+
+
+_CLASSES = (
+    LensLightsCreatedObject,
+    LensLightsCreatedCollection,
+    LensLightsSceneSettings,
+    LensLightsObjectSettings,
+)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.lens_lights = PointerProperty(type=LensLightsSceneSettings)
+    bpy.types.Object.lens_lights = PointerProperty(type=LensLightsObjectSettings)
+
+
+def unregister():
+    del bpy.types.Object.lens_lights
+    del bpy.types.Scene.lens_lights
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)
