@@ -15,12 +15,7 @@ _MODULE_NAMES = (
 
 
 def _modules():
-    for name in _MODULE_NAMES:
-        try:
-            yield importlib.import_module(f".{name}", __name__)
-        except ModuleNotFoundError as e:
-            if e.name != f"{__name__}.{name}":
-                raise      # a real import error inside an existing module
+    return [importlib.import_module(f".{name}", __name__) for name in _MODULE_NAMES]
 
 
 def register():
@@ -29,5 +24,5 @@ def register():
 
 
 def unregister():
-    for module in reversed(list(_modules())):
+    for module in reversed(_modules()):
         module.unregister()
