@@ -16,7 +16,7 @@ No inf or NaN leaves this module: invalid input becomes a skipped pair with a re
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -23,32 +23,13 @@ from hypothesis import strategies as st
 
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
+from plain_vectors import vadd, vcross, vscale, vunit
 
 EXAMPLES = 120
 REL = 1e-9
 
 
 # --------------------------------------------------------------------------- geometry by hand
-
-
-def vadd(a, b):
-    return tuple(x + y for x, y in zip(a, b))
-
-
-def vscale(a, s):
-    return tuple(x * s for x in a)
-
-
-def vdot(a, b):
-    return sum(x * y for x, y in zip(a, b))
-
-
-def vcross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def vunit(a):
-    return vscale(a, 1.0 / math.sqrt(vdot(a, a)))
 
 
 def cap_area(a):

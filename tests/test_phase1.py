@@ -26,37 +26,10 @@ import pytest
 
 from addon.phase1 import compute_phase1, cap_overlap_fraction
 from addon.scene import Light, Scene, Sphere, Surface
+from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit
 
 # --------------------------------------------------------------------------- vectors
 # (plain Python on purpose: the expectations must not share the code's numpy path)
-
-
-def vsub(a, b):
-    return tuple(x - y for x, y in zip(a, b))
-
-
-def vadd(a, b):
-    return tuple(x + y for x, y in zip(a, b))
-
-
-def vscale(a, s):
-    return tuple(x * s for x in a)
-
-
-def vdot(a, b):
-    return sum(x * y for x, y in zip(a, b))
-
-
-def vcross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def vnorm(a):
-    return math.sqrt(vdot(a, a))
-
-
-def vunit(a):
-    return vscale(a, 1.0 / vnorm(a))
 
 
 def angle(a, b):

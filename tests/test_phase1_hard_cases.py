@@ -14,32 +14,9 @@ import pytest
 
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
+from plain_vectors import vadd, vdot, vnorm, vscale, vsub, vunit
 
 # --------------------------------------------------------------------------- plain-Python references
-
-
-def vsub(a, b):
-    return tuple(x - y for x, y in zip(a, b))
-
-
-def vadd(a, b):
-    return tuple(x + y for x, y in zip(a, b))
-
-
-def vscale(a, s):
-    return tuple(x * s for x in a)
-
-
-def vdot(a, b):
-    return sum(x * y for x, y in zip(a, b))
-
-
-def vnorm(a):
-    return math.sqrt(vdot(a, a))
-
-
-def vunit(a):
-    return vscale(a, 1.0 / vnorm(a))
 
 
 def thesis_image_distance(p, R, n):
