@@ -65,7 +65,7 @@ __all__ = [
     "FITTED", "EXACT_PROFILE", "TIER_LINES", "FIT_RECEIVERS", "FIRST_RECEIVER",
     "SpotFit", "fit_spot", "fitted_spot", "make_fitted_light",
     "BeamProfile", "exact_profile", "ProfileLight", "make_profile_light",
-    "make_tier_light", "profile_model", "NODE_TREE_RECIPE",
+    "make_tier_light", "profile_model", "pull_in", "NODE_TREE_RECIPE",
 ]
 
 FITTED, EXACT_PROFILE = "FITTED", "EXACT_PROFILE"
@@ -304,13 +304,35 @@ def _common(source, primary: PrimaryLight, optics: LensOptics | None):
     return axis, R, D, wgt * wgt * unblocked, color, notes
 
 
+def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
+    """``fit`` with its apex at most ``max_behind`` (in R) behind the back pole
+    (a nearly collimated beam's fitted spot may sit up to 1000 R behind the lens,
+    where other geometry could block it): the cone keeps its radius at the first
+    receiver and the on-axis irradiance at the middle fit receiver is kept."""
+    if not (1.0 - fit.apex) > max_behind or not max_behind > 0.0:
+        return fit
+    apex = 1.0 - max_behind
+    d_old, d_new = 1.0 + FIRST_RECEIVER - fit.apex, 1.0 + FIRST_RECEIVER - apex
+    r = d_old * math.tan(math.radians(fit.half_angle_deg))
+    z_ref = 1.0 + FIT_RECEIVERS[len(FIT_RECEIVERS) // 2]
+    k = fit.intensity * ((z_ref - apex) / (z_ref - fit.apex)) ** 2
+    return SpotFit(apex=apex, intensity=k, half_angle_deg=math.degrees(math.atan2(r, d_new)),
+                   blend=fit.blend, l1=float("nan"))
+
+
 def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
-                      scene_size: float = 1.0, direct: bool = False, **_ignored) -> BlenderLight:
+                      scene_size: float = 1.0, direct: bool = False,
+                      collimated_distance: float | None = None, **_ignored) -> BlenderLight:
     """The FITTED tier's Blender light for ``source``: a spot on the lens's axis at
     ``lens_center + apex R axis``, shining along the axis.  ``direct``: fit now
     (about 0.3 s) instead of interpolating the shipped table.  Energy: the fit's
     intensity ratio × the primary's power × the material's transmission weight²
-    × the unblocked share; colour as PHYSICAL (tint², absorption over 2R)."""
+    × the unblocked share; colour as PHYSICAL (tint², absorption over 2R).
+    ``collimated_distance``: how far behind the back vertex a spot may sit (None:
+    no limit; :func:`.light_models.make_blender_light` passes the operator's free
+    distance, else ``COLLIMATED_DISTANCE_FACTOR`` × the scene's size, as for the
+    other tiers' beams); a fitted apex farther behind (up to 1000 R for a nearly
+    collimated beam) is pulled in (:func:`pull_in`), noted."""
     axis, R, D, scale, color, notes = _common(source, primary, optics)
     if direct:
         fit = fit_spot(D / R, float(source.ior))
@@ -318,6 +340,12 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
         fit, note = fitted_spot(D / R, float(source.ior))
         if note:
             notes.append(note)
+    if collimated_distance:
+        pulled = pull_in(fit, float(collimated_distance) / R)
+        if pulled is not fit:
+            notes.append(f"spot pulled in from {(1.0 - fit.apex) * R:.4g} to "
+                         f"{(1.0 - pulled.apex) * R:.4g} behind the back vertex (geometry behind the lens)")
+            fit = pulled
     shape = cone_shape(fit.half_angle_deg)
     if shape.note:
         notes.append(shape.note)
@@ -507,17 +535,57 @@ def profile_model(prof: BeamProfile, R=1.0, I0=1.0, angular: bool = False):
 @dataclass
 class ProfileLight(BlenderLight):
     """A :class:`.light_models.BlenderLight` plus the EXACT_PROFILE table (world
-    units) for the light node tree; see :data:`NODE_TREE_RECIPE`."""
+    units) for the light node tree; see :data:`NODE_TREE_RECIPE`.
 
-    profile: dict | None = None
+    ``profile`` (the table, ``pixels`` and all) is made on first use (about 0.25 s
+    per new ``(D/R, n)``, then remembered), so that planning many candidate lights
+    (energy, brightness, ordering) costs only the exact trace (milliseconds);
+    ``profile_info`` (its sizes and distances) is known at once."""
+
+    profile_info: dict | None = None
+    _profile: dict | None = field(default=None, repr=False)
+    _profile_maker: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def profile(self) -> dict | None:
+        if self._profile is None and self._profile_maker is not None:
+            self._profile = self._profile_maker()
+        return self._profile
 
     def to_json(self) -> dict:
         out = super().to_json()
-        if self.profile is not None:
-            p = self.profile
-            out["profile"] = {k: p[k] for k in ("gamma_max_deg", "h_min", "h_max", "width", "height",
-                                                "strength_scale")}
+        if self.profile_info is not None:
+            out["profile"] = dict(self.profile_info)
         return out
+
+
+@functools.lru_cache(maxsize=1024)
+def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
+    """(the beam's flux, its exact mean irradiance on the disc of ``PEAK_DISC`` R
+    around the axis at the first receiver), per unit primary intensity, R = 1.
+    The flux is the one :func:`exact_profile` records (same trace)."""
+    beam = acc.ExactBeam(1.0, D_over_R, 1.0, n, n_fan=8000)
+    Z = beam.plane(FIRST_RECEIVER)
+    disc = acc.PEAK_DISC
+    e = float(beam.flux_within_radius(Z, np.array([disc]))[0]) / (math.pi * disc * disc)
+    return beam.lens_flux, e
+
+
+def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) -> dict:
+    ang = prof.angular / t_ref
+    return {
+        "pixels": (prof.table / t_ref).astype(np.float32),   # (height, width), row 0 = v at the bottom
+        "width": prof.table.shape[1], "height": prof.table.shape[0],
+        "gamma_max_deg": prof.gamma_max_deg,
+        "h_min": prof.h_min * R, "h_max": prof.h_max * R,    # world units
+        "strength_scale": 1.0,
+        "angles_deg": prof.angles_deg.tolist(),
+        "angular_relative": ang.tolist(),                    # 1-D profile / (energy/4π), about angular_apex
+        "angular_apex_location": tuple(float(v) for v in center + prof.angular_apex * R * axis),
+        # Lights with equal keys have equal pixels (one image may serve them all);
+        # None for a table passed in.
+        "key": key,
+    }
 
 
 def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
@@ -528,39 +596,50 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
     (``profile["pixels"]``: float32, values from 0 to about 1e7 — the image must
     be a 32-bit float image, ``use_half_precision = False``).  ``energy_w`` is
     twice the beam's flux, so the light's nominal power (a 180° spot emits half
-    its energy) is the beam's.  Distances in ``profile`` are in world units."""
+    its energy) is the beam's.  Distances in ``profile`` are in world units.
+    ``reference_irradiance``: the exact mean irradiance on a disc of
+    ``PEAK_DISC`` R around the axis at the first receiver (0.5 R behind the
+    lens); ``relative_brightness`` that over the primary's at the lens."""
     axis, R, D, scale, color, notes = _common(source, primary, optics)
-    prof = profile or _cached_profile(round(D / R, 9), round(float(source.ior), 9))
+    n = float(source.ior)
+    key = (round(D / R, 9), round(n, 9))
+    flux, e_ref = _beam_summary(*key)
+    if profile is not None:
+        flux = profile.flux
     # Normalise so that the light's nominal power is the beam's: a 180° spot of
     # energy P emits P/2, so energy = 2 × beam flux and the texture holds the
     # intensity in units of energy/(4π) (values above 1 where the beam is
     # concentrated).  Cycles' light sampling then weighs this light by its real
     # power, not by the peak of its caustic.
-    t_ref = prof.flux / (2.0 * math.pi) if prof.flux > 0 else float(prof.table.max()) or 1.0
-    pixels = (prof.table / t_ref).astype(np.float32)
-    I_ref = primary.intensity * t_ref * scale
+    t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
+    I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
+    apex = profile.apex if profile is not None else 1.0 + PROFILE_OFFSET
     center = np.asarray(source.lens_center, dtype=float)
-    location = center + prof.apex * R * axis
+    location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
-    K = prof.table.shape[1]
-    ang = prof.angular / t_ref
-    profile = {
-        "pixels": pixels,                                  # (height, width), row 0 = v at the bottom
-        "width": K, "height": prof.table.shape[0],
-        "gamma_max_deg": prof.gamma_max_deg,
-        "h_min": prof.h_min * R, "h_max": prof.h_max * R,  # world units
-        "strength_scale": 1.0,
-        "angles_deg": prof.angles_deg.tolist(),
-        "angular_relative": ang.tolist(),                  # 1-D profile / (energy/4π), about angular_apex
-        "angular_apex_location": tuple(float(v) for v in center + prof.angular_apex * R * axis),
-    }
+    irradiance = primary.intensity * scale * e_ref / R ** 2
+    primary_irr = primary.intensity / D ** 2
+    if profile is not None:
+        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None)
+        shape = profile.table.shape
+        info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
+    else:
+        def maker():
+            return _profile_dict(_cached_profile(*key), t_ref, R, center, axis,
+                                 f"D/R {key[0]:.9g} n {key[1]:.9g}")
+        shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
+        info = (PROFILE_GAMMA_MAX_DEG, PROFILE_H_MIN, PROFILE_H_MAX)
+    profile_info = {"gamma_max_deg": info[0], "h_min": info[1] * R, "h_max": info[2] * R,
+                    "width": shape[1], "height": shape[0], "strength_scale": 1.0}
     return ProfileLight(
         type=SPOT, energy_w=float(4.0 * math.pi * I_ref), spot_size_deg=180.0, spot_blend=0.0,
-        radius=float(primary.radius * (prof.apex * R + D) / D),
+        radius=float(primary.radius * (apex * R + D) / D),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=1.0, cone_half_angle_deg=90.0,
         cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))), kind=source.kind,
-        model=EXACT_PROFILE, profile=profile,
+        model=EXACT_PROFILE, reference_irradiance=float(irradiance),
+        relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
+        profile_info=profile_info, _profile_maker=maker,
     )
 
 

@@ -43,8 +43,21 @@ Energy models (``ENERGY_MODELS``; a model is an :class:`EnergyModel`):
 
 Every model also says what irradiance a collimated beam has; the geometry (cone or
 far-away spot) and the non-full scaling by the unblocked share of the lit cap are
-common to all models. Later tiers ("FITTED", "EXACT_PROFILE") register themselves
-with :func:`register_energy_model` and may also change ``spot_blend``.
+common to both.
+
+Two more tiers are made by :mod:`.lens_tiers` (:func:`make_blender_light` hands
+them over; their registry entries, :class:`TierModel`, only name and describe them):
+
+``FITTED``         one spot fitted to the exact beam (EEVEE and Cycles); its own
+                   position, cone and blend (the ``spot_blend`` setting does not apply).
+``EXACT_PROFILE``  the exact beam tabulated over angle and distance, read by the
+                   light's node tree (Cycles only: EEVEE ignores light nodes).
+
+``AUTO`` (the panel's default) is not a tier: :func:`resolve_energy_model` turns it
+into the most accurate tier the render engine can show — ``EXACT_PROFILE`` in
+Cycles, ``FITTED`` otherwise — as measured in reports/accuracy.md (relative L1 error
+of the irradiance over the lens's shadow disc, mean over 15 cases with D ≥ 2R:
+THESIS 187 (median 1.1), PHYSICAL 0.87, FITTED 0.50, EXACT_PROFILE 0.024).
 
 Beams. A collimated source (a cylinder of radius ``R_C`` from the back vertex)
 becomes a spot pushed back by ``s`` (default ``COLLIMATED_DISTANCE_FACTOR`` × the
@@ -185,22 +198,78 @@ class PhysicalModel:
         return tuple(out)
 
 
+@dataclass(frozen=True)
+class TierModel:
+    """Registry entry of a tier made by :mod:`.lens_tiers` (FITTED, EXACT_PROFILE):
+    a name, a label, a description and the engines that render it;
+    :func:`make_blender_light` hands such a tier to
+    :func:`.lens_tiers.make_tier_light`."""
+    name: str
+    label: str
+    description: str
+    engines: tuple[str, ...] = ("CYCLES", "BLENDER_EEVEE")
+
+
+THESIS, PHYSICAL, FITTED, EXACT_PROFILE = "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"
+#: Not a tier: the most accurate tier for the render engine (`resolve_energy_model`).
+AUTO = "AUTO"
+AUTO_LABEL = "Auto — most accurate for the engine"
+AUTO_DESCRIPTION = ("Exact profile in Cycles, Fitted in EEVEE (and any other engine): "
+                    "the most accurate tier the engine renders")
+
 ENERGY_MODELS: dict[str, EnergyModel] = {}
 
 
 def register_energy_model(model: EnergyModel) -> None:
-    """Make a model available under `model.name` (e.g. later "FITTED")."""
+    """Make a model available under `model.name`."""
     ENERGY_MODELS[model.name] = model
 
 
 register_energy_model(ThesisModel())
 register_energy_model(PhysicalModel())
-DEFAULT_ENERGY_MODEL = "PHYSICAL"
+register_energy_model(TierModel(
+    FITTED, "Fitted",
+    "One spot fitted to the exact beam: EEVEE and Cycles; its own cone and blend "
+    "(relative L1 error 0.50 for D ≥ 2R)"))
+register_energy_model(TierModel(
+    EXACT_PROFILE, "Exact profile (Cycles)",
+    "The exact beam tabulated over angle and distance in a light node tree: Cycles only, "
+    "EEVEE gets Fitted lights instead (relative L1 error 0.024 for D ≥ 2R)",
+    engines=("CYCLES",)))
+#: The generator's default setting (`properties`): the best tier for the engine.
+DEFAULT_ENERGY_MODEL = AUTO
 
 
-def energy_model_items() -> list[tuple[str, str, str]]:
-    """(identifier, label, description) for an enum property."""
-    return [(m.name, m.label, m.description) for m in ENERGY_MODELS.values()]
+#: Fixed enum numbers: a .blend stores an enum setting as its number, and files
+#: saved when the items were THESIS (0) and PHYSICAL (1) must keep their choice.
+ENUM_NUMBERS = {THESIS: 0, PHYSICAL: 1, FITTED: 2, EXACT_PROFILE: 3, AUTO: 4}
+
+
+def energy_model_items(include_auto: bool = False) -> list[tuple[str, str, str, int]]:
+    """(identifier, label, description, number) for an enum property: the tiers,
+    and with `include_auto` first the AUTO choice."""
+    items = [(m.name, m.label, m.description,
+              ENUM_NUMBERS.get(m.name, 100 + k)) for k, m in enumerate(ENERGY_MODELS.values())]
+    auto = [(AUTO, AUTO_LABEL, AUTO_DESCRIPTION, ENUM_NUMBERS[AUTO])] if include_auto else []
+    return auto + items
+
+
+def resolve_energy_model(model: str, engine: str | None = None) -> tuple[str, str]:
+    """The tier to build for the setting `model` with the render engine `engine`
+    (`scene.render.engine`; None: not known), and a warning ("" if none).
+
+    AUTO: EXACT_PROFILE in Cycles, FITTED otherwise (also without an engine: the
+    most accurate tier that renders in both). EXACT_PROFILE with an engine other
+    than Cycles: FITTED, with a warning (light node trees are Cycles only)."""
+    engine = (engine or "").upper()
+    if model == AUTO:
+        return (EXACT_PROFILE if engine == "CYCLES" else FITTED), ""
+    if model == EXACT_PROFILE and engine and engine != "CYCLES":
+        shown = {"BLENDER_EEVEE": "EEVEE", "BLENDER_EEVEE_NEXT": "EEVEE",
+                 "BLENDER_WORKBENCH": "Workbench"}.get(engine, engine)
+        return FITTED, (f"Exact profile needs Cycles (light node trees); the engine is "
+                        f"{shown}: made Fitted lights instead")
+    return model, ""
 
 
 # --------------------------------------------------------------------------- output
@@ -287,7 +356,9 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
     """The Blender light for one `phase1.SecondarySource`.
 
     `primary`: the primary light's power (W), radius and colour. `model`: a key of
-    `ENERGY_MODELS`. `optics`: the lens material's transmission weight, tint and
+    `ENERGY_MODELS` (FITTED and EXACT_PROFILE are made by
+    `lens_tiers.make_tier_light`, which ignores `spot_blend` and `scene_bounds`) or
+    AUTO (without an engine: FITTED; see `resolve_energy_model`). `optics`: the lens material's transmission weight, tint and
     absorption (default: clear glass, weight 1). `scene_size`: the size (diagonal)
     of everything the light may reach; `scene_bounds`: its bounding box (lo, hi),
     if known. `collimated_distance`: how far behind the back vertex a beam's spot
@@ -309,13 +380,21 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
       ``1/V``, the beam irradiance when collimated — so it is continuous across
       the switch to collimated.
     """
+    if model == AUTO:
+        model = resolve_energy_model(model)[0]
     try:
         energy_model = ENERGY_MODELS[model]
     except KeyError:
         raise ValueError(f"unknown energy model {model!r}; "
-                         f"known: {', '.join(ENERGY_MODELS)}") from None
-    optics = optics or LensOptics()
+                         f"known: {', '.join([AUTO, *ENERGY_MODELS])}") from None
     scene_size = float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
+    if isinstance(energy_model, TierModel):
+        from . import lens_tiers        # it imports this module
+        # A fitted spot stays within the beams' distance behind the lens.
+        return lens_tiers.make_tier_light(
+            source, primary, model, optics=optics, scene_size=scene_size,
+            collimated_distance=collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size)
+    optics = optics or LensOptics()
     axis = [float(x) for x in source.axis]
     norm = math.sqrt(sum(x * x for x in axis))
     axis = [x / norm for x in axis]
@@ -422,7 +501,7 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
                 optics=None, light_names=None, lens_names=None, lens_candidates=None,
                 min_brightness: float = 0.0, max_lights: int | None = None,
                 spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
-                scene_bounds=None, far_limit=None) -> Plan:
+                scene_bounds=None, far_limit=None, energy_scale=None) -> Plan:
     """The Blender lights for a phase-1 result, brightest first.
 
     `primaries[j]`: `PrimaryLight` of light j; `optics[i]`: `LensOptics` of sphere i
@@ -434,6 +513,9 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
     brightest (by reference irradiance). `scene_bounds`: see `make_blender_light`;
     `far_limit(source)`: how far behind the lens a beam's spot may go (None: as far
     as the default), e.g. up to the first geometry behind the lens.
+    `energy_scale[t]` (parallel to `result.sources`): a factor on the energy of
+    source t's light, applied before the cut-off and the cap (a merged source
+    carries the flux of its group: `addon.budget.apply_budget`).
     """
     light_name = (lambda j: light_names[j]) if light_names else (lambda j: f"light {j}")
     lens_name = (lambda i: lens_names[i]) if lens_names else (lambda i: f"sphere {i}")
@@ -444,12 +526,18 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
         else:
             plan.skipped.append((light_name(k.light), lens_name(k.lens), k.reason))
     candidates = []
-    for src in result.sources:
+    for t, src in enumerate(result.sources):
         limit = far_limit(src) if far_limit is not None else None
         bl = make_blender_light(src, primaries[src.light], model,
                                 optics=optics[src.lens] if optics else None,
                                 spot_blend=spot_blend, scene_size=scene_size,
                                 scene_bounds=scene_bounds, collimated_distance=limit)
+        f = 1.0 if energy_scale is None else float(energy_scale[t])
+        if f != 1.0:
+            bl.energy_w *= f
+            bl.reference_irradiance *= f
+            bl.relative_brightness *= f
+            bl.note = "; ".join(x for x in (bl.note, f"merged: energy × {f:.4g}") if x)
         names = (light_name(src.light), lens_name(src.lens))
         if not (bl.energy_w > 0 and math.isfinite(bl.energy_w)):
             plan.skipped.append((*names, "no light gets through"))

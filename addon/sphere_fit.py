@@ -24,6 +24,7 @@ within ``SCALE_TOLERANCE`` (0.1 %) and be perpendicular to that precision.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,20 +129,26 @@ def fit_sphere(vertices, face_centers=None, face_normals=None, face_areas=None,
     return SphereFit(True, center, radius, "", dev, depth)
 
 
+def uniform_scales(matrices) -> np.ndarray:
+    """Vectorised `uniform_scale` over a stack of affine matrices (K × 4 × 4 or
+    K × 3 × 3): the uniform scale factor of each, NaN where it scales non-uniformly,
+    shears or has a zero or non-finite scale."""
+    m3 = np.asarray(matrices, dtype=float)[..., :3, :3]
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        gram = np.einsum("...ji,...jk->...ik", m3, m3)       # s² I for a similarity
+        s2 = np.trace(gram, axis1=-2, axis2=-1) / 3.0
+        ok = np.all(np.isfinite(m3), axis=(-2, -1)) & (s2 > 0) & np.isfinite(s2)
+        dev = np.max(np.abs(gram / np.where(ok, s2, 1.0)[..., None, None] - np.eye(3)),
+                     axis=(-2, -1))
+        ok &= dev <= 2 * SCALE_TOLERANCE
+        return np.where(ok, np.sqrt(np.where(ok, s2, 1.0)), np.nan)
+
+
 def uniform_scale(matrix) -> float | None:
     """The uniform scale factor of a 4 × 4 (or 3 × 3) affine matrix, or None when it
     scales non-uniformly or shears (beyond `SCALE_TOLERANCE`)."""
-    m = np.asarray(matrix, dtype=float)
-    m3 = m[:3, :3]
-    if not np.all(np.isfinite(m3)):
-        return None
-    gram = m3.T @ m3                      # s² I for a similarity transform
-    s2 = np.trace(gram) / 3.0
-    if not s2 > 0:
-        return None
-    if np.max(np.abs(gram / s2 - np.eye(3))) > 2 * SCALE_TOLERANCE:
-        return None
-    return float(np.sqrt(s2))
+    s = float(uniform_scales(np.asarray(matrix, dtype=float)[None])[0])
+    return s if math.isfinite(s) else None
 
 
 def to_world(center, radius, matrix) -> tuple[np.ndarray, float] | None:

@@ -15,11 +15,21 @@ demand, under the scene's collection), placed, turned and shaped from a
   from one original share its linking: all instances of that original are
   excluded (Blender links objects, not instances).
 * `object.lens_lights` records the origin: primary light, lens, kind, full,
-  unblocked share, energy model, relative brightness, notes.
+  unblocked share, the tier it was made with (`energy_model`), relative
+  brightness, notes.
+* EXACT_PROFILE lights (`lens_tiers.ProfileLight`, Cycles only) also get the
+  light node tree of `lens_tiers.NODE_TREE_RECIPE` (as `bench/blender_light_check.py`'s
+  reference `build_profile_light`): a SPOT of 180°, blend 0, whose emission
+  strength is read from a 32-bit float, Non-Color, packed image of the profile.
+  The node tree is the light's own (embedded in the light data, removed with it);
+  the image is named "Lens profile <key>", marked with the custom property
+  `properties.COLLECTION_MARK` = "profile" and its cache key, and shared by every
+  light with the same key (same D/R and n: same pixels).
 
 Everything created is listed in `scene.lens_lights.created_*` and marked
 (`object.lens_lights.is_lens_light`, collection custom property
-`properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked.
+`properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
+and then the marked profile images nothing uses any more.
 """
 from __future__ import annotations
 
@@ -32,6 +42,9 @@ from .properties import COLLECTION_MARK
 
 COLLECTION_NAME = "Lens Lights"
 LINK_PREFIX = "Lens link: "
+PROFILE_PREFIX = "Lens profile "
+#: Custom property of a profile image: its cache key (see `profile_image`).
+PROFILE_KEY = "lens_lights_profile_key"
 
 
 def _register_collection(settings, coll):
@@ -69,8 +82,100 @@ def link_collection(scene, lens_object, cache):
     return coll
 
 
-def create_light(scene, planned, lens_object, collection, link_cache, model_name=""):
-    """One lens light object from a `PlannedLight`."""
+def _is_profile_image(img) -> bool:
+    return img.get(COLLECTION_MARK) == "profile"
+
+
+def profile_image(profile: dict, image_cache: dict | None = None):
+    """The float image of an EXACT_PROFILE table (`ProfileLight.profile`), reusing
+    a marked image with the same key and size (from `image_cache`, then from
+    `bpy.data`); a table without a key gets an image of its own."""
+    import numpy as np
+    key = profile.get("key")
+    H, K = int(profile["height"]), int(profile["width"])
+    if key is not None:
+        if image_cache is not None and key in image_cache:
+            return image_cache[key]
+        for img in bpy.data.images:
+            if (_is_profile_image(img) and img.get(PROFILE_KEY) == key
+                    and tuple(img.size) == (K, H)
+                    and (img.packed_file is not None or img.has_data)):
+                if image_cache is not None:
+                    image_cache[key] = img
+                return img
+    img = bpy.data.images.new(PROFILE_PREFIX + (key or "table"), width=K, height=H,
+                              float_buffer=True, alpha=False)
+    img[COLLECTION_MARK] = "profile"
+    if key is not None:
+        img[PROFILE_KEY] = key
+    # Traps (lens_tiers.NODE_TREE_RECIPE): the colour space first (changing it
+    # later regenerates the generated image and loses the pixels), and full float
+    # precision (the table spans about 20 decades, up to ~1e7).
+    img.colorspace_settings.name = "Non-Color"
+    img.use_half_precision = False
+    rgba = np.ones((H, K, 4), dtype=np.float32)
+    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    img.pack()                                  # kept in the .blend (as OpenEXR)
+    if image_cache is not None and key is not None:
+        image_cache[key] = img
+    return img
+
+
+def build_profile_nodes(data, profile: dict, image):
+    """The light node tree of `lens_tiers.NODE_TREE_RECIPE` on the light data
+    `data`: emission strength = texture(u, v) × strength_scale, with
+    u = sqrt(γ / γ_max) (γ from the spot's −Z axis) and v = ln(h / h_min) /
+    ln(h_max / h_min) (h: distance along the axis, Light Path ▸ Ray Length × cos γ)."""
+    data.use_nodes = True
+    nt = data.node_tree
+    nt.nodes.clear()
+
+    def math_node(op, a, b=None):
+        n = nt.nodes.new("ShaderNodeMath")
+        n.operation = op
+        for k, v in enumerate((a, b)):
+            if v is None:
+                continue
+            if isinstance(v, (int, float)):
+                n.inputs[k].default_value = float(v)
+            else:
+                nt.links.new(v, n.inputs[k])
+        return n.outputs[0]
+
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(tc.outputs["Normal"], sep.inputs[0])
+    cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
+    gam = math_node("ARCCOSINE", math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0))
+    u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(profile["gamma_max_deg"])))
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
+    h_min, h_max = float(profile["h_min"]), float(profile["h_max"])
+    ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
+    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), math.log(h_max / h_min))
+    comb = nt.nodes.new("ShaderNodeCombineXYZ")
+    nt.links.new(u, comb.inputs["X"])
+    nt.links.new(v, comb.inputs["Y"])
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = "Linear"
+    tex.extension = "EXTEND"
+    nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(math_node("MULTIPLY", tex.outputs["Color"], float(profile["strength_scale"])),
+                 em.inputs["Strength"])
+    out = nt.nodes.new("ShaderNodeOutputLight")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return nt
+
+
+def create_light(scene, planned, lens_object, collection, link_cache, model_name="",
+                 image_cache=None):
+    """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
+    tree; `image_cache` shares profile images within a run)."""
     bl = planned.light
     name = f"Lens light {planned.light_name} > {planned.lens_name}"
     data = bpy.data.lights.new(name, "SPOT")
@@ -81,6 +186,13 @@ def create_light(scene, planned, lens_object, collection, link_cache, model_name
     data.shadow_soft_size = bl.radius
     data.use_custom_distance = True
     data.cutoff_distance = bl.cutoff_distance
+    profile = getattr(bl, "profile", None)
+    if profile is not None:
+        try:
+            build_profile_nodes(data, profile, profile_image(profile, image_cache))
+        except Exception:
+            bpy.data.lights.remove(data)        # not registered yet: clear would miss it
+            raise
     ob = bpy.data.objects.new(name, data)
     collection.objects.link(ob)
     ob.location = bl.location
@@ -111,10 +223,11 @@ def build(scene, plan, lens_objects, progress=None):
     `progress(k)` is called with the number of lights made so far."""
     collection = lights_collection(scene)
     cache: dict = {}
+    images: dict = {}
     made = []
     for k, planned in enumerate(plan.lights):
         made.append(create_light(scene, planned, lens_objects[planned.source.lens],
-                                 collection, cache))
+                                 collection, cache, image_cache=images))
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made
@@ -132,8 +245,9 @@ def created_objects(scene):
 
 def clear(scene) -> int:
     """Remove every lens light the extension created in `scene` (and its linking
-    collections; the "Lens Lights" collection too once nothing else is in it).
-    Returns how many lights were removed. Nothing else is touched."""
+    collections; the "Lens Lights" collection too once nothing else is in it; the
+    profile images no light uses any more). Returns how many lights were removed.
+    Nothing else is touched."""
     settings = scene.lens_lights
     objects = created_objects(scene)
     datas = {ob.data for ob in objects if ob.data is not None}
@@ -142,7 +256,8 @@ def clear(scene) -> int:
         bpy.data.batch_remove(objects)          # one pass: fast for many lights
     orphans = [d for d in datas if d.users == 0]
     if orphans:
-        bpy.data.batch_remove(orphans)
+        bpy.data.batch_remove(orphans)          # with their embedded node trees
+    remove_unused_profile_images()
     settings.created_objects.clear()
     keep = []
     for item in settings.created_collections:
@@ -157,3 +272,13 @@ def clear(scene) -> int:
     for coll in keep:
         _register_collection(settings, coll)
     return removed
+
+
+def remove_unused_profile_images() -> int:
+    """Remove the extension's profile images (marked) that nothing uses; an image
+    still used (by another scene's lens lights, or by something of the user's) is
+    kept. Returns how many were removed."""
+    unused = [img for img in bpy.data.images if _is_profile_image(img) and img.users == 0]
+    if unused:
+        bpy.data.batch_remove(unused)
+    return len(unused)

@@ -1,11 +1,16 @@
 """The "Lens Lights" tab of the 3D View's sidebar (N panel).
 
-Main panel: the Generate and Clear buttons, the settings (energy model, minimum
-brightness, maximum number of lens lights, spot blend) and the last run's figures.
+Main panel: the Generate and Clear buttons, the settings (energy model — with the
+tier it builds for the render engine and one line on what that tier trades —, minimum
+brightness, maximum number of lens lights, spot blend, merging nearby lens lights)
+and the last run's figures.
 Sub-panel "Object": for the active mesh its lens mode and IOR override; for a lens
 light where it came from.
 """
 import bpy
+
+from ..addon.lens_tiers import TIER_LINES
+from ..addon.light_models import ENERGY_MODELS, resolve_energy_model
 
 #: Characters per line when the last report is wrapped in the panel.
 WRAP = 42
@@ -42,9 +47,22 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         col.use_property_split = True
         col.use_property_decorate = False
         col.prop(settings, "energy_model")
+        # The tier that will be built (AUTO resolved for the engine) and what it trades.
+        tier, warning = resolve_energy_model(settings.energy_model, context.scene.render.engine)
+        info = col.column(align=True)
+        info.label(text=f"Builds: {ENERGY_MODELS[tier].label}", icon="ERROR" if warning else "INFO")
+        for line in _wrap(TIER_LINES.get(tier, "")) + (_wrap(warning) if warning else []):
+            info.label(text=line)
         col.prop(settings, "min_brightness")
         col.prop(settings, "max_lights")
-        col.prop(settings, "spot_blend")
+        sub = col.row()
+        sub.active = tier in ("THESIS", "PHYSICAL")     # the other tiers set their own blend
+        sub.prop(settings, "spot_blend")
+        row = col.row(heading="Merge nearby")
+        row.prop(settings, "use_merge", text="")
+        sub = row.row()
+        sub.active = settings.use_merge
+        sub.prop(settings, "merge_distance", text="")
 
         box = layout.box()
         if not settings.last_run:

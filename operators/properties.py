@@ -27,7 +27,8 @@ LENS_MODES = [
     ("NEVER", "Never", "Never a lens; as a sphere it still blocks light"),
 ]
 
-_ENERGY_MODEL_ITEMS = energy_model_items()   # keep a reference: Blender needs it alive
+#: AUTO (the default: Exact profile in Cycles, Fitted otherwise) and the four tiers.
+_ENERGY_MODEL_ITEMS = energy_model_items(include_auto=True)   # keep a reference: Blender needs it alive
 
 
 class LensLightsCreatedObject(bpy.types.PropertyGroup):
@@ -41,7 +42,8 @@ class LensLightsCreatedCollection(bpy.types.PropertyGroup):
 class LensLightsSceneSettings(bpy.types.PropertyGroup):
     energy_model: EnumProperty(
         name="Energy model", items=_ENERGY_MODEL_ITEMS, default=DEFAULT_ENERGY_MODEL,
-        description="How bright a lens light is")
+        description="Which lens-light tier to build (how close to the exact caustic, "
+                    "and which engines render it)")
     min_brightness: FloatProperty(
         name="Minimum brightness", default=0.01, min=0.0, soft_max=1.0, precision=3,
         description=("Leave out lens lights whose caustic is dimmer than this share of "
@@ -51,7 +53,16 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         description="Create at most this many lens lights (the brightest)")
     spot_blend: FloatProperty(
         name="Spot blend", default=DEFAULT_SPOT_BLEND, min=0.0, max=1.0,
-        description="Softness of the edge of each lens light's cone")
+        description=("Softness of the edge of each lens light's cone (Thesis and Physical; "
+                     "Fitted and Exact profile set their own)"))
+    use_merge: BoolProperty(
+        name="Merge nearby lens lights", default=False,
+        description=("Make one lens light of the sources of one point light whose images lie "
+                     "within the merge distance and point the same way (it carries their "
+                     "summed power)"))
+    merge_distance: FloatProperty(
+        name="Merge distance", default=0.05, min=0.0, soft_max=1.0, subtype="DISTANCE",
+        precision=3, description="Sources whose images are this close may be merged")
 
     # The last run's figures (shown in the panel).
     last_run: BoolProperty(default=False, options={'HIDDEN'})
@@ -83,7 +94,7 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     kind: StringProperty(name="Kind", description="real, virtual or collimated")
     full: BoolProperty(name="Full", description="Nothing blocks the light on its way to the lens")
     unblocked_fraction: FloatProperty(name="Unblocked", precision=4)
-    energy_model: StringProperty(name="Energy model")
+    energy_model: StringProperty(name="Energy model", description="The tier this light was made with")
     relative_brightness: FloatProperty(name="Relative brightness", precision=4)
     note: StringProperty(name="Note")
 

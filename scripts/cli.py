@@ -2,7 +2,12 @@
 with the pinned environment's python).
 
 Subcommands:
-  phase1 SCENE.bi [--json]   secondary light sources of a `.bi` scene
+  phase1 SCENE.bi [--json] [--model TIER]
+                             secondary light sources of a `.bi` scene and the
+                             Blender light of each for a lens-light tier
+                             (thesis|physical|fitted|exact_profile; default
+                             fitted: the most accurate tier that renders in both
+                             EEVEE and Cycles)
   test [PYTEST ARGS]         the whole test suite
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
@@ -38,21 +43,64 @@ def _fmt_vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
 
 
-def format_phase1_table(result) -> str:
-    """A readable report of phase 1: one row per source, then the skipped pairs."""
+#: `--model` values (lower case) → tiers of `addon.light_models`.
+PHASE1_MODELS = ("thesis", "physical", "fitted", "exact_profile")
+#: The default: the most accurate tier that renders in both EEVEE and Cycles
+#: (reports/accuracy.md); EXACT_PROFILE is more accurate but Cycles only.
+PHASE1_DEFAULT_MODEL = "fitted"
+
+
+def blender_lights(scene, result, model: str) -> list:
+    """The Blender light (`light_models.BlenderLight`) of each source of `result`
+    for the tier `model`, as the add-on makes it for this scene once imported
+    (`File › Import › Bitracer scene`): a light of brightness b is a point light
+    of b × 10 000 W (`bi_conversions.watts_from_brightness`) with the file's
+    colour, a sphere's transmission weight is its kt (clear: Base Color white),
+    the scene's bounds are those of its lights and spheres."""
+    import numpy as np
+    from addon.bi_conversions import watts_from_brightness
+    from addon.light_models import LensOptics, PrimaryLight, make_blender_light
+    pts = [np.asarray(l.position, dtype=float) for l in scene.lights]
+    for o in scene.objects:
+        c, r = np.asarray(o.center, dtype=float), abs(float(o.radius))
+        pts += [c - r, c + r]
+    bounds, size = None, 1.0
+    if pts:
+        lo, hi = np.min(pts, axis=0), np.max(pts, axis=0)
+        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+            bounds = (tuple(lo), tuple(hi))
+            size = float(np.linalg.norm(hi - lo)) or 1.0
+    out = []
+    for s in result.sources:
+        light = scene.lights[s.light]
+        primary = PrimaryLight(power_w=watts_from_brightness(light.brightness),
+                               radius=float(light.radius), color=tuple(light.color))
+        optics = LensOptics(transmission_weight=float(scene.objects[s.lens].surface.transmission))
+        out.append(make_blender_light(s, primary, model.upper(), optics=optics,
+                                      scene_size=size, scene_bounds=bounds))
+    return out
+
+
+def format_phase1_table(result, lights=None, model: str = "") -> str:
+    """A readable report of phase 1: one row per source (with `lights`, the energy
+    of its Blender light for the tier `model`), then the skipped pairs."""
     lines = [f"{len(result.sources)} secondary light source(s), "
              f"{len(result.skipped)} light × sphere pair(s) skipped", ""]
     if result.sources:
+        energy = f"{'energy W':>10} " if lights is not None else ""
         header = (f"{'light':>5} {'lens':>4}  {'kind':<10} {'position':<28} "
-                  f"{'spread°':>8} {'R_C':>8} {'intensity':>9}  shadow")
+                  f"{'spread°':>8} {'R_C':>8} {'intensity':>9} {energy} shadow")
+        if lights is not None:
+            lines.insert(1, f"energy: Blender light power (W) with the {model.lower()} tier")
         lines += [header, "-" * len(header)]
-        for s in result.sources:
+        for k, s in enumerate(result.sources):
             rc = f"{s.cylinder_radius:.4g}" if s.cylinder_radius is not None else "-"
             shadow = "full" if s.full else "non-full, blocked by " + ", ".join(
                 f"sphere {k}" for k in s.shadow_list)
+            e = f"{lights[k].energy_w:>10.4g} " if lights is not None else ""
             lines.append(f"{s.light:>5} {s.lens:>4}  {s.kind:<10} "
                          f"{_fmt_vec(s.position):<28} {s.spread_deg:>8.4g} {rc:>8} "
-                         f"{s.intensity:>9.4g}  {shadow}")
+                         f"{s.intensity:>9.4g} {e} {shadow}")
     if result.skipped:
         lines += ["", "skipped:"]
         lines += [f"  light {k.light} × sphere {k.lens}: {k.reason}" for k in result.skipped]
@@ -69,11 +117,15 @@ def cmd_phase1(args) -> int:
     except OSError as e:
         return _fail(f"{args.scene}: {e.strerror or e}")
     result = compute_phase1(scene)
+    lights = blender_lights(scene, result, args.model)
     if args.json:
-        json.dump(result.to_json(), sys.stdout, indent=2)
+        out = result.to_json()
+        for src, bl in zip(out["sources"], lights):
+            src["blender_light"] = bl.to_json()
+        json.dump({"model": args.model.upper(), **out}, sys.stdout, indent=2)
         print()
     else:
-        print(format_phase1_table(result))
+        print(format_phase1_table(result, lights, args.model))
     return 0
 
 
@@ -127,6 +179,11 @@ def main(argv=None) -> int:
     p = sub.add_parser("phase1", help="secondary light sources of a .bi scene")
     p.add_argument("scene", help="a .bi scene file")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--model", choices=PHASE1_MODELS, default=PHASE1_DEFAULT_MODEL,
+                   type=str.lower,
+                   help=("lens-light tier of each source's Blender light (default: "
+                         f"{PHASE1_DEFAULT_MODEL}, the most accurate that renders in both "
+                         "EEVEE and Cycles; exact_profile is Cycles only)"))
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 

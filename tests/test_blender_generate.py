@@ -75,6 +75,7 @@ def generate():
 
 def test_generate_creates_the_physical_spot_light(empty_blend):
     sphere, light = basic_scene()
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
     assert bpy.ops.lens_lights.generate() == {"FINISHED"}
     (ll,) = lens_lights()
     # R 0.5, n 1.5, D 2: V = 4/3 − 1/2, image 1.2 below the centre (z = 1.3);
@@ -221,6 +222,7 @@ def test_blocked_pairs_are_skipped_by_name(empty_blend):
 
 def test_lens_mode_and_ior_override(empty_blend):
     sphere, _ = basic_scene()
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
     sphere.lens_lights.lens_mode = "NEVER"
     assert generate()[2]["created"] == 0
     sphere.lens_lights.lens_mode = "AUTO"
@@ -328,6 +330,7 @@ def test_exposure_temperature_and_unnormalized_power(empty_blend):
 
 
 def test_collimated_source_becomes_a_narrow_far_spot(empty_blend):
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
     # Light at the front focal point (D = nR/(2(n−1)) = 0.75 for R 0.5, n 1.5).
     add_sphere("Marble", (0.0, 0.0, 2.5), material=glass_material())
     add_point_light("Lamp", (0.0, 0.0, 3.25), energy=100.0)
@@ -356,6 +359,7 @@ def test_blender_clamps_spot_size_to_1_to_180_degrees(empty_blend):
 
 
 def test_max_lights_and_brightness_cut_off(empty_blend):
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
     glass = glass_material()
     bpy.ops.mesh.primitive_plane_add(size=20, location=(3, 0, -2))   # images above it: cones
     for k in range(4):
@@ -443,6 +447,7 @@ def test_panel_draws_buttons_settings_and_figures(empty_blend):
 
 
 def test_marble_on_a_table_under_a_high_lamp_and_a_ceiling(empty_blend):
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
     # The image (1.2 below the centre) lies under the table: the beam representation,
     # a spot behind the lens — but below the ceiling, which must not block it.
     bpy.ops.mesh.primitive_plane_add(size=8)

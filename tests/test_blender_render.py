@@ -22,6 +22,22 @@ exact optics. The measured figures are printed (`-s` shows them).
 
 A second scene puts the light at the sphere's front focal point: a collimated beam,
 rendered in both engines as the far-away narrow spot of `addon/light_models.py`.
+
+The tiers (the panel's default AUTO, one more render per engine on the basic
+scene): EXACT_PROFILE in Cycles, FITTED in EEVEE, against the exact optics on the
+tilted floor itself (`exact_floor_image`: 4 M exact rays binned into the pixels).
+The caustic's centroid (radiance-weighted, over the view) must lie within
+`POSITION_TOL` of the exact one. Brightness at the axis patch and the light in
+the whole view, as ratios to the exact optics:
+
+* EXACT_PROFILE (Cycles): both within `BRIGHTNESS_TOL` (10 %) of 1 (measured:
+  patch 1.035, view 1.000, centroid 0.004 off).
+* FITTED (EEVEE): one spot cannot make the converged core of the real beam (here
+  4.3 R behind the lens, past the focus; D = 4 R); the fit minimises the L1 error
+  over the whole shadow disc (0.54 for this lens, reports/accuracy.md), so at the
+  axis it is darker and its halo is cut short. Asserted: patch ratio within
+  `FITTED_RATIO`, view ratio within `FITTED_VIEW_RATIO` (measured 0.332 and
+  0.662, centroid 0.010 off; the pure spot model of the same light gives 0.333).
 """
 import math
 
@@ -40,6 +56,10 @@ PATCH_PX = 2.0
 POSITION_TOL = 0.02
 BRIGHTNESS_TOL = 0.10
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
+#: The tier AUTO builds per engine.
+AUTO_TIER = {"CYCLES": "EXACT_PROFILE", "BLENDER_EEVEE": "FITTED"}
+FITTED_RATIO = (0.25, 0.45)
+FITTED_VIEW_RATIO = (0.5, 0.85)
 FIGURES = {}
 
 
@@ -175,8 +195,17 @@ def renders(extension, tmp_path_factory):
         out[engine, "light"] = dict(energy=ll.data.energy, location=tuple(ll.location),
                                     spot_size=math.degrees(ll.data.spot_size))
         out[engine, "with"] = render(sc, tmp / f"{engine}_with.exr")
+        sc.lens_lights.energy_model = "AUTO"
+        generate(bpy.context)
+        (ll,) = [o for o in bpy.data.objects if o.lens_lights.is_lens_light]
+        out[engine, "tier"] = ll.lens_lights.energy_model
+        out[engine, "tier_light"] = dict(energy=ll.data.energy, location=tuple(ll.location),
+                                         spot_size=math.degrees(ll.data.spot_size),
+                                         blend=ll.data.spot_blend)
+        out[engine, "tier_render"] = render(sc, tmp / f"{engine}_tier.exr")
 
         sc, lamp = build_scene(engine, tmp, light_distance=D_FOCAL)
+        sc.lens_lights.energy_model = "PHYSICAL"         # (the default is AUTO)
         generate(bpy.context)
         (ll,) = [o for o in bpy.data.objects if o.lens_lights.is_lens_light]
         assert ll.lens_lights.kind == "collimated"
@@ -220,6 +249,78 @@ def test_caustic_brightness_matches_exact_optics(renders, engine):
           f"without lens lights {without:.4f}")
     assert without < 0.05 * expected           # no caustic without lens lights
     assert abs(ratio - 1) <= BRIGHTNESS_TOL
+
+
+def exact_floor_image(light_distance=D, n_iota=2000, n_phi=2048, seed=1):
+    """The exact optics (SPEC §6: `exact_optics.trace_rays_iota`, Fresnel at both
+    surfaces) on the tilted floor itself, per pixel: the floor's radiance
+    ``0.8 E / π`` of the direct beam. A jittered fan of 4 M exact rays (incidence
+    angle × azimuth), each carrying its share of the flux ``I0 T dΩ``, is
+    intersected with the floor z = 0 and binned into the camera's pixels."""
+    rng = np.random.default_rng(seed)
+    t = math.radians(TILT_DEG)
+    u = axis_dir()
+    e1, e2 = np.array([math.cos(t), 0.0, math.sin(t)]), np.array([0.0, 1.0, 0.0])
+    c = np.array([0.0, 0.0, HEIGHT])
+    d_iota, d_phi = 0.5 * math.pi / n_iota, 2 * math.pi / n_phi
+    iota = (np.arange(n_iota) + rng.random(n_iota)) * d_iota
+    fan = exact_optics.trace_rays_iota(iota, light_distance, R, N)
+    k = R / light_distance
+    # flux per ray: I0 T(ι) dΩ, dΩ = k² sin ι cos ι / cos ψ dι dφ
+    flux = (POWER / (4 * math.pi)) * fan.transmission * k * k * np.sin(iota) * np.cos(iota) \
+        / np.cos(fan.psi) * d_iota * d_phi
+    phi = (np.arange(n_phi)[None, :] + rng.random((n_iota, n_phi))) * d_phi
+    cos_t = np.cos(fan.theta_exit)[:, None]
+    a, b = fan.b[:, None] / cos_t, np.tan(fan.theta_exit)[:, None]   # h(Z) = a − b Z (meridional)
+    sz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
+    Z = -(c[2] + a * sz) / (u[2] - b * sz)                            # along the axis, to z = 0
+    h = a - Z * b
+    x = c[0] + h * (np.cos(phi) * e1[0] + np.sin(phi) * e2[0]) + Z * u[0]
+    y = c[1] + h * (np.cos(phi) * e1[1] + np.sin(phi) * e2[1]) + Z * u[1]
+    ok = (cos_t > 0) & (Z >= (-R * np.cos(fan.exit_polar))[:, None]) & np.isfinite(x) & np.isfinite(y)
+    hit, _ = axis_hit()
+    ex = hit[0] + (np.arange(PX + 1) / PX - 0.5) * VIEW
+    ey = hit[1] + (np.arange(PX + 1) / PX - 0.5) * VIEW
+    E, _, _ = np.histogram2d(y[ok], x[ok], bins=[ey, ex],
+                             weights=np.broadcast_to(flux[:, None], x.shape)[ok])
+    return to_radiance(E / (VIEW / PX) ** 2)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_auto_tier_caustic_against_exact_optics(renders, engine):
+    """AUTO's tier per engine (EXACT_PROFILE in Cycles, FITTED in EEVEE) against the
+    exact optics on the floor itself (`exact_floor_image`): where the caustic is
+    (its centroid, the radiance-weighted mean position over the view), how bright
+    it is at the axis point (the patch of the PHYSICAL test) and how much of the
+    exact light falls into the view."""
+    tier = renders[engine, "tier"]
+    assert tier == AUTO_TIER[engine]
+    diff = renders[engine, "tier_render"] - renders[engine, "without"]
+    exact = exact_floor_image()
+    x, y = pixel_xy()
+    hit, t_hit = axis_hit()
+
+    def centroid(img):
+        return float((img * x).sum() / img.sum()), float((img * y).sum() / img.sum())
+    (cx, cy), (ex, ey) = centroid(diff), centroid(exact)
+    error = math.hypot(cx - ex, cy - ey)
+    _, patch = patch_mean(diff, hit)
+    ratio = float(diff[patch].mean() / exact[patch].mean())
+    view_ratio = float(diff.sum() / exact.sum())
+    # The perpendicular-plane estimate of the PHYSICAL test, for comparison.
+    approx = to_radiance(exact_floor_irradiance(D, t_hit, PATCH_PX * VIEW / PX))
+    FIGURES[engine, "tier_ratio"] = ratio
+    print(f"\n{engine} {tier}: centroid ({cx:.4f}, {cy:.4f}) vs exact ({ex:.4f}, {ey:.4f}): "
+          f"error {error:.4f}; axis patch {diff[patch].mean():.4f} vs exact {exact[patch].mean():.4f} "
+          f"(perpendicular-plane estimate {approx:.4f}): ratio {ratio:.4f}; light in the view "
+          f"{view_ratio:.4f} of the exact; light {renders[engine, 'tier_light']}")
+    assert error <= POSITION_TOL
+    if tier == "EXACT_PROFILE":
+        assert abs(ratio - 1) <= BRIGHTNESS_TOL
+        assert abs(view_ratio - 1) <= BRIGHTNESS_TOL
+    else:
+        assert FITTED_RATIO[0] <= ratio <= FITTED_RATIO[1]
+        assert FITTED_VIEW_RATIO[0] <= view_ratio <= FITTED_VIEW_RATIO[1]
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -187,10 +187,126 @@ def test_collimated_is_continuous_with_a_far_real_image():
 
 
 def test_unknown_model_and_registry():
+    # (FITTED was the unknown name here before the tiers were registered.)
     with pytest.raises(ValueError, match="unknown energy model"):
-        make_blender_light(only_source(ball_scene()), PrimaryLight(P), "FITTED")
+        make_blender_light(only_source(ball_scene()), PrimaryLight(P), "BOGUS")
     assert list(ENERGY_MODELS)[:2] == ["THESIS", "PHYSICAL"]
     assert [i[0] for i in energy_model_items()][:2] == ["THESIS", "PHYSICAL"]
+
+
+# --------------------------------------------------------------------------- tiers
+
+def test_all_four_tiers_and_auto_are_registered():
+    from addon.light_models import AUTO, DEFAULT_ENERGY_MODEL
+    assert list(ENERGY_MODELS) == ["THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
+    items = energy_model_items(include_auto=True)
+    assert [i[0] for i in items] == ["AUTO", "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
+    assert DEFAULT_ENERGY_MODEL == AUTO
+    assert items[0][1] == "Auto — most accurate for the engine"
+    assert all(len(i) == 4 and all(isinstance(x, str) and x for x in i[:3]) for i in items)
+    # numbers as stored in .blend files: THESIS 0 and PHYSICAL 1 as before the tiers
+    assert [i[3] for i in items] == [4, 0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("model, engine, tier, warns", [
+    ("AUTO", "CYCLES", "EXACT_PROFILE", False),
+    ("AUTO", "BLENDER_EEVEE", "FITTED", False),
+    ("AUTO", "BLENDER_EEVEE_NEXT", "FITTED", False),
+    ("AUTO", "BLENDER_WORKBENCH", "FITTED", False),
+    ("AUTO", None, "FITTED", False),
+    ("EXACT_PROFILE", "CYCLES", "EXACT_PROFILE", False),
+    ("EXACT_PROFILE", "BLENDER_EEVEE", "FITTED", True),
+    ("EXACT_PROFILE", None, "EXACT_PROFILE", False),
+    ("FITTED", "CYCLES", "FITTED", False),
+    ("THESIS", "BLENDER_EEVEE", "THESIS", False),
+    ("PHYSICAL", "CYCLES", "PHYSICAL", False),
+])
+def test_resolve_energy_model(model, engine, tier, warns):
+    from addon.light_models import resolve_energy_model
+    got, warning = resolve_energy_model(model, engine)
+    assert got == tier
+    assert bool(warning) == warns
+    if warns:
+        assert "EEVEE" in warning and "Fitted" in warning
+
+
+def test_make_blender_light_dispatches_the_tiers():
+    from addon import lens_tiers as lt
+    src = only_source(ball_scene(light_radius=0.1))
+    prim = PrimaryLight(P, radius=0.1)
+    fitted = make_blender_light(src, prim, "FITTED", scene_size=4.0, spot_blend=0.3)
+    assert fitted == lt.make_fitted_light(src, prim, scene_size=4.0)
+    assert fitted.model == "FITTED" and fitted.type == "SPOT"
+    assert make_blender_light(src, prim, "AUTO", scene_size=4.0) == fitted   # no engine: FITTED
+    exact = make_blender_light(src, prim, "EXACT_PROFILE", scene_size=4.0)
+    assert isinstance(exact, lt.ProfileLight) and exact.model == "EXACT_PROFILE"
+    assert (exact.spot_size_deg, exact.spot_blend) == (180.0, 0.0)
+    # planning needs a brightness for every tier (cut-off and ordering)
+    for bl in (fitted, exact):
+        assert bl.reference_irradiance > 0 and bl.relative_brightness > 0
+        assert set(bl.to_json()) >= {"type", "energy_w", "spot_size_deg", "spot_blend", "radius"}
+
+
+def test_profile_light_reference_brightness_is_the_exact_beams():
+    # D/R = 4, n = 1.5: the exact mean irradiance on a disc of 0.05 R at 0.5 R
+    # behind the lens, over the primary's irradiance at the lens centre.
+    from addon.accuracy import ExactBeam
+    src = only_source(ball_scene())
+    bl = make_blender_light(src, PrimaryLight(P), "EXACT_PROFILE", scene_size=4.0)
+    beam = ExactBeam(P / (4 * math.pi), 2.0, 0.5, 1.5)
+    e = beam.flux_within_radius(beam.plane(0.5), [0.025])[0] / (math.pi * 0.025 ** 2)
+    assert bl.reference_irradiance == pytest.approx(e, rel=1e-3)
+    assert bl.relative_brightness == pytest.approx(e / (P / (4 * math.pi) / 4.0), rel=1e-3)
+
+
+def test_profile_table_is_made_only_when_used():
+    from addon import lens_tiers as lt
+    src = only_source(ball_scene(distance=2.345))
+    lt._cached_profile.cache_clear()
+    bl = make_blender_light(src, PrimaryLight(P), "EXACT_PROFILE")
+    assert lt._cached_profile.cache_info().currsize == 0            # planning: no table
+    js = bl.to_json()
+    assert js["profile"]["width"] == lt.PROFILE_ANGLES and lt._cached_profile.cache_info().currsize == 0
+    p = bl.profile
+    assert p["pixels"].shape == (lt.PROFILE_DISTANCES, lt.PROFILE_ANGLES)
+    assert p["key"] == f"D/R {2.345 / 0.5:.9g} n 1.5"
+    assert lt._cached_profile.cache_info().currsize == 1
+    # the energy: twice the beam's flux (a 180° spot emits half its energy)
+    prof = lt._cached_profile(round(2.345 / 0.5, 9), 1.5)
+    assert bl.energy_w / 2 == pytest.approx(prof.flux * P / (4 * math.pi), rel=1e-9)
+
+
+def test_plan_lights_with_every_tier_keeps_brightness_order_and_scale():
+    from addon.light_models import plan_lights
+    result = compute_phase1(two_lens_scene())
+    for tier in ("THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"):
+        plan = plan_lights(result, [PrimaryLight(P)], tier, scene_size=6.0,
+                           energy_scale=[2.0] * len(result.sources))
+        assert len(plan.lights) == 2, tier
+        assert all(p.light.model == tier for p in plan.lights)
+        irr = [p.light.reference_irradiance for p in plan.lights]
+        assert irr == sorted(irr, reverse=True)
+        single = make_blender_light(plan.lights[0].source, PrimaryLight(P), tier, scene_size=6.0)
+        assert plan.lights[0].light.energy_w == pytest.approx(2.0 * single.energy_w)
+
+
+def test_fitted_spot_is_pulled_in_before_geometry_behind_the_lens():
+    # Near the front focal distance (0.75 for R 0.5, n 1.5) the fitted spot sits
+    # far behind the lens; a free distance of 1 brings it to 1 behind the back vertex.
+    src = only_source(ball_scene(distance=0.76))
+    free = make_blender_light(src, PrimaryLight(P), "FITTED", scene_size=4.0)
+    behind = free.location[2] + 0.5               # the axis is −z, back vertex z = −0.5
+    # the fit's own spot is 1000 R behind; as the other tiers' beams, at most
+    # COLLIMATED_DISTANCE_FACTOR × the scene's size
+    assert behind == pytest.approx(COLLIMATED_DISTANCE_FACTOR * 4.0)
+    near = make_blender_light(src, PrimaryLight(P), "FITTED", scene_size=4.0,
+                              collimated_distance=1.0)
+    assert near.location[2] + 0.5 == pytest.approx(1.0)
+    assert "pulled in" in near.note
+    # the cone keeps its radius at the first receiver (0.25 behind the back vertex)
+    r_free = math.tan(math.radians(free.cone_half_angle_deg)) * (behind + 0.25)
+    r_near = math.tan(math.radians(near.cone_half_angle_deg)) * (1.0 + 0.25)
+    assert r_near == pytest.approx(r_free, rel=1e-6)
 
 
 def test_axis_is_normalised_and_oblique_geometry():

@@ -1,0 +1,178 @@
+"""First hits of rays against what the scene reader saw, without Blender's
+`Scene.ray_cast`.
+
+`Scene.ray_cast` visits every object instance of the depsgraph for each ray (about
+1.5 ms per ray with 10 000 geometry-nodes instances, 5 ms with 10 000 collection
+instances, ten times that at 100 000), and the generator casts five rays per beam.
+Here the geometry the reader already has is used:
+
+* the spheres (every instance that passed the sphere fit, lens or not) are hit
+  analytically, all at once in numpy;
+* every other mesh instance (floors, walls, ellipsoids …) is first tested by its
+  world bounding box (a vectorised slab test); only the boxes a ray enters nearer
+  than the best hit so far are tested exactly, against a `mathutils.bvhtree.BVHTree`
+  of the instanced mesh in its local space (built once per mesh, on first use).
+
+Curves, text, surfaces and metaballs are hit as their evaluated mesh; hair curves,
+point clouds, volumes and grease pencil do not block (as for `Scene.ray_cast`,
+which sees only meshes). A sphere is hit as the exact sphere, not its polygons
+(the difference is under 1 % of the radius, the fit's tolerance).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Hits nearer than this share of the scene size to the ray's origin are ignored
+#: (the surface a ray starts on).
+EPSILON = 1e-9
+
+
+class MeshSource:
+    """The local-space triangles of one (evaluated) mesh, read on first use."""
+
+    def __init__(self, mesh=None, arrays=None):
+        self._mesh, self._arrays, self._tree = mesh, arrays, None
+
+    @staticmethod
+    def from_object(ob):
+        """Triangles of a non-mesh object (curve, text, surface, metaball) now,
+        through `Object.to_mesh` (its mesh lives only as long as the object)."""
+        try:
+            mesh = ob.to_mesh()
+        except RuntimeError:
+            return None
+        try:
+            return MeshSource(arrays=mesh_triangles(mesh)) if mesh is not None else None
+        finally:
+            ob.to_mesh_clear()
+
+    def release(self):
+        """Forget the evaluated mesh (it is freed with its depsgraph); a source not
+        read yet then blocks nothing."""
+        self._mesh = None
+
+    def tree(self):
+        if self._tree is None:
+            from mathutils.bvhtree import BVHTree
+            if self._arrays is None:
+                if self._mesh is None:
+                    self._tree = False
+                    return self._tree
+                self._arrays = mesh_triangles(self._mesh)
+                self._mesh = None
+            v, t = self._arrays
+            self._tree = BVHTree.FromPolygons(v.tolist(), t.tolist(), all_triangles=True) \
+                if len(t) else False
+        return self._tree
+
+
+def mesh_triangles(mesh):
+    """(vertices N × 3, triangles M × 3) of a mesh."""
+    v = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", v)
+    tris = mesh.loop_triangles
+    t = np.empty(len(tris) * 3, dtype=np.int64)
+    tris.foreach_get("vertices", t)
+    return v.reshape(-1, 3), t.reshape(-1, 3)
+
+
+class Occluders:
+    """Spheres (centres, radii) and other mesh instances (matrices, world boxes,
+    one `MeshSource` per group) of a read scene."""
+
+    def __init__(self, centers, radii, matrices, box_lo, box_hi, source_index, sources):
+        self.centers = np.asarray(centers, dtype=float).reshape(-1, 3)
+        self.radii = np.asarray(radii, dtype=float).reshape(-1)
+        self.matrices = np.asarray(matrices, dtype=float).reshape(-1, 4, 4)
+        self.box_lo = np.asarray(box_lo, dtype=float).reshape(-1, 3)
+        self.box_hi = np.asarray(box_hi, dtype=float).reshape(-1, 3)
+        self.source_index = np.asarray(source_index, dtype=np.int64)
+        self.sources = list(sources)
+        self._inverse = None
+
+    def release(self):
+        """Call when the depsgraph the occluders were read from goes away."""
+        for source in self.sources:
+            source.release()
+
+    def _sphere_hits(self, origins, d):
+        """Nearest t > 0 per origin against all spheres (inf: none)."""
+        if self.radii.size == 0:
+            return np.full(len(origins), np.inf)
+        # Relative to the first origin (the origins are close together), so that
+        # |oc|² = |C'|² − 2 C'·o + |o|² keeps its precision far from the world origin.
+        ref = origins[0]
+        o = origins - ref                                   # (k, 3), small
+        c = self.centers - ref                              # (S, 3)
+        cd = c @ d                                          # (S,)
+        r2 = self.radii ** 2
+        # Only spheres ahead of the origins and near the rays' line can be hit.
+        reach = float(np.linalg.norm(o, axis=1).max())
+        perp2 = np.einsum("sj,sj->s", c, c) - cd * cd
+        near_line = (cd + self.radii + reach > 0) & (perp2 <= (self.radii + reach) ** 2)
+        idx = np.flatnonzero(near_line)
+        out = np.full(len(origins), np.inf)
+        if idx.size == 0:
+            return out
+        c, cd, r2 = c[idx], cd[idx], r2[idx]
+        b = cd[None, :] - (o @ d)[:, None]                  # (k, S')
+        oc2 = (np.einsum("sj,sj->s", c, c)[None, :] - 2.0 * (o @ c.T)
+               + np.einsum("kj,kj->k", o, o)[:, None])
+        disc = b * b - (oc2 - r2[None, :])
+        with np.errstate(invalid="ignore"):
+            root = np.sqrt(disc)
+            near, far = b - root, b + root
+            t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
+        t = np.where(disc >= 0, t, np.inf)
+        return np.minimum(out, t.min(axis=1))
+
+    def first_hit(self, origins, direction, limit) -> np.ndarray:
+        """Distance from each origin (k × 3) along the unit `direction` to the first
+        surface, within `limit` (inf: nothing)."""
+        origins = np.asarray(origins, dtype=float).reshape(-1, 3)
+        d = np.asarray(direction, dtype=float)
+        d = d / np.linalg.norm(d)
+        best = self._sphere_hits(origins, d)
+        if len(self.source_index):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inv = np.where(d != 0, 1.0 / d, np.inf)
+                t0 = (self.box_lo[None] - origins[:, None]) * inv               # (k, N, 3)
+                t1 = (self.box_hi[None] - origins[:, None]) * inv
+                t0 = np.where(np.isnan(t0), -np.inf, t0)
+                t1 = np.where(np.isnan(t1), np.inf, t1)
+            enter = np.minimum(t0, t1).max(axis=2)
+            leave = np.maximum(t0, t1).min(axis=2)
+            hit_box = (leave >= np.maximum(enter, 0.0)) & (enter <= limit)
+            for k in range(len(origins)):
+                cand = np.flatnonzero(hit_box[k])
+                if cand.size == 0:
+                    continue
+                order = cand[np.argsort(np.maximum(enter[k, cand], 0.0))]
+                for n in order:
+                    if max(enter[k, n], 0.0) >= best[k]:
+                        break
+                    t = self._mesh_hit(n, origins[k], d)
+                    if t < best[k]:
+                        best[k] = t
+        return np.where(best <= limit, best, np.inf)
+
+    def _mesh_hit(self, n, origin, d) -> float:
+        from mathutils import Vector
+        tree = self.sources[self.source_index[n]].tree()
+        if not tree:
+            return math.inf
+        if self._inverse is None:
+            self._inverse = np.linalg.pinv(self.matrices)
+        m, inv = self.matrices[n], self._inverse[n]
+        o = inv[:3, :3] @ origin + inv[:3, 3]
+        v = inv[:3, :3] @ d
+        if not np.all(np.isfinite(o)) or not np.linalg.norm(v) > 0:
+            return math.inf
+        loc, _normal, _index, _dist = tree.ray_cast(Vector(o), Vector(v))
+        if loc is None:
+            return math.inf
+        w = m[:3, :3] @ np.asarray(loc) + m[:3, 3]
+        t = float((w - origin) @ d)
+        return t if t > 0 else math.inf

@@ -1,0 +1,152 @@
+"""`./lens-lights phase1` as a user runs it (a subprocess through the launcher):
+the JSON's keys and each source's Blender light, the README's example, `--model`,
+and bad input (exit 2, `FILE:LINE: message`, no traceback)."""
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from addon.bi_format import read_bi
+from addon.light_models import head_on_transmission
+
+ROOT = Path(__file__).resolve().parent.parent
+LAUNCHER = ROOT / "lens-lights"
+FIG1 = ROOT / "examples" / "fig1.bi"
+FIG3 = ROOT / "examples" / "fig3.bi"
+MODELS = ("thesis", "physical", "fitted", "exact_profile")
+SOURCE_KEYS = {"light", "lens", "kind", "position", "axis", "spread_deg", "cylinder_radius",
+               "intensity", "color", "full", "shadow_list", "image_distance", "magnification",
+               "brightness_factor", "unblocked_fraction", "blender_light"}
+LIGHT_KEYS = {"type", "energy_w", "spot_size_deg", "spot_blend", "radius"}
+#: The import rule (README, addon/bi_conversions.py): brightness 1 = 10 000 W.
+WATTS_PER_BRIGHTNESS = 10_000.0
+
+
+def phase1(*args, timeout=300):
+    return subprocess.run([str(LAUNCHER), "phase1", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def phase1_json(*args):
+    result = phase1(*args, "--json")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_json_keys_and_the_readme_example():
+    out = phase1_json(FIG3)
+    assert set(out) == {"model", "sources", "skipped"}
+    assert out["model"] == "FITTED"                      # the documented default
+    # README: one source (light 0 through sphere 1, real, blocked by sphere 0),
+    # two opaque spheres skipped
+    (src,) = out["sources"]
+    assert set(src) == SOURCE_KEYS
+    assert (src["light"], src["lens"], src["kind"], src["full"], src["shadow_list"]) == (0, 1, "real", False, [0])
+    assert src["position"] == pytest.approx([0.294, 4.353, 1.529], abs=5e-4)
+    assert src["spread_deg"] == pytest.approx(1.075, abs=5e-4)
+    assert src["intensity"] == pytest.approx(0.4975, abs=5e-5)
+    assert [(k["light"], k["lens"], k["reason"]) for k in out["skipped"]] == [
+        (0, 0, "opaque (kt = 0)"), (0, 2, "opaque (kt = 0)")]
+    bl = src["blender_light"]
+    assert set(bl) == LIGHT_KEYS
+    assert bl["type"] == "SPOT" and bl["energy_w"] > 0 and 0 < bl["spot_size_deg"] <= 180
+    assert 0 <= bl["spot_blend"] <= 1 and bl["radius"] == 0.0     # .bi lights have no radius
+
+
+def test_table_has_the_energy_of_the_chosen_tier():
+    result = phase1(FIG3, "--model", "physical")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "1 secondary light source(s), 2 light × sphere pair(s) skipped"
+    assert lines[1] == "energy: Blender light power (W) with the physical tier"
+    header = next(line for line in lines if line.lstrip().startswith("light lens"))
+    assert "energy W" in header and header.index("intensity") < header.index("energy W") < header.index("shadow")
+    row = lines[lines.index(header) + 2]
+    energy = phase1_json(FIG3, "--model", "physical")["sources"][0]["blender_light"]["energy_w"]
+    assert f"{energy:.4g}" in row.split()
+    assert "skipped:" in lines and lines[-1] == "  light 0 × sphere 2: opaque (kt = 0)"
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_every_model_is_accepted(model):
+    out = phase1_json(FIG1, "--model", model)
+    assert out["model"] == model.upper()
+    (src,) = out["sources"]
+    bl = src["blender_light"]
+    assert set(bl) >= LIGHT_KEYS and bl["energy_w"] > 0
+    if model == "exact_profile":
+        assert (bl["spot_size_deg"], bl["spot_blend"]) == (180.0, 0.0)
+        assert set(bl) == LIGHT_KEYS | {"profile"} and "pixels" not in bl["profile"]
+        assert (bl["profile"]["width"], bl["profile"]["height"]) == (256, 256)
+    else:
+        assert set(bl) == LIGHT_KEYS
+    assert phase1(FIG1, "--model", model.upper()).returncode == 0     # any case
+
+
+def test_primary_power_follows_the_import_rule():
+    """Brightness b → a point light of b × 10 000 W; a sphere's transmission weight
+    is its kt. THESIS: energy = power × the eq. 5.22 factor (the source's
+    intensity is brightness × factor); PHYSICAL: power × T(0) × m² × kt²."""
+    scene = read_bi(FIG1)
+    b = scene.lights[0].brightness
+    kt, n = scene.objects[0].surface.transmission, scene.objects[0].surface.ior
+    thesis = phase1_json(FIG1, "--model", "thesis")["sources"][0]
+    assert thesis["kind"] == "real" and thesis["full"]
+    assert thesis["blender_light"]["energy_w"] == pytest.approx(
+        WATTS_PER_BRIGHTNESS * thesis["intensity"], rel=1e-9)
+    assert thesis["intensity"] == pytest.approx(b * thesis["brightness_factor"], rel=1e-12)
+    physical = phase1_json(FIG1, "--model", "physical")["sources"][0]
+    m = physical["magnification"]
+    assert physical["blender_light"]["energy_w"] == pytest.approx(
+        WATTS_PER_BRIGHTNESS * b * head_on_transmission(n) * m * m * kt * kt, rel=1e-9)
+    # and the non-full source of fig3 is scaled by its unblocked share
+    src = phase1_json(FIG3, "--model", "thesis")["sources"][0]
+    assert src["blender_light"]["energy_w"] == pytest.approx(
+        WATTS_PER_BRIGHTNESS * src["intensity"] * src["unblocked_fraction"], rel=1e-9)
+
+
+def test_default_model_is_fitted_and_documented():
+    assert phase1_json(FIG3)["sources"] == phase1_json(FIG3, "--model", "fitted")["sources"]
+    help_text = phase1("--help").stdout
+    assert "--model" in help_text and "fitted" in help_text and "EEVEE and Cycles" in help_text
+
+
+@pytest.mark.parametrize("content,expect", [
+    (None, ": cannot read the file"),            # no line to name
+    ("garbage\n", ":1: expected 'V <width> <height>'"),
+    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\nP 1 2\n", ":8: "),
+    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 0 0\n", ":4: "),
+], ids=["missing", "garbage", "short record", "zero up"])
+@pytest.mark.parametrize("flags", [(), ("--json",), ("--json", "--model", "exact_profile")],
+                         ids=["table", "json", "json-exact"])
+def test_bad_file_exits_2_with_file_and_line(tmp_path, content, expect, flags):
+    path = tmp_path / "bad.bi"
+    if content is not None:
+        path.write_text(content)
+    result = phase1(path, *flags)
+    assert result.returncode == 2
+    assert f"lens-lights: {path}{expect}" in result.stderr
+    assert "Traceback" not in result.stderr and result.stdout == ""
+
+
+def test_bad_model_exits_2_without_traceback():
+    result = phase1(FIG3, "--model", "bogus")
+    assert result.returncode == 2
+    assert "invalid choice: 'bogus'" in result.stderr and "Traceback" not in result.stderr
+    assert result.stdout == ""
+
+
+def test_exact_profile_energy_is_twice_the_beams_flux():
+    """A 180° spot emits half its energy: the exact-profile light's power is twice
+    the flux the exact optics put through the lens (exact_optics.lens_flux)."""
+    from addon import exact_optics
+    scene = read_bi(FIG1)
+    light, lens = scene.lights[0], scene.objects[0]
+    out = phase1_json(FIG1, "--model", "exact_profile")["sources"][0]
+    D = math.dist(light.position, lens.center)
+    i0 = WATTS_PER_BRIGHTNESS * light.brightness / (4 * math.pi)
+    flux = exact_optics.lens_flux(i0, D, lens.radius, lens.surface.ior)
+    kt = lens.surface.transmission
+    assert out["blender_light"]["energy_w"] == pytest.approx(2 * flux * kt * kt, rel=1e-3)
