@@ -31,6 +31,9 @@ sys.path.insert(0, str(ROOT))
 
 import bpy  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "scripts"))
+from dev_extension import load_extension  # noqa: E402
+
 from addon import lens_tiers as lt  # noqa: E402
 from addon.accuracy import ExactBeam  # noqa: E402
 from addon.light_models import PrimaryLight  # noqa: E402
@@ -113,62 +116,14 @@ def add_spot(name, energy, spot_size_deg, blend, location, radius=0.0):
 
 
 def build_profile_light(light: "lt.ProfileLight", name="lens_light"):
-    """The EXACT_PROFILE light, as lens_tiers.NODE_TREE_RECIPE says (the light
-    shines along world −z here; in a scene, rotate its −Z onto `direction`)."""
-    p = light.profile
+    """The EXACT_PROFILE light as the add-on builds it (operators/light_builder:
+    the image and the light node tree of lens_tiers.NODE_TREE_RECIPE); it shines
+    along world −z here (unrotated)."""
+    load_extension()
+    from lens_lights.operators import light_builder
     ob = add_spot(name, light.energy_w, 180.0, 0.0, light.location, light.radius)
-    ld = ob.data
-    H, K = p["height"], p["width"]
-    img = bpy.data.images.new(name + "_profile", width=K, height=H, float_buffer=True, alpha=False)
-    # colour space first: changing it later regenerates a generated image (pixels lost)
-    img.colorspace_settings.name = "Non-Color"
-    img.use_half_precision = False                 # the table spans ~20 decades
-    rgba = np.ones((H, K, 4), dtype=np.float32)
-    rgba[..., :3] = p["pixels"][..., None]
-    img.pixels.foreach_set(rgba.ravel())
-    img.update()
-    img.pack()                                     # saved in the .blend (as OpenEXR)
-    ld.use_nodes = True
-    nt = ld.node_tree
-    nt.nodes.clear()
-
-    def math_node(op, a, b=None):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = op
-        for k, v in enumerate((a, b)):
-            if v is None:
-                continue
-            if isinstance(v, (int, float)):
-                n.inputs[k].default_value = float(v)
-            else:
-                nt.links.new(v, n.inputs[k])
-        return n.outputs[0]
-
-    tc = nt.nodes.new("ShaderNodeTexCoord")
-    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
-    nt.links.new(tc.outputs["Normal"], sep.inputs[0])
-    cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
-    cosc = math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0)
-    gam = math_node("ARCCOSINE", cosc)
-    u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(p["gamma_max_deg"])))
-    lp = nt.nodes.new("ShaderNodeLightPath")
-    h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
-    ratio = math_node("DIVIDE", math_node("MAXIMUM", h, p["h_min"]), p["h_min"])
-    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), math.log(p["h_max"] / p["h_min"]))
-    comb = nt.nodes.new("ShaderNodeCombineXYZ")
-    nt.links.new(u, comb.inputs["X"])
-    nt.links.new(v, comb.inputs["Y"])
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = img
-    tex.interpolation = "Linear"
-    tex.extension = "EXTEND"
-    nt.links.new(comb.outputs[0], tex.inputs["Vector"])
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Color"].default_value = (1, 1, 1, 1)
-    strength = math_node("MULTIPLY", tex.outputs["Color"], p["strength_scale"])
-    nt.links.new(strength, em.inputs["Strength"])
-    out = nt.nodes.new("ShaderNodeOutputLight")
-    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    image = light_builder.profile_image(light.profile)
+    light_builder.build_profile_nodes(ob.data, light.profile, image)
     return ob
 
 

@@ -31,12 +31,12 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT))
 
 import bpy  # noqa: E402
 
-from conftest import load_extension  # noqa: E402
+from dev_extension import load_extension  # noqa: E402
 
 REPORT = ROOT / "reports" / "operator_scale.md"
 SPACING = 1.0

@@ -131,14 +131,9 @@ def ensure_extension():
     already has it (an installed extension). Returns the package module or None."""
     if _has_operator("import_scene", "bi") and _has_operator("lens_lights", "generate"):
         return None
-    if PACKAGE in sys.modules:
-        module = sys.modules[PACKAGE]
-    else:
-        spec = importlib.util.spec_from_file_location(
-            PACKAGE, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[PACKAGE] = module
-        spec.loader.exec_module(module)
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from dev_extension import load_extension
+    module = load_extension()
     if not _has_operator("import_scene", "bi"):
         module.register()
     return module

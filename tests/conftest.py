@@ -6,24 +6,11 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import importlib.util
+sys.path.insert(0, str(ROOT / "scripts"))
 
-import pytest
+import pytest  # noqa: E402
 
-EXTENSION_NAME = "lens_lights"
-
-
-def load_extension():
-    """Import the repository root as the package `lens_lights` (as Blender would,
-    so relative imports work) without installing it."""
-    if EXTENSION_NAME in sys.modules:
-        return sys.modules[EXTENSION_NAME]
-    spec = importlib.util.spec_from_file_location(
-        EXTENSION_NAME, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[EXTENSION_NAME] = module
-    spec.loader.exec_module(module)
-    return module
+from dev_extension import load_extension  # noqa: E402
 
 
 @pytest.fixture(scope="session")
