@@ -204,8 +204,8 @@ def main() -> int:
         lines.append(f"| {s:g} R behind | {l1_m:.4f} / {dev_m:.4f} | {l1_x:.4f} / {ratio:.4f} | {dt:.1f} s |")
         print(f"profile {s} R: vs model L1 {l1_m:.4f} dev {dev_m:.4f}; vs exact L1 {l1_x:.4f} flux {ratio:.4f}",
               flush=True)
-    lines.append("\nThe node tree is `build_profile_light` in this file (it follows "
-                 "`lens_tiers.NODE_TREE_RECIPE`). Against the pure model Cycles reproduces the table to "
+    lines.append("\nThe node tree is the one the add-on builds (`operators/light_builder.py`, "
+                 "following `lens_tiers.NODE_TREE_RECIPE`). Against the pure model Cycles reproduces the table to "
                  "the table's own precision (the node tree is right); against the exact beam the "
                  "remaining error is the table's resolution, as in the EXACT_PROFILE row of "
                  "reports/accuracy.md.\n")
