@@ -38,7 +38,6 @@ that warm-up is reported separately and not counted.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import shutil
 import sys
@@ -59,7 +58,6 @@ from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
 
 REPORTS = ROOT / "reports"
-EXTENSION_NAME = "lens_lights"
 
 # --------------------------------------------------------------------------- the scene
 R = 0.05                     # ball radius (m)
@@ -212,15 +210,13 @@ def flux_ratio(img, ref, mask):
 # --------------------------------------------------------------------------- Blender
 
 def load_extension():
-    """Import the repository root as the package `lens_lights` (as Blender would)."""
-    if EXTENSION_NAME in sys.modules:
-        return sys.modules[EXTENSION_NAME]
-    spec = importlib.util.spec_from_file_location(
-        EXTENSION_NAME, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[EXTENSION_NAME] = module
-    spec.loader.exec_module(module)
-    module.register()
+    """The checkout as the package `lens_lights`, registered once."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from dev_extension import PACKAGE, load_extension as load
+    registered = PACKAGE in sys.modules
+    module = load()
+    if not registered:
+        module.register()
     return module
 
 
