@@ -426,11 +426,4 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 _CLASSES = (LENS_LIGHTS_OT_generate, LENS_LIGHTS_OT_clear)
 
 
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(_CLASSES)

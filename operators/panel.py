@@ -125,11 +125,4 @@ class VIEW3D_PT_lens_lights_object(bpy.types.Panel):
 _CLASSES = (VIEW3D_PT_lens_lights, VIEW3D_PT_lens_lights_object)
 
 
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(_CLASSES)

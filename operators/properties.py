@@ -107,9 +107,11 @@ _CLASSES = (
 )
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(_CLASSES)
+
+
 def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
+    _register_classes()
     bpy.types.Scene.lens_lights = PointerProperty(type=LensLightsSceneSettings)
     bpy.types.Object.lens_lights = PointerProperty(type=LensLightsObjectSettings)
 
@@ -117,5 +119,4 @@ def register():
 def unregister():
     del bpy.types.Object.lens_lights
     del bpy.types.Scene.lens_lights
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()
