@@ -8,8 +8,11 @@ tokens; comments opened and not closed; bytes flipped) and random text/bytes.
 For every input the reader either returns a scene or raises `BiFormatError` with
 a line number (None only when the file could not be opened); anything else is a
 failure. Every 50th input also goes through the CLI's `phase1` in-process: exit
-0 with output, or exit 2 with a one-line message and no traceback. Parsed scenes
-go through phase 1, whose JSON must contain only finite numbers.
+0 with output, or exit 2 with a one-line message and no traceback. Every 200th
+goes through Blender's `import_scene.bi` operator (the bpy module): it imports,
+or it fails with a report naming the file and line, creates nothing and shows no
+traceback. Parsed scenes go through phase 1, whose JSON must contain only finite
+numbers.
 """
 from __future__ import annotations
 
@@ -103,6 +106,24 @@ def check_cli(text: str, tmp: Path) -> None:
         raise AssertionError(f"CLI exit status {code}")
 
 
+def check_import_operator(text: str, tmp: Path) -> None:
+    import bpy
+    from dev_extension import PACKAGE, load_extension
+    if PACKAGE not in sys.modules:
+        load_extension().register()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    path = tmp / "fuzz_import.bi"
+    path.write_bytes(text.encode("utf-8", "surrogatepass"))
+    try:
+        bpy.ops.import_scene.bi(filepath=str(path))
+    except RuntimeError as e:          # the operator's ERROR report, as bpy.ops raises it
+        msg = str(e)
+        if "Traceback" in msg or f"{path}:" not in msg:
+            raise AssertionError(f"bad import report: {msg!r}")
+        if len(bpy.data.objects) or len(bpy.data.collections):
+            raise AssertionError("a failed import left objects behind")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -127,6 +148,8 @@ def main(argv=None) -> int:
                         raise AssertionError(f"error without a line number: {e}")
                 if n % 50 == 0:
                     check_cli(text, Path(tmp))
+                if n % 200 == 0:
+                    check_import_operator(text, Path(tmp))
             except Exception:  # noqa: BLE001 - the point of a fuzzer
                 failures += 1
                 if failures <= 5:
