@@ -1075,6 +1075,66 @@ def notes_lines(run, models, tiers_missing):
 
 # --------------------------------------------------------------------------- main
 
+def _rescale_profile_lights(k):
+    """Energy × k, the node tree's strength_scale ÷ k, on every EXACT_PROFILE lens
+    light of the scene (the image's expectation is unchanged)."""
+    import bpy
+    for o in bpy.data.objects:
+        if o.type != "LIGHT" or not o.lens_lights.is_lens_light or not o.data.use_nodes:
+            continue
+        o.data.energy *= k
+        for n in o.data.node_tree.nodes:
+            if n.bl_idname == "ShaderNodeMath" and n.operation == "MULTIPLY" \
+                    and n.outputs[0].links and n.outputs[0].links[0].to_node.bl_idname == "ShaderNodeEmission":
+                n.inputs[1].default_value /= k
+
+
+def quick_look(args) -> int:
+    """`--only`: L1 and flux ratio of a few Cycles lens-light tiers, printed only."""
+    import bpy
+    t0 = time.perf_counter()
+
+    def log(msg):
+        print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", flush=True)
+
+    load_extension()
+    run = Runner(args, log)
+    beam_px, direct_px, run.beam = reference_maps()
+    run.ref, run.mask = beam_px, region_mask()
+    # pixels entirely outside the shadow: the primary's direct light (and the rim of the beam)
+    x, y = pixel_grid()
+    outside = np.hypot(x, y) - STEP / math.sqrt(2.0) >= RS
+    ref_full = beam_px + direct_px
+    run.warm_up()
+    samples = args.samples or SAMPLES_CYCLES_LL
+    table = []
+    for tier in args.only:
+        for k in (args.energy_factor if tier == "EXACT_PROFILE" else [1.0]):
+            sc, *_ = build_scene("CYCLES")
+            gen, info, message = generate_lens_lights(tier)
+            if k != 1.0:
+                _rescale_profile_lights(k)
+            energies = [o.data.energy for o in bpy.data.objects if o.type == "LIGHT"]
+            log(f"{tier} k = {k:g}: light energies {', '.join(f'{e:.4g}' for e in energies)} W")
+            for s in samples:
+                res = []
+                for seed in args.seeds:
+                    sc.cycles.seed = seed
+                    img, dt = render(sc, run.tmp / f"quick_{tier}_{k:g}_{s}_{seed}.exr", s)
+                    res.append((l1(img, run.ref, run.mask), flux_ratio(img, run.ref, run.mask),
+                                l1(img, ref_full, outside), l1(img, ref_full, np.ones_like(outside)), dt))
+                e, f, o, a, dt = np.mean(res, axis=0)
+                table.append((tier, k, s, e, f, o, a, dt))
+                log(f"  {s:5d} spp  L1 {e:.4f}  flux ratio {f:.4f}  L1 outside the shadow {o:.4f}  "
+                    f"L1 whole image {a:.4f}  render {dt:.2f} s")
+    print(f"\nmeans over seeds {args.seeds}\n| tier | k | samples | L1 (caustic region) | flux ratio | "
+          "L1 outside the shadow | L1 whole image | render |\n|---|---|---|---|---|---|---|---|")
+    for tier, k, s, e, f, o, a, dt in table:
+        print(f"| {tier} | {k:g} | {s} | {e:.4f} | {f:.4f} | {o:.4f} | {a:.4f} | {dt:.2f} s |")
+    shutil.rmtree(run.tmp, ignore_errors=True)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="two sample counts per method")
@@ -1083,7 +1143,18 @@ def main(argv=None) -> int:
     ap.add_argument("--no-eevee", action="store_true")
     ap.add_argument("--no-mitsuba", action="store_true", help="skip the mitsuba check of the reference")
     ap.add_argument("--no-scales", action="store_true", help="skip MNEE at other scales")
+    ap.add_argument("--only", nargs="+", metavar="TIER",
+                    help="quick look: render only these Cycles lens-light tiers (no MNEE, EEVEE, "
+                         "mitsuba or side experiments) and print their L1; writes no report")
+    ap.add_argument("--samples", nargs="+", type=int, help="sample counts (with --only)")
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1], help="Cycles seeds (with --only; "
+                    "the errors printed are means over them)")
+    ap.add_argument("--energy-factor", nargs="+", type=float, default=[1.0], metavar="K",
+                    help="with --only: also render each EXACT_PROFILE light with its energy × K "
+                         "and its node tree's strength_scale ÷ K (same expectation)")
     args = ap.parse_args(argv)
+    if args.only:
+        return quick_look(args)
     args.argv = list(argv if argv is not None else sys.argv[1:])
     REPORTS.mkdir(exist_ok=True)
     t0 = time.perf_counter()
