@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from .phase1 import SourceTable
+from .ranges import concat_ranges
 
 
 def caught_fraction(radius, distance):
@@ -107,8 +108,7 @@ def take(table: SourceTable, rows: np.ndarray) -> SourceTable:
             if not f.name.startswith("shadow")}
     starts = table.shadow_offsets[rows]
     counts = table.shadow_offsets[rows + 1] - starts
-    spheres = table.shadow_spheres[np.repeat(starts, counts) + np.arange(counts.sum())
-                                   - np.repeat(np.cumsum(counts) - counts, counts)]
+    spheres = table.shadow_spheres[concat_ranges(starts, counts)]
     return SourceTable(**cols, shadow_offsets=np.concatenate([[0], np.cumsum(counts)]),
                        shadow_spheres=spheres)
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import angle_between, cap_overlap_fraction
+from .ranges import concat_ranges
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
@@ -110,8 +111,7 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         if total == 0:
             continue
         q = np.repeat(queries[q_idx], count)
-        e = e_own[np.repeat(lo, count) + np.arange(total)
-                  - np.repeat(np.cumsum(count) - count, count)]
+        e = e_own[concat_ranges(lo, count)]
         pa.append(q)
         pb.append(e)
     if not pa:

@@ -23,6 +23,7 @@ import numpy as np
 from .geometry import (angle_between, cap_overlap_fraction, radial_angle,  # noqa: F401
                        tangent_length)
 from .obstruction import find_blockers
+from .ranges import concat_ranges
 from .scene import Scene
 
 REAL, VIRTUAL, COLLIMATED = "real", "virtual", "collimated"
@@ -407,8 +408,7 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     factor = brightness_factor(R, n, a.kt[lenses])
     starts = blk.shadow_offsets[rows]
     counts = blk.shadow_offsets[rows + 1] - starts
-    shadow = blk.shadow_spheres[np.repeat(starts, counts)
-                                + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)]
+    shadow = blk.shadow_spheres[concat_ranges(starts, counts)]
     m = lenses.size
     return dict(
         light=np.full(m, j), lens=lenses,
