@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -131,10 +132,18 @@ def cmd_phase1(args) -> int:
 
 # --------------------------------------------------------------------------- test
 
+#: The release whose environment the launcher picks without `--blender`.
+DEFAULT_BLENDER = "5.2"
+
+
 def cmd_test(args, extra) -> int:
     # Paths given on the command line replace the default (the whole suite).
     targets = [] if any(not a.startswith("-") for a in extra) else [str(ROOT / "tests")]
-    cmd = [sys.executable, "-m", "pytest", *targets, "-q", *extra]
+    # Another release than the default (`--blender 4.2`): the Blender-side tests only;
+    # the pure core is the same code on every release.
+    release = os.environ.get("LENS_LIGHTS_BLENDER") or DEFAULT_BLENDER
+    marks = ["-m", "blender"] if release != DEFAULT_BLENDER and "-m" not in extra else []
+    cmd = [sys.executable, "-m", "pytest", *targets, "-q", *marks, *extra]
     return subprocess.call(cmd, cwd=ROOT)
 
 

@@ -93,6 +93,11 @@ SKIP_PROPS = {"rna_type", "users", "session_uid", "is_evaluated", "original", "t
               "is_embedded_data", "name_full", "is_editable", "is_linked_packed",
               "use_nodes",        # deprecated (always on in 5.0; warns when read)
               "particle_edit",    # runtime state of particle edit mode (undo resets it)
+              # Blender 5.2 keeps a constant attribute as one value ('SINGLE') and expands
+              # it to an 'ARRAY' when its `data` is read: the snapshot's own reading
+              # changes it, nothing of the extension's does (tests/test_blender_generate.py
+              # pins that the snapshot is stable).
+              "storage_type",
               "lens_lights"}      # the extension's own settings (checked separately)
 MAX_ITEMS = 64
 

@@ -29,3 +29,9 @@ def empty_blend(extension):
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return bpy.context
+
+
+
+def pytest_configure(config):
+    # `./lens-lights test --blender 4.2` runs only these (`-m blender`) on another release.
+    config.addinivalue_line("markers", "blender: the module runs Blender (the bpy module)")

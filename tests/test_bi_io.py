@@ -11,6 +11,8 @@ from addon.bi_format import format_bi, read_bi, write_bi
 from addon.phase1 import compute_phase1
 from addon.scene import Camera, Light, Scene, Sphere
 
+pytestmark = pytest.mark.blender
+
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted((ROOT / "examples").glob("*.bi"))
 THESIS = [ROOT / "examples" / f"fig{i}.bi" for i in (1, 2, 3)]

@@ -5,6 +5,8 @@ from types import SimpleNamespace
 
 import pytest
 
+pytestmark = pytest.mark.blender
+
 bpy = pytest.importorskip("bpy")   # the pinned environment has it
 
 

@@ -44,6 +44,8 @@ import math
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.blender
+
 bpy = pytest.importorskip("bpy")
 
 from addon import exact_optics                      # noqa: E402

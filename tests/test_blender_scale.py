@@ -8,6 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.blender
+
 bpy = pytest.importorskip("bpy")   # the pinned environment has it
 
 from blender_scene_helpers import (add_point_light, add_sphere, collection_instance,  # noqa: E402

@@ -9,6 +9,8 @@ import math
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.blender
+
 bpy = pytest.importorskip("bpy")
 
 from test_blender_generate import (add_point_light, add_sphere, basic_scene,  # noqa: E402

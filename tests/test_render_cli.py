@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.blender
+
 ROOT = Path(__file__).resolve().parent.parent
 CLI = ROOT / "scripts" / "cli.py"
 FIG1 = ROOT / "examples" / "fig1.bi"
