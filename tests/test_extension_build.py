@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import tomllib
 import zipfile
 from pathlib import Path
 
@@ -110,3 +111,15 @@ def test_install_from_disk_enable_and_run(built_zip, tmp_path):
     assert out["modules"] == ["bl_ext.user_default.lens_lights"]     # not this checkout
     assert (tmp_path / "blender-user" / "extensions" / "user_default" / "lens_lights"
             / "blender_manifest.toml").exists()
+
+
+def test_zip_ships_the_license_and_declares_file_access(built_zip):
+    """GPL-3.0-or-later wants its text beside the code; import/export write files, which
+    the extensions platform asks to be declared (`[permissions] files`)."""
+    with zipfile.ZipFile(built_zip) as z:
+        license_text = z.read("LICENSE").decode()
+        manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
+    assert "GNU GENERAL PUBLIC LICENSE" in license_text and "Version 3" in license_text
+    assert manifest["license"] == ["SPDX:GPL-3.0-or-later"]
+    assert set(manifest["permissions"]) == {"files"}
+    assert ".bi" in manifest["permissions"]["files"]
