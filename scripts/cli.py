@@ -8,7 +8,9 @@ Subcommands:
                              (thesis|physical|fitted|exact_profile; default
                              fitted: the most accurate tier that renders in both
                              EEVEE and Cycles)
-  test [PYTEST ARGS]         the whole test suite
+  test [PYTEST ARGS]         the whole test suite on Blender 5.2, then the Blender
+                             tests on 4.2 (`--blender X.Y`: on that release only;
+                             paths: those tests only)
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
                              [--no-lens-lights | --compare]
@@ -134,17 +136,29 @@ def cmd_phase1(args) -> int:
 
 #: The release whose environment the launcher picks without `--blender`.
 DEFAULT_BLENDER = "5.2"
+#: The manifest's `blender_version_min`: plain `test` also runs the Blender tests there.
+MINIMUM_BLENDER = "4.2"
 
 
 def cmd_test(args, extra) -> int:
+    """Plain `test`: the whole suite on the default release, then the Blender-side
+    tests on the minimum release (its own environment, made on first use). Paths or
+    `--blender X.Y` narrow it to one pytest run."""
     # Paths given on the command line replace the default (the whole suite).
     targets = [] if any(not a.startswith("-") for a in extra) else [str(ROOT / "tests")]
-    # Another release than the default (`--blender 4.2`): the Blender-side tests only;
-    # the pure core is the same code on every release.
-    release = os.environ.get("LENS_LIGHTS_BLENDER") or DEFAULT_BLENDER
+    chosen = os.environ.get("LENS_LIGHTS_BLENDER") or ""
+    release = chosen or DEFAULT_BLENDER
+    # Another release than the default: the Blender-side tests only; the pure core
+    # is the same code on every release.
     marks = ["-m", "blender"] if release != DEFAULT_BLENDER and "-m" not in extra else []
     cmd = [sys.executable, "-m", "pytest", *targets, "-q", *marks, *extra]
-    return subprocess.call(cmd, cwd=ROOT)
+    code = subprocess.call(cmd, cwd=ROOT)
+    if code != 0 or chosen or not targets:
+        return code
+    print(f"lens-lights: the Blender tests on Blender {MINIMUM_BLENDER} "
+          "(the manifest's minimum)", flush=True)
+    return subprocess.call([str(ROOT / "lens-lights"), "test", "--blender", MINIMUM_BLENDER,
+                            *extra], cwd=ROOT)
 
 
 # --------------------------------------------------------------------------- bench
