@@ -196,7 +196,9 @@ def main(argv=None) -> int:
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 
-    sub.add_parser("fuzz", help="fuzz the .bi reader and phase1 (extra args go to it)")
+    # Its options (--count, --seed) and --help are scripts/fuzz_bi.py's own.
+    sub.add_parser("fuzz", add_help=False,
+                   help="fuzz the .bi reader and phase1 (`fuzz --help`: its options)")
 
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
