@@ -57,6 +57,9 @@ from addon.light_models import PrimaryLight, make_blender_light  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "scripts"))
+from measuring_scene import build_measuring_scene  # noqa: E402
+
 REPORTS = ROOT / "reports"
 
 # --------------------------------------------------------------------------- the scene
@@ -227,27 +230,22 @@ def available_tiers():
     return [item.identifier for item in settings.bl_rna.properties["energy_model"].enum_items]
 
 
-def build_scene(engine, scale=1.0):
-    """The table-top scene (see the module docstring), lengths × `scale`, power ×
-    scale² (same irradiance). Returns (scene, table, ball, lamp)."""
-    import bpy
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.engine = engine
-    sc.render.resolution_x = sc.render.resolution_y = PX
-    sc.render.resolution_percentage = 100
-    sc.render.film_transparent = False
-    sc.view_settings.view_transform = "Standard"
-    sc.view_settings.look = "None"
-    sc.view_settings.exposure = 0.0
-    sc.view_settings.gamma = 1.0
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_depth = "32"
+def build_scene(engine, scale=1.0, segments=64, rings=32):
+    """The table-top scene (see the module docstring; the measuring scene of
+    scripts/measuring_scene.py), lengths × `scale`, power × scale² (same
+    irradiance), the ball a `segments` × `rings` UV sphere. Returns (scene,
+    table, ball, lamp)."""
+    built = build_measuring_scene(
+        engine, resolution=PX, floor_size=2.0 * scale, albedo=ALBEDO, view=VIEW * scale,
+        camera_height=2.0 * scale, clip_end=100.0 * scale,
+        ball=dict(radius=R * scale, location=(0.0, 0.0, Z * scale), ior=IOR,
+                  segments=segments, rings=rings, hide_from_indirect=True),
+        lamp=dict(location=(0.0, 0.0, (Z + D) * scale), power=POWER * scale * scale))
+    sc = built.scene
+    built.floor.name = "Table"
     sc.render.threads_mode = "AUTO"
-    sc.world = None
     if engine == "CYCLES":
         c = sc.cycles
-        c.device = "CPU"
         c.use_denoising = False
         c.use_adaptive_sampling = False
         c.pixel_filter_type = "BOX"
@@ -276,49 +274,7 @@ def build_scene(engine, scale=1.0):
                 setattr(e, attr, value)
         if hasattr(sc.render, "filter_size"):
             sc.render.filter_size = 1.0
-
-    floor_mat = bpy.data.materials.new("Table")
-    nt = floor_mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1.0)
-    nt.links.new(diffuse.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    bpy.ops.mesh.primitive_plane_add(size=2.0 * scale)
-    table = bpy.context.object
-    table.name = "Table"
-    table.data.materials.append(floor_mat)
-
-    glass = bpy.data.materials.new("Glass")
-    bsdf = glass.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Transmission Weight"].default_value = 1.0
-    bsdf.inputs["IOR"].default_value = IOR
-    bsdf.inputs["Roughness"].default_value = 0.0
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=R * scale, location=(0.0, 0.0, Z * scale),
-                                         segments=64, ring_count=32)
-    ball = bpy.context.object
-    ball.name = "Ball"
-    ball.data.materials.append(glass)
-    bpy.ops.object.shade_smooth()
-    ball.visible_camera = False
-    ball.visible_diffuse = False
-    ball.visible_glossy = False
-
-    data = bpy.data.lights.new("Lamp", "POINT")
-    data.energy = POWER * scale * scale
-    data.shadow_soft_size = 0.0
-    lamp = bpy.data.objects.new("Lamp", data)
-    sc.collection.objects.link(lamp)
-    lamp.location = (0.0, 0.0, (Z + D) * scale)
-
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    sc.collection.objects.link(cam)
-    cam.data.type = "ORTHO"
-    cam.data.ortho_scale = VIEW * scale
-    cam.data.clip_end = 100.0 * scale
-    cam.location = (0.0, 0.0, 2.0 * scale)
-    sc.camera = cam
-    return sc, table, ball, lamp
+    return sc, built.floor, built.ball, built.lamp
 
 
 def bpy_scene():
@@ -468,19 +424,9 @@ class Runner:
 
     def mnee_meshes(self):
         """MNEE with the ball tessellated more and less finely."""
-        import bpy
         self.meshes = []
-        glass = None
         for seg, ring in MESHES:
-            sc, table, ball, lamp = build_scene("CYCLES")
-            glass = ball.data.materials[0]
-            bpy.data.objects.remove(ball)
-            bpy.ops.mesh.primitive_uv_sphere_add(radius=R, location=(0.0, 0.0, Z), segments=seg,
-                                                 ring_count=ring)
-            ball = bpy.context.object
-            ball.data.materials.append(glass)
-            bpy.ops.object.shade_smooth()
-            ball.visible_camera = ball.visible_diffuse = ball.visible_glossy = False
+            sc, table, ball, lamp = build_scene("CYCLES", segments=seg, rings=ring)
             enable_mnee(sc, table, ball, lamp)
             img, dt = render(sc, self.tmp / f"mnee_mesh_{seg}.exr", MESH_SAMPLES)
             dark = int(((img < 1e-6) & self.mask).sum())
