@@ -11,11 +11,13 @@ Subcommands:
   test [PYTEST ARGS]         the whole test suite
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
-                             [--no-lens-lights | --compare]
+                             [--no-lens-lights | --compare]; OUT's extension picks
+                             the format (.png .jpg/.jpeg .exr .tif/.tiff .webp)
   demo [--out DIR]           render the showcase scene without and with lens lights
   build [ARGS]               build the extension's zip (scripts/build_extension.py)
   bench NAME [ARGS]          a benchmark of bench/ (e.g. `bench scale`), report in reports/
-  fuzz [--count N]           fuzz the .bi reader and `phase1` (100 000 inputs by default)
+  fuzz [--count N] [--seed S]
+                             fuzz the .bi reader and `phase1` (100 000 inputs by default)
 """
 from __future__ import annotations
 
