@@ -137,16 +137,17 @@ def captured_output(into: list):
 
 
 def check_import_operator(text: str, tmp: Path) -> None:
-    import bpy
-    from dev_extension import PACKAGE, load_extension
-    if PACKAGE not in sys.modules:
-        load_extension().register()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
     path = tmp / "fuzz_import.bi"
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
     printed = []
     try:
+        # Blender's start-up log lines and the report of a refused import are captured.
         with captured_output(printed):
+            import bpy
+            from dev_extension import PACKAGE, load_extension
+            if PACKAGE not in sys.modules:
+                load_extension().register()
+            bpy.ops.wm.read_factory_settings(use_empty=True)
             bpy.ops.import_scene.bi(filepath=str(path))
     except RuntimeError as e:          # the operator's ERROR report, as bpy.ops raises it
         msg = str(e)
