@@ -33,6 +33,7 @@ import bpy  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "scripts"))
 from dev_extension import load_extension  # noqa: E402
+from measuring_scene import build_measuring_scene  # noqa: E402
 
 from addon import lens_tiers as lt  # noqa: E402
 from addon.accuracy import ExactBeam  # noqa: E402
@@ -46,46 +47,20 @@ RES = 400
 
 
 def new_scene(half_width: float):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.engine = "CYCLES"
-    sc.cycles.device = "CPU"
+    """The measuring scene (scripts/measuring_scene.py) without ball or light: a
+    white Diffuse plane 4 half-widths wide, seen from 500 m above over
+    2 half-widths; Cycles with no bounces, one thread, a pixel filter so narrow
+    that a pixel is the irradiance at its centre."""
+    sc = build_measuring_scene("CYCLES", resolution=RES, floor_size=4 * half_width,
+                               albedo=1.0, view=2 * half_width, camera_height=500.0,
+                               clip_end=1e4).scene
     sc.cycles.samples = 16
     sc.cycles.use_denoising = False
     sc.cycles.max_bounces = 0
     sc.render.threads_mode = "FIXED"
     sc.render.threads = 1
-    sc.render.resolution_x = sc.render.resolution_y = RES
-    sc.render.resolution_percentage = 100
     sc.render.filter_size = 0.01 if hasattr(sc.render, "filter_size") else 1.5
     sc.cycles.filter_width = 0.01
-    sc.view_settings.view_transform = "Standard"
-    sc.view_settings.look = "None"
-    sc.view_settings.exposure = 0.0
-    sc.view_settings.gamma = 1.0
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_depth = "32"
-    sc.world = None
-    # white Lambertian plane z = 0
-    bpy.ops.mesh.primitive_plane_add(size=4 * half_width, location=(0, 0, 0))
-    plane = bpy.context.active_object
-    mat = bpy.data.materials.new("white")
-    mat.use_nodes = True
-    nt = mat.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    dif = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    dif.inputs["Color"].default_value = (1, 1, 1, 1)
-    nt.links.new(dif.outputs[0], out.inputs["Surface"])
-    plane.data.materials.append(mat)
-    cam_data = bpy.data.cameras.new("cam")
-    cam_data.type = "ORTHO"
-    cam_data.ortho_scale = 2 * half_width
-    cam_data.clip_end = 1e4
-    cam = bpy.data.objects.new("cam", cam_data)
-    cam.location = (0, 0, 500.0)
-    sc.collection.objects.link(cam)
-    sc.camera = cam
     return sc
 
 

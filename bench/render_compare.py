@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import shutil
 import sys
 import tempfile
@@ -56,6 +57,9 @@ from addon.accuracy import ExactBeam, model_from_light  # noqa: E402
 from addon.light_models import PrimaryLight, make_blender_light  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "scripts"))
+from measuring_scene import build_measuring_scene  # noqa: E402
 
 REPORTS = ROOT / "reports"
 
@@ -227,27 +231,22 @@ def available_tiers():
     return [item.identifier for item in settings.bl_rna.properties["energy_model"].enum_items]
 
 
-def build_scene(engine, scale=1.0):
-    """The table-top scene (see the module docstring), lengths × `scale`, power ×
-    scale² (same irradiance). Returns (scene, table, ball, lamp)."""
-    import bpy
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.engine = engine
-    sc.render.resolution_x = sc.render.resolution_y = PX
-    sc.render.resolution_percentage = 100
-    sc.render.film_transparent = False
-    sc.view_settings.view_transform = "Standard"
-    sc.view_settings.look = "None"
-    sc.view_settings.exposure = 0.0
-    sc.view_settings.gamma = 1.0
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_depth = "32"
+def build_scene(engine, scale=1.0, segments=64, rings=32):
+    """The table-top scene (see the module docstring; the measuring scene of
+    scripts/measuring_scene.py), lengths × `scale`, power × scale² (same
+    irradiance), the ball a `segments` × `rings` UV sphere. Returns (scene,
+    table, ball, lamp)."""
+    built = build_measuring_scene(
+        engine, resolution=PX, floor_size=2.0 * scale, albedo=ALBEDO, view=VIEW * scale,
+        camera_height=2.0 * scale, clip_end=100.0 * scale,
+        ball=dict(radius=R * scale, location=(0.0, 0.0, Z * scale), ior=IOR,
+                  segments=segments, rings=rings, hide_from_indirect=True),
+        lamp=dict(location=(0.0, 0.0, (Z + D) * scale), power=POWER * scale * scale))
+    sc = built.scene
+    built.floor.name = "Table"
     sc.render.threads_mode = "AUTO"
-    sc.world = None
     if engine == "CYCLES":
         c = sc.cycles
-        c.device = "CPU"
         c.use_denoising = False
         c.use_adaptive_sampling = False
         c.pixel_filter_type = "BOX"
@@ -276,49 +275,7 @@ def build_scene(engine, scale=1.0):
                 setattr(e, attr, value)
         if hasattr(sc.render, "filter_size"):
             sc.render.filter_size = 1.0
-
-    floor_mat = bpy.data.materials.new("Table")
-    nt = floor_mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1.0)
-    nt.links.new(diffuse.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    bpy.ops.mesh.primitive_plane_add(size=2.0 * scale)
-    table = bpy.context.object
-    table.name = "Table"
-    table.data.materials.append(floor_mat)
-
-    glass = bpy.data.materials.new("Glass")
-    bsdf = glass.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Transmission Weight"].default_value = 1.0
-    bsdf.inputs["IOR"].default_value = IOR
-    bsdf.inputs["Roughness"].default_value = 0.0
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=R * scale, location=(0.0, 0.0, Z * scale),
-                                         segments=64, ring_count=32)
-    ball = bpy.context.object
-    ball.name = "Ball"
-    ball.data.materials.append(glass)
-    bpy.ops.object.shade_smooth()
-    ball.visible_camera = False
-    ball.visible_diffuse = False
-    ball.visible_glossy = False
-
-    data = bpy.data.lights.new("Lamp", "POINT")
-    data.energy = POWER * scale * scale
-    data.shadow_soft_size = 0.0
-    lamp = bpy.data.objects.new("Lamp", data)
-    sc.collection.objects.link(lamp)
-    lamp.location = (0.0, 0.0, (Z + D) * scale)
-
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    sc.collection.objects.link(cam)
-    cam.data.type = "ORTHO"
-    cam.data.ortho_scale = VIEW * scale
-    cam.data.clip_end = 100.0 * scale
-    cam.location = (0.0, 0.0, 2.0 * scale)
-    sc.camera = cam
-    return sc, table, ball, lamp
+    return sc, built.floor, built.ball, built.lamp
 
 
 def bpy_scene():
@@ -468,19 +425,9 @@ class Runner:
 
     def mnee_meshes(self):
         """MNEE with the ball tessellated more and less finely."""
-        import bpy
         self.meshes = []
-        glass = None
         for seg, ring in MESHES:
-            sc, table, ball, lamp = build_scene("CYCLES")
-            glass = ball.data.materials[0]
-            bpy.data.objects.remove(ball)
-            bpy.ops.mesh.primitive_uv_sphere_add(radius=R, location=(0.0, 0.0, Z), segments=seg,
-                                                 ring_count=ring)
-            ball = bpy.context.object
-            ball.data.materials.append(glass)
-            bpy.ops.object.shade_smooth()
-            ball.visible_camera = ball.visible_diffuse = ball.visible_glossy = False
+            sc, table, ball, lamp = build_scene("CYCLES", segments=seg, rings=ring)
             enable_mnee(sc, table, ball, lamp)
             img, dt = render(sc, self.tmp / f"mnee_mesh_{seg}.exr", MESH_SAMPLES)
             dark = int(((img < 1e-6) & self.mask).sum())
@@ -758,219 +705,132 @@ def headline_lines(run, comps, mnee_best):
     return out
 
 
-def write_report(run, models, files, args, wall, mitsuba, tiers_missing):
+TEMPLATE = Path(__file__).resolve().parent / "templates" / "render_compare.md"
+
+
+def report_sections(path=TEMPLATE) -> dict[str, str]:
+    """The report's prose: {name: text} of the template's `<!-- section: NAME -->`
+    parts (each to be filled by `str.format`)."""
+    sections, name, lines = {}, None, []
+    for line in path.read_text().splitlines(keepends=True):
+        m = re.fullmatch(r"<!-- section: (\w+) -->\n?", line)
+        if m:
+            if name:
+                sections[name] = "".join(lines)
+            name, lines = m[1], []
+        elif name:
+            lines.append(line)
+    if name:
+        sections[name] = "".join(lines)
+    return sections
+
+
+def write_report(run, models, files, args, wall, mitsuba, tiers_missing, out=None):
+    """reports/render_compare.md (or `out`): the numbers of `run` in the prose of
+    bench/templates/render_compare.md."""
     rows = run.rows
-    L = []
-    w = L.append
-    w("# Rendered comparison: lens lights against Cycles' own caustics")
-    w("")
-    w(f"Generated by `bench/render_compare.py` in {wall / 60:.1f} min (this machine: "
-      f"2 shared cores, bpy {run.bpy_version}). Reproduce: `cd /work/main && ./lens-lights bench "
-      f"render_compare{' ' + ' '.join(args.argv) if args.argv else ''}`.")
-    w("")
-    w(f"Pictures: [render_compare_strip.png]({files['strip'].name}) (the renders), "
-      f"[render_compare_error_time.png]({files['error_time'].name}) (error against wall time), "
-      f"[render_compare_profiles.png]({files['profiles'].name}) (radial profiles)"
-      + (f", [render_compare_mnee.png]({files['mnee'].name}) (MNEE scaled and re-tessellated)"
-         if "mnee" in files else "") + ".")
-    w("")
-    w("## The scene")
-    w("")
-    w(f"A glass ball (R = {R * 100:g} cm, n = {IOR}, clear: Principled BSDF, transmission 1, "
-      f"roughness 0; a smooth-shaded UV sphere of 64 × 32) with its bottom {BEHIND * 100:g} cm "
-      f"above a white Lambertian table (albedo {ALBEDO}), as on a clear stand; a point light "
-      f"({POWER:g} W, radius 0) straight above it, {D * 100:g} cm (D = {D / R:g} R) from its centre; "
-      f"no world light. An orthographic camera looks straight down at the ball's shadow "
-      f"({VIEW * 100:.1f} cm square, {PX} × {PX} pixels, {STEP * 1000:.2f} mm a pixel); the ball is "
-      f"invisible to the camera (`visible_camera = False`), so the table under it shows. Box "
-      f"pixel filter one pixel wide, view transform Standard, exposure 0, no denoising, no "
-      f"adaptive sampling, 32-bit EXR. Every Cycles render (MNEE or not) uses the same light "
-      f"paths: max bounces 4, diffuse 1 (MNEE needs one left, with 0 it does nothing), "
-      f"transmission 4, glossy 0; the ball hidden from diffuse and glossy rays, so that no "
-      f"indirect light but the caustic is rendered. EEVEE: raytracing off, filter size 1 px.")
-    w("")
-    w(f"Caustic region: the {int(run.mask.sum())} pixels entirely inside the ball's shadow "
-      f"(radius {RS / R:.3f} R = {RS * 100:.2f} cm). Error: relative L1 over the region, "
-      f"Σ|pixel − reference| / Σ reference; flux ratio: Σ pixel / Σ reference (1 = as bright as "
-      f"the truth overall). Wall time: the render call (scene sync included), plus, for lens "
-      f"lights, generating them (the operator, once per scene: {gen_times(run)}). "
-      f"EEVEE's first render of a scene compiles shaders ({warm_times(run)}); not counted. "
-      f"One render per line (seed 1): the error includes its noise.")
-    w("")
-    w("## The reference, and why")
-    w("")
-    w("The light is straight above the ball, so the beam's axis is perpendicular to the table "
-      "and the beam is rotationally symmetric: its exact irradiance on the table is the "
-      "one-dimensional integral of SPEC §6 (`addon.accuracy.ExactBeam`: the exact meridional "
-      "trace, Fresnel at both surfaces, internal reflections ignored), plus the light's direct "
-      "irradiance outside the shadow. A pixel is albedo/π × its mean irradiance (16 × 16 "
-      "sub-samples on 20 000 rings, geometric toward the axis where the beam has its 1/ρ "
-      "caustic). Nothing in it is sampled, so it has no noise, and it is the quantity every "
-      "renderer here estimates (the same pixel footprint, the same direct-light-plus-caustic "
-      "light paths). Why not a long render instead: at table-top scale no renderer in Blender "
-      "converges to this caustic — Cycles' path tracing cannot hit a point light through glass, "
-      "and its MNEE is biased at this scale (below) — so a brute-force reference would be "
-      "another unverified estimate; mitsuba could render one, which is what the first check "
-      "below does (on rings of the table rather than pixels).")
-    w("")
-    w("Checks of the reference:")
-    w("")
-    w(f"* The exact optics against mitsuba (light tracing, analytic sphere, 10⁶–10⁷ paths; "
-      f"`bench/accuracy.py`'s check, here in this very geometry: D = {D / R:g} R, n = {IOR}, the "
-      f"table {BEHIND / R:g} R behind the ball): " + (
-          f"total flux mitsuba/exact {mitsuba['flux_ratio']:.4f}, ring L1 {mitsuba['ring_l1']:.4f} "
-          f"(with mitsuba's Fresnel convention {mitsuba['ring_l1_mf']:.4f}), noise "
-          f"{mitsuba['noise']:.4f}, {mitsuba['paths'] / 1e6:.1f} M paths in {mitsuba['seconds']:.0f} s."
-          if mitsuba else "skipped (`--no-mitsuba`); reports/accuracy.md has three other cases "
-          "(within 1.1 % in flux, 2 % ring L1)."))
-    w(f"* Camera, pixel footprint and radiometry: the table without the ball (Cycles, 16 "
-      f"samples) against the analytic direct light: ratio of sums {run.direct['mean_ratio']:.5f}, "
-      f"99.9 % of the pixels within {run.direct['p999']:.1e}; {run.direct['n_out']} pixel(s) off "
-      f"by more than 10⁻³ (largest {run.direct['max_rel']:.3f}: a 1/16 deficit, one of its 16 "
-      f"camera rays missed the table — it lies on the diagonal where the plane's two triangles "
-      f"meet).")
+    t = report_sections()
+    parts = []
+
+    def w(section, **values):
+        parts.append(t[section].format(**values))
+
+    def inline(section, **values):
+        return t[section].format(**values).rstrip("\n")
+
+    w("header", minutes=wall / 60, bpy_version=run.bpy_version,
+      argv=(" " + " ".join(args.argv)) if args.argv else "",
+      strip=files["strip"].name, error_time=files["error_time"].name,
+      profiles=files["profiles"].name,
+      mnee_picture=inline("mnee_picture", mnee=files["mnee"].name) if "mnee" in files else "")
+    w("scene", R_cm=R * 100, IOR=IOR, behind_cm=BEHIND * 100, ALBEDO=ALBEDO, POWER=POWER,
+      D_cm=D * 100, D_R=D / R, view_cm=VIEW * 100, PX=PX, step_mm=STEP * 1000,
+      region_px=int(run.mask.sum()), RS_R=RS / R, RS_cm=RS * 100, gen_times=gen_times(run),
+      warm_times=warm_times(run))
+    if mitsuba:
+        mitsuba_result = inline("mitsuba_done", paths_M=mitsuba["paths"] / 1e6,
+                                **{k: mitsuba[k] for k in ("flux_ratio", "ring_l1", "ring_l1_mf",
+                                                           "noise", "seconds")})
+    else:
+        mitsuba_result = inline("mitsuba_skipped")
+    w("reference", D_R=D / R, IOR=IOR, behind_R=BEHIND / R, mitsuba_result=mitsuba_result,
+      direct_ratio=run.direct["mean_ratio"], direct_p999=run.direct["p999"],
+      direct_n_out=run.direct["n_out"], direct_max=run.direct["max_rel"])
     x10 = [r for r in rows if r["method"] == CYCLES_MNEE_X10]
     if x10:
         b = max(x10, key=lambda r: r["samples"])
-        w(f"* Independently, in Blender: Cycles' MNEE on the same scene made 10 × larger (where "
-          f"it is not crippled by its scale dependence, below) converges to within L1 "
-          f"{b['l1']:.3f} (flux ratio {b['flux']:.3f}, {b['samples']} spp) of these reference "
-          f"pixels.")
-    w(f"* The ball in Blender is a mesh (64 × 32, smooth shading): MNEE refracts at "
-      f"interpolated normals on flat triangles; the lens lights use the sphere fitted to it. "
-      f"Neither is the source of the large errors below (they are 10–100 × the mesh's "
-      f"deviation from a sphere, {1 - math.cos(math.pi / 64):.1e} R).")
-    w("")
-    w("## Results")
-    w("")
-    w("| method | samples | generate | render | wall time | render CPU time | L1 error (caustic region) | flux ratio |")
-    w("|---|---|---|---|---|---|---|---|")
+        w("check_x10", l1=b["l1"], flux=b["flux"], samples=b["samples"])
+    w("check_mesh", mesh_dev=1 - math.cos(math.pi / 64))
+    w("results")
     for r in rows:
-        w(f"| {LABEL[r['method']]} | {r['samples']} | "
-          f"{fmt_s(r['gen']) if r['gen'] else '–'} | {fmt_s(r['render'])} | {fmt_s(r['total'])} | "
-          f"{fmt_s(r['cpu'])} | {r['l1']:.4f} | {r['flux']:.3f} |")
-    w("")
-    w("What each tier converges to — its *model* error in this scene (the light the add-on's "
-      "code makes, as Blender renders it, `addon/spot_irradiance.py` / the profile table, "
-      "against the same reference pixels; one plane, the table, "
-      f"{BEHIND / R:g} R behind the ball; reports/accuracy.md averages 15 planes):")
-    w("")
-    w("| tier | model L1 (pixels) | best render L1 | render − model |")
-    w("|---|---|---|---|")
+        w("results_row", label=LABEL[r["method"]], samples=r["samples"],
+          gen=fmt_s(r["gen"]) if r["gen"] else "–", render=fmt_s(r["render"]),
+          total=fmt_s(r["total"]), cpu=fmt_s(r["cpu"]), l1=r["l1"], flux=r["flux"])
+    w("models", behind_R=BEHIND / R)
     for m in methods_in(rows):
         if isinstance(m, str) or m[1] not in models:
             continue
         best = max((r for r in rows if r["method"] == m), key=lambda r: r["samples"])
-        w(f"| {SHORT[m]} | {models[m[1]]['l1']:.4f} | {best['l1']:.4f} ({best['samples']} spp) | "
-          f"{best['l1'] - models[m[1]]['l1']:+.4f} |")
-    w("")
+        w("models_row", short=SHORT[m], model_l1=models[m[1]]["l1"], best_l1=best["l1"],
+          best_samples=best["samples"], diff=best["l1"] - models[m[1]]["l1"])
     comps, mnee_best = headline(run)
-    w("## Headline")
-    w("")
+    w("headline")
     if comps:
-        for line in headline_lines(run, comps, mnee_best):
-            w(line)
-        w("")
-        w("Equal-time pairs (MNEE's error interpolated log–log at the lens-light render's "
-          "wall time; only times within the range MNEE was run at):")
-        w("")
-        w("| lens lights | samples | wall time | L1 | MNEE's L1 at that time | MNEE / lens lights |")
-        w("|---|---|---|---|---|---|")
+        parts.extend(line + "\n" for line in headline_lines(run, comps, mnee_best))
+        w("equal_time")
         for c in comps:
-            w(f"| {SHORT[c['method']]} | {c['samples']} | {fmt_s(c['total'])} | {c['l1']:.4f} | "
-              f"{c['mnee']:.4f} | {c['factor']:.2f} × |")
-        w("")
+            w("equal_time_row", short=SHORT[c["method"]], samples=c["samples"],
+              total=fmt_s(c["total"]), l1=c["l1"], mnee=c["mnee"], factor=c["factor"])
+        parts.append("\n")
     else:
-        w("MNEE was not run: no equal-time comparison.")
-        w("")
+        w("no_mnee")
     comps10, best10 = headline(run, CYCLES_MNEE_X10)
     if comps10:
-        w("### Where MNEE works: the same scene × 10")
-        w("")
-        w("MNEE's error depends on the scene's scale (next section). With every length × 10 "
-          "(a 50 cm ball, the light 2.5 m from it, power × 100: the same irradiance, so the same "
-          "reference pixels; lens lights are scale-free, so their curves are the same) MNEE is "
-          f"nearly right (best L1 {best10:.4f}). Equal-time ratios against that curve "
-          "(MNEE's L1 / the lens lights' L1; below 1: MNEE is better):")
-        w("")
-        w("| lens lights | ratios over the common wall times | median |")
-        w("|---|---|---|")
+        w("x10", best10=best10)
         by = {}
         for c in comps10:
             by.setdefault(c["method"], []).append(c)
         for m, cs in by.items():
             f = [c["factor"] for c in cs]
-            rng = f"{min(f):.2f} ×" if max(f) - min(f) < 0.01 else f"{min(f):.2f}–{max(f):.2f} × ({len(f)} renders)"
-            w(f"| {SHORT[m]} | {rng} | {float(np.median(f)):.2f} × |")
-        w("")
+            rng = (f"{min(f):.2f} ×" if max(f) - min(f) < 0.01
+                   else f"{min(f):.2f}–{max(f):.2f} × ({len(f)} renders)")
+            w("x10_row", short=SHORT[m], range=rng, median=float(np.median(f)))
         ex = by.get(("CYCLES", "EXACT_PROFILE"))
         if ex:
-            w("EXACT_PROFILE render by render against MNEE on the scene × 10:")
-            w("")
-            w("| samples | wall time | L1 | MNEE × 10's L1 at that time | MNEE / lens lights |")
-            w("|---|---|---|---|---|")
+            w("x10_exact")
             for c in ex:
-                w(f"| {c['samples']} | {fmt_s(c['total'])} | {c['l1']:.4f} | {c['mnee']:.4f} | "
-                  f"{c['factor']:.2f} × |")
-            w("")
-            b10 = max((r for r in rows if r["method"] == CYCLES_MNEE_X10), key=lambda r: r["samples"])
-            w(f"Where MNEE is nearly unbiased, it wins at short times (EXACT_PROFILE's "
-              f"light-selection noise, see Observations) and EXACT_PROFILE wins once it has "
-              f"enough samples: MNEE's error stops falling at about {b10['l1']:.3f} (its caustic "
-              f"is {1 - b10['flux']:.1%} too dark overall at {b10['samples']} spp; where that "
-              f"comes from — the mesh, its clamping — was not traced), the profile's goes on "
-              f"falling with samples toward its model error.")
-            w("")
+                w("x10_exact_row", samples=c["samples"], total=fmt_s(c["total"]), l1=c["l1"],
+                  mnee=c["mnee"], factor=c["factor"])
+            b10 = max((r for r in rows if r["method"] == CYCLES_MNEE_X10),
+                      key=lambda r: r["samples"])
+            w("x10_exact_end", l1=b10["l1"], dark=1 - b10["flux"], samples=b10["samples"])
+        else:
+            parts.append("\n")
     if getattr(run, "scales", None):
-        w("## MNEE depends on the scene's scale")
-        w("")
-        w(f"The same scene with every length × s and the light's power × s² has the same "
-          f"irradiance everywhere (an exact renderer gives the same image). MNEE at "
-          f"{SCALE_SAMPLES} samples:")
-        w("")
         tier = run.scales[0].get("tier")
-        w("| scale | ball radius | MNEE L1 (caustic region) | MNEE flux ratio | MNEE mean of the 4 × 4 central pixels (exact: "
-          f"{run.ref[PX // 2 - 2:PX // 2 + 2, PX // 2 - 2:PX // 2 + 2].mean():.1f}) | MNEE black pixels in the region |"
-          + (f" lens lights {tier}: L1 / flux ratio |" if tier else ""))
-        w("|---|---|---|---|---|---|" + ("---|" if tier else ""))
-        for s in run.scales:
-            w(f"| {s['scale']:g} | {R * s['scale'] * 100:g} cm | {s['l1']:.4f} | {s['flux']:.3f} | "
-              f"{s['centre']:.3f} | {s['dark']} |" + (f" {s['ll_l1']:.4f} / {s['ll_flux']:.3f} |" if tier else ""))
-        w("")
-        w("So MNEE's deficit is not a sampling problem: at table-top scale it delivers a small "
-          "fraction of the caustic's flux and almost none of its peak, and the larger the scene, "
-          "the more it delivers (SPEC §9: its geometry term is clamped; which of its fixed "
-          "constants causes the scale dependence we did not trace). Lens lights are "
-          "scale-free (the tiers depend on D/R and n only).")
-        w("")
+        centre = run.ref[PX // 2 - 2:PX // 2 + 2, PX // 2 - 2:PX // 2 + 2].mean()
+        w("scales", samples=SCALE_SAMPLES, centre_ref=centre,
+          tier_head=f" lens lights {tier}: L1 / flux ratio |" if tier else "",
+          tier_rule="---|" if tier else "")
+        for sc in run.scales:
+            w("scales_row", scale=sc["scale"], radius_cm=R * sc["scale"] * 100, l1=sc["l1"],
+              flux=sc["flux"], centre=sc["centre"], dark=sc["dark"],
+              tier_cells=f" {sc['ll_l1']:.4f} / {sc['ll_flux']:.3f} |" if tier else "")
+        w("scales_end")
     if getattr(run, "meshes", None):
-        w("## MNEE and the ball's tessellation")
-        w("")
-        w(f"MNEE's image has black rings inside the shadow that do not fill in with samples. "
-          f"With the ball tessellated differently ({MESH_SAMPLES} samples; "
-          f"[render_compare_mnee.png](render_compare_mnee.png)):")
-        w("")
-        w("| UV sphere (segments × rings) | L1 (caustic region) | flux ratio | black pixels in the region |")
-        w("|---|---|---|---|")
+        w("meshes", samples=MESH_SAMPLES)
         for m in run.meshes:
-            w(f"| {m['seg']} × {m['ring']} | {m['l1']:.4f} | {m['flux']:.3f} | {m['dark']} |")
-        w("")
-        w("The rings move with the tessellation but stay, and the error does not change: the "
-          "mesh is not what makes MNEE wrong here.")
-        w("")
+            w("meshes_row", **{k: m[k] for k in ("seg", "ring", "l1", "flux", "dark")})
+        w("meshes_end")
     obs = observations(run, models)
     if obs:
-        w("## Observations")
-        w("")
-        for line in obs:
-            w(line)
-        w("")
-    w("## Notes")
-    w("")
-    for line in notes_lines(run, models, tiers_missing):
-        w(line)
-    w("")
-    (REPORTS / "render_compare.md").write_text("\n".join(L) + "\n")
+        w("observations")
+        parts.extend(line + "\n" for line in obs)
+        parts.append("\n")
+    w("notes")
+    parts.extend(line + "\n" for line in notes_lines(run, models, tiers_missing))
+    parts.append("\n")
+    (out or REPORTS / "render_compare.md").write_text("".join(parts))
 
 
 def observations(run, models):

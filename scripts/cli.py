@@ -13,11 +13,13 @@ Subcommands:
                              paths: those tests only)
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
-                             [--no-lens-lights | --compare]
+                             [--no-lens-lights | --compare]; OUT's extension picks
+                             the format (.png .jpg/.jpeg .exr .tif/.tiff .webp)
   demo [--out DIR]           render the showcase scene without and with lens lights
   build [ARGS]               build the extension's zip (scripts/build_extension.py)
   bench NAME [ARGS]          a benchmark of bench/ (e.g. `bench scale`), report in reports/
-  fuzz [--count N]           fuzz the .bi reader and `phase1` (100 000 inputs by default)
+  fuzz [--count N] [--seed S]
+                             fuzz the .bi reader and `phase1` (100 000 inputs by default)
 """
 from __future__ import annotations
 
@@ -210,7 +212,9 @@ def main(argv=None) -> int:
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 
-    sub.add_parser("fuzz", help="fuzz the .bi reader and phase1 (extra args go to it)")
+    # Its options (--count, --seed) and --help are scripts/fuzz_bi.py's own.
+    sub.add_parser("fuzz", add_help=False,
+                   help="fuzz the .bi reader and phase1 (`fuzz --help`: its options)")
 
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")

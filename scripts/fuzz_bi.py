@@ -13,6 +13,11 @@ goes through Blender's `import_scene.bi` operator (the bpy module): it imports,
 or it fails with a report naming the file and line, creates nothing and shows no
 traceback. Parsed scenes go through phase 1, whose JSON must contain only finite
 numbers.
+
+Inputs that are refused as they should be print nothing (Blender's own "Error: …"
+line of a refused import is captured); the run ends with a summary: inputs,
+parsed, refused as expected, failures (the first 5 failures are shown in full).
+Exit status 0 without failures, 1 with, 2 for bad arguments.
 """
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ import contextlib
 import io
 import json
 import math
+import os
 import random
 import sys
 import tempfile
@@ -106,30 +112,75 @@ def check_cli(text: str, tmp: Path) -> None:
         raise AssertionError(f"CLI exit status {code}")
 
 
+@contextlib.contextmanager
+def captured_output(into: list):
+    """Everything written to the process' stdout and stderr (file descriptors 1
+    and 2: Blender's C code prints operator reports there) is appended to `into`
+    as one string instead of reaching the terminal."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 1)
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+            sink.seek(0)
+            into.append(sink.read().decode("utf-8", "replace"))
+
+
 def check_import_operator(text: str, tmp: Path) -> None:
-    import bpy
-    from dev_extension import PACKAGE, load_extension
-    if PACKAGE not in sys.modules:
-        load_extension().register()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
     path = tmp / "fuzz_import.bi"
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
+    printed = []
     try:
-        bpy.ops.import_scene.bi(filepath=str(path))
+        # Blender's start-up log lines and the report of a refused import are captured.
+        with captured_output(printed):
+            import bpy
+            from dev_extension import PACKAGE, load_extension
+            if PACKAGE not in sys.modules:
+                load_extension().register()
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            bpy.ops.import_scene.bi(filepath=str(path))
     except RuntimeError as e:          # the operator's ERROR report, as bpy.ops raises it
         msg = str(e)
         if "Traceback" in msg or f"{path}:" not in msg:
-            raise AssertionError(f"bad import report: {msg!r}")
+            raise AssertionError(f"bad import report: {msg!r}") from e
+        if "Traceback" in printed[0]:
+            raise AssertionError(f"a refused import printed a traceback: {printed[0]!r}") from e
         if len(bpy.data.objects) or len(bpy.data.collections):
-            raise AssertionError("a failed import left objects behind")
+            raise AssertionError("a failed import left objects behind") from e
+
+
+def positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got '{text}'")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="lens-lights fuzz", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--count", type=positive_int, default=100_000, metavar="N",
+                    help="number of generated inputs (default: 100000)")
+    ap.add_argument("--seed", type=int, default=0,
+                    help="seed of the generator (default: 0); the same seed, the same inputs")
+    return ap
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--count", type=int, default=100_000)
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args(argv)
+    args = build_parser().parse_args(argv)
     rng = random.Random(args.seed)
     seeds = [p.read_text() for p in sorted((ROOT / "examples").glob("*.bi"))]
     t0 = time.perf_counter()
@@ -145,7 +196,7 @@ def main(argv=None) -> int:
                 except BiFormatError as e:
                     errors += 1
                     if e.line is None or not str(e).startswith(f"fuzz.bi:{e.line}:"):
-                        raise AssertionError(f"error without a line number: {e}")
+                        raise AssertionError(f"error without a line number: {e}") from e
                 if n % 50 == 0:
                     check_cli(text, Path(tmp))
                 if n % 200 == 0:
@@ -157,8 +208,8 @@ def main(argv=None) -> int:
             if (n + 1) % 10_000 == 0:
                 print(f"{n + 1} inputs, {failures} failures", flush=True)
     dt = time.perf_counter() - t0
-    print(f"fuzz: {args.count} inputs in {dt:.1f} s: {parsed} parsed, {errors} refused "
-          f"with a line number, {failures} failures")
+    print(f"fuzz: {args.count} inputs in {dt:.1f} s: {parsed} parsed, {errors} refused as "
+          f"expected (an error with a line number), {failures} failure(s)")
     return 1 if failures else 0
 
 

@@ -8,12 +8,15 @@ or inside a Blender binary:
 If the extension is not installed (the bpy module, a fresh Blender), it is loaded
 from this checkout and registered for the run.
 
-render SCENE -o OUT.png   render a `.blend` or `.bi` scene with lens lights
+render SCENE -o OUT.png   render a `.blend` or `.bi` scene with lens lights; the
+                          extension of OUT picks the format (.png, .jpg/.jpeg, .exr,
+                          .tif/.tiff, .webp); a missing folder is created
   --engine cycles|eevee   render engine (default: the file's for a .blend, else cycles)
   --samples N             samples per pixel (default: the file's; 64 for a .bi)
   --resolution WxH        image size in pixels (default: the file's / the .bi viewport)
   --no-lens-lights        render without lens lights (removes any generated ones)
   --compare               one image: without | with lens lights, side by side, labelled
+                          (scripts/image_strip.py)
 
 demo [--out DIR]          build the showcase scene, render it without and with lens
                           lights; writes DIR/showcase.blend, showcase_without.png,
@@ -30,18 +33,19 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT / "scripts") not in sys.path:
+    sys.path.insert(0, str(ROOT / "scripts"))
+
+import image_strip  # noqa: E402
+from image_strip import allowed_extensions, apply_format, image_format  # noqa: E402
+
 PACKAGE = "lens_lights"
 EXIT_BAD_INPUT = 2
 EXIT_FAILED = 1
 DEFAULT_BI_SAMPLES = 64
 DEFAULT_OUT = ROOT / "out"
 DEMO_ENGINE, DEMO_SAMPLES = "cycles", 64
-
-LABEL_WITHOUT, LABEL_WITH = "WITHOUT LENS LIGHTS", "WITH LENS LIGHTS"
-SHORT_WITHOUT, SHORT_WITH = "WITHOUT", "WITH"
 
 
 class RenderError(Exception):
@@ -66,7 +70,8 @@ def resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().replace("×", "x").split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, e.g. 640x480, got '{text}'")
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT, e.g. 640x480, got '{text}'") from None
     if not (4 <= w <= 65536 and 4 <= h <= 65536):
         raise argparse.ArgumentTypeError(f"width and height must be 4–65536 pixels, got '{text}'")
     return w, h
@@ -95,7 +100,8 @@ def add_engine_arguments(p: argparse.ArgumentParser) -> None:
 def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a .blend or .bi scene")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png",
-                   help="the PNG to write")
+                   help=("the image to write; its extension picks the format: "
+                         f"{allowed_extensions()} (a missing folder is created)"))
     add_engine_arguments(p)
     group = p.add_mutually_exclusive_group()
     group.add_argument("--no-lens-lights", action="store_true",
@@ -160,11 +166,64 @@ def new_empty_file() -> None:
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
 
 
+def check_scene_path(path: str) -> None:
+    """A scene argument that names a readable file (before anything is loaded)."""
+    if os.path.isdir(path):
+        raise RenderError(f"{path}: is a directory (expected a .blend or .bi file)",
+                          EXIT_BAD_INPUT)
+    if not os.path.isfile(path):
+        raise RenderError(f"{path}: no such file", EXIT_BAD_INPUT)
+
+
+def _make_folder(folder: Path, what: str) -> None:
+    """Create `folder` (and its parents) unless it exists; a clear error otherwise."""
+    if folder.is_dir():
+        return
+    for parent in (folder, *folder.parents):
+        if parent.exists() and not parent.is_dir():
+            raise RenderError(f"{parent}: is not a directory (in the {what} {folder})",
+                              EXIT_BAD_INPUT)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise RenderError(f"{folder}: cannot create the {what} ({e.strerror or e})",
+                          EXIT_BAD_INPUT) from None
+
+
+def check_output(path: str) -> str:
+    """The absolute path of an image to write, checked before anything is rendered:
+    not a directory, an extension of `image_strip.IMAGE_FORMATS`; a missing parent
+    folder is created (a parent that is a file is an error)."""
+    out = Path(os.path.abspath(path))
+    if out.is_dir() or path.endswith(("/", os.sep)):
+        raise RenderError(f"{path}: is a directory (expected an image file, e.g. "
+                          f"{Path(path) / 'render.png'})", EXIT_BAD_INPUT)
+    if image_format(out) is None:
+        kind = f"'{out.suffix}'" if out.suffix else "no extension"
+        raise RenderError(f"{path}: unknown image type ({kind}); use one of "
+                          f"{allowed_extensions()}", EXIT_BAD_INPUT)
+    _make_folder(out.parent, "output folder")
+    if not os.access(out.parent, os.W_OK):
+        raise RenderError(f"{out.parent}: not writable", EXIT_BAD_INPUT)
+    return str(out)
+
+
+def check_output_dir(path: str) -> Path:
+    """`demo --out DIR`: a folder (created if missing), checked before rendering."""
+    out = Path(os.path.abspath(path))
+    if out.exists() and not out.is_dir():
+        raise RenderError(f"{path}: is not a directory (--out takes a folder)",
+                          EXIT_BAD_INPUT)
+    _make_folder(out, "output folder")
+    if not os.access(out, os.W_OK):
+        raise RenderError(f"{out}: not writable", EXIT_BAD_INPUT)
+    return out
+
+
 def load_scene(path: str) -> bool:
     """Open a .blend or import a .bi into an empty file. Returns True for .bi."""
     import bpy
-    if not os.path.isfile(path):
-        raise RenderError(f"{path}: no such file", EXIT_BAD_INPUT)
+    check_scene_path(path)
     suffix = Path(path).suffix.lower()
     if suffix == ".blend":
         try:
@@ -266,12 +325,11 @@ class _SampleProgress:
 
 
 def render_to(scene, path: str, label: str) -> float:
-    """Render the scene's camera view to a PNG; returns seconds taken."""
+    """Render the scene's camera view to `path`, in the format its extension names
+    (`image_strip.IMAGE_FORMATS`); returns seconds taken."""
     import bpy
-    settings = scene.render.image_settings
-    settings.file_format = "PNG"
-    settings.color_mode = "RGBA" if scene.render.film_transparent else "RGB"
-    settings.color_depth = "8"
+    apply_format(scene.render.image_settings, image_format(path),
+                 alpha=scene.render.film_transparent)
     scene.render.use_file_extension = False
     scene.render.filepath = os.path.abspath(path)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -292,168 +350,16 @@ def render_to(scene, path: str, label: str) -> float:
     return seconds
 
 
-# --------------------------------------------------------------------------- images
-
-def read_png(path: str) -> np.ndarray:
-    """An 8-bit PNG as a float array (rows top to bottom, RGB, values byte/255)."""
-    import bpy
-    image = bpy.data.images.load(os.path.abspath(path), check_existing=False)
-    try:
-        w, h = image.size
-        pixels = np.empty(w * h * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-    finally:
-        bpy.data.images.remove(image)
-    rgba = pixels.reshape(h, w, 4)[::-1]
-    rgb, alpha = rgba[..., :3], rgba[..., 3:]
-    return rgb * alpha       # a transparent film composes over black
-
-
-def write_png(rgb: np.ndarray, path: str) -> None:
-    """Write a float RGB array (rows top to bottom, 0–1) as an 8-bit PNG, as is."""
-    import bpy
-    h, w, _ = rgb.shape
-    rgba = np.concatenate([np.clip(rgb, 0.0, 1.0), np.ones((h, w, 1))], axis=2)[::-1]
-    # Round to bytes here so that the saved bytes are exactly these values.
-    rgba = np.round(rgba * 255.0) / 255.0
-    image = bpy.data.images.new("lens-lights compare", w, h, alpha=False)
-    try:
-        image.pixels.foreach_set(rgba.astype(np.float32).ravel())
-        image.filepath_raw = os.path.abspath(path)
-        image.file_format = "PNG"
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        image.save()
-    finally:
-        bpy.data.images.remove(image)
-
-
-# 5×7 bitmap font: each glyph is 7 rows of 5 columns ("#" = ink).
-_FONT_ROWS = {
-    "A": ".###.|#...#|#...#|#####|#...#|#...#|#...#",
-    "B": "####.|#...#|#...#|####.|#...#|#...#|####.",
-    "C": ".###.|#...#|#....|#....|#....|#...#|.###.",
-    "D": "####.|#...#|#...#|#...#|#...#|#...#|####.",
-    "E": "#####|#....|#....|####.|#....|#....|#####",
-    "F": "#####|#....|#....|####.|#....|#....|#....",
-    "G": ".###.|#...#|#....|#.###|#...#|#...#|.###.",
-    "H": "#...#|#...#|#...#|#####|#...#|#...#|#...#",
-    "I": ".###.|..#..|..#..|..#..|..#..|..#..|.###.",
-    "J": "..###|...#.|...#.|...#.|...#.|#..#.|.##..",
-    "K": "#...#|#..#.|#.#..|##...|#.#..|#..#.|#...#",
-    "L": "#....|#....|#....|#....|#....|#....|#####",
-    "M": "#...#|##.##|#.#.#|#.#.#|#...#|#...#|#...#",
-    "N": "#...#|#...#|##..#|#.#.#|#..##|#...#|#...#",
-    "O": ".###.|#...#|#...#|#...#|#...#|#...#|.###.",
-    "P": "####.|#...#|#...#|####.|#....|#....|#....",
-    "Q": ".###.|#...#|#...#|#...#|#.#.#|#..#.|.##.#",
-    "R": "####.|#...#|#...#|####.|#.#..|#..#.|#...#",
-    "S": ".####|#....|#....|.###.|....#|....#|####.",
-    "T": "#####|..#..|..#..|..#..|..#..|..#..|..#..",
-    "U": "#...#|#...#|#...#|#...#|#...#|#...#|.###.",
-    "V": "#...#|#...#|#...#|#...#|#...#|.#.#.|..#..",
-    "W": "#...#|#...#|#...#|#.#.#|#.#.#|#.#.#|.#.#.",
-    "X": "#...#|#...#|.#.#.|..#..|.#.#.|#...#|#...#",
-    "Y": "#...#|#...#|.#.#.|..#..|..#..|..#..|..#..",
-    "Z": "#####|....#|...#.|..#..|.#...|#....|#####",
-    "0": ".###.|#...#|#..##|#.#.#|##..#|#...#|.###.",
-    "1": "..#..|.##..|..#..|..#..|..#..|..#..|.###.",
-    "2": ".###.|#...#|....#|...#.|..#..|.#...|#####",
-    "3": "#####|...#.|..#..|...#.|....#|#...#|.###.",
-    "4": "...#.|..##.|.#.#.|#..#.|#####|...#.|...#.",
-    "5": "#####|#....|####.|....#|....#|#...#|.###.",
-    "6": "..##.|.#...|#....|####.|#...#|#...#|.###.",
-    "7": "#####|....#|...#.|..#..|.#...|.#...|.#...",
-    "8": ".###.|#...#|#...#|.###.|#...#|#...#|.###.",
-    "9": ".###.|#...#|#...#|.####|....#|...#.|.##..",
-    " ": ".....|.....|.....|.....|.....|.....|.....",
-    ".": ".....|.....|.....|.....|.....|.##..|.##..",
-    ",": ".....|.....|.....|.....|.##..|..#..|.#...",
-    ":": ".....|.##..|.##..|.....|.##..|.##..|.....",
-    "-": ".....|.....|.....|#####|.....|.....|.....",
-    "/": "....#|....#|...#.|..#..|.#...|#....|#....",
-    "(": "...#.|..#..|.#...|.#...|.#...|..#..|...#.",
-    ")": ".#...|..#..|...#.|...#.|...#.|..#..|.#...",
-    "|": "..#..|..#..|..#..|..#..|..#..|..#..|..#..",
-    "?": ".###.|#...#|....#|...#.|..#..|.....|..#..",
-}
-FONT = {ch: np.array([[c == "#" for c in row] for row in rows.split("|")], dtype=bool)
-        for ch, rows in _FONT_ROWS.items()}
-GLYPH_W, GLYPH_H, GLYPH_GAP = 5, 7, 1
-
-
-def text_width(text: str, scale: int) -> int:
-    return max(0, len(text) * (GLYPH_W + GLYPH_GAP) - GLYPH_GAP) * scale
-
-
-def text_mask(text: str, scale: int) -> np.ndarray:
-    """A boolean bitmap (rows top to bottom) of `text` in the built-in font;
-    characters it lacks are drawn as '?'; lower case as upper case."""
-    width = text_width(text, 1)
-    mask = np.zeros((GLYPH_H, max(width, 1)), dtype=bool)
-    for i, ch in enumerate(text.upper()):
-        glyph = FONT.get(ch, FONT["?"])
-        x = i * (GLYPH_W + GLYPH_GAP)
-        mask[:, x:x + GLYPH_W] = glyph
-    return np.kron(mask, np.ones((scale, scale), dtype=bool))
-
-
-def label_scale(width: int) -> int:
-    """Glyph scale (1–4) for a label over a panel `width` pixels wide."""
-    return max(1, min(4, width // 240 + 1))
-
-
-def _fit_label(labels: tuple[str, ...], width: int, scale: int) -> tuple[str, int] | None:
-    """The first label that fits `width` pixels at `scale` or, failing that, at a
-    smaller scale; None if even the shortest label does not fit at scale 1."""
-    for s in range(scale, 0, -1):
-        for label in labels:
-            if text_width(label, s) <= width - 2:
-                return label, s
-    return None
-
-
-def compose_side_by_side(left: np.ndarray, right: np.ndarray,
-                         labels=((LABEL_WITHOUT, SHORT_WITHOUT), (LABEL_WITH, SHORT_WITH)),
-                         gap: int = 4) -> np.ndarray:
-    """One image: `left | right` (RGB float arrays, top row first, same height),
-    each under a dark band with its label in white."""
-    h = max(left.shape[0], right.shape[0])
-    panels = []
-    for image, names in zip((left, right), labels):
-        pad = np.zeros((h, image.shape[1], 3), dtype=np.float32)
-        pad[:image.shape[0]] = image
-        panels.append((pad, names))
-    scale = label_scale(min(image.shape[1] for image, _ in panels))
-    fits = [_fit_label(names, image.shape[1], scale) for image, names in panels]
-    scale = min([f[1] for f in fits if f] or [1])
-    margin = max(2, 2 * scale)
-    band_h = GLYPH_H * scale + 2 * margin
-    band_color, ink = np.float32(0.08), np.float32(1.0)
-    columns = []
-    for (image, names), fit in zip(panels, fits):
-        band = np.full((band_h, image.shape[1], 3), band_color, dtype=np.float32)
-        if fit:
-            mask = text_mask(fit[0], scale)
-            x0 = max(0, (image.shape[1] - mask.shape[1]) // 2)
-            band[margin:margin + mask.shape[0], x0:x0 + mask.shape[1]][mask] = ink
-        columns.append(np.concatenate([band, image.astype(np.float32)], axis=0))
-    separator = np.full((h + band_h, gap, 3), band_color, dtype=np.float32)
-    return np.concatenate([columns[0], separator, columns[1]], axis=1)
-
-
-def compare_png(without_png: str, with_png: str, out_png: str) -> None:
-    write_png(compose_side_by_side(read_png(without_png), read_png(with_png)), out_png)
-
-
 # --------------------------------------------------------------------------- commands
 
 def cmd_render(args) -> int:
+    check_scene_path(args.scene)          # both before anything is loaded or rendered
+    out = check_output(args.output)
     import bpy
     say(f"loading {args.scene}")
     is_bi = load_scene(args.scene)
     scene = bpy.context.scene
     configure(scene, args.engine, args.samples, args.resolution, is_bi)
-    out = os.path.abspath(args.output)
     if not args.compare:
         on = not args.no_lens_lights
         say(f"{'generating' if on else 'removing'} lens lights ...")
@@ -462,13 +368,15 @@ def cmd_render(args) -> int:
         print(out)
         return 0
     with tempfile.TemporaryDirectory(prefix="lens-lights-") as tmp:
-        without_png, with_png = os.path.join(tmp, "without.png"), os.path.join(tmp, "with.png")
+        # The halves as 8-bit PNG (display values), or as EXR for an EXR comparison.
+        ext = ".exr" if image_format(out) in image_strip.FLOAT_FORMATS else ".png"
+        without, with_ = os.path.join(tmp, "without" + ext), os.path.join(tmp, "with" + ext)
         say(set_lens_lights(False))
-        render_to(scene, without_png, "without lens lights")
+        render_to(scene, without, "without lens lights")
         say("generating lens lights ...")
         say(set_lens_lights(True))
-        render_to(scene, with_png, "with lens lights")
-        compare_png(without_png, with_png, out)
+        render_to(scene, with_, "with lens lights")
+        image_strip.compare_images(without, with_, out)
     say(f"wrote the comparison → {out}")
     print(out)
     return 0
@@ -494,8 +402,8 @@ def load_showcase():
 
 
 def cmd_demo(args) -> int:
+    out_dir = check_output_dir(args.out)
     import bpy
-    out_dir = Path(args.out).resolve()
     say(f"building the showcase scene (output: {out_dir})")
     new_empty_file()
     ensure_extension()
@@ -506,7 +414,6 @@ def cmd_demo(args) -> int:
               args.resolution, is_bi=False)
     if scene.render.engine == "CYCLES":
         scene.cycles.use_denoising = True
-    out_dir.mkdir(parents=True, exist_ok=True)
     paths = {k: str(out_dir / f"showcase_{k}.png") for k in ("without", "with", "compare")}
     blend = str(out_dir / "showcase.blend")
     say(set_lens_lights(False))
@@ -515,7 +422,7 @@ def cmd_demo(args) -> int:
     say("generating lens lights ...")
     say(set_lens_lights(True))
     render_to(scene, paths["with"], "with lens lights")
-    compare_png(paths["without"], paths["with"], paths["compare"])
+    image_strip.compare_images(paths["without"], paths["with"], paths["compare"])
     say("done")
     print(f"showcase scene:       {blend}")
     print(f"without lens lights:  {paths['without']}")

@@ -6,7 +6,48 @@ import math
 
 import bpy
 
-from test_blender_generate import add_point_light, add_sphere, glass_material, node_material  # noqa: F401
+
+def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Transmission Weight"].default_value = transmission
+    bsdf.inputs["IOR"].default_value = ior
+    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
+    return mat
+
+
+def node_material(name, kind, **inputs):
+    """A material whose surface is one shader node of type `kind` (bl_idname)."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for node in list(nt.nodes):
+        if node.type != "OUTPUT_MATERIAL":
+            nt.nodes.remove(node)
+    node = nt.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def add_sphere(name, location, radius=0.5, material=None, segments=32, rings=16):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=location,
+                                         segments=segments, ring_count=rings)
+    ob = bpy.context.object
+    ob.name = name
+    if material is not None:
+        ob.data.materials.append(material)
+    return ob
+
+
+def add_point_light(name, location, energy=1000.0, radius=0.0, kind="POINT"):
+    data = bpy.data.lights.new(name, kind)
+    data.energy = energy
+    data.shadow_soft_size = radius
+    ob = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = location
+    return ob
 
 
 def lens_lights():

@@ -12,47 +12,10 @@ bpy = pytest.importorskip("bpy")   # the pinned environment has it
 
 # --------------------------------------------------------------------------- helpers
 
-def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
-    mat = bpy.data.materials.new(name)
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Transmission Weight"].default_value = transmission
-    bsdf.inputs["IOR"].default_value = ior
-    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
-    return mat
-
-
-def node_material(name, kind, **inputs):
-    """A material whose surface is one shader node of type `kind` (bl_idname)."""
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for node in list(nt.nodes):
-        if node.type != "OUTPUT_MATERIAL":
-            nt.nodes.remove(node)
-    node = nt.nodes.new(kind)
-    for key, value in inputs.items():
-        node.inputs[key].default_value = value
-    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    return mat
-
-
-def add_sphere(name, location, radius=0.5, material=None, segments=32, rings=16):
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=location,
-                                         segments=segments, ring_count=rings)
-    ob = bpy.context.object
-    ob.name = name
-    if material is not None:
-        ob.data.materials.append(material)
-    return ob
-
-
-def add_point_light(name, location, energy=1000.0, radius=0.0, kind="POINT"):
-    data = bpy.data.lights.new(name, kind)
-    data.energy = energy
-    data.shadow_soft_size = radius
-    ob = bpy.data.objects.new(name, data)
-    bpy.context.scene.collection.objects.link(ob)
-    ob.location = location
-    return ob
+# The scene builders live in tests/blender_scene_helpers.py; these names stay
+# importable from here (tests/test_blender_tiers.py imports them).
+from blender_scene_helpers import (add_point_light, add_sphere,  # noqa: E402,F401
+                                   generate, glass_material, lens_lights, node_material)
 
 
 def basic_scene():
@@ -62,15 +25,6 @@ def basic_scene():
     sphere = add_sphere("Marble", (0.0, 0.0, 2.5), material=glass_material())
     light = add_point_light("Lamp", (0.0, 0.0, 4.5), energy=1000.0, radius=0.1)
     return sphere, light
-
-
-def lens_lights():
-    return sorted((o for o in bpy.data.objects if o.lens_lights.is_lens_light), key=lambda o: o.name)
-
-
-def generate():
-    from lens_lights.operators.generate import generate as run
-    return run(bpy.context)
 
 
 # --------------------------------------------------------------------------- generate

@@ -50,6 +50,8 @@ bpy = pytest.importorskip("bpy")
 
 from addon import exact_optics                      # noqa: E402
 from addon.light_models import head_on_transmission  # noqa: E402
+from measuring_scene import (add_top_camera, build_measuring_scene,  # noqa: E402 (scripts/)
+                             new_measuring_scene)
 
 R, N, D, HEIGHT, TILT_DEG, POWER, ALBEDO = 0.5, 1.5, 2.0, 2.5, 20.0, 1000.0, 0.8
 D_FOCAL = N * R / (2 * (N - 1))                     # 0.75: front focal distance
@@ -78,19 +80,17 @@ def axis_hit():
 
 
 def build_scene(engine, tmp, light_distance=D):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.engine = engine
-    sc.render.resolution_x = sc.render.resolution_y = PX
-    sc.render.resolution_percentage = 100
-    sc.render.film_transparent = False
-    sc.view_settings.view_transform = "Standard"
-    sc.view_settings.look = "None"
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_depth = "32"
-    sc.world = None
+    """The measuring scene (scripts/measuring_scene.py) of the module docstring."""
+    center = np.array([0.0, 0.0, HEIGHT])
+    hit, _ = axis_hit()
+    built = build_measuring_scene(
+        engine, resolution=PX, floor_size=6.0, albedo=ALBEDO, view=VIEW,
+        camera_xy=(hit[0], hit[1]), camera_height=5.0,
+        ball=dict(radius=R, location=(0.0, 0.0, HEIGHT), ior=N, segments=48, rings=24,
+                  name="Marble"),
+        lamp=dict(location=center - light_distance * axis_dir(), power=POWER))
+    sc = built.scene
     if engine == "CYCLES":
-        sc.cycles.device = "CPU"
         sc.cycles.samples = 64
         sc.cycles.max_bounces = 0
         sc.cycles.use_denoising = False
@@ -99,48 +99,7 @@ def build_scene(engine, tmp, light_distance=D):
         sc.cycles.seed = 1
     else:
         sc.eevee.taa_render_samples = 4
-
-    floor_mat = bpy.data.materials.new("Floor")
-    nt = floor_mat.node_tree
-    nt.nodes.remove(nt.nodes["Principled BSDF"])
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (ALBEDO, ALBEDO, ALBEDO, 1.0)
-    nt.links.new(diffuse.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    bpy.ops.mesh.primitive_plane_add(size=6.0)
-    floor = bpy.context.object
-    floor.name = "Floor"
-    floor.data.materials.append(floor_mat)
-
-    glass = bpy.data.materials.new("Glass")
-    bsdf = glass.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Transmission Weight"].default_value = 1.0
-    bsdf.inputs["IOR"].default_value = N
-    bsdf.inputs["Roughness"].default_value = 0.0
-    bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)    # clear glass
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=R, location=(0.0, 0.0, HEIGHT), segments=48,
-                                         ring_count=24)
-    sphere = bpy.context.object
-    sphere.name = "Marble"
-    sphere.data.materials.append(glass)
-    bpy.ops.object.shade_smooth()
-    sphere.visible_camera = False
-
-    center = np.array([0.0, 0.0, HEIGHT])
-    data = bpy.data.lights.new("Lamp", "POINT")
-    data.energy = POWER
-    data.shadow_soft_size = 0.0
-    lamp = bpy.data.objects.new("Lamp", data)
-    sc.collection.objects.link(lamp)
-    lamp.location = tuple(center - light_distance * axis_dir())
-
-    hit, _ = axis_hit()
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    sc.collection.objects.link(cam)
-    cam.data.type = "ORTHO"
-    cam.data.ortho_scale = VIEW
-    cam.location = (hit[0], hit[1], 5.0)
-    sc.camera = cam
-    return sc, lamp
+    return sc, built.lamp
 
 
 def render(sc, path):
@@ -371,17 +330,9 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
     """What PHYSICAL assumes of Cycles' glass, measured through a sphere seen
     against an emitter (strength 1) along the axis: T(0) = 0.9216 for n = 1.5, the
     Principled BSDF tints a path once by Base Color, the Glass BSDF at each surface."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.engine = "CYCLES"
-    sc.cycles.device = "CPU"
+    sc = new_measuring_scene("CYCLES", 8)          # linear EXR, Standard, no world
     sc.cycles.samples = 8
     sc.cycles.use_denoising = False
-    sc.render.resolution_x = sc.render.resolution_y = 8
-    sc.view_settings.view_transform = "Standard"
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_depth = "32"
-    sc.world = None
     bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, -5))
     em = bpy.data.materials.new("Emitter")
     nt = em.node_tree
@@ -392,12 +343,7 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
     bpy.ops.mesh.primitive_uv_sphere_add(radius=1, segments=64, ring_count=32)
     sphere = bpy.context.object
     bpy.ops.object.shade_smooth()
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    sc.collection.objects.link(cam)
-    cam.data.type = "ORTHO"
-    cam.data.ortho_scale = 0.05
-    cam.location = (0, 0, 5)
-    sc.camera = cam
+    add_top_camera(0.0, 0.0, 5.0, view=0.05)
 
     def through(kind, color):
         mat = bpy.data.materials.new(kind)

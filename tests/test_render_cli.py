@@ -1,6 +1,6 @@
-"""`lens-lights render` and `lens-lights demo` on tiny images, and the labelled
-side-by-side composition (pure numpy)."""
-import importlib.util
+"""`lens-lights render` and `lens-lights demo` on tiny images, and their checks of
+the command line (scene and output paths, image formats). The labelled
+side-by-side composition: tests/test_image_strip.py."""
 import struct
 import subprocess
 import sys
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from image_strip import read_image  # scripts/ (tests/conftest.py)
 
 pytestmark = pytest.mark.blender
 
@@ -54,15 +55,6 @@ S
 """
 
 
-def load_render():
-    spec = importlib.util.spec_from_file_location("lens_lights_render_under_test",
-                                                  ROOT / "scripts" / "render.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-render = load_render()
 
 
 def run_cli(*args, timeout=600):
@@ -78,46 +70,7 @@ def png_size(path) -> tuple[int, int]:
 
 def png_pixels(path) -> np.ndarray:
     """RGB rows top to bottom (the test process has bpy too)."""
-    return render.read_png(str(path))
-
-
-# --------------------------------------------------------------------------- composition
-
-def test_text_mask_has_every_label_glyph():
-    for label in (render.LABEL_WITHOUT, render.LABEL_WITH, render.SHORT_WITHOUT):
-        assert all(ch in render.FONT for ch in label)
-    mask = render.text_mask("Ab", 2)
-    assert mask.shape == (14, render.text_width("Ab", 2)) == (14, 22)
-    assert np.array_equal(render.text_mask("~", 1), render.FONT["?"])
-    for ch, glyph in render.FONT.items():
-        assert glyph.shape == (7, 5), ch
-        assert ch == " " or glyph.any(), ch
-
-
-@pytest.mark.parametrize("w,h", [(48, 48), (200, 150), (960, 540)])
-def test_compose_side_by_side(w, h):
-    rng = np.random.default_rng(1)
-    left = rng.random((h, w, 3)).astype(np.float32)
-    right = rng.random((h, w, 3)).astype(np.float32)
-    out = render.compose_side_by_side(left, right)
-    band = out.shape[0] - h
-    assert out.shape == (h + band, 2 * w + 4, 3) and band >= 11
-    # the images are kept exactly, under their labels
-    assert np.array_equal(out[band:, :w], left)
-    assert np.array_equal(out[band:, w + 4:], right)
-    # each band holds white text
-    assert (out[:band, :w] == 1.0).any() and (out[:band, w + 4:] == 1.0).any()
-    assert not (out[:band, w:w + 4] == 1.0).any()
-    if w >= 200:     # the full labels fit: "WITHOUT LENS LIGHTS" is wider than "WITH …"
-        ink_l = np.flatnonzero((out[:band, :w] == 1.0).any(axis=(0, 2)))
-        ink_r = np.flatnonzero((out[:band, w + 4:] == 1.0).any(axis=(0, 2)))
-        assert np.ptp(ink_l) > np.ptp(ink_r) > 0.5 * np.ptp(ink_l)
-
-
-def test_compose_too_narrow_for_any_label():
-    img = np.zeros((20, 8, 3), dtype=np.float32)
-    out = render.compose_side_by_side(img, img)
-    assert out.shape[1] == 20 and not (out == 1.0).any()
+    return read_image(str(path))
 
 
 # --------------------------------------------------------------------------- render
@@ -200,6 +153,71 @@ def test_render_bad_arguments(tmp_path):
         result = run_cli("render", FIG1, "-o", tmp_path / "x.png", *bad)
         assert result.returncode == 2, bad
         assert "Traceback" not in result.stderr
+
+
+# --------------------------------------------------------------------------- paths, formats
+
+def assert_refused_before_rendering(result, message):
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "rendering" not in result.stderr and "loading" not in result.stderr
+
+
+def test_render_output_is_a_directory(tmp_path):
+    """Checked before loading and rendering (it used to render, then fail, exit 1)."""
+    result = run_cli("render", FIG1, "-o", tmp_path)
+    assert_refused_before_rendering(result, f"lens-lights: {tmp_path}: is a directory")
+    result = run_cli("render", FIG1, "-o", f"{tmp_path}/new/")
+    assert_refused_before_rendering(result, "is a directory")
+
+
+@pytest.mark.parametrize("name,kind", [("x.gif", "'.gif'"), ("x", "no extension")])
+def test_render_output_unknown_image_type(tmp_path, name, kind):
+    result = run_cli("render", FIG1, "-o", tmp_path / name)
+    assert_refused_before_rendering(result, f"unknown image type ({kind})")
+    assert ".png, .jpg, .jpeg, .exr" in result.stderr
+    assert not (tmp_path / name).exists()
+
+
+def test_render_output_folder_is_a_file(tmp_path):
+    (tmp_path / "file").write_text("")
+    result = run_cli("render", FIG1, "-o", tmp_path / "file" / "x.png")
+    assert_refused_before_rendering(result, f"{tmp_path / 'file'}: is not a directory")
+
+
+def test_render_scene_is_a_directory(tmp_path):
+    result = run_cli("render", tmp_path, "-o", tmp_path / "x.png")
+    assert_refused_before_rendering(result, f"lens-lights: {tmp_path}: is a directory")
+    assert "no such file" not in result.stderr
+
+
+def test_render_jpeg_into_a_new_folder(tmp_path):
+    """The extension picks the format (JPEG bytes in x.jpg); a missing folder is made."""
+    out = tmp_path / "new" / "sub" / "x.jpg"
+    result = run_cli("render", FIG3, "-o", out, *TINY, "--no-lens-lights")
+    assert result.returncode == 0, result.stderr
+    assert out.read_bytes()[:3] == b"\xff\xd8\xff"
+    assert read_image(str(out)).shape == (48, 48, 3)
+
+
+def test_render_compare_as_exr(tmp_path):
+    """An OpenEXR comparison: float halves, composed as floats."""
+    out = tmp_path / "cmp.exr"
+    result = run_cli("render", FIG3, "-o", out, *TINY, "--compare")
+    assert result.returncode == 0, result.stderr
+    assert out.read_bytes()[:4] == b"v/1\x01"
+    image = read_image(str(out))
+    assert image.shape[1] == 48 + 4 + 48 and image.shape[0] > 48
+
+
+def test_demo_out_is_not_a_directory(tmp_path):
+    (tmp_path / "file").write_text("")
+    for out in (tmp_path / "file", tmp_path / "file" / "demo"):
+        result = run_cli("demo", "--out", out, "--resolution", "48x36", "--samples", "1")
+        assert result.returncode == 2, result.stderr
+        assert f"{tmp_path / 'file'}: is not a directory" in result.stderr
+        assert "Traceback" not in result.stderr and "rendering" not in result.stderr
 
 
 # --------------------------------------------------------------------------- demo
