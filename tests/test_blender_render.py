@@ -49,7 +49,7 @@ pytestmark = pytest.mark.blender
 bpy = pytest.importorskip("bpy")
 
 from addon import exact_optics                      # noqa: E402
-from addon.light_models import head_on_transmission  # noqa: E402
+from addon.tiers import head_on_transmission  # noqa: E402
 
 R, N, D, HEIGHT, TILT_DEG, POWER, ALBEDO = 0.5, 1.5, 2.0, 2.5, 20.0, 1000.0, 0.8
 D_FOCAL = N * R / (2 * (N - 1))                     # 0.75: front focal distance
