@@ -9,8 +9,15 @@ import pytest
 
 from addon import phase1
 from addon.skip_reasons import Reason, SkippedPair, reason_kind, reason_text
-from addon.tiers import (AUTO, AUTO_RESOLUTION, ENUM_NUMBERS, TIER_LINES, TIERS,
-                         energy_model_items, resolve_energy_model)
+from addon.tiers import (
+    AUTO,
+    AUTO_RESOLUTION,
+    ENUM_NUMBERS,
+    TIER_LINES,
+    TIERS,
+    energy_model_items,
+    resolve_energy_model,
+)
 from addon.tiers.base import Tier
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -70,7 +77,8 @@ def test_skipped_pairs_carry_code_and_details():
     p = SkippedPair("Lamp", "Ball", Reason.DIMMER_THAN_CUTOFF, dict(relative=0.23, cutoff=0.5))
     assert p == ("Lamp", "Ball", "dimmer than the cut-off (0.23 < 0.5)")
     assert p.code is Reason.DIMMER_THAN_CUTOFF and p.kind == "dimmer than the cut-off"
-    assert reason_kind(Reason.BEYOND_MAXIMUM, dict(limit=8)) == "beyond the maximum of 8 lens lights"
+    assert reason_kind(Reason.BEYOND_MAXIMUM, dict(limit=8)) == \
+        "beyond the maximum of 8 lens lights"
     assert reason_text(Reason.OPAQUE) == "opaque (kt = 0)"
     light, lens, why = p
     assert (light, lens) == ("Lamp", "Ball")
