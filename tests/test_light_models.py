@@ -231,6 +231,32 @@ def test_resolve_energy_model(model, engine, tier, warns):
         assert "EEVEE" in warning and "Fitted" in warning
 
 
+@pytest.mark.parametrize("tier", ["FITTED", "EXACT_PROFILE"])
+def test_lens_light_radius_is_the_images(tier):
+    """Issue 10: a primary of radius r images to a source of radius |m|·r (SPEC §4.1),
+    whatever tier; for a collimated beam (|m| → ∞) at most r·S/D. By hand, R = 0.5,
+    n = 1.5: P = 2(n − 1)/(nR) = 4/3."""
+    r = 0.1
+    # D = 2: V = 4/3 − 1/2 = 5/6, 1/V = 1.2, m = −(1/V)/D = −0.6 → |m|·r = 0.06
+    # (cap r·S/D = 0.1 · 4/2 = 0.2 does not apply)
+    src = only_source(ball_scene(light_radius=r))
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=4.0)
+    assert bl.radius == pytest.approx(0.06, rel=1e-12)
+    # scene size S = 1 < |1/V| = 1.2: the cap r·S/D = 0.1 · 1/2 = 0.05
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=1.0)
+    assert bl.radius == pytest.approx(0.05, rel=1e-12)
+    # D = 4: V = 4/3 − 1/4 = 13/12, 1/V = 12/13, m = −(12/13)/4 = −3/13 → 0.3/13
+    src = only_source(ball_scene(distance=4.0, light_radius=r))
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=4.0)
+    assert bl.radius == pytest.approx(0.3 / 13, rel=1e-12)
+    # collimated (light at the focal point D = nR/(2(n − 1)) = 0.75, V = 0): r·S/D
+    bl = make_blender_light(collimated_source(), PrimaryLight(P, radius=r), tier,
+                            scene_size=2.0)
+    assert bl.radius == pytest.approx(0.1 * 2.0 / 0.75, rel=1e-12)
+    # a point primary stays a point
+    assert make_blender_light(src, PrimaryLight(P), tier, scene_size=4.0).radius == 0.0
+
+
 def test_make_blender_light_dispatches_the_tiers():
     from addon.tiers import exact_profile
     from addon.tiers import fitted as fitted_tier

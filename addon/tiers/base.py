@@ -30,6 +30,16 @@ measurement (tests/test_blender_render.py):
   ``sqrt(P/100/light_threshold)``, which cuts dim lights off within a metre or so);
   :attr:`BlenderLight.cutoff_distance` is a custom distance five times the farthest
   the light has to reach, which keeps that fade below 0.5 %.
+
+The lens light's radius (:func:`lens_light_radius`, FITTED and EXACT_PROFILE,
+whose lights do not sit at the image): a primary of radius ``r`` images to a
+source of radius ``|m|·r`` with ``m = −(1/V)/D`` (SPEC §4.1), and seen from
+beyond the image a lens light that large looks as large as the image. As
+``V → 0`` (collimated) ``|m| → ∞``: the image then subtends ``r/D`` from the lens
+(the chief ray through a ball lens's centre is undeviated), so the radius is
+capped at ``r·S/D``, the size that shows that divergence across the scene's size
+``S``. (A THESIS/PHYSICAL cone sits at the image and gets ``|m|·r`` exactly; their
+far-away beam spot at distance ``s`` gets ``s·r/D``.)
 """
 from __future__ import annotations
 
@@ -120,6 +130,18 @@ def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None)
     wgt = min(max(optics.transmission_weight, 0.0), 1.0)
     color = glass_color(source, primary, optics)
     return axis, R, D, wgt * wgt * unblocked_share(source), color, non_full_note(source)
+
+
+def lens_light_radius(source, primary: PrimaryLight, scene_size: float) -> float:
+    """The radius of a lens light standing for `source`'s image (module docstring):
+    ``r·min(|1/V|, S)/D`` = ``min(|m|·r, r·S/D)``; finite for a collimated source."""
+    r, D = float(primary.radius), float(source.distance)
+    if not (r > 0.0 and D > 0.0):
+        return 0.0
+    S = float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
+    V = float(source.vergence)
+    reach = S if V == 0.0 else min(abs(1.0 / V), S)
+    return r * reach / D
 
 
 def downstream_reach(origin, axis, scene_bounds, fallback):

@@ -40,6 +40,7 @@ from .base import (
     PrimaryLight,
     Tier,
     axial_light_common,
+    lens_light_radius,
 )
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
@@ -306,7 +307,7 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
                     "width": shape[1], "height": shape[0], "strength_scale": 1.0}
     return ProfileLight(
         type=SPOT, energy_w=float(4.0 * math.pi * I_ref), spot_size_deg=180.0, spot_blend=0.0,
-        radius=float(primary.radius * (apex * R + D) / D),
+        radius=float(lens_light_radius(source, primary, scene_size)),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=1.0, cone_half_angle_deg=90.0,
         cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))), kind=source.kind,

@@ -35,6 +35,7 @@ from .base import (
     Tier,
     axial_light_common,
     cone_shape,
+    lens_light_radius,
 )
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS, SUN_DISTANCE, SpotFit, fit_spot
 
@@ -161,7 +162,7 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
     return BlenderLight(
         type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
         spot_blend=float(min(max(fit.blend, 0.0), 1.0)),
-        radius=float(primary.radius * abs(fit.apex * R + D) / D),
+        radius=float(lens_light_radius(source, primary, scene_size)),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=float(shape.scale_xy),
         cone_half_angle_deg=float(shape.half_angle_deg),
