@@ -27,8 +27,17 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from addon import exact_optics as xo  # noqa: E402
-from addon.beam_error import (D_OVER_R, IORS, PEAK_DISC, RECEIVERS_BEHIND,  # noqa: E402
-                              AxialSpot, ExactBeam, axial_peak, evaluate_case, model_from_light)
+from addon.beam_error import (  # noqa: E402
+    D_OVER_R,
+    IORS,
+    PEAK_DISC,
+    RECEIVERS_BEHIND,
+    AxialSpot,
+    ExactBeam,
+    axial_peak,
+    evaluate_case,
+    model_from_light,
+)
 from addon.blender_spot import one_minus_cos_of_radius, spot_mask_integral  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
