@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import skip_reasons
 from .geometry import (angle_between, cap_overlap_fraction, radial_angle,  # noqa: F401
                        tangent_length)
 from .obstruction import find_blockers
@@ -85,6 +86,7 @@ class Skipped:
     light: int
     lens: int
     reason: str
+    code: int = -1                  # skip_reasons.Reason
 
     def to_json(self) -> dict:
         return {"light": self.light, "lens": self.lens, "reason": self.reason}
@@ -165,24 +167,11 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
 # made only when asked for.
 (INVALID_LIGHT, INVALID_SPHERE_NONFINITE, INVALID_SPHERE_RADIUS, OPAQUE, INVALID_KT,
  NOT_CONVERGING, LIGHT_INSIDE, LIGHT_ON_SURFACE, LIGHT_INSIDE_OTHER,
- LIGHT_ON_OTHER, TOTALLY_BLOCKED, OUT_OF_RANGE) = range(12)
+ LIGHT_ON_OTHER, TOTALLY_BLOCKED, OUT_OF_RANGE) = range(12)   # = skip_reasons.Reason
 
 
 def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> str:
-    return {
-        INVALID_LIGHT: "invalid light (non-finite number)",
-        INVALID_SPHERE_NONFINITE: "invalid sphere (non-finite number)",
-        INVALID_SPHERE_RADIUS: f"invalid sphere (radius {radius:g} ≤ 0)",
-        OPAQUE: "opaque (kt = 0)",
-        INVALID_KT: f"invalid transmission (kt = {kt:g} outside 0…1)",
-        NOT_CONVERGING: f"not a converging lens (n = {ior:g} ≤ 1)",
-        LIGHT_INSIDE: "light inside the sphere",
-        LIGHT_ON_SURFACE: "light on the sphere's surface",
-        LIGHT_INSIDE_OTHER: f"light inside sphere {other}",
-        LIGHT_ON_OTHER: f"light on the surface of sphere {other}",
-        TOTALLY_BLOCKED: f"totally blocked by sphere {other}",
-        OUT_OF_RANGE: "out of range (the light's distance overflows floating point)",
-    }[code]
+    return skip_reasons.reason_text(code, dict(radius=radius, ior=ior, kt=kt, other=other))
 
 
 def sphere_problems(a: SceneArrays) -> np.ndarray:
@@ -291,24 +280,18 @@ class Phase1Result:
             a, s = self._arrays, self.skip_table
             self._skipped = [
                 Skipped(int(j), int(i), reason_text(int(c), float(a.radius[i]),
-                                                    float(a.ior[i]), float(a.kt[i]), int(k)))
+                                                    float(a.ior[i]), float(a.kt[i]), int(k)),
+                        int(c))
                 for j, i, c, k in zip(s.light, s.lens, s.code, s.other)]
         return self._skipped
 
     def skip_counts(self) -> dict[str, int]:
         """How many pairs were skipped for each kind of reason (numbers left out)."""
-        names = {INVALID_LIGHT: "invalid light", INVALID_SPHERE_NONFINITE: "invalid sphere",
-                 INVALID_SPHERE_RADIUS: "invalid sphere", OPAQUE: "opaque",
-                 INVALID_KT: "invalid transmission", NOT_CONVERGING: "not a converging lens",
-                 LIGHT_INSIDE: "light inside the sphere",
-                 LIGHT_ON_SURFACE: "light on the sphere's surface",
-                 LIGHT_INSIDE_OTHER: "light inside another sphere",
-                 LIGHT_ON_OTHER: "light on another sphere",
-                 TOTALLY_BLOCKED: "totally blocked", OUT_OF_RANGE: "out of range"}
         counts: dict[str, int] = {}
         codes, n = np.unique(self.skip_table.code, return_counts=True)
         for c, k in zip(codes, n):
-            counts[names[int(c)]] = counts.get(names[int(c)], 0) + int(k)
+            kind = skip_reasons.reason_kind(c)
+            counts[kind] = counts.get(kind, 0) + int(k)
         return counts
 
     def to_json(self) -> dict:

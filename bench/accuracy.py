@@ -8,8 +8,8 @@ against mitsuba.  Writes reports/accuracy.md and reports/accuracy_*.png.
 Grid (issue item 3): light distances D/R in {1.2, 1.5, 2, 3, 5, 10, 50}, n in
 {1.33, 1.5, 1.7}, 15 receiving planes 0.5–10 R behind the sphere (log-spaced),
 each measured over the lens's shadow disc.  Tiers: THESIS and PHYSICAL
-(addon/light_models.py, as the add-on makes them), FITTED (addon/lens_tiers.py,
-the shipped table), EXACT_PROFILE (the 2-D table).  For information: the direct
+(addon/tiers/thesis.py, physical.py, as the add-on makes them), FITTED
+(addon/tiers/fitted.py, the shipped table), EXACT_PROFILE (the 2-D table).  For information: the direct
 fit (no table), the 1-D angular profile, and a two-spot fit (an experiment, not
 a tier).  The fits use 9 receivers; the measure uses 15 others.
 """
@@ -27,13 +27,24 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from addon import exact_optics as xo  # noqa: E402
-from addon import lens_tiers as lt  # noqa: E402
-from addon.accuracy import (D_OVER_R, IORS, PEAK_DISC, RECEIVERS_BEHIND, ExactBeam,  # noqa: E402
-                            axial_peak, evaluate_case, model_from_light)
-from addon.light_models import PrimaryLight, make_blender_light  # noqa: E402
+from addon.beam_error import (  # noqa: E402
+    D_OVER_R,
+    IORS,
+    PEAK_DISC,
+    RECEIVERS_BEHIND,
+    AxialSpot,
+    ExactBeam,
+    axial_peak,
+    evaluate_case,
+    model_from_light,
+)
+from addon.blender_spot import one_minus_cos_of_radius, spot_mask_integral  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.spot_irradiance import one_minus_cos_of_radius, spot_mask_integral  # noqa: E402
+from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
+from addon.tiers import exact_profile as xp  # noqa: E402
+from addon.tiers import fitted as ft  # noqa: E402
+from addon.tiers import spot_fit as sf  # noqa: E402
 
 REPORTS = ROOT / "reports"
 P_PRIMARY = 4.0 * math.pi          # W: primary intensity 1 W/sr
@@ -71,11 +82,11 @@ def timed(fn, min_time=0.05):
 
 # --------------------------------------------------------------------------- two spots
 
-def fit_two_spots(D, n, one: lt.SpotFit):
+def fit_two_spots(D, n, one: sf.SpotFit):
     """Experiment: the best pair of spots (Nelder–Mead from 12 starts around the
     one-spot fit).  Returns (mean L1 over FIT_RECEIVERS, params)."""
     beam = ExactBeam(1.0, D, 1.0, n, n_fan=8000)
-    ob = lt._SpotObjective(beam)
+    ob = sf._SpotObjective(beam)
 
     def obj(x):
         if not np.all(np.isfinite(x)) or np.any(np.abs(x[[0, 1, 2, 4, 5, 6]]) > 40):
@@ -91,14 +102,14 @@ def fit_two_spots(D, n, one: lt.SpotFit):
             out.append(np.sum(np.abs(np.diff(f) - ob.true[j])) / ob.total[j])
         return float(np.mean(out))
 
-    d1 = 1.0 + lt.FIRST_RECEIVER - one.apex
+    d1 = 1.0 + sf.FIRST_RECEIVER - one.apex
     x1 = np.array([math.log(d1), math.log(one.intensity / d1 ** 2),
                    math.log(d1 * math.tan(math.radians(one.half_angle_deg))), one.blend])
     best = (math.inf, None)
     for dd in (0.05, 0.3, 1.0, 3.0):
         for rr in (0.02, 0.1, 0.3):
             x0 = np.concatenate([x1 - np.array([0, 0.3, 0, 0]), [math.log(dd), x1[1] + 1.0, math.log(rr), 0.5]])
-            x, fx = lt._nelder_mead(obj, x0, [0.3] * 8, max_iter=1500)
+            x, fx = sf._nelder_mead(obj, x0, [0.3] * 8, max_iter=1500)
             if fx < best[0]:
                 best = (fx, x)
     return best[0], (ob.unpack(best[1][:4]), ob.unpack(best[1][4:]))
@@ -106,7 +117,6 @@ def fit_two_spots(D, n, one: lt.SpotFit):
 
 class TwoSpots:
     def __init__(self, spots):
-        from addon.accuracy import AxialSpot
         self.spots = [AxialSpot(a, k, H, b) for a, k, H, b in spots]
 
     def flux_within_radius(self, Z, radii):
@@ -132,20 +142,20 @@ def run_grid(log):
                 light, dt = timed(lambda: make_blender_light(src, primary, tier, scene_size=scene_size))
                 models[tier] = model_from_light(light, src)
                 times[tier].append(dt)
-            light, dt = timed(lambda: lt.make_fitted_light(src, primary, scene_size=scene_size))
+            light, dt = timed(lambda: ft.make_fitted_light(src, primary, scene_size=scene_size))
             models["FITTED"] = model_from_light(light, src)
             times["FITTED"].append(dt)
-            light, dt = timed(lambda: lt.make_fitted_light(src, primary, scene_size=scene_size, direct=True))
+            light, dt = timed(lambda: ft.make_fitted_light(src, primary, scene_size=scene_size, direct=True))
             models["FITTED_DIRECT"] = model_from_light(light, src)
             times["FITTED_DIRECT"].append(dt)
-            prof, dt = timed(lambda: lt.exact_profile(D, n))
-            light, dt2 = timed(lambda: lt.make_profile_light(src, primary, scene_size=scene_size, profile=prof))
-            models["EXACT_PROFILE"] = lt.profile_model(prof, 1.0, 1.0)
-            models["ANGULAR_PROFILE"] = lt.profile_model(prof, 1.0, 1.0, angular=True)
+            prof, dt = timed(lambda: xp.exact_profile(D, n))
+            light, dt2 = timed(lambda: xp.make_profile_light(src, primary, scene_size=scene_size, profile=prof))
+            models["EXACT_PROFILE"] = xp.profile_model(prof, 1.0, 1.0)
+            models["ANGULAR_PROFILE"] = xp.profile_model(prof, 1.0, 1.0, angular=True)
             times["EXACT_PROFILE"].append(dt + dt2)
             times["ANGULAR_PROFILE"].append(dt + dt2)
             if D >= 2.0:
-                one = lt.fit_spot(D, n)
+                one = sf.fit_spot(D, n)
                 (l1_two, spots), dt = timed(lambda: fit_two_spots(D, n, one))
                 models["TWO_SPOTS"] = TwoSpots(spots)
                 times["TWO_SPOTS"].append(dt)
@@ -336,9 +346,9 @@ def plots(results, times, summary, mitsuba, log):
     primary = PrimaryLight(P_PRIMARY)
     models = {t: model_from_light(make_blender_light(src, primary, t, scene_size=D + 12), src)
               for t in ("THESIS", "PHYSICAL")}
-    models["FITTED"] = model_from_light(lt.make_fitted_light(src, primary), src)
-    prof = lt.exact_profile(D, n)
-    models["EXACT_PROFILE"] = lt.profile_model(prof)
+    models["FITTED"] = model_from_light(ft.make_fitted_light(src, primary), src)
+    prof = xp.exact_profile(D, n)
+    models["EXACT_PROFILE"] = xp.profile_model(prof)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
     for ax, s in zip(axes, (0.5, 2.0, 8.0)):
         Z = beam.plane(s)
@@ -420,7 +430,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
              "largest — where the caustic is brightest; the error is |model − exact| in R. Every "
              "tier's light is made exactly as the add-on makes it (primary 4π W, clear glass, "
              "THESIS/PHYSICAL with their default blend 0.15) and modelled as Blender renders it "
-             "(`addon/spot_irradiance.py`: intensity energy/4π × smoothstep in the cosine, the "
+             "(`addon/blender_spot.py`: intensity energy/4π × smoothstep in the cosine, the "
              "Cycles 4+/EEVEE spot mask). The fits (FITTED, the 1-D profile, two spots) use 9 other "
              "receiver planes than the 15 measured.\n")
     L.append("## Summary (D ≥ 2R: 15 cases)\n")
@@ -491,7 +501,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
     L.append("Median over the 21 cases of the time to turn one secondary source into its Blender "
              "light's parameters (this machine, one core, shared): "
              + ", ".join(f"{LABEL[t]} {fmt_time(float(np.median(times[t])))}" for t in TIERS + EXTRA if times[t])
-             + ". FITTED interpolates the shipped table (`addon/fitted_table.py`, made by "
+             + ". FITTED interpolates the shipped table (`addon/tiers/fitted_table.json`, made by "
              "`bench/make_fitted_table.py` in about a minute); EXACT_PROFILE traces the lens "
              "exactly (8000 rays) and bins 256 distances × 256 angles.\n")
     if mitsuba:
@@ -527,8 +537,9 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
                  "renders) is far below both.\n")
     L.append("## Checked in Blender\n")
     L.append("`bench/blender_light_check.py` ([blender_light_check.md](blender_light_check.md)) renders "
-             "with Cycles (bpy 5.0.1) (1) a spot light with blend, against `addon/spot_irradiance.py` "
-             "at the same pixels, and (2) the EXACT_PROFILE light built by the node-tree recipe below, "
+             "with Cycles (bpy 5.0.1) (1) a spot light with blend, against `addon/blender_spot.py` "
+             "at the same pixels, and (2) the EXACT_PROFILE light with the node tree the add-on builds "
+             "(`operators/light_builder.build_profile_nodes`), "
              "against the pure model and the exact beam. Both pure models are what Cycles renders (to "
              "about 1e-4); the spot model (intensity energy/4π, smoothstep in the cosine, no extra "
              "cosine) is also EEVEE's (same spot_mul/spot_bias in its source), not rendered here "
@@ -540,7 +551,9 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
              "measured; on a tilted receiver EXACT_PROFILE is exact only in its distance dependence "
              "(its rays come from one apex, the true rays from the lens).\n")
     L.append("## What the Blender side must do\n")
-    L.append("```\n" + lt.NODE_TREE_RECIPE + "```\n")
+    L.append("What the add-on builds for each tier is in `operators/light_builder.py`: "
+             "`create_light` (every tier's spot) and `build_profile_nodes`/`profile_image` (the "
+             "EXACT_PROFILE light node tree and its 32-bit float, Non-Color, packed image).\n")
     (REPORTS / "accuracy.md").write_text("\n".join(L) + "\n")
 
 

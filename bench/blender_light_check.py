@@ -35,12 +35,12 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from dev_extension import load_extension  # noqa: E402
 from measuring_scene import build_measuring_scene  # noqa: E402
 
-from addon import lens_tiers as lt  # noqa: E402
-from addon.accuracy import ExactBeam  # noqa: E402
-from addon.light_models import PrimaryLight  # noqa: E402
+from addon.tiers import exact_profile as lt  # noqa: E402
+from addon.beam_error import ExactBeam  # noqa: E402
+from addon.tiers import PrimaryLight  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.spot_irradiance import spot_irradiance  # noqa: E402
+from addon.blender_spot import spot_irradiance  # noqa: E402
 
 REPORTS = ROOT / "reports"
 RES = 400

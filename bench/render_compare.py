@@ -51,10 +51,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import lens_tiers as lt  # noqa: E402
+from addon.tiers import exact_profile as lt  # noqa: E402
 from addon import exact_optics as xo  # noqa: E402
-from addon.accuracy import ExactBeam, model_from_light  # noqa: E402
-from addon.light_models import PrimaryLight, make_blender_light  # noqa: E402
+from addon.beam_error import ExactBeam, model_from_light  # noqa: E402
+from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
 

@@ -2,7 +2,7 @@
 
 Every lens light is a SPOT light object in the collection "Lens Lights" (created on
 demand, under the scene's collection), placed, turned and shaped from a
-`BlenderLight` (`addon/light_models.py`):
+`BlenderLight` (`addon/tiers/base.py`):
 
 * location and rotation: the light's local −Z along `direction`;
 * scale (k, k, 1) when the cone is narrower than Blender's 1° minimum;
@@ -17,9 +17,9 @@ demand, under the scene's collection), placed, turned and shaped from a
 * `object.lens_lights` records the origin: primary light, lens, kind, full,
   unblocked share, the tier it was made with (`energy_model`), relative
   brightness, notes.
-* EXACT_PROFILE lights (`lens_tiers.ProfileLight`, Cycles only) also get the
-  light node tree of `lens_tiers.NODE_TREE_RECIPE` (as `bench/blender_light_check.py`'s
-  reference `build_profile_light`): a SPOT of 180°, blend 0, whose emission
+* EXACT_PROFILE lights (`tiers.exact_profile.ProfileLight`, Cycles only) also get
+  the light node tree of `build_profile_nodes` (this module is its one description;
+  `bench/blender_light_check.py` renders it): a SPOT of 180°, blend 0, whose emission
   strength is read from a 32-bit float, Non-Color, packed image of the profile.
   The node tree is the light's own (embedded in the light data, removed with it);
   the image is named "Lens profile <key>", marked with the custom property
@@ -108,7 +108,7 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img[COLLECTION_MARK] = "profile"
     if key is not None:
         img[PROFILE_KEY] = key
-    # Traps (lens_tiers.NODE_TREE_RECIPE): the colour space first (changing it
+    # Traps: the colour space first (changing it
     # later regenerates the generated image and loses the pixels), and full float
     # precision (the table spans about 20 decades, up to ~1e7).
     img.colorspace_settings.name = "Non-Color"
@@ -124,10 +124,13 @@ def profile_image(profile: dict, image_cache: dict | None = None):
 
 
 def build_profile_nodes(data, profile: dict, image):
-    """The light node tree of `lens_tiers.NODE_TREE_RECIPE` on the light data
-    `data`: emission strength = texture(u, v) × strength_scale, with
-    u = sqrt(γ / γ_max) (γ from the spot's −Z axis) and v = ln(h / h_min) /
-    ln(h_max / h_min) (h: distance along the axis, Light Path ▸ Ray Length × cos γ)."""
+    """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
+    ignores light nodes): emission strength = texture(u, v) × strength_scale, with
+    u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
+    Normal) and v = ln(h / h_min) / ln(h_max / h_min) (h: distance along the axis,
+    Light Path ▸ Ray Length × cos γ); the image (`profile_image`) read with linear
+    interpolation, EXTEND. With the light's energy twice the beam's flux, the
+    intensity toward (γ, h) is energy/(4π) × texture."""
     data.use_nodes = True
     nt = data.node_tree
     nt.nodes.clear()

@@ -9,8 +9,8 @@ light where it came from.
 """
 import bpy
 
-from ..addon.lens_tiers import TIER_LINES
-from ..addon.light_models import ENERGY_MODELS, resolve_energy_model
+from ..addon.tiers import TIER_LINES, resolve_energy_model
+from ..addon.tiers import TIERS as ENERGY_MODELS
 
 #: Characters per line when the last report is wrapped in the panel.
 WRAP = 42

@@ -14,7 +14,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty,
                        IntProperty, PointerProperty, StringProperty)
 
-from ..addon.light_models import DEFAULT_ENERGY_MODEL, DEFAULT_SPOT_BLEND, energy_model_items
+from ..addon.tiers import DEFAULT_ENERGY_MODEL, DEFAULT_SPOT_BLEND, energy_model_items
 
 #: Custom property set on every collection the extension creates; its value says
 #: which kind ("lights": the "Lens Lights" collection, "link": a linking collection).

@@ -81,7 +81,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from ..addon.light_models import LensOptics, PrimaryLight
+from ..addon.tiers import LensOptics, PrimaryLight
 from ..addon.material_model import (GLASS, OTHER, PRINCIPLED, REFRACTION, Absorption, Add, Bsdf,
                                     MaterialOptics, Mix, evaluate_material)
 from ..addon.phase1 import SceneArrays

@@ -48,7 +48,7 @@ def _fmt_vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
 
 
-#: `--model` values (lower case) → tiers of `addon.light_models`.
+#: `--model` values (lower case) → tiers of `addon.tiers`.
 PHASE1_MODELS = ("thesis", "physical", "fitted", "exact_profile")
 #: The default: the most accurate tier that renders in both EEVEE and Cycles
 #: (reports/accuracy.md); EXACT_PROFILE is more accurate but Cycles only.
@@ -56,7 +56,7 @@ PHASE1_DEFAULT_MODEL = "fitted"
 
 
 def blender_lights(scene, result, model: str) -> list:
-    """The Blender light (`light_models.BlenderLight`) of each source of `result`
+    """The Blender light (`tiers.BlenderLight`) of each source of `result`
     for the tier `model`, as the add-on makes it for this scene once imported
     (`File › Import › Bitracer scene`): a light of brightness b is a point light
     of b × 10 000 W (`bi_conversions.watts_from_brightness`) with the file's
@@ -64,7 +64,7 @@ def blender_lights(scene, result, model: str) -> list:
     the scene's bounds are those of its lights and spheres."""
     import numpy as np
     from addon.bi_conversions import watts_from_brightness
-    from addon.light_models import LensOptics, PrimaryLight, make_blender_light
+    from addon.tiers import LensOptics, PrimaryLight, make_blender_light
     pts = [np.asarray(l.position, dtype=float) for l in scene.lights]
     for o in scene.objects:
         c, r = np.asarray(o.center, dtype=float), abs(float(o.radius))

@@ -1,7 +1,8 @@
 """Error measure, Blender spot model and the FITTED / EXACT_PROFILE tiers (pure).
 
-addon/spot_irradiance.py, addon/accuracy.py, addon/lens_tiers.py,
-addon/fitted_table.py. Lengths in units of the lens radius unless said.
+addon/blender_spot.py, addon/beam_error.py, addon/tiers/spot_fit.py, fitted.py
+(and its table, fitted_table.json), exact_profile.py. Lengths in units of the lens
+radius unless said.
 """
 import math
 
@@ -9,15 +10,17 @@ import numpy as np
 import pytest
 
 from addon import exact_optics as xo
-from addon import lens_tiers as lt
-from addon.accuracy import (AxialProfile, AxialSpot, ExactBeam, axial_peak, evaluate_case,
-                            l1_error, model_from_light, ring_edges)
-from addon.light_models import LensOptics, PrimaryLight, make_blender_light
+from addon.beam_error import (AxialProfile, AxialSpot, ExactBeam, axial_peak, evaluate_case,
+                              l1_error, model_from_light, ring_edges)
+from addon.blender_spot import (profile_flux_within_angle, smoothstep01, spot_flux_within_radius,
+                                spot_irradiance, spot_mask, spot_mask_integral,
+                                spot_ring_irradiance, spot_solid_angle)
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
-from addon.spot_irradiance import (profile_flux_within_angle, smoothstep01, spot_flux_within_radius,
-                                   spot_irradiance, spot_mask, spot_mask_integral,
-                                   spot_ring_irradiance, spot_solid_angle)
+from addon.tiers import LensOptics, PrimaryLight, make_blender_light
+from addon.tiers import exact_profile as xp
+from addon.tiers import fitted as ft
+from addon.tiers import spot_fit as sf
 
 
 def source_for(D, n, R=1.0, center=(0.0, 0.0, 0.0), direction=(0.0, 0.0, 1.0), brightness=1.0):
@@ -158,7 +161,7 @@ def test_model_from_blender_light_in_world_space():
     m2 = model_from_light(bl.to_json() | {"location": bl.location, "direction": bl.direction}, src)
     assert m2.apex == pytest.approx(m.apex)
     # a cone narrower than 1°: spot_size stays 1°, the model uses the cone made
-    narrow = lt.make_fitted_light(source_for(1.5, 1.5), PrimaryLight(100.0))   # collimated
+    narrow = ft.make_fitted_light(source_for(1.5, 1.5), PrimaryLight(100.0))   # collimated
     assert narrow.spot_size_deg == 1.0 and 0.0 < narrow.scale_xy < 1.0
     assert model_from_light(narrow, source_for(1.5, 1.5)).half_angle == pytest.approx(
         math.radians(narrow.cone_half_angle_deg))
@@ -167,8 +170,8 @@ def test_model_from_blender_light_in_world_space():
 # --------------------------------------------------------------------------- tiers
 
 def test_spot_fit_invariants_round_trip():
-    fit = lt.SpotFit(apex=-3.0, intensity=12.5, half_angle_deg=4.0, blend=0.7)
-    back = lt.SpotFit.from_invariants(7.0, *fit.invariants(7.0))
+    fit = sf.SpotFit(apex=-3.0, intensity=12.5, half_angle_deg=4.0, blend=0.7)
+    back = sf.SpotFit.from_invariants(7.0, *fit.invariants(7.0))
     assert back.apex == pytest.approx(fit.apex)
     assert back.intensity == pytest.approx(fit.intensity)
     assert back.half_angle_deg == pytest.approx(fit.half_angle_deg)
@@ -176,11 +179,11 @@ def test_spot_fit_invariants_round_trip():
 
 
 def test_fitted_table_round_trips_at_its_nodes():
-    from addon import fitted_table as t
-    assert list(t.X) == list(lt.TABLE_X) and list(t.N) == list(lt.TABLE_N)
+    t = ft.fitted_table()
+    assert list(t.X) == list(ft.TABLE_X) and list(t.N) == list(ft.TABLE_N)
     for i, j in [(3, 3), (10, 5), (19, 0), (1, 8)]:
         x, n = t.X[i], t.N[j]
-        fit, note = lt.fitted_spot(1.0 / x, n)
+        fit, note = ft.fitted_spot(1.0 / x, n)
         assert note == ""
         w, e, r, b = fit.invariants(1.0 / x)
         assert w == pytest.approx(t.W[i][j], rel=1e-5)
@@ -188,8 +191,37 @@ def test_fitted_table_round_trips_at_its_nodes():
         assert r == pytest.approx(t.RCONE[i][j], rel=1e-5)
         assert b == pytest.approx(t.BLEND[i][j], abs=1e-6)
     # outside the table: clamped, and said so
-    fit, note = lt.fitted_spot(1.01, 2.4)
+    fit, note = ft.fitted_spot(1.01, 2.4)
     assert "clamped" in note and math.isfinite(fit.apex)
+
+
+def test_fitted_table_is_the_one_the_code_held():
+    """The table, now data (fitted_table.json), holds the numbers the generated
+    module addon/fitted_table.py held (first and last rows copied from it)."""
+    t = ft.fitted_table()
+    assert t is ft.fitted_table()                       # read once
+    assert t.X.shape == (21,) and t.N.shape == (9,)
+    assert t.X[0] == 0.0 and t.X[-1] == 0.95 and list(t.N) == list(ft.TABLE_N)
+    old = {
+        "W": ([0.917578, 2.67966, 9.53276, 2.10967, 1.97655, 1.82505, 1.73157, 1.65936, 1.60256],
+              [0.2833, 0.251078, 0.188562, 0.142803, 0.0945803, 0.0387643, 0.001, 0.001, 0.001]),
+        "E": ([12.1773, 39.2446, 271.226, 10.0776, 6.61319, 4.47529, 3.31195, 2.57143, 2.06897],
+              [0.319373, 0.466785, 0.624991, 0.88067, 1.16878, 1.45713, 1.94467, 3.58509,
+               3.72717]),
+        "RCONE": ([0.255438, 0.153149, 0.0612782, 0.342788, 0.476377, 0.638644, 0.834458, 1.03929,
+                   1.25162],
+                  [1.85424, 1.44429, 1.22601, 1.03755, 0.896618, 0.782463, 0.660917, 0.627438,
+                   0.496692]),
+        "BLEND": ([1, 1, 1, 1, 1, 1, 1, 1, 1], [0, 0.000147958, 0, 0, 0, 0, 0, 1, 1]),
+        "L1": ([0.531079, 0.402901, 0.321669, 0.241173, 0.177819, 0.133568, 0.100372, 0.0760041,
+                0.058294],
+               [0.432792, 0.475447, 0.465203, 0.440125, 0.423019, 0.378215, 0.446221, 0.660592,
+                0.777574]),
+    }
+    for k, (first, last) in old.items():
+        a = getattr(t, k)
+        assert a.shape == (21, 9), k
+        assert a[0].tolist() == first and a[-1].tolist() == last, k
 
 
 @pytest.mark.parametrize("D,n", [(3.0, 1.5), (10.0, 1.5), (2.0, 1.7), (5.0, 1.33)])
@@ -200,7 +232,7 @@ def test_fitted_tier_beats_physical(D, n):
     rec = (0.5, 1.0, 2.0, 4.0, 8.0)
     phys = evaluate_case(model_from_light(make_blender_light(src, primary, "PHYSICAL", scene_size=20.0), src),
                          beam, rec, peak_true=0.5)
-    fitted = lt.make_fitted_light(src, primary, scene_size=20.0)
+    fitted = ft.make_fitted_light(src, primary, scene_size=20.0)
     fit = evaluate_case(model_from_light(fitted, src), beam, rec, peak_true=0.5)
     assert fit.l1_mean < phys.l1_mean
     assert fit.l1_mean < 0.8
@@ -208,25 +240,25 @@ def test_fitted_tier_beats_physical(D, n):
 
 def test_fitted_light_geometry_and_energy():
     src = source_for(5.0, 1.5, R=0.5, center=(0.0, 0.0, 1.0), direction=(0.0, 0.0, -1.0))
-    a = lt.make_fitted_light(src, PrimaryLight(100.0), scene_size=5.0)
-    b = lt.make_fitted_light(src, PrimaryLight(200.0), scene_size=5.0)
+    a = ft.make_fitted_light(src, PrimaryLight(100.0), scene_size=5.0)
+    b = ft.make_fitted_light(src, PrimaryLight(200.0), scene_size=5.0)
     assert b.energy_w == pytest.approx(2 * a.energy_w)
-    fit, _ = lt.fitted_spot(10.0, 1.5)                  # D/R = 5/0.5
+    fit, _ = ft.fitted_spot(10.0, 1.5)                  # D/R = 5/0.5
     assert a.location == pytest.approx((0.0, 0.0, 1.0 - 0.5 * fit.apex))
     assert a.direction == pytest.approx((0.0, 0.0, -1.0))
     assert a.energy_w == pytest.approx(100.0 * fit.intensity)
     assert a.spot_size_deg == pytest.approx(2 * fit.half_angle_deg)
     assert a.model == "FITTED" and a.type == "SPOT"
-    c = lt.make_fitted_light(src, PrimaryLight(100.0), optics=LensOptics(transmission_weight=0.5))
+    c = ft.make_fitted_light(src, PrimaryLight(100.0), optics=LensOptics(transmission_weight=0.5))
     assert c.energy_w == pytest.approx(0.25 * a.energy_w)
 
 
 def test_direct_fit_is_at_least_as_good_as_the_table():
     D, n = 3.0, 1.6
     beam = ExactBeam(1.0, D, 1.0, n)
-    direct = lt.fit_spot(D, n)
-    table, _ = lt.fitted_spot(D, n)
-    ob = lt._SpotObjective(beam)
+    direct = sf.fit_spot(D, n)
+    table, _ = ft.fitted_spot(D, n)
+    ob = sf._SpotObjective(beam)
     d = float(np.mean(ob.l1(direct.apex, direct.intensity, math.radians(direct.half_angle_deg), direct.blend)))
     t = float(np.mean(ob.l1(table.apex, table.intensity, math.radians(table.half_angle_deg), table.blend)))
     assert d == pytest.approx(direct.l1, abs=1e-5)     # fit used an 8000-ray fan
@@ -235,9 +267,9 @@ def test_direct_fit_is_at_least_as_good_as_the_table():
 
 def test_exact_profile_is_accurate_and_conserves_flux():
     D, n = 10.0, 1.5
-    prof = lt.exact_profile(D, n, K=128, M=128)
+    prof = xp.exact_profile(D, n, K=128, M=128)
     beam = ExactBeam(1.0, D, 1.0, n)
-    ce = evaluate_case(lt.profile_model(prof), beam, receivers=(0.5, 1.0, 3.0, 9.0), peak_true=0.5)
+    ce = evaluate_case(xp.profile_model(prof), beam, receivers=(0.5, 1.0, 3.0, 9.0), peak_true=0.5)
     assert ce.l1_mean < 0.1
     # each row carries the beam's flux reaching that plane (to the table's resolution)
     j = 100
@@ -250,8 +282,8 @@ def test_exact_profile_is_accurate_and_conserves_flux():
 
 def test_profile_light_world_units_and_json():
     src = source_for(4.0, 1.5, R=2.0, center=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0))
-    prof = lt.exact_profile(2.0, 1.5, K=64, M=32)
-    light = lt.make_profile_light(src, PrimaryLight(50.0), profile=prof)
+    prof = xp.exact_profile(2.0, 1.5, K=64, M=32)
+    light = xp.make_profile_light(src, PrimaryLight(50.0), profile=prof)
     assert light.location == pytest.approx((2.0 * prof.apex, 0.0, 0.0))
     assert light.spot_size_deg == 180.0 and light.spot_blend == 0.0
     p = light.profile

@@ -49,7 +49,7 @@ pytestmark = pytest.mark.blender
 bpy = pytest.importorskip("bpy")
 
 from addon import exact_optics                      # noqa: E402
-from addon.light_models import head_on_transmission  # noqa: E402
+from addon.tiers import head_on_transmission  # noqa: E402
 from measuring_scene import (add_top_camera, build_measuring_scene,  # noqa: E402 (scripts/)
                              new_measuring_scene)
 

@@ -155,7 +155,7 @@ def test_merging_nearby_sources(empty_blend):
 
 def test_select_sources_without_a_cap_keeps_everything(empty_blend):
     from lens_lights.addon.phase1 import SceneArrays, compute_phase1
-    from lens_lights.operators.generate import select_sources
+    from lens_lights.addon.planning import select_sources
     d = np.array([3.0, 6.0, 12.0])
     ang = np.radians(25.0) * np.arange(3)
     centers = np.stack([d * np.cos(ang), d * np.sin(ang), np.zeros(3)], 1)

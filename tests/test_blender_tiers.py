@@ -25,7 +25,7 @@ def our_images():
 
 def expected_lights(model="EXACT_PROFILE"):
     """The lights lens_tiers makes for the scene as the generator reads it."""
-    from lens_lights.addon.light_models import make_blender_light
+    from lens_lights.addon.tiers import make_blender_light
     from lens_lights.addon.phase1 import compute_phase1
     from lens_lights.operators.scene_reader import read_blender_scene
     read = read_blender_scene(bpy.context)
@@ -218,7 +218,7 @@ def test_failed_build_leaves_no_profile_image(empty_blend, monkeypatch):
 def test_panel_shows_the_tier_and_what_it_trades(empty_blend, model, engine, shown, warned):
     from types import SimpleNamespace
 
-    from lens_lights.addon.lens_tiers import TIER_LINES
+    from lens_lights.addon.tiers import TIER_LINES
     from lens_lights.operators.panel import VIEW3D_PT_lens_lights, _wrap
     basic_scene()
     set_engine(engine)

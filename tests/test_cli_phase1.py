@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from addon.bi_format import read_bi
-from addon.light_models import head_on_transmission
+from addon.tiers import head_on_transmission
 
 ROOT = Path(__file__).resolve().parent.parent
 LAUNCHER = ROOT / "lens-lights"

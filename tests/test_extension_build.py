@@ -37,11 +37,13 @@ def test_zip_holds_the_extension_only(built_zip):
     for required in ("blender_manifest.toml", "__init__.py", "operators/__init__.py",
                      "operators/generate.py", "operators/properties.py", "operators/panel.py",
                      "operators/scene_reader.py", "operators/light_builder.py",
-                     "addon/phase1.py", "addon/light_models.py", "addon/sphere_fit.py",
+                     "addon/phase1.py", "addon/tiers/__init__.py", "addon/sphere_fit.py",
                      "addon/material_model.py", "addon/scene.py",
-                     # the tiers (the panel imports lens_tiers)
-                     "addon/lens_tiers.py", "addon/fitted_table.py", "addon/accuracy.py",
-                     "addon/exact_optics.py", "addon/spot_irradiance.py"):
+                     "addon/planning.py", "addon/report.py", "addon/skip_reasons.py",
+                     # the tiers (the panel imports them) and what they need
+                     "addon/tiers/fitted.py", "addon/tiers/fitted_table.json",
+                     "addon/tiers/exact_profile.py", "addon/beam_error.py",
+                     "addon/exact_optics.py", "addon/blender_spot.py"):
         assert required in names, required
     for name in names:
         top = name.split("/")[0]

@@ -1,4 +1,4 @@
-"""Energy models → Blender light parameters (addon/light_models.py); pure, no Blender.
+"""Energy models → Blender light parameters (addon/tiers/, addon/planning.py); pure, no Blender.
 
 Expectations are worked out by hand in the comments (R = 0.5, n = 1.5, D = 2,
 P = 100 W unless said otherwise).
@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from addon.light_models import (COLLIMATED_DISTANCE_FACTOR, CUTOFF_FACTOR, ENERGY_MODELS,
-                                LensOptics, PrimaryLight, cone_shape, energy_model_items,
-                                head_on_transmission, make_blender_light)
+from addon.tiers import (COLLIMATED_DISTANCE_FACTOR, CUTOFF_FACTOR, LensOptics, PrimaryLight,
+                         cone_shape, energy_model_items, head_on_transmission,
+                         make_blender_light)
+from addon.tiers import TIERS as ENERGY_MODELS
 from addon.phase1 import SecondarySource, compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
 
@@ -197,7 +198,7 @@ def test_unknown_model_and_registry():
 # --------------------------------------------------------------------------- tiers
 
 def test_all_four_tiers_and_auto_are_registered():
-    from addon.light_models import AUTO, DEFAULT_ENERGY_MODEL
+    from addon.tiers import AUTO, DEFAULT_ENERGY_MODEL
     assert list(ENERGY_MODELS) == ["THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
     items = energy_model_items(include_auto=True)
     assert [i[0] for i in items] == ["AUTO", "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
@@ -222,7 +223,7 @@ def test_all_four_tiers_and_auto_are_registered():
     ("PHYSICAL", "CYCLES", "PHYSICAL", False),
 ])
 def test_resolve_energy_model(model, engine, tier, warns):
-    from addon.light_models import resolve_energy_model
+    from addon.tiers import resolve_energy_model
     got, warning = resolve_energy_model(model, engine)
     assert got == tier
     assert bool(warning) == warns
@@ -230,16 +231,43 @@ def test_resolve_energy_model(model, engine, tier, warns):
         assert "EEVEE" in warning and "Fitted" in warning
 
 
+@pytest.mark.parametrize("tier", ["FITTED", "EXACT_PROFILE"])
+def test_lens_light_radius_is_the_images(tier):
+    """Issue 10: a primary of radius r images to a source of radius |m|·r (SPEC §4.1),
+    whatever tier; for a collimated beam (|m| → ∞) at most r·S/D. By hand, R = 0.5,
+    n = 1.5: P = 2(n − 1)/(nR) = 4/3."""
+    r = 0.1
+    # D = 2: V = 4/3 − 1/2 = 5/6, 1/V = 1.2, m = −(1/V)/D = −0.6 → |m|·r = 0.06
+    # (cap r·S/D = 0.1 · 4/2 = 0.2 does not apply)
+    src = only_source(ball_scene(light_radius=r))
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=4.0)
+    assert bl.radius == pytest.approx(0.06, rel=1e-12)
+    # scene size S = 1 < |1/V| = 1.2: the cap r·S/D = 0.1 · 1/2 = 0.05
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=1.0)
+    assert bl.radius == pytest.approx(0.05, rel=1e-12)
+    # D = 4: V = 4/3 − 1/4 = 13/12, 1/V = 12/13, m = −(12/13)/4 = −3/13 → 0.3/13
+    src = only_source(ball_scene(distance=4.0, light_radius=r))
+    bl = make_blender_light(src, PrimaryLight(P, radius=r), tier, scene_size=4.0)
+    assert bl.radius == pytest.approx(0.3 / 13, rel=1e-12)
+    # collimated (light at the focal point D = nR/(2(n − 1)) = 0.75, V = 0): r·S/D
+    bl = make_blender_light(collimated_source(), PrimaryLight(P, radius=r), tier,
+                            scene_size=2.0)
+    assert bl.radius == pytest.approx(0.1 * 2.0 / 0.75, rel=1e-12)
+    # a point primary stays a point
+    assert make_blender_light(src, PrimaryLight(P), tier, scene_size=4.0).radius == 0.0
+
+
 def test_make_blender_light_dispatches_the_tiers():
-    from addon import lens_tiers as lt
+    from addon.tiers import exact_profile
+    from addon.tiers import fitted as fitted_tier
     src = only_source(ball_scene(light_radius=0.1))
     prim = PrimaryLight(P, radius=0.1)
     fitted = make_blender_light(src, prim, "FITTED", scene_size=4.0, spot_blend=0.3)
-    assert fitted == lt.make_fitted_light(src, prim, scene_size=4.0)
+    assert fitted == fitted_tier.make_fitted_light(src, prim, scene_size=4.0)
     assert fitted.model == "FITTED" and fitted.type == "SPOT"
     assert make_blender_light(src, prim, "AUTO", scene_size=4.0) == fitted   # no engine: FITTED
     exact = make_blender_light(src, prim, "EXACT_PROFILE", scene_size=4.0)
-    assert isinstance(exact, lt.ProfileLight) and exact.model == "EXACT_PROFILE"
+    assert isinstance(exact, exact_profile.ProfileLight) and exact.model == "EXACT_PROFILE"
     assert (exact.spot_size_deg, exact.spot_blend) == (180.0, 0.0)
     # planning needs a brightness for every tier (cut-off and ordering)
     for bl in (fitted, exact):
@@ -250,7 +278,7 @@ def test_make_blender_light_dispatches_the_tiers():
 def test_profile_light_reference_brightness_is_the_exact_beams():
     # D/R = 4, n = 1.5: the exact mean irradiance on a disc of 0.05 R at 0.5 R
     # behind the lens, over the primary's irradiance at the lens centre.
-    from addon.accuracy import ExactBeam
+    from addon.beam_error import ExactBeam
     src = only_source(ball_scene())
     bl = make_blender_light(src, PrimaryLight(P), "EXACT_PROFILE", scene_size=4.0)
     beam = ExactBeam(P / (4 * math.pi), 2.0, 0.5, 1.5)
@@ -260,7 +288,7 @@ def test_profile_light_reference_brightness_is_the_exact_beams():
 
 
 def test_profile_table_is_made_only_when_used():
-    from addon import lens_tiers as lt
+    from addon.tiers import exact_profile as lt
     src = only_source(ball_scene(distance=2.345))
     lt._cached_profile.cache_clear()
     bl = make_blender_light(src, PrimaryLight(P), "EXACT_PROFILE")
@@ -277,7 +305,7 @@ def test_profile_table_is_made_only_when_used():
 
 
 def test_plan_lights_with_every_tier_keeps_brightness_order_and_scale():
-    from addon.light_models import plan_lights
+    from addon.planning import plan_lights
     result = compute_phase1(two_lens_scene())
     for tier in ("THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"):
         plan = plan_lights(result, [PrimaryLight(P)], tier, scene_size=6.0,
@@ -330,7 +358,7 @@ def two_lens_scene():
 
 
 def test_plan_orders_by_brightness_and_limits():
-    from addon.light_models import plan_lights
+    from addon.planning import plan_lights
     scene = two_lens_scene()
     result = compute_phase1(scene)
     prim = [PrimaryLight(P)]
@@ -350,7 +378,7 @@ def test_plan_orders_by_brightness_and_limits():
 
 
 def test_plan_brightness_cut_off_and_summary():
-    from addon.light_models import plan_lights
+    from addon.planning import plan_lights
     result = compute_phase1(two_lens_scene())
     # PHYSICAL relative brightness = T(0) · w²: 0.9216 (w = 1) and 0.2304 (w = 0.5).
     optics = [LensOptics(1.0), LensOptics(0.5), LensOptics(0.0)]

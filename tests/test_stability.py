@@ -58,7 +58,7 @@ import pytest
 from hypothesis import HealthCheck, assume, event, example, given, settings
 from hypothesis import strategies as st
 
-from addon.light_models import PrimaryLight, make_blender_light
+from addon.tiers import PrimaryLight, make_blender_light
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
 from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit

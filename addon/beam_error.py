@@ -11,7 +11,7 @@ the flux (W) it puts on the plane ``z = Z`` within each radius of the axis.  Two
 models cover what Blender can do (both on the lens's axis, which is where every
 tier puts its light):
 
-* :class:`AxialSpot`: a Blender spot (or point) light (see :mod:`.spot_irradiance`);
+* :class:`AxialSpot`: a Blender spot (or point) light (see :mod:`.blender_spot`);
 * :class:`AxialProfile`: a light with a tabulated angular intensity profile about
   an apex (the exact-profile tier, rendered by a light node tree in Cycles).
 
@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import exact_optics as xo
-from .spot_irradiance import (FOUR_PI, profile_flux_within_radius,
+from .blender_spot import (FOUR_PI, profile_flux_within_radius,
                               spot_flux_within_radius)
 
 __all__ = [
@@ -294,7 +294,7 @@ def model_from_light(light, source) -> AxialSpot | AxialProfile:
     ``spot_size_deg`` (or, if present and > 0, ``cone_half_angle_deg``: the cone
     made with the object's scale), ``spot_blend``, ``location``, ``direction``
     and optionally ``profile`` (a dict with ``angles_deg`` and ``intensity_w_sr``, see
-    :mod:`.lens_tiers`).  The light must sit on the lens's axis (a light off the
+    :mod:`.tiers.exact_profile`).  The light must sit on the lens's axis (a light off the
     axis is projected onto it)."""
     get = (lambda k, d=None: light.get(k, d)) if isinstance(light, dict) else \
         (lambda k, d=None: getattr(light, k, d))
@@ -311,7 +311,7 @@ def model_from_light(light, source) -> AxialSpot | AxialProfile:
         facing = 1.0 if float(np.dot(np.asarray(direction, dtype=float), axis)) >= 0.0 else -1.0
     kind = str(get("type", "SPOT")).upper()
     # the cone actually made: below 1° Blender's spot_size stays 1° and the object's
-    # x/y scale narrows it (light_models.cone_shape), recorded in cone_half_angle_deg
+    # x/y scale narrows it (tiers.base.cone_shape), recorded in cone_half_angle_deg
     made = float(get("cone_half_angle_deg", 0.0) or 0.0)
     half = math.pi if kind == "POINT" else math.radians(made if made > 0.0 else 0.5 * float(get("spot_size_deg")))
     return AxialSpot(apex=apex, intensity=float(get("energy_w")) / FOUR_PI,

@@ -1,0 +1,191 @@
+"""FITTED (EEVEE and Cycles): one spot on the lens's axis fitted to the exact
+beam (:mod:`.spot_fit`), its own position, energy, cone and blend (the
+``spot_blend`` setting does not apply).
+
+The optimum depends only on ``D/R`` and ``n``, so it is precomputed
+(``bench/make_fitted_table.py`` → ``fitted_table.json`` beside this module, read
+once on first use) on a grid over ``x = R/D`` (0 = a sun … 0.95) and ``n``
+(1.2 … 2.0) and looked up by bilinear interpolation (microseconds per source).
+The table stores dimensionless quantities that stay finite for a sun and across
+collimation (:meth:`.spot_fit.SpotFit.invariants`): ``w = R/d`` with ``d`` the
+apex's distance before the first receiver (``1.5 R`` behind the centre), the
+spot's on-axis irradiance there relative to the primary's at the lens, the
+cone's radius there, and the blend.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .base import (
+    COLLIMATED_DISTANCE_FACTOR,
+    CUTOFF_FACTOR,
+    CYCLES,
+    EEVEE,
+    SPOT,
+    Accuracy,
+    BlenderLight,
+    LensOptics,
+    PrimaryLight,
+    Tier,
+    axial_light_common,
+    cone_shape,
+    lens_light_radius,
+)
+from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS, SUN_DISTANCE, SpotFit, fit_spot
+
+NAME = "FITTED"
+
+#: The grid of the table: x = R/D (rows) and the index of refraction (columns).
+TABLE_X = tuple(float(x) for x in np.round(
+    np.concatenate([[0.0, 0.02], np.arange(0.05, 0.951, 0.05)]), 4))
+TABLE_N = (1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0)
+#: Written by bench/make_fitted_table.py: {"x", "n", and per quantity a row per x}.
+TABLE_FILE = Path(__file__).with_name("fitted_table.json")
+TABLE_COLUMNS = ("W", "E", "RCONE", "BLEND", "L1")
+
+
+@dataclass(frozen=True)
+class FittedTable:
+    """Rows: x = R/D (``X``), columns: n (``N``). ``W = R/d``, ``E`` = on-axis
+    irradiance at the first receiver / the primary's irradiance at the lens
+    centre, ``RCONE`` = cone radius there (R), ``BLEND`` = spot_blend, ``L1`` =
+    the fit's mean L1 error over ``FIT_RECEIVERS``."""
+    X: np.ndarray
+    N: np.ndarray
+    W: np.ndarray
+    E: np.ndarray
+    RCONE: np.ndarray
+    BLEND: np.ndarray
+    L1: np.ndarray
+
+
+@functools.cache
+def fitted_table() -> FittedTable:
+    """The shipped table (read once)."""
+    data = json.loads(TABLE_FILE.read_text(encoding="utf-8"))
+    return FittedTable(*(np.asarray(data[k], dtype=float) for k in ("X", "N", *TABLE_COLUMNS)))
+
+
+def fitted_spot(D_over_R: float, n: float) -> tuple[SpotFit, str]:
+    """The fitted spot for a lens seen from ``D/R`` with index ``n``, interpolated
+    from the shipped table (bilinear in ``x = R/D`` and ``n``, on the invariants
+    ``w``, ``log e``, ``log r``, ``blend``).  Returns the fit and a note ("" or
+    what was clamped)."""
+    t = fitted_table()
+    xs, ns = np.asarray(t.X), np.asarray(t.N)
+    x = 0.0 if not math.isfinite(D_over_R) else 1.0 / float(D_over_R)
+    D_over_R = math.inf if x == 0.0 else float(D_over_R)
+    note = []
+    if x > xs[-1]:
+        note.append(f"light at {D_over_R:.4g} R: nearer than the table's "
+                    f"{1 / xs[-1]:.4g} R, clamped")
+        x = xs[-1]
+    if not ns[0] <= n <= ns[-1]:
+        note.append(f"n = {n:.4g} outside the table's {ns[0]:g}–{ns[-1]:g}, clamped")
+        n = min(max(n, ns[0]), ns[-1])
+    i = int(np.clip(np.searchsorted(xs, x, side="right") - 1, 0, xs.size - 2))
+    j = int(np.clip(np.searchsorted(ns, n, side="right") - 1, 0, ns.size - 2))
+    u = (x - xs[i]) / (xs[i + 1] - xs[i])
+    v = (n - ns[j]) / (ns[j + 1] - ns[j])
+    W = np.asarray(t.W)
+    LE, LR, B = np.log(np.asarray(t.E)), np.log(np.asarray(t.RCONE)), np.asarray(t.BLEND)
+
+    def lerp(A):
+        return ((1 - u) * (1 - v) * A[i, j] + u * (1 - v) * A[i + 1, j]
+                + (1 - u) * v * A[i, j + 1] + u * v * A[i + 1, j + 1])
+    fit = SpotFit.from_invariants(D_over_R if math.isfinite(D_over_R) else SUN_DISTANCE, lerp(W),
+                                  math.exp(lerp(LE)), math.exp(lerp(LR)), lerp(B))
+    return fit, "; ".join(note)
+
+
+
+
+def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
+    """``fit`` with its apex at most ``max_behind`` (in R) behind the back pole
+    (a nearly collimated beam's fitted spot may sit up to 1000 R behind the lens,
+    where other geometry could block it): the cone keeps its radius at the first
+    receiver and the on-axis irradiance at the middle fit receiver is kept."""
+    if not (1.0 - fit.apex) > max_behind or not max_behind > 0.0:
+        return fit
+    apex = 1.0 - max_behind
+    d_old, d_new = 1.0 + FIRST_RECEIVER - fit.apex, 1.0 + FIRST_RECEIVER - apex
+    r = d_old * math.tan(math.radians(fit.half_angle_deg))
+    z_ref = 1.0 + FIT_RECEIVERS[len(FIT_RECEIVERS) // 2]
+    k = fit.intensity * ((z_ref - apex) / (z_ref - fit.apex)) ** 2
+    return SpotFit(apex=apex, intensity=k, half_angle_deg=math.degrees(math.atan2(r, d_new)),
+                   blend=fit.blend, l1=float("nan"))
+
+
+def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
+                      scene_size: float = 1.0, direct: bool = False,
+                      collimated_distance: float | None = None, **_ignored) -> BlenderLight:
+    """The FITTED tier's Blender light for ``source``: a spot on the lens's axis at
+    ``lens_center + apex R axis``, shining along the axis.  ``direct``: fit now
+    (about 0.3 s) instead of interpolating the shipped table.  Energy: the fit's
+    intensity ratio × the primary's power × the material's transmission weight²
+    × the unblocked share; colour as PHYSICAL (tint², absorption over 2R).
+    ``collimated_distance``: how far behind the back vertex a spot may sit (None:
+    no limit; :func:`make_light` passes the operator's free
+    distance, else ``COLLIMATED_DISTANCE_FACTOR`` × the scene's size, as for the
+    other tiers' beams); a fitted apex farther behind (up to 1000 R for a nearly
+    collimated beam) is pulled in (:func:`pull_in`), noted."""
+    axis, R, D, scale, color, notes = axial_light_common(source, primary, optics)
+    if direct:
+        fit = fit_spot(D / R, float(source.ior))
+    else:
+        fit, note = fitted_spot(D / R, float(source.ior))
+        if note:
+            notes.append(note)
+    if collimated_distance:
+        pulled = pull_in(fit, float(collimated_distance) / R)
+        if pulled is not fit:
+            notes.append(f"spot pulled in from {(1.0 - fit.apex) * R:.4g} to "
+                         f"{(1.0 - pulled.apex) * R:.4g} behind the back vertex "
+                         "(geometry behind the lens)")
+            fit = pulled
+    shape = cone_shape(fit.half_angle_deg)
+    if shape.note:
+        notes.append(shape.note)
+    center = np.asarray(source.lens_center, dtype=float)
+    location = center + fit.apex * R * axis
+    reach = abs(fit.apex) * R + float(scene_size or 1.0)
+    energy = primary.power_w * fit.intensity * scale
+    d_ref = (1.0 + FIRST_RECEIVER - fit.apex) * R
+    irradiance = primary.intensity * fit.intensity * scale / d_ref ** 2
+    primary_irr = primary.intensity / D ** 2
+    return BlenderLight(
+        type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
+        spot_blend=float(min(max(fit.blend, 0.0), 1.0)),
+        radius=float(lens_light_radius(source, primary, scene_size)),
+        location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
+        note="; ".join(notes), color=color, scale_xy=float(shape.scale_xy),
+        cone_half_angle_deg=float(shape.half_angle_deg),
+        cutoff_distance=float(CUTOFF_FACTOR * reach), kind=source.kind, model=NAME,
+        reference_irradiance=float(irradiance),
+        relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
+    )
+
+
+
+def make_light(source, primary, *, optics=None, scene_size=1.0, collimated_distance=None,
+               **_ignored):
+    """The registry's maker: a fitted spot stays within the beams' distance
+    behind the lens (the operator's free distance, else the default)."""
+    return make_fitted_light(
+        source, primary, optics=optics, scene_size=scene_size,
+        collimated_distance=collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size)
+
+
+ACCURACY = Accuracy(0.50, 0.79)
+TIER = Tier(
+    name=NAME, label="Fitted",
+    description=("One spot fitted to the exact beam: EEVEE and Cycles; its own cone and blend "
+                 f"(relative L1 error {ACCURACY.l1_mean:.2f} for D ≥ 2R)"),
+    trades="One spot fitted to the exact beam; cannot converge to the focus (EEVEE-safe)",
+    engines=(EEVEE, CYCLES), accuracy=ACCURACY, number=2, make=make_light)

@@ -1,0 +1,169 @@
+"""The paraxial lens light shared by THESIS and PHYSICAL: a cone at the image
+point, or a far-away spot (a *beam*); the tiers differ only in how bright it is
+(an :class:`EnergyModel`).
+
+Beams. A collimated source (a cylinder of radius ``R_C`` from the back vertex)
+becomes a spot pushed back by ``s`` (default ``COLLIMATED_DISTANCE_FACTOR`` × the
+scene's size, less when geometry behind the lens is nearer: the operator casts rays
+and passes ``collimated_distance``) along −axis, with half-angle ``atan(R_C/s)``:
+at the back vertex its footprint is exactly ``R_C`` and it widens by ``1 + L/s`` at
+``L`` beyond it. Its intensity is chosen so that the irradiance at the reference
+distance ``L_ref`` (half the scene's reach beyond the back vertex) is the model's
+beam irradiance; across the scene it then varies by ``(s + L_ref)²/(s + L)²``,
+within ±5 % for ``s = 20 S``. The same representation serves a real image that
+lies beyond everything in the scene (the scene sits in the converging part of the
+beam, which a spot at the image point cannot light — a marble resting on a table
+under a high lamp focuses under the table) and a virtual image farther behind than
+``s``; their irradiance at ``L_ref`` is the cone's ``I/(1/V − z)²``, which tends to
+the collimated value as ``V → 0``: no jump at the switch. Shadow linking keeps the
+lens from blocking the spot; the spot's distance keeps other geometry behind the
+lens out of the way.
+
+Radius: a cone sits at the image point and gets the image's radius ``|m|·r``
+(SPEC §4.1); a beam's far-away spot gets the divergence ``r/D`` times its distance
+``s`` (the image's angular radius seen from the lens).
+
+The reference irradiance of a light (for the brightness cut-off): a cone's
+on-axis irradiance at ``|1/V|`` beyond its apex (for PHYSICAL ``T(0)`` times the
+primary's irradiance at the lens), a beam's at ``L_ref``.
+"""
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+from .base import (
+    COLLIMATED_DISTANCE_FACTOR,
+    CUTOFF_FACTOR,
+    DEFAULT_SPOT_BLEND,
+    SPOT,
+    BlenderLight,
+    LensOptics,
+    PrimaryLight,
+    cone_shape,
+    downstream_reach,
+    non_full_note,
+    unblocked_share,
+)
+
+
+class EnergyModel(Protocol):
+    def cone_intensity(self, source, primary: PrimaryLight, optics: LensOptics) -> float:
+        """On-axis radiant intensity (W/sr) of a cone seen from its apex."""
+
+    def beam_irradiance(self, source, primary: PrimaryLight, optics: LensOptics,
+                        reference_distance: float) -> float:
+        """On-axis irradiance (W/length²) of a collimated beam, at
+        `reference_distance` beyond the back vertex (on a plane across the beam)."""
+
+    def color(self, source, primary: PrimaryLight,
+              optics: LensOptics) -> tuple[float, float, float]:
+        """Colour of the Blender light (0–1 per channel)."""
+
+
+def _vec(v) -> tuple[float, float, float]:
+    return tuple(float(x) for x in v)
+
+
+def is_beyond_scene(source, scene_bounds, scene_size) -> bool:
+    """A real image beyond everything in the scene: drawn as a beam (the rule of
+    `make_paraxial_light`)."""
+    z = float(source.image_distance)
+    return downstream_reach(source.position, source.axis, scene_bounds,
+                            scene_size - (z - float(source.lens_radius))) <= 0.0
+
+
+def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel, name: str, *,
+                        optics: LensOptics | None = None,
+                        spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
+                        scene_bounds=None, collimated_distance: float | None = None,
+                        ) -> BlenderLight:
+    """The light of tier `name` whose brightness is `energy_model`'s.
+
+    Which representation (`BlenderLight.note` says):
+
+    * **cone** — a spot at the image point (real or virtual) with half-angle θ;
+    * **beam** — the far-away spot of the module's docstring, for a collimated
+      source, for a real image beyond everything in the scene, and for a virtual
+      image farther behind than the beam's spot would be. Its footprint at the
+      back vertex is the beam's (``tan θ·|1/V − R|``, ``R_C`` when collimated) and
+      its irradiance at the reference distance (half the scene's reach beyond the
+      back vertex) the model's: ``I/(1/V − z)²`` for an image at ``1/V``, the beam
+      irradiance when collimated — so it is continuous across the switch.
+    """
+    optics = optics or LensOptics()
+    axis = [float(x) for x in source.axis]
+    norm = math.sqrt(sum(x * x for x in axis))
+    axis = [x / norm for x in axis]
+    position = [float(x) for x in source.position]
+    center = [float(x) for x in source.lens_center]
+    radius_lens = float(source.lens_radius)
+    unblocked = unblocked_share(source)
+    color = energy_model.color(source, primary, optics)
+    notes = []
+    primary_irradiance = primary.intensity / source.distance ** 2   # at the lens centre
+    s_far = (float(collimated_distance) if collimated_distance
+             else COLLIMATED_DISTANCE_FACTOR * scene_size)
+    s_far = max(s_far, 1e-6 * scene_size)
+    back_vertex = [c + radius_lens * a for c, a in zip(center, axis, strict=True)]
+
+    if source.kind == "collimated":
+        beam = True
+    else:
+        z_img = float(source.image_distance)             # signed, from the centre
+        if source.kind == "real":
+            beam = downstream_reach(position, axis, scene_bounds,
+                                    scene_size - (z_img - radius_lens)) <= 0.0
+            why = "real image beyond the scene"
+        else:
+            beam = abs(z_img) > s_far
+            why = "virtual image far behind"
+
+    if beam:
+        # Reference: half-way along the scene's reach beyond the back vertex.
+        reach = downstream_reach(back_vertex, axis, scene_bounds, scene_size)
+        l_ref = (0.5 * min(max(reach, 0.0), scene_size) if scene_bounds is not None
+                 else 0.5 * scene_size)
+        if source.kind == "collimated":
+            width = float(source.cylinder_radius or 0.0)
+            irradiance = energy_model.beam_irradiance(source, primary, optics,
+                                                      max(l_ref, 1e-9 * scene_size))
+            notes.append(f"collimated beam R_C={width:.4g}")
+            light_radius = primary.radius / source.distance      # divergence r/D, × s below
+        else:
+            width = math.tan(math.radians(source.spread_deg)) * abs(z_img - radius_lens)
+            irradiance = (energy_model.cone_intensity(source, primary, optics)
+                          / (z_img - (radius_lens + l_ref)) ** 2)
+            notes.append(f"{why}: beam of radius {width:.4g}")
+            light_radius = abs(source.magnification) * primary.radius / abs(z_img)
+        irradiance *= unblocked
+        shape = cone_shape(math.degrees(math.atan2(width, s_far)))
+        intensity = irradiance * (s_far + l_ref) ** 2
+        location = [p - s_far * a for p, a in zip(back_vertex, axis, strict=True)]
+        radius = s_far * light_radius
+        reach_total = s_far + scene_size
+        notes.append(f"spot {s_far:.4g} behind the back vertex")
+    else:
+        shape = cone_shape(source.spread_deg)
+        intensity = energy_model.cone_intensity(source, primary, optics) * unblocked
+        z_ref = abs(z_img)
+        irradiance = intensity / z_ref ** 2 if z_ref > 0 else math.inf
+        location = position
+        radius = abs(source.magnification) * primary.radius
+        reach_total = math.dist(position, center) + scene_size
+    if shape.note:
+        notes.append(shape.note)
+    notes += non_full_note(source)
+
+    energy = 4.0 * math.pi * intensity
+    return BlenderLight(
+        type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
+        spot_blend=float(min(max(spot_blend, 0.0), 1.0)), radius=float(radius),
+        location=_vec(location), direction=_vec(axis), note="; ".join(notes),
+        color=color, scale_xy=float(shape.scale_xy),
+        cone_half_angle_deg=float(shape.half_angle_deg),
+        cutoff_distance=float(CUTOFF_FACTOR * reach_total), kind=source.kind, model=name,
+        reference_irradiance=float(irradiance),
+        relative_brightness=(float(irradiance / primary_irradiance)
+                             if primary_irradiance > 0 else 0.0),
+    )
