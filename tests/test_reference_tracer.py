@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 
 from addon import exact_optics as xo
-from addon.reference import GlassSphere, PointLight, ReceiverPlane, trace_irradiance
+from addon.reference import (
+    GlassSphere,
+    PointLight,
+    ReceiverPlane,
+    SunLight,
+    lens_shadow,
+    trace_irradiance,
+)
 
 R, N = 1.0, 1.5
 LENS = GlassSphere((0.0, 0.0, 0.0), R, N)
@@ -131,3 +138,20 @@ def test_light_behind_the_plane_sends_nothing():
 def test_rejects_a_light_inside_the_lens():
     with pytest.raises(ValueError):
         trace_irradiance(PointLight((0.0, 0.0, 0.5), POWER), LENS, _behind(3.0), 100)
+
+
+def test_lens_shadow_is_the_tangent_cone_disc():
+    """A point light's shadow on a perpendicular plane is the disc of
+    exact_optics.lens_shadow_radius; a sun's, the disc of radius R; a sphere light
+    has a penumbra around it."""
+    D, Z = 3.0, 4.0
+    rs = xo.lens_shadow_radius(D, R, Z)
+    u = np.array([0.0, 0.5 * rs, 0.999 * rs, 1.001 * rs, 2.0 * rs])
+    v = np.zeros_like(u)
+    point = lens_shadow(PointLight((0.0, 0.0, -D), POWER), LENS, _behind(Z), u, v)
+    assert np.array_equal(point, [1.0, 1.0, 1.0, 0.0, 0.0])
+    sun = lens_shadow(SunLight((0.0, 0.0, 1.0), 1.0), LENS, _behind(Z), u * R / rs, v)
+    assert np.array_equal(sun, [1.0, 1.0, 1.0, 0.0, 0.0])
+    ball = lens_shadow(PointLight((0.0, 0.0, -D), POWER, 0.3), LENS, _behind(Z),
+                       np.array([0.0, rs, 3.0 * rs]), np.zeros(3), n_samples=400)
+    assert ball[0] == 1.0 and 0.2 < ball[1] < 0.8 and ball[2] == 0.0
