@@ -33,6 +33,7 @@ from .base import (
     PrimaryLight,
     Tier,
     cone_shape,
+    effective_primary,
     head_on_transmission,
 )
 
@@ -122,6 +123,7 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
                          f"known: {', '.join([AUTO, *TIERS])}") from None
     scene_size = (float(scene_size) if scene_size and math.isfinite(scene_size)
                   and scene_size > 0 else 1.0)
+    primary = effective_primary(source, primary)
     return tier.make(source, primary, optics=optics, spot_blend=spot_blend,
                      scene_size=scene_size, scene_bounds=scene_bounds,
                      collimated_distance=collimated_distance)

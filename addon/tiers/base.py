@@ -84,6 +84,19 @@ class PrimaryLight:
         return self.power_w / (4.0 * math.pi)
 
 
+def effective_primary(source, primary: PrimaryLight) -> PrimaryLight:
+    """The point light that stands for `primary` toward `source`'s lens: its power
+    times the source's ``emission`` (a spot's cone share, an area light's
+    Lambertian intensity, a sun's equivalent distance², see `addon.primaries`),
+    its radius the source's ``source_radius`` where phase 1 gave one."""
+    e = float(getattr(source, "emission", 1.0))
+    r = float(getattr(source, "source_radius", math.nan))
+    if e == 1.0 and not math.isfinite(r):
+        return primary
+    return PrimaryLight(power_w=primary.power_w * e,
+                        radius=r if math.isfinite(r) else primary.radius, color=primary.color)
+
+
 @dataclass(frozen=True)
 class LensOptics:
     """What the material adds to the sphere's geometry (see `material_model`)."""
