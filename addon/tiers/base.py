@@ -145,13 +145,19 @@ def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None)
     return axis, R, D, wgt * wgt * unblocked_share(source), color, non_full_note(source)
 
 
-def lens_light_radius(source, primary: PrimaryLight, scene_size: float) -> float:
+def lens_light_radius(source, primary: PrimaryLight, scene_size: float,
+                      receiver_distance: float | None = None) -> float:
     """The radius of a lens light standing for `source`'s image (module docstring):
-    ``r·min(|1/V|, S)/D`` = ``min(|m|·r, r·S/D)``; finite for a collimated source."""
+    ``r·z/D``, the blur ``z·r/D`` the physics gives a receiver ``z`` behind the lens
+    centre (SPEC §10), with ``z`` the `receiver_distance` when known, else the
+    image's distance ``min(|1/V|, S)`` (= ``min(|m|·r, r·S/D)``, the image's own
+    radius); finite for a collimated source."""
     r, D = float(primary.radius), float(source.distance)
     if not (r > 0.0 and D > 0.0):
         return 0.0
     S = float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
+    if receiver_distance is not None and receiver_distance > 0:
+        return r * min(float(receiver_distance), S) / D
     V = float(source.vergence)
     reach = S if V == 0.0 else min(abs(1.0 / V), S)
     return r * reach / D
@@ -189,6 +195,9 @@ class BlenderLight:
     model: str = ""
     reference_irradiance: float = 0.0  # W/length², on the axis at the reference distance
     relative_brightness: float = 0.0   # reference irradiance / primary's irradiance at the lens
+    #: The light sits inside its lens: the lens must be out of its light and shadow
+    #: linking (the builder always excludes it), else the lens swallows the light.
+    inside_lens: bool = False
 
     def to_json(self) -> dict:
         return {"type": self.type, "energy_w": self.energy_w,

@@ -1,7 +1,7 @@
 """EXACT_PROFILE (Cycles only: it needs a light node tree): the exact beam,
 tabulated.
 
-A spot light (``spot_size`` 180°, blend 0) just behind the back pole whose
+A spot light (``spot_size`` 180°, blend 0) at the lens centre whose
 intensity is a table over the angle ``gamma`` from the axis *and* the distance
 ``h`` along the axis from the light, read in the light's node tree (Cycles gives
 a light shader the distance to the shading point: Light Path ▸ Ray Length). With
@@ -49,10 +49,13 @@ NAME = "EXACT_PROFILE"
 #: Table size: angle columns, distance rows.
 PROFILE_ANGLES = 256
 PROFILE_DISTANCES = 256
-#: The light sits this far (in R) behind the back pole; rows span these distances
-#: (in R) from it, log-spaced.
-PROFILE_OFFSET = 1e-3
-PROFILE_H_MIN, PROFILE_H_MAX = 0.2, 30.0
+#: The light sits at the lens centre (in R from it; inside the lens, which light
+#: and shadow linking leave out), so that every point outside the sphere — a
+#: table the lens rests on, a wall beside it — lies before it along the beam;
+#: rows span these distances (in R) from it, log-spaced (light exits the sphere
+#: at ``z ≥ 0.25 R`` but for near lights of low index).
+PROFILE_APEX = 0.0
+PROFILE_H_MIN, PROFILE_H_MAX = 0.25, 31.0
 #: Largest angle from the axis the table covers (degrees).
 PROFILE_GAMMA_MAX_DEG = 90.0
 
@@ -128,7 +131,7 @@ def exact_profile(D_over_R: float, n: float, absorption: float = 0.0, *, n_fan: 
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
-    apex = 1.0 + PROFILE_OFFSET
+    apex = PROFILE_APEX
     prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, PROFILE_H_MIN, PROFILE_H_MAX,
                        np.zeros((M, K)), flux=beam.lens_flux)
     for j, h in enumerate(prof.distances):
@@ -264,9 +267,10 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
 
 def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
                        scene_size: float = 1.0, profile: BeamProfile | None = None,
-                       **_ignored) -> ProfileLight:
-    """The EXACT_PROFILE tier's light: a 180° spot (blend 0) just behind the
-    back pole, whose emission is ``energy/(4π) × texture(u, v)``
+                       receiver_distance: float | None = None, **_ignored) -> ProfileLight:
+    """The EXACT_PROFILE tier's light: a 180° spot (blend 0) at the lens centre
+    (``inside_lens``: the lens is out of its linking), whose emission is
+    ``energy/(4π) × texture(u, v)``
     (``profile["pixels"]``: float32, values from 0 to about 1e7 — the image must
     be a 32-bit float image, ``use_half_precision = False``).  ``energy_w`` is
     twice the beam's flux, so the light's nominal power (a 180° spot emits half
@@ -287,7 +291,7 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
     # power, not by the peak of its caustic.
     t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
     I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
-    apex = profile.apex if profile is not None else 1.0 + PROFILE_OFFSET
+    apex = profile.apex if profile is not None else PROFILE_APEX
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
@@ -307,19 +311,21 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
                     "width": shape[1], "height": shape[0], "strength_scale": 1.0}
     return ProfileLight(
         type=SPOT, energy_w=float(4.0 * math.pi * I_ref), spot_size_deg=180.0, spot_blend=0.0,
-        radius=float(lens_light_radius(source, primary, scene_size)),
+        radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=1.0, cone_half_angle_deg=90.0,
         cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))), kind=source.kind,
         model=NAME, reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
-        profile_info=profile_info, _profile_maker=maker,
+        profile_info=profile_info, _profile_maker=maker, inside_lens=bool(apex < 1.0),
     )
 
 
 
-def make_light(source, primary, *, optics=None, scene_size=1.0, **_ignored):
-    return make_profile_light(source, primary, optics=optics, scene_size=scene_size)
+def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distance=None,
+               **_ignored):
+    return make_profile_light(source, primary, optics=optics, scene_size=scene_size,
+                              receiver_distance=receiver_distance)
 
 
 ACCURACY = Accuracy(0.024, 0.080)
