@@ -182,11 +182,13 @@ def disc_overlap(a, b, d):
     part = ~inside & (d < a + b)
     if part.any():
         a, b, d = a[part], b[part], d[part]
-        ca = np.clip((d * d + a * a - b * b) / (2.0 * d * a), -1.0, 1.0)
-        cb = np.clip((d * d + b * b - a * a) / (2.0 * d * b), -1.0, 1.0)
+        # tri = twice the area of the triangle (a, b, d); the half-angles of the
+        # chord seen from each centre by atan2 (SPEC §4.2), sin θ_a = tri/(d·a)
         tri = 0.5 * np.sqrt(np.maximum((-d + a + b) * (d + a - b) * (d - a + b) * (d + a + b),
                                        0.0))
-        out[part] = a * a * np.arccos(ca) + b * b * np.arccos(cb) - tri
+        theta_a = np.arctan2(tri, 0.5 * (d * d + a * a - b * b))
+        theta_b = np.arctan2(tri, 0.5 * (d * d + b * b - a * a))
+        out[part] = a * a * theta_a + b * b * theta_b - tri
     return out
 
 

@@ -224,9 +224,10 @@ def spot_share(position, direction, half_angle, blend, centers, radii,
     alpha = np.arctan2(radii, np.sqrt(np.maximum((D - radii) * (D + radii), 0.0)))
     gamma = np.arctan2(np.linalg.norm(np.cross(w, direction), axis=-1),
                        np.sum(w * direction, axis=-1))
-    cos_h = np.cos(half_angle)
-    # the full-intensity cone: 1 − cos ψ ≤ (1 − blend)(1 − cos H)
-    full = np.arccos(np.clip(1.0 - (1.0 - blend) * (1.0 - cos_h), -1.0, 1.0))
+    # the full-intensity cone: 1 − cos ψ ≤ (1 − blend)(1 − cos H), i.e.
+    # sin(ψ/2) ≤ sqrt(1 − blend)·sin(H/2) (atan2, no acos: SPEC §4.2)
+    s = np.sqrt(np.clip(1.0 - blend, 0.0, 1.0)) * np.sin(0.5 * np.asarray(half_angle, float))
+    full = 2.0 * np.arctan2(s, np.sqrt((1.0 - s) * (1.0 + s)))
     out = np.where(gamma + alpha <= full, 1.0, 0.0)
     edge = np.flatnonzero((gamma + alpha > full) & (gamma - alpha < half_angle))
     if edge.size:

@@ -129,7 +129,9 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
             beam = abs(z_img) > s_far
             why = "virtual image far behind"
 
-    near = (not beam and source.kind == "real" and receiver_distance is not None
+    # Knowing the receiver, a real image beyond it is a cone pulled in before it
+    # (the beam stands for the same converging light when the receiver is not known).
+    near = (source.kind == "real" and receiver_distance is not None
             and z_img > float(receiver_distance) - APEX_CLEARANCE * radius_lens)
     inside = False
     if near:
