@@ -38,8 +38,12 @@ beyond the image a lens light that large looks as large as the image. As
 ``V → 0`` (collimated) ``|m| → ∞``: the image then subtends ``r/D`` from the lens
 (the chief ray through a ball lens's centre is undeviated), so the radius is
 capped at ``r·S/D``, the size that shows that divergence across the scene's size
-``S``. (A THESIS/PHYSICAL cone sits at the image and gets ``|m|·r`` exactly; their
-far-away beam spot at distance ``s`` gets ``s·r/D``.)
+``S``. (A THESIS/PHYSICAL cone sits at the image and gets ``|m|·r`` exactly.)
+Where the receiver's distance ``z`` from the lens centre is known (the operator
+casts rays, `planning.receiver_distance`), every lens light gets ``z·r/D``: the
+blur the physics gives that receiver (SPEC §10), at the image ``|m|·r`` again.
+Other primaries (spot, sun, area: `addon.primaries`) reach the tiers as the point
+light that stands for them toward the lens (:func:`effective_primary`).
 """
 from __future__ import annotations
 
@@ -251,7 +255,8 @@ class Accuracy:
 
 
 #: ``make(source, primary, *, optics, spot_blend, scene_size, scene_bounds,
-#: collimated_distance) -> BlenderLight`` (see `tiers.make_blender_light`).
+#: collimated_distance, receiver_distance) -> BlenderLight`` (see
+#: `tiers.make_blender_light`).
 LightMaker = Callable[..., BlenderLight]
 
 
