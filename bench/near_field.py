@@ -45,7 +45,11 @@ def _model(light, src, Z):
     if apex >= Z:
         return _Nothing()
     if light.model == "EXACT_PROFILE":
-        prof = xp._cached_profile(round(src.distance / R, 9), round(src.ior, 9))
+        key = (round(src.distance / R, 9), round(src.ior, 9))
+        try:
+            prof = xp._cached_profile(*key, bool(apex < R))
+        except TypeError:                       # a checkout without the near table
+            prof = xp._cached_profile(*key)
         I0 = light.energy_w / (4 * math.pi) / (prof.flux / (2 * math.pi))
         return xp._Profile2D(prof, R, I0)
     return acc.model_from_light(light, src)

@@ -264,7 +264,9 @@ def test_pulled_in_cone_keeps_the_paraxial_flux():
 
 def _flux_on(light, src, Z, radii):
     if light.model == "EXACT_PROFILE":
-        prof = xp._cached_profile(round(src.distance / src.lens_radius, 9), round(src.ior, 9))
+        apex = np.dot(np.subtract(light.location, src.lens_center), src.axis)
+        prof = xp._cached_profile(round(src.distance / src.lens_radius, 9), round(src.ior, 9),
+                                  bool(apex < src.lens_radius))
         I0 = light.energy_w / (4 * math.pi) / (prof.flux / (2 * math.pi))
         return xp._Profile2D(prof, src.lens_radius, I0).flux_within_radius(Z, radii)
     return acc.model_from_light(light, src).flux_within_radius(Z, radii)
