@@ -292,3 +292,34 @@ def test_a_resting_marble_gets_its_caustic(tier, l1_max):
         pytest.approx(np.diff(beam.flux_within_radius(R, inner))[0], rel=0.1)
     l1 = np.sum(np.abs(np.diff(mod) - np.diff(true))) / (true[-1] - true[0])
     assert l1 < l1_max
+
+
+# --------------------------------------------------------------------------- through the tiers
+
+def test_every_primary_reaches_every_tier_as_its_equivalent_point_light():
+    """A sun's PHYSICAL cone has the on-axis intensity S·T(0)·f² (the limit of
+    I·T(0)·m² with I = S·D², m = f/D); a spot covering half the lens gives half a
+    point light's energy; an area light 4 cos θ times its P/(4π)."""
+    n, R, S = 1.5, 0.01, 2.0
+    s = spheres([(0, 0, 0)], [R], ior=n)
+    bounds = ((-1, -1, -1), (1, 1, 1))
+    f = n * R / (2 * (n - 1))
+    T0 = (4 * n / (n + 1) ** 2) ** 2
+    (sun,) = compute_phase1_primaries(s, [SunPrimary((0, 0, -1), S)]).sources
+    light = make_blender_light(sun, PrimaryLight(4 * math.pi * S), "PHYSICAL", scene_size=2.0,
+                               scene_bounds=bounds)
+    assert light.energy_w / (4 * math.pi) == pytest.approx(S * T0 * f * f, rel=1e-5)
+
+    H = math.radians(20.0)
+    pos = (-math.sin(H), 0.0, math.cos(H))                # the cone's rim through the centre
+    spot = SpotPrimary(pos, (0.0, 0.0, -1.0), 100.0, 2 * H, 0.0)
+    point = PointPrimary(pos, 100.0)
+    th = math.radians(50.0)
+    area = AreaPrimary((math.sin(th), 0.0, math.cos(th)), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0),
+                       100.0, "SQUARE", 1e-3, 1e-3)
+    got = compute_phase1_primaries(s, [spot, point, area]).sources
+    for tier in TIERS:
+        e = [make_blender_light(x, PrimaryLight(100.0), tier, scene_size=2.0,
+                                scene_bounds=bounds).energy_w for x in got]
+        assert e[0] / e[1] == pytest.approx(0.5, abs=0.02), tier
+        assert got[2].emission == pytest.approx(4 * math.cos(th), rel=1e-4)
