@@ -192,6 +192,15 @@ def nominal_power(p) -> float:
     return float(p.power_w)
 
 
+def tier_primaries(primaries) -> list:
+    """The `tiers.PrimaryLight` of each primary (power: `nominal_power`; radius: a
+    point or spot light's; colour): what `planning.plan_lights` takes as
+    ``primaries``; each source's ``emission`` and ``source_radius`` do the rest."""
+    from .tiers.base import PrimaryLight  # the tiers need nothing of this module
+    return [PrimaryLight(power_w=nominal_power(p), radius=float(getattr(p, "radius", 0.0)),
+                         color=tuple(float(c) for c in p.color)) for p in primaries]
+
+
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)

@@ -20,6 +20,7 @@ from addon.primaries import (
     emission_toward,
     lens_flux,
     source_radius,
+    tier_primaries,
 )
 from addon.skip_reasons import Reason
 from addon.tiers import TIERS, PrimaryLight, make_blender_light
@@ -323,3 +324,10 @@ def test_every_primary_reaches_every_tier_as_its_equivalent_point_light():
                                 scene_bounds=bounds).energy_w for x in got]
         assert e[0] / e[1] == pytest.approx(0.5, abs=0.02), tier
         assert got[2].emission == pytest.approx(4 * math.cos(th), rel=1e-4)
+
+
+def test_tier_primaries_carry_nominal_power_radius_and_colour():
+    got = tier_primaries([PointPrimary((0, 0, 0), 5.0, 0.2, (1, 0.5, 0)),
+                          SunPrimary((0, 0, -1), 3.0, 0.01)])
+    assert (got[0].power_w, got[0].radius, got[0].color) == (5.0, 0.2, (1.0, 0.5, 0.0))
+    assert got[1].power_w == pytest.approx(4 * math.pi * 3.0) and got[1].radius == 0.0
