@@ -38,7 +38,7 @@ def source_flux(table: SourceTable, light_power) -> np.ndarray:
     """Estimated flux (W, or the light's brightness unit) each source carries."""
     power = np.asarray(light_power, dtype=float)[table.light]
     return (power * caught_fraction(table.lens_radius, table.distance)
-            * table.brightness_factor * table.unblocked_fraction)
+            * table.brightness_factor * table.unblocked_fraction * table.emission)
 
 
 @dataclass

@@ -60,6 +60,11 @@ class SecondarySource:
     magnification: float | None     # m = −(1/V)/D; None when collimated
     alpha_deg: float                # half-angle under which the light sees the lens
     unblocked_fraction: float       # share of the lit cap's flux no obstacle blocks
+    # Primaries other than point lights (`phase1_primaries`): the intensity toward
+    # the lens in units of the primary's P/(4π), and the radius of the disc the
+    # primary looks like from the lens (NaN: the primary's own radius).
+    emission: float = 1.0
+    source_radius: float = math.nan
 
     def to_json(self) -> dict:
         return {
@@ -211,6 +216,8 @@ class SourceTable:
     vergence: np.ndarray
     alpha: np.ndarray               # radians
     unblocked_fraction: np.ndarray
+    emission: np.ndarray            # (N,) see SecondarySource.emission
+    source_radius: np.ndarray       # (N,) NaN: the primary's own radius
     shadow_offsets: np.ndarray      # (N + 1,) CSR into shadow_spheres
     shadow_spheres: np.ndarray
 
@@ -242,6 +249,7 @@ class SourceTable:
             magnification=None if col else -1.0 / (V * D),
             alpha_deg=float(np.degrees(self.alpha[t])),
             unblocked_fraction=float(self.unblocked_fraction[t]),
+            emission=float(self.emission[t]), source_radius=float(self.source_radius[t]),
         )
 
 
@@ -402,6 +410,7 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
         color=np.broadcast_to(a.light_color[j], (m, 3)),
         brightness_factor=factor, distance=D, lens_center=C, lens_radius=R, ior=n,
         vergence=V, alpha=alpha, unblocked_fraction=blk.unblocked_fraction[rows],
+        emission=np.ones(m), source_radius=np.full(m, np.nan),
         shadow_counts=counts, shadow_spheres=shadow,
     )
 

@@ -8,7 +8,8 @@
 * `plan_lights`: the tier's light for each source, the merged sources' energy
   scale, the brightness cut-off and the maximum number, brightest first;
 * `may_be_beam` / `free_distance_behind`: whether a spot may sit behind its lens,
-  and how far it can without geometry in the way;
+  and how far it can without geometry in the way; `receiver_distance`: where the
+  surface the caustic falls on lies (no lens light at or behind it);
 * `plan_result`: all of it for phase 1's result on a scene read.
 
 Every pair left without a light is a `skip_reasons.SkippedPair` (code + details).
@@ -38,6 +39,8 @@ from .tiers.paraxial import is_beyond_scene
 
 #: A beam's spot stays this share of the free distance behind the lens.
 FREE_MARGIN = 0.9
+#: The receiver's rays start this many lens radii from the axis (just outside it).
+RIM_OFFSET = 1.02
 #: The pre-selection keeps this many times `max_lights` sources (the strongest by
 #: estimated flux) for the final choice by `plan_lights`.
 PRESELECT_FACTOR = 4
@@ -119,6 +122,38 @@ def free_distance_behind(occluders, source, scene_size):
     return FREE_MARGIN * float(hits[np.isfinite(hits)].min()) + 2.0 * r
 
 
+def receiver_distance(occluders, source, scene_size):
+    """How far from the lens centre along the beam's axis the first surface behind
+    the lens lies (None: nothing within the scene's reach): the surface the
+    caustic falls on, before which every lens light must sit
+    (`tiers.near_field`). Rays along the axis from four points just outside the
+    lens's rim (a table the lens rests on, a wall beside it) and from just past
+    the back vertex; a pair of rim rays on opposite sides gives the plane's
+    distance on the axis by its mean (exact for a plane, tilted or not)."""
+    u = np.asarray(source.axis, dtype=float)
+    u = u / np.linalg.norm(u)
+    c = np.asarray(source.lens_center, dtype=float)
+    r = float(source.lens_radius)
+    limit = COLLIMATED_DISTANCE_FACTOR * scene_size
+    side = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    side /= np.linalg.norm(side)
+    other = np.cross(u, side)
+    rim = RIM_OFFSET * r
+    origins = np.array([c + rim * side, c - rim * side, c + rim * other, c - rim * other,
+                        c + u * (r * (1.0 + 1e-6))])
+    hits = np.asarray(occluders.first_hit(origins, u, limit), dtype=float)
+    found = []
+    for a, b in ((0, 1), (2, 3)):
+        ha, hb = hits[a], hits[b]
+        if np.isfinite(ha) and np.isfinite(hb):
+            found.append(0.5 * (ha + hb))
+        elif np.isfinite(ha) or np.isfinite(hb):
+            found.append(min(ha, hb))
+    if np.isfinite(hits[4]):
+        found.append(r * (1.0 + 1e-6) + float(hits[4]))
+    return max(min(found), r) if found else None
+
+
 # --------------------------------------------------------------------------- lights
 
 @dataclass
@@ -151,7 +186,8 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
                 optics=None, light_names=None, lens_names=None, lens_candidates=None,
                 min_brightness: float = 0.0, max_lights: int | None = None,
                 spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
-                scene_bounds=None, far_limit=None, energy_scale=None) -> Plan:
+                scene_bounds=None, far_limit=None, energy_scale=None,
+                receiver_limit=None) -> Plan:
     """The Blender lights for a phase-1 result, brightest first.
 
     `primaries[j]`: `PrimaryLight` of light j; `optics[i]`: `LensOptics` of sphere i
@@ -166,6 +202,8 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
     `energy_scale[t]` (parallel to `result.sources`): a factor on the energy of
     source t's light, applied before the cut-off and the cap (a merged source
     carries the flux of its group: `addon.budget.apply_budget`).
+    `receiver_limit(source)`: how far from the lens centre the surface behind the
+    lens lies (None: unknown; `receiver_distance`): no light sits at or behind it.
     """
     light_name = (lambda j: light_names[j]) if light_names else (lambda j: f"light {j}")
     lens_name = (lambda i: lens_names[i]) if lens_names else (lambda i: f"sphere {i}")
@@ -179,10 +217,12 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
     candidates = []
     for t, src in enumerate(result.sources):
         limit = far_limit(src) if far_limit is not None else None
+        near = receiver_limit(src) if receiver_limit is not None else None
         bl = make_blender_light(src, primaries[src.light], model,
                                 optics=optics[src.lens] if optics else None,
                                 spot_blend=spot_blend, scene_size=scene_size,
-                                scene_bounds=scene_bounds, collimated_distance=limit)
+                                scene_bounds=scene_bounds, collimated_distance=limit,
+                                receiver_distance=near)
         f = 1.0 if energy_scale is None else float(energy_scale[t])
         if f != 1.0:
             bl.energy_w *= f
@@ -232,7 +272,9 @@ def plan_result(read, result: Phase1Result, options: dict, timings: dict | None 
     same cut-off (a light the rays make dimmer than it is dropped and reported), for
     the sources whose spot may sit behind the lens (THESIS and PHYSICAL:
     `may_be_beam`; the other tiers: all), against the geometry that was read
-    (`occluders`: spheres analytically, other meshes by box then BVH)."""
+    (`occluders`: spheres analytically, other meshes by box then BVH), and for
+    every kept source the receiver behind its lens (`receiver_distance`): no lens
+    light sits at or behind the surface its caustic falls on."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
     selection = select_sources(result, read.arrays.light_brightness,
@@ -257,8 +299,11 @@ def plan_result(read, result: Phase1Result, options: dict, timings: dict | None 
             return None
         return free_distance_behind(read.occluders, src, size)
 
+    def receiver_limit(src):
+        return receiver_distance(read.occluders, src, size)
+
     plan = plan_lights(SimpleNamespace(sources=chosen, skipped=[]), read.primaries,
-                       model, far_limit=far_limit,
+                       model, far_limit=far_limit, receiver_limit=receiver_limit,
                        energy_scale=[selection.scale[rows[id(s)]] for s in chosen], **common)
     plan.skipped[:0] = first.skipped
     timings["plan"] = time.perf_counter() - t

@@ -25,6 +25,7 @@ class Reason(IntEnum):
     LIGHT_ON_OTHER = 9
     TOTALLY_BLOCKED = 10
     OUT_OF_RANGE = 11
+    OUTSIDE_EMISSION = 12       # outside a spot's cone, behind an area light
     # planning (details: relative, cutoff / limit / count)
     NO_LIGHT_THROUGH = 100
     DIMMER_THAN_CUTOFF = 101
@@ -45,6 +46,7 @@ _KIND = {
     Reason.LIGHT_ON_OTHER: "light on another sphere",
     Reason.TOTALLY_BLOCKED: "totally blocked",
     Reason.OUT_OF_RANGE: "out of range",
+    Reason.OUTSIDE_EMISSION: "outside the light's emission",
     Reason.NO_LIGHT_THROUGH: "no light gets through",
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off",
     Reason.BEYOND_MAXIMUM: "beyond the maximum of {limit} lens lights",
@@ -63,6 +65,8 @@ _TEXT = {
     Reason.TOTALLY_BLOCKED: "totally blocked by sphere {other}",
     Reason.OUT_OF_RANGE: "out of range (the light's distance overflows floating point)",
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off ({relative:.3g} < {cutoff:g})",
+    Reason.OUTSIDE_EMISSION: ("outside the light's emission (beyond the spot's cone or "
+                              "behind the area light)"),
 }
 
 

@@ -163,7 +163,8 @@ def test_collimated_beam_is_a_far_spot_by_hand():
     assert bl.energy_w == pytest.approx(P * 0.9216 * 41 ** 2 / 0.75 ** 2, rel=1e-9)
     # footprint at the back vertex is R_C: tan(half-angle) · s
     assert math.tan(math.radians(0.5)) * bl.scale_xy * s == pytest.approx(0.1)
-    assert bl.radius == pytest.approx(40 * 0.05 / 0.75)      # divergence r/D
+    # the blur z·r/D at the reference receiver (R + L_ref = 1.5 from the centre)
+    assert bl.radius == pytest.approx(1.5 * 0.05 / 0.75)
     assert bl.kind == "collimated" and "collimated" in bl.note
     # irradiance at the reference distance: intensity / (s + L_ref)²
     assert bl.energy_w / (4 * math.pi) / 41 ** 2 == pytest.approx(bl.reference_irradiance)

@@ -33,6 +33,7 @@ from .base import (
     PrimaryLight,
     Tier,
     cone_shape,
+    effective_primary,
     head_on_transmission,
 )
 
@@ -99,7 +100,8 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
                        spot_blend: float = DEFAULT_SPOT_BLEND,
                        scene_size: float = 1.0,
                        scene_bounds=None,
-                       collimated_distance: float | None = None) -> BlenderLight:
+                       collimated_distance: float | None = None,
+                       receiver_distance: float | None = None) -> BlenderLight:
     """The Blender light for one `phase1.SecondarySource`.
 
     `primary`: the primary light's power (W), radius and colour. `model`: a key of
@@ -111,7 +113,12 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
     (default `COLLIMATED_DISTANCE_FACTOR × scene_size`; the caller lowers it when
     geometry behind the lens would block the spot). A non-full source's energy is
     scaled by `source.unblocked_fraction`. FITTED and EXACT_PROFILE ignore
-    `spot_blend` and `scene_bounds`.
+    `spot_blend` and `scene_bounds`. `receiver_distance`: how far from the lens
+    centre along the axis the first surface behind the lens lies (None: unknown;
+    `planning.receiver_distance`): no light is placed at or behind it, and the
+    spot tiers aim at it (`tiers.near_field`). The source's `emission` and
+    `source_radius` (primaries other than point lights) turn `primary` into the
+    point light that stands for it toward this lens (`base.effective_primary`).
     """
     if model == AUTO:
         model = resolve_energy_model(model)[0]
@@ -122,6 +129,8 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
                          f"known: {', '.join([AUTO, *TIERS])}") from None
     scene_size = (float(scene_size) if scene_size and math.isfinite(scene_size)
                   and scene_size > 0 else 1.0)
+    primary = effective_primary(source, primary)
     return tier.make(source, primary, optics=optics, spot_blend=spot_blend,
                      scene_size=scene_size, scene_bounds=scene_bounds,
-                     collimated_distance=collimated_distance)
+                     collimated_distance=collimated_distance,
+                     receiver_distance=receiver_distance)

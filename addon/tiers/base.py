@@ -38,8 +38,12 @@ beyond the image a lens light that large looks as large as the image. As
 ``V → 0`` (collimated) ``|m| → ∞``: the image then subtends ``r/D`` from the lens
 (the chief ray through a ball lens's centre is undeviated), so the radius is
 capped at ``r·S/D``, the size that shows that divergence across the scene's size
-``S``. (A THESIS/PHYSICAL cone sits at the image and gets ``|m|·r`` exactly; their
-far-away beam spot at distance ``s`` gets ``s·r/D``.)
+``S``. (A THESIS/PHYSICAL cone sits at the image and gets ``|m|·r`` exactly.)
+Where the receiver's distance ``z`` from the lens centre is known (the operator
+casts rays, `planning.receiver_distance`), every lens light gets ``z·r/D``: the
+blur the physics gives that receiver (SPEC §10), at the image ``|m|·r`` again.
+Other primaries (spot, sun, area: `addon.primaries`) reach the tiers as the point
+light that stands for them toward the lens (:func:`effective_primary`).
 """
 from __future__ import annotations
 
@@ -82,6 +86,19 @@ class PrimaryLight:
     def intensity(self) -> float:
         """Radiant intensity, W/sr: ``P/(4π)`` (SPEC §9)."""
         return self.power_w / (4.0 * math.pi)
+
+
+def effective_primary(source, primary: PrimaryLight) -> PrimaryLight:
+    """The point light that stands for `primary` toward `source`'s lens: its power
+    times the source's ``emission`` (a spot's cone share, an area light's
+    Lambertian intensity, a sun's equivalent distance², see `addon.primaries`),
+    its radius the source's ``source_radius`` where phase 1 gave one."""
+    e = float(getattr(source, "emission", 1.0))
+    r = float(getattr(source, "source_radius", math.nan))
+    if e == 1.0 and not math.isfinite(r):
+        return primary
+    return PrimaryLight(power_w=primary.power_w * e,
+                        radius=r if math.isfinite(r) else primary.radius, color=primary.color)
 
 
 @dataclass(frozen=True)
@@ -132,13 +149,19 @@ def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None)
     return axis, R, D, wgt * wgt * unblocked_share(source), color, non_full_note(source)
 
 
-def lens_light_radius(source, primary: PrimaryLight, scene_size: float) -> float:
+def lens_light_radius(source, primary: PrimaryLight, scene_size: float,
+                      receiver_distance: float | None = None) -> float:
     """The radius of a lens light standing for `source`'s image (module docstring):
-    ``r·min(|1/V|, S)/D`` = ``min(|m|·r, r·S/D)``; finite for a collimated source."""
+    ``r·z/D``, the blur ``z·r/D`` the physics gives a receiver ``z`` behind the lens
+    centre (SPEC §10), with ``z`` the `receiver_distance` when known, else the
+    image's distance ``min(|1/V|, S)`` (= ``min(|m|·r, r·S/D)``, the image's own
+    radius); finite for a collimated source."""
     r, D = float(primary.radius), float(source.distance)
     if not (r > 0.0 and D > 0.0):
         return 0.0
     S = float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
+    if receiver_distance is not None and receiver_distance > 0:
+        return r * min(float(receiver_distance), S) / D
     V = float(source.vergence)
     reach = S if V == 0.0 else min(abs(1.0 / V), S)
     return r * reach / D
@@ -176,6 +199,9 @@ class BlenderLight:
     model: str = ""
     reference_irradiance: float = 0.0  # W/length², on the axis at the reference distance
     relative_brightness: float = 0.0   # reference irradiance / primary's irradiance at the lens
+    #: The light sits inside its lens: the lens must be out of its light and shadow
+    #: linking (the builder always excludes it), else the lens swallows the light.
+    inside_lens: bool = False
 
     def to_json(self) -> dict:
         return {"type": self.type, "energy_w": self.energy_w,
@@ -229,7 +255,8 @@ class Accuracy:
 
 
 #: ``make(source, primary, *, optics, spot_blend, scene_size, scene_bounds,
-#: collimated_distance) -> BlenderLight`` (see `tiers.make_blender_light`).
+#: collimated_distance, receiver_distance) -> BlenderLight`` (see
+#: `tiers.make_blender_light`).
 LightMaker = Callable[..., BlenderLight]
 
 

@@ -1,7 +1,9 @@
 """EXACT_PROFILE (Cycles only: it needs a light node tree): the exact beam,
 tabulated.
 
-A spot light (``spot_size`` 180°, blend 0) just behind the back pole whose
+A spot light (``spot_size`` 180°, blend 0) just behind the back pole (at the
+lens centre when the receiver is nearer than the table's first row: a marble
+resting on a table) whose
 intensity is a table over the angle ``gamma`` from the axis *and* the distance
 ``h`` along the axis from the light, read in the light's node tree (Cycles gives
 a light shader the distance to the shading point: Light Path ▸ Ray Length). With
@@ -53,6 +55,24 @@ PROFILE_DISTANCES = 256
 #: (in R) from it, log-spaced.
 PROFILE_OFFSET = 1e-3
 PROFILE_H_MIN, PROFILE_H_MAX = 0.2, 30.0
+PROFILE_APEX = 1.0 + PROFILE_OFFSET
+#: Near field (a receiver nearer than the first row, ``NEAR_RECEIVER`` R from the
+#: centre: a table the lens rests on, tilted or not): the light sits at the lens
+#: centre (inside the lens, which light and shadow linking leave out), so every
+#: point outside the sphere lies before it, with rows over these distances (light
+#: leaves the sphere at ``z ≥ 0.25 R`` but for near lights of low index). Not used
+#: farther: its rows are sparser near the lens (mean L1 0.044 instead of 0.024).
+NEAR_APEX = 0.0
+NEAR_H_MIN, NEAR_H_MAX = 0.25, 31.0
+NEAR_RECEIVER = PROFILE_APEX + PROFILE_H_MIN
+
+
+def table_geometry(receiver: float | None) -> tuple[float, float, float]:
+    """(apex, h_min, h_max) in R for a receiver `receiver` R from the centre (None:
+    unknown)."""
+    if receiver is not None and receiver < NEAR_RECEIVER:
+        return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
+    return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
 #: Largest angle from the axis the table covers (degrees).
 PROFILE_GAMMA_MAX_DEG = 90.0
 
@@ -122,14 +142,15 @@ def _profile_nodes(intensity_bins: np.ndarray) -> np.ndarray:
 
 def exact_profile(D_over_R: float, n: float, absorption: float = 0.0, *, n_fan: int = 8000,
                   K: int = PROFILE_ANGLES, M: int = PROFILE_DISTANCES,
-                  receivers=FIT_RECEIVERS) -> BeamProfile:
-    """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1)."""
+                  receivers=FIT_RECEIVERS, near: bool = False) -> BeamProfile:
+    """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
+    near field's, its apex at the lens centre (`table_geometry`)."""
     beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
-    apex = 1.0 + PROFILE_OFFSET
-    prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, PROFILE_H_MIN, PROFILE_H_MAX,
+    apex, h_min, h_max = table_geometry(0.0 if near else None)
+    prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max,
                        np.zeros((M, K)), flux=beam.lens_flux)
     for j, h in enumerate(prof.distances):
         rf = beam.receiver(apex + h)
@@ -160,11 +181,11 @@ def exact_profile(D_over_R: float, n: float, absorption: float = 0.0, *, n_fan: 
 
 
 @functools.lru_cache(maxsize=128)
-def _cached_profile(D_over_R: float, n: float) -> BeamProfile:
+def _cached_profile(D_over_R: float, n: float, near: bool = False) -> BeamProfile:
     """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
     lenses and lights (frame changes, re-runs) pays once.  Do not modify the
     returned table."""
-    return exact_profile(D_over_R, n)
+    return exact_profile(D_over_R, n, near=near)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -264,9 +285,11 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
 
 def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
                        scene_size: float = 1.0, profile: BeamProfile | None = None,
-                       **_ignored) -> ProfileLight:
-    """The EXACT_PROFILE tier's light: a 180° spot (blend 0) just behind the
-    back pole, whose emission is ``energy/(4π) × texture(u, v)``
+                       receiver_distance: float | None = None, **_ignored) -> ProfileLight:
+    """The EXACT_PROFILE tier's light: a 180° spot (blend 0) just behind the back
+    pole, or for a receiver nearer than ``NEAR_RECEIVER`` at the lens centre
+    (``inside_lens``: the lens is out of its linking), whose emission is
+    ``energy/(4π) × texture(u, v)``
     (``profile["pixels"]``: float32, values from 0 to about 1e7 — the image must
     be a 32-bit float image, ``use_half_precision = False``).  ``energy_w`` is
     twice the beam's flux, so the light's nominal power (a 180° spot emits half
@@ -287,10 +310,15 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
     # power, not by the peak of its caustic.
     t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
     I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
-    apex = profile.apex if profile is not None else 1.0 + PROFILE_OFFSET
+    near = receiver_distance is not None and \
+        table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
+    apex = profile.apex if profile is not None else table_geometry(0.0 if near else None)[0]
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
+    if near:
+        notes.append(f"near field: light at the lens centre (receiver "
+                     f"{float(receiver_distance) / R:.4g} R from it)")
     irradiance = primary.intensity * scale * e_ref / R ** 2
     primary_irr = primary.intensity / D ** 2
     if profile is not None:
@@ -299,27 +327,29 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
         def maker():
-            return _profile_dict(_cached_profile(*key), t_ref, R, center, axis,
-                                 f"D/R {key[0]:.9g} n {key[1]:.9g}")
+            return _profile_dict(_cached_profile(*key, near), t_ref, R, center, axis,
+                                 f"D/R {key[0]:.9g} n {key[1]:.9g}" + (" near" if near else ""))
         shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
-        info = (PROFILE_GAMMA_MAX_DEG, PROFILE_H_MIN, PROFILE_H_MAX)
+        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(0.0 if near else None)[1:])
     profile_info = {"gamma_max_deg": info[0], "h_min": info[1] * R, "h_max": info[2] * R,
                     "width": shape[1], "height": shape[0], "strength_scale": 1.0}
     return ProfileLight(
         type=SPOT, energy_w=float(4.0 * math.pi * I_ref), spot_size_deg=180.0, spot_blend=0.0,
-        radius=float(lens_light_radius(source, primary, scene_size)),
+        radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=1.0, cone_half_angle_deg=90.0,
         cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))), kind=source.kind,
         model=NAME, reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
-        profile_info=profile_info, _profile_maker=maker,
+        profile_info=profile_info, _profile_maker=maker, inside_lens=bool(apex < 1.0),
     )
 
 
 
-def make_light(source, primary, *, optics=None, scene_size=1.0, **_ignored):
-    return make_profile_light(source, primary, optics=optics, scene_size=scene_size)
+def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distance=None,
+               **_ignored):
+    return make_profile_light(source, primary, optics=optics, scene_size=scene_size,
+                              receiver_distance=receiver_distance)
 
 
 ACCURACY = Accuracy(0.024, 0.080)

@@ -37,6 +37,7 @@ from .base import (
     cone_shape,
     lens_light_radius,
 )
+from .near_field import is_near, receiver_fit
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS, SUN_DISTANCE, SpotFit, fit_spot
 
 NAME = "FITTED"
@@ -124,7 +125,8 @@ def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
 
 def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
                       scene_size: float = 1.0, direct: bool = False,
-                      collimated_distance: float | None = None, **_ignored) -> BlenderLight:
+                      collimated_distance: float | None = None,
+                      receiver_distance: float | None = None, **_ignored) -> BlenderLight:
     """The FITTED tier's Blender light for ``source``: a spot on the lens's axis at
     ``lens_center + apex R axis``, shining along the axis.  ``direct``: fit now
     (about 0.3 s) instead of interpolating the shipped table.  Energy: the fit's
@@ -134,7 +136,11 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
     no limit; :func:`make_light` passes the operator's free
     distance, else ``COLLIMATED_DISTANCE_FACTOR`` × the scene's size, as for the
     other tiers' beams); a fitted apex farther behind (up to 1000 R for a nearly
-    collimated beam) is pulled in (:func:`pull_in`), noted."""
+    collimated beam) is pulled in (:func:`pull_in`), noted.
+    ``receiver_distance``: how far from the lens centre along the axis the first
+    surface behind the lens lies (None: unknown); a near one (or one the fitted
+    apex would sit behind) gets a spot fitted to that receiver, its apex before
+    it, often inside the lens (:mod:`.near_field`)."""
     axis, R, D, scale, color, notes = axial_light_common(source, primary, optics)
     if direct:
         fit = fit_spot(D / R, float(source.ior))
@@ -149,6 +155,10 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
                          f"{(1.0 - pulled.apex) * R:.4g} behind the back vertex "
                          "(geometry behind the lens)")
             fit = pulled
+    z_recv = float(receiver_distance) / R if receiver_distance else None
+    if is_near(z_recv, fit.apex):
+        fit = receiver_fit(round(D / R, 6), round(float(source.ior), 6), round(z_recv, 3))
+        notes.append(f"near field: fitted to the receiver {z_recv:.4g} R from the lens centre")
     shape = cone_shape(fit.half_angle_deg)
     if shape.note:
         notes.append(shape.note)
@@ -162,24 +172,27 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
     return BlenderLight(
         type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
         spot_blend=float(min(max(fit.blend, 0.0), 1.0)),
-        radius=float(lens_light_radius(source, primary, scene_size)),
+        radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
         location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
         note="; ".join(notes), color=color, scale_xy=float(shape.scale_xy),
         cone_half_angle_deg=float(shape.half_angle_deg),
         cutoff_distance=float(CUTOFF_FACTOR * reach), kind=source.kind, model=NAME,
         reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
+        inside_lens=bool(fit.apex < 1.0),
     )
 
 
 
 def make_light(source, primary, *, optics=None, scene_size=1.0, collimated_distance=None,
-               **_ignored):
+               receiver_distance=None, **_ignored):
     """The registry's maker: a fitted spot stays within the beams' distance
-    behind the lens (the operator's free distance, else the default)."""
+    behind the lens (the operator's free distance, else the default) and before
+    the receiver (`receiver_distance`)."""
     return make_fitted_light(
         source, primary, optics=optics, scene_size=scene_size,
-        collimated_distance=collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size)
+        collimated_distance=collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size,
+        receiver_distance=receiver_distance)
 
 
 ACCURACY = Accuracy(0.50, 0.79)

@@ -20,8 +20,9 @@ lens from blocking the spot; the spot's distance keeps other geometry behind the
 lens out of the way.
 
 Radius: a cone sits at the image point and gets the image's radius ``|m|·r``
-(SPEC §4.1); a beam's far-away spot gets the divergence ``r/D`` times its distance
-``s`` (the image's angular radius seen from the lens).
+(SPEC §4.1); a beam's far-away spot (and a cone pulled in before its receiver)
+gets the blur ``z·r/D`` the physics gives a receiver ``z`` from the lens centre
+(SPEC §10): the receiver's distance when known, else the reference distance.
 
 The reference irradiance of a light (for the brightness cut-off): a cone's
 on-axis irradiance at ``|1/V|`` beyond its apex (for PHYSICAL ``T(0)`` times the
@@ -45,6 +46,7 @@ from .base import (
     non_full_note,
     unblocked_share,
 )
+from .near_field import APEX_CLEARANCE, flux_keeping_factor, pulled_in_cone
 
 
 class EnergyModel(Protocol):
@@ -77,7 +79,7 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
                         optics: LensOptics | None = None,
                         spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
                         scene_bounds=None, collimated_distance: float | None = None,
-                        ) -> BlenderLight:
+                        receiver_distance: float | None = None) -> BlenderLight:
     """The light of tier `name` whose brightness is `energy_model`'s.
 
     Which representation (`BlenderLight.note` says):
@@ -89,7 +91,15 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
       back vertex is the beam's (``tan θ·|1/V − R|``, ``R_C`` when collimated) and
       its irradiance at the reference distance (half the scene's reach beyond the
       back vertex) the model's: ``I/(1/V − z)²`` for an image at ``1/V``, the beam
-      irradiance when collimated — so it is continuous across the switch.
+      irradiance when collimated — so it is continuous across the switch;
+    * **pulled-in cone** — a real image at or beyond the receiver
+      (`receiver_distance`, from the lens centre; `near_field.pulled_in_cone`):
+      a spot at the lens centre aimed at the beam's cross-section on the
+      receiver, with the cone's flux.
+
+    The radius: the primary's radius times ``z/D`` (``z`` the receiver's distance
+    when known, else the image's — the image's size ``|m|·r`` for a cone — or,
+    for a beam, the reference distance): the blur the physics gives there (SPEC §10).
     """
     optics = optics or LensOptics()
     axis = [float(x) for x in source.axis]
@@ -119,7 +129,26 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
             beam = abs(z_img) > s_far
             why = "virtual image far behind"
 
-    if beam:
+    # Knowing the receiver, a real image beyond it is a cone pulled in before it
+    # (the beam stands for the same converging light when the receiver is not known).
+    near = (source.kind == "real" and receiver_distance is not None
+            and z_img > float(receiver_distance) - APEX_CLEARANCE * radius_lens)
+    inside = False
+    if near:
+        z_r = float(receiver_distance)
+        half, factor = pulled_in_cone(z_img, math.radians(source.spread_deg), z_r)
+        shape = cone_shape(math.degrees(half))
+        intensity = (energy_model.cone_intensity(source, primary, optics) * unblocked
+                     * flux_keeping_factor(math.radians(source.spread_deg),
+                                           math.radians(shape.half_angle_deg)))
+        irradiance = intensity / z_r ** 2
+        location = center
+        radius = primary.radius * z_r / source.distance
+        reach_total = scene_size
+        inside = True
+        notes.append(f"near field: image {z_img:.4g} beyond the receiver {z_r:.4g} from the "
+                     "centre; cone pulled in to the lens centre, flux kept")
+    elif beam:
         # Reference: half-way along the scene's reach beyond the back vertex.
         reach = downstream_reach(back_vertex, axis, scene_bounds, scene_size)
         l_ref = (0.5 * min(max(reach, 0.0), scene_size) if scene_bounds is not None
@@ -129,18 +158,18 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
             irradiance = energy_model.beam_irradiance(source, primary, optics,
                                                       max(l_ref, 1e-9 * scene_size))
             notes.append(f"collimated beam R_C={width:.4g}")
-            light_radius = primary.radius / source.distance      # divergence r/D, × s below
         else:
             width = math.tan(math.radians(source.spread_deg)) * abs(z_img - radius_lens)
             irradiance = (energy_model.cone_intensity(source, primary, optics)
                           / (z_img - (radius_lens + l_ref)) ** 2)
             notes.append(f"{why}: beam of radius {width:.4g}")
-            light_radius = abs(source.magnification) * primary.radius / abs(z_img)
         irradiance *= unblocked
         shape = cone_shape(math.degrees(math.atan2(width, s_far)))
         intensity = irradiance * (s_far + l_ref) ** 2
         location = [p - s_far * a for p, a in zip(back_vertex, axis, strict=True)]
-        radius = s_far * light_radius
+        z_blur = (float(receiver_distance) if receiver_distance
+                  else radius_lens + max(l_ref, 0.0))
+        radius = z_blur * primary.radius / source.distance
         reach_total = s_far + scene_size
         notes.append(f"spot {s_far:.4g} behind the back vertex")
     else:
@@ -166,4 +195,5 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
         reference_irradiance=float(irradiance),
         relative_brightness=(float(irradiance / primary_irradiance)
                              if primary_irradiance > 0 else 0.0),
+        inside_lens=inside,
     )
