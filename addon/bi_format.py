@@ -1,7 +1,9 @@
 """Reader and writer of the thesis' `.bi` scene files (SPEC section 8).
 
 A file is plain UTF-8 text (a byte-order mark is allowed), one record a line: a
-key, then numbers separated by blanks. Records, in this order:
+key, then numbers separated by blanks. Lines end with LF, CRLF or a lone CR (an
+old Mac line break): universal newlines, as Python's `open()` reads text, so a
+line number in a message is the one an editor shows. Records, in this order:
 
     V w h                  viewport size: positive integers
     C x y z                camera position
@@ -363,7 +365,8 @@ def _decode(data: bytes, path: str) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
+        head = data[:exc.start]                  # LF, CRLF and a lone CR each end a line
+        line = head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
         raise BiFormatError(path, line, "expected UTF-8 text (the file has bytes "
                                         "that are not UTF-8)") from exc
 

@@ -496,7 +496,9 @@ def parse_only_bi_errors(text):
         scene = parse_bi(text, "fuzz.bi")
     except BiFormatError as err:
         assert err.path == "fuzz.bi" and str(err).startswith("fuzz.bi")
-        assert err.line is None or 1 <= err.line <= text.count("\n") + 2
+        # Universal newlines (the reader's rule): LF, CRLF and a lone CR end a line.
+        breaks = text.count("\n") + text.count("\r") - text.count("\r\n")
+        assert err.line is None or 1 <= err.line <= breaks + 2
     else:
         assert isinstance(scene, Scene)
         assert parse_bi(format_bi(scene)) == scene
@@ -533,3 +535,20 @@ def test_random_bytes_in_a_file_raise_only_bi_format_error(noise, at):
         assert err.path == name
     finally:
         os.unlink(name)
+
+
+def test_lone_cr_is_a_line_break():
+    # Universal newlines: an old Mac file (CR only) reads like LF and CRLF, and an
+    # error names the line an editor shows.
+    assert parse_bi(FIG3.replace("\n", "\r")) == parse_bi(FIG3)
+    bad = FIG3.replace("R 2", "R -2").replace("\n", "\r")
+    line = FIG3.replace("R 2", "R -2").splitlines().index("R -2") + 1
+    with pytest.raises(BiFormatError, match=f"^fuzz.bi:{line}: "):
+        parse_bi(bad, "fuzz.bi")
+
+
+def test_bad_utf8_is_reported_on_its_line_with_cr_breaks(tmp_path):
+    path = tmp_path / "mac.bi"
+    path.write_bytes(b"V 200 200\rC 0 0 10\r\xff\r")
+    with pytest.raises(BiFormatError, match=r":3: expected UTF-8"):
+        read_bi(path)
