@@ -369,7 +369,7 @@ _KEY_INSIDE_LINE = re.compile(r"\S[^\S\n]+[TCRS#]")
 _NOT_NUMBER_CHAR = re.compile(r"[^0-9.eE+\-\n]")
 
 
-def _bulk_spheres(reader: "_Reader", count: int) -> Optional[list[Sphere]]:
+def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
     """The `count` spheres that end the file, read at once, or None (then the
     record by record reader goes on from the same place)."""
     if count < 64:                      # not worth it: the plain path is as fast
@@ -378,7 +378,9 @@ def _bulk_spheres(reader: "_Reader", count: int) -> Optional[list[Sphere]]:
     tokens = block.split()
     if len(tokens) != _SPHERE_TOKENS * count or _LINE_STARTS_WITH_NUMBER.search(block):
         return None
-    import numpy as np                  # only here: the reader needs no numpy otherwise
+    # numpy only here: the reader needs none for small files.
+    import numpy as np
+
     table = np.array(tokens, dtype=object).reshape(count, _SPHERE_TOKENS)
     keys = np.array([_SPHERE_KEYS[k] for k in _KEY_COLUMNS], dtype=object)
     if not np.all(table[:, _KEY_COLUMNS] == keys):
@@ -408,12 +410,12 @@ def _bulk_spheres(reader: "_Reader", count: int) -> Optional[list[Sphere]]:
                                       exponent=e, ior=n))
                for x, y, z, r, a, d, s, t, e, n in zip(
                    *center.T.tolist(), radius.tolist(), ka.tolist(), kd.tolist(),
-                   ks.tolist(), kt.tolist(), ex.tolist(), ior.tolist())]
+                   ks.tolist(), kt.tolist(), ex.tolist(), ior.tolist(), strict=True)]
     # Colours wait for the file's scale like the others; one entry for all of them.
     color_text = text[:, 4:7]
 
     def store(scaled):
-        for sphere, c in zip(spheres, scaled):
+        for sphere, c in zip(spheres, scaled, strict=True):
             sphere.surface.color = c
     reader.colors.append((_BulkColors(color_text, color), store))
     return spheres
