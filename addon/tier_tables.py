@@ -20,9 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import lens_tiers as lt
-from .light_models import (COLLIMATED_DISTANCE_FACTOR, CUTOFF_FACTOR, DEFAULT_SPOT_BLEND,
-                           MIN_HALF_ANGLE_DEG, SPOT, SPOT_SIZE_MAX_DEG, SPOT_SIZE_MIN_DEG,
-                           BlenderLight, head_on_transmission)
+from .light_models import (
+    COLLIMATED_DISTANCE_FACTOR,
+    CUTOFF_FACTOR,
+    DEFAULT_SPOT_BLEND,
+    MIN_HALF_ANGLE_DEG,
+    SPOT,
+    SPOT_SIZE_MAX_DEG,
+    SPOT_SIZE_MIN_DEG,
+    BlenderLight,
+    head_on_transmission,
+)
 from .phase1 import SourceTable
 
 THESIS, PHYSICAL, FITTED, EXACT_PROFILE = "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"
@@ -64,7 +72,8 @@ class ConeShapes:
         note = (f"cone half-angle {theta:.3g}° widened to {MIN_HALF_ANGLE_DEG:g}°"
                 if self.widened[t] else "")
         if self.clamped[t]:
-            return f"cone {2.0 * max(theta, MIN_HALF_ANGLE_DEG):.4g}° clamped to Blender's maximum 180°"
+            full = 2.0 * max(theta, MIN_HALF_ANGLE_DEG)
+            return f"cone {full:.4g}° clamped to Blender's maximum 180°"
         if self.narrowed[t]:
             full = 2.0 * float(self.half_angle_deg[t])
             extra = (f"cone {full:.3g}° < 1°: spot_size 1°, narrowed by object scale "
@@ -173,8 +182,8 @@ def _unblocked(table: SourceTable) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _nonfull_note(unblocked, full):
-    return lambda t: ("" if full[t] else
-                      f"non-full: energy × {float(unblocked[t]):.4g} (unblocked share of the lit cap)")
+    return lambda t: ("" if full[t] else f"non-full: energy × {float(unblocked[t]):.4g} "
+                                         "(unblocked share of the lit cap)")
 
 
 def _relative(irradiance, primary_irradiance):
@@ -218,7 +227,8 @@ def paraxial_table(table: SourceTable, p: Primaries, model: str, *, scene_size: 
     I0 = p.intensity
     color = p.color.copy() if model == THESIS else _physical_color(table, p)
     primary_irradiance = I0 / D ** 2
-    s_far = float(collimated_distance) if collimated_distance else COLLIMATED_DISTANCE_FACTOR * scene_size
+    s_far = (float(collimated_distance) if collimated_distance
+             else COLLIMATED_DISTANCE_FACTOR * scene_size)
     s_far = max(s_far, 1e-6 * scene_size)
     back_vertex = center + R[:, None] * axis
     col = kind == COLLIMATED
@@ -366,7 +376,8 @@ def fitted_table(table: SourceTable, p: Primaries, *, scene_size: float,
     def pull_note(t):
         return ("" if not pulled[t] else
                 f"spot pulled in from {float(old_behind[t]):.4g} to "
-                f"{float((1.0 - apex[t]) * R[t]):.4g} behind the back vertex (geometry behind the lens)")
+                f"{float((1.0 - apex[t]) * R[t]):.4g} behind the back vertex "
+                "(geometry behind the lens)")
 
     shape = cone_shapes(half)
     I0 = p.intensity
