@@ -115,6 +115,7 @@ def phase1_light_table(scene, result, model: str):
     """`blender_lights` for every source at once (`addon.tier_tables`: columns,
     the same numbers as the per-source makers)."""
     import numpy as np
+
     from addon.tier_tables import bi_scene_light_table
     radius = np.array([float(lt.radius) for lt in scene.lights], dtype=float)
     return bi_scene_light_table(result._arrays, result.table, model, radius)
@@ -128,6 +129,7 @@ def phase1_json_rows(result, lights):
     """The JSON of each source (with its Blender light) and of each skipped pair,
     made from the columns: every array becomes a list once."""
     import numpy as np
+
     from addon import phase1 as p1
     t = result.table
     col = t.kind == 2

@@ -169,9 +169,10 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
     """Rows are encoded a chunk at a time: the text is still exactly json.dump's."""
     import io
     import sys
+
+    from addon.phase1 import compute_phase1
     sys.path.insert(0, str(ROOT / "scripts"))
     import cli
-    from addon.phase1 import compute_phase1
     scene = read_bi(FIG1)
     scene.lights = scene.lights * 5                  # 5 sources and 5 skipped pairs
     result = compute_phase1(scene)
@@ -185,7 +186,8 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
     seps = (",", ":") if indent is None else None
     assert out.getvalue() == json.dumps(whole, indent=indent, separators=seps) + "\n"
     # and the rows are what the per-source objects say (SecondarySource.to_json)
-    for row, src, bl in zip(sources, result.sources, cli.blender_lights(scene, result, "fitted")):
+    for row, src, bl in zip(sources, result.sources,
+                                 cli.blender_lights(scene, result, "fitted"), strict=True):
         assert {k: v for k, v in row.items() if k != "blender_light"} == src.to_json()
         want = bl.to_json()
         assert row["blender_light"].pop("type") == want.pop("type")
