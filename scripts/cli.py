@@ -125,12 +125,29 @@ def _split(flat: list, offsets: list) -> list[list]:
     return [flat[a:b] for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
 
 
+def _skip_reasons(result) -> list[tuple[int, int, str]]:
+    """(light, lens, reason) of each skipped pair; a text made once per distinct
+    (code, the numbers it names)."""
+    from addon import phase1 as p1
+    a, k = result._arrays, result.skip_table
+    memo: dict = {}
+
+    def reason(code, lens, other):
+        key = (code, lens if code in (p1.INVALID_SPHERE_RADIUS, p1.INVALID_KT,
+                                      p1.NOT_CONVERGING) else -1, other)
+        if key not in memo:
+            memo[key] = p1.reason_text(code, float(a.radius[lens]), float(a.ior[lens]),
+                                       float(a.kt[lens]), other)
+        return memo[key]
+    return [(j, i, reason(c, i, o))
+            for j, i, c, o in zip(k.light.tolist(), k.lens.tolist(), k.code.tolist(),
+                                  k.other.tolist(), strict=True)]
+
+
 def phase1_json_rows(result, lights):
     """The JSON of each source (with its Blender light) and of each skipped pair,
     made from the columns: every array becomes a list once."""
     import numpy as np
-
-    from addon import phase1 as p1
     t = result.table
     col = t.kind == 2
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -154,20 +171,7 @@ def phase1_json_rows(result, lights):
             np.degrees(t.spread).tolist(), maybe(t.cylinder_radius, ~col), t.intensity.tolist(),
             t.color.tolist(), shadow, maybe(image, col), maybe(magnification, col),
             t.brightness_factor.tolist(), t.unblocked_fraction.tolist(), blender, strict=True)]
-    # Reason texts: one per distinct (code, the numbers it names).
-    a, k = result._arrays, result.skip_table
-    memo: dict = {}
-
-    def reason(code, lens, other):
-        key = (code, lens if code in (p1.INVALID_SPHERE_RADIUS, p1.INVALID_KT,
-                                      p1.NOT_CONVERGING) else -1, other)
-        if key not in memo:
-            memo[key] = p1.reason_text(code, float(a.radius[lens]), float(a.ior[lens]),
-                                       float(a.kt[lens]), other)
-        return memo[key]
-    skipped = [{"light": j, "lens": i, "reason": reason(c, i, o)}
-               for j, i, c, o in zip(k.light.tolist(), k.lens.tolist(), k.code.tolist(),
-                                     k.other.tolist(), strict=True)]
+    skipped = [{"light": j, "lens": i, "reason": r} for j, i, r in _skip_reasons(result)]
     return sources, skipped
 
 
@@ -205,6 +209,71 @@ def write_phase1_json(out, model: str, sources: list, skipped: list,
     out.write("}\n")
 
 
+#: One source of compact JSON, `%`-formatted from a flat row: a finite float by
+#: %r is the text `json.dumps` writes; R_C, image distance and magnification come
+#: as text ("null" where the source has none).
+_SOURCE_ROW = (
+    '{"light":%d,"lens":%d,"kind":"%s","position":[%r,%r,%r],"axis":[%r,%r,%r],'
+    '"spread_deg":%r,"cylinder_radius":%s,"intensity":%r,"color":[%r,%r,%r],"full":%s,'
+    '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%r,'
+    '"unblocked_fraction":%r,"blender_light":{"type":"SPOT","energy_w":%r,'
+    '"spot_size_deg":%r,"spot_blend":%r,"radius":%r}}')
+
+
+def _texts(values, present) -> list[str]:
+    """repr of each value where `present`, else "null" (JSON's None)."""
+    return [repr(v) if p else "null"
+            for v, p in zip(values.tolist(), present.tolist(), strict=True)]
+
+
+def phase1_compact_json(result, lights, model: str):
+    """The compact JSON of `phase1 --json` as chunks of text, formatted straight
+    from the columns (no dict per row): the same text as `write_phase1_json`.
+    None when a row needs `json.dumps`' care (a non-finite number, a light with
+    a profile table)."""
+    import numpy as np
+    t = result.table
+    if lights.profile_info is not None:
+        return None
+    col = t.kind == 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        image = np.where(col, 0.0, 1.0 / t.vergence)
+        magnification = np.where(col, 0.0, -1.0 / (t.vergence * t.distance))
+    floats = [t.position, t.axis, t.spread, t.intensity, t.color, t.brightness_factor,
+              t.unblocked_fraction, lights.energy_w, lights.spot_size_deg, lights.spot_blend,
+              lights.radius, image, magnification, np.where(col, t.cylinder_radius, 0.0)]
+    if not all(np.all(np.isfinite(f)) for f in floats):
+        return None
+    offsets, flat = t.shadow_offsets.tolist(), t.shadow_spheres.tolist()
+    shadow = [",".join(map(str, flat[a:b])) if b > a else ""
+              for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
+    full = np.where(np.diff(t.shadow_offsets) == 0, "true", "false").tolist()
+    columns = [t.light.tolist(), t.lens.tolist(), np.asarray(t.KINDS)[t.kind].tolist(),
+               *t.position.T.tolist(), *t.axis.T.tolist(), np.degrees(t.spread).tolist(),
+               _texts(t.cylinder_radius, col), t.intensity.tolist(), *t.color.T.tolist(),
+               full, shadow, _texts(image, ~col), _texts(magnification, ~col),
+               t.brightness_factor.tolist(), t.unblocked_fraction.tolist(),
+               lights.energy_w.tolist(), lights.spot_size_deg.tolist(),
+               lights.spot_blend.tolist(), lights.radius.tolist()]
+    rows = list(zip(*columns, strict=True))
+    reasons = _skip_reasons(result)
+
+    def chunks():
+        yield '{"model":%s,"sources":[' % json.dumps(model)
+        for start in range(0, len(rows), JSON_CHUNK):
+            yield ("," if start else "") + ",".join(
+                [_SOURCE_ROW % row for row in rows[start:start + JSON_CHUNK]])
+        yield '],"skipped":['
+        texts: dict[str, str] = {}
+        for start in range(0, len(reasons), JSON_CHUNK):
+            yield ("," if start else "") + ",".join(
+                ['{"light":%d,"lens":%d,"reason":%s}'
+                 % (j, i, texts.get(r) or texts.setdefault(r, json.dumps(r)))
+                 for j, i, r in reasons[start:start + JSON_CHUNK]])
+        yield "]}\n"
+    return chunks()
+
+
 def cmd_phase1(args) -> int:
     from addon.bi_format import BiFormatError, read_bi
     from addon.phase1 import compute_phase1
@@ -217,8 +286,14 @@ def cmd_phase1(args) -> int:
     result = compute_phase1(scene)
     lights = phase1_light_table(scene, result, args.model)
     if args.json:
-        sources, skipped = phase1_json_rows(result, lights)
-        write_phase1_json(sys.stdout, args.model.upper(), sources, skipped, args.indent)
+        chunks = (phase1_compact_json(result, lights, args.model.upper())
+                  if args.indent is None else None)
+        if chunks is not None:
+            for text in chunks:
+                sys.stdout.write(text)
+        else:
+            sources, skipped = phase1_json_rows(result, lights)
+            write_phase1_json(sys.stdout, args.model.upper(), sources, skipped, args.indent)
     else:
         print(format_phase1_table(result, lights, args.model))
     return 0

@@ -193,3 +193,30 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
         assert row["blender_light"].pop("type") == want.pop("type")
         assert row["blender_light"] == pytest.approx(want, rel=1e-12)
     assert [r["reason"] for r in skipped] == [k.reason for k in result.skipped]
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("model", MODELS)
+def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, monkeypatch):
+    """The fast compact writer (a `%` template per row) writes exactly the text
+    `json.dumps` makes of the rows, for every kind of source and skip reason."""
+    import sys
+    sys.path.insert(0, str(ROOT / "scripts"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cli
+    from test_tier_tables import random_scene
+
+    from addon.phase1 import compute_phase1
+    scene = random_scene(seed)
+    scene.objects[0].radius = -1.0                   # a skip reason that names a number
+    result = compute_phase1(scene)
+    lights = cli.phase1_light_table(scene, result, model)
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    monkeypatch.setattr(cli, "JSON_CHUNK", 7)
+    chunks = cli.phase1_compact_json(result, lights, model.upper())
+    whole = {"model": model.upper(), "sources": sources, "skipped": skipped}
+    if model == "exact_profile":
+        assert chunks is None                        # its profile goes through json.dumps
+        return
+    assert {s["kind"] for s in sources} == {"real", "virtual", "collimated"}
+    assert "".join(chunks) == json.dumps(whole, separators=(",", ":")) + "\n"
