@@ -259,7 +259,7 @@ def phase1_compact_json(result, lights, model: str):
     reasons = _skip_reasons(result)
 
     def chunks():
-        yield '{"model":%s,"sources":[' % json.dumps(model)
+        yield '{"model":' + json.dumps(model) + ',"sources":['
         for start in range(0, len(rows), JSON_CHUNK):
             yield ("," if start else "") + ",".join(
                 [_SOURCE_ROW % row for row in rows[start:start + JSON_CHUNK]])
@@ -267,8 +267,8 @@ def phase1_compact_json(result, lights, model: str):
         texts: dict[str, str] = {}
         for start in range(0, len(reasons), JSON_CHUNK):
             yield ("," if start else "") + ",".join(
-                ['{"light":%d,"lens":%d,"reason":%s}'
-                 % (j, i, texts.get(r) or texts.setdefault(r, json.dumps(r)))
+                [f'{{"light":{j},"lens":{i},"reason":'
+                 f'{texts.get(r) or texts.setdefault(r, json.dumps(r))}}}'
                  for j, i, r in reasons[start:start + JSON_CHUNK]])
         yield "]}\n"
     return chunks()
