@@ -111,24 +111,35 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         queries = np.flatnonzero(level <= lvl)
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
         q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
-        order = np.argsort(e_keys, kind="stable")
-        e_keys, e_own, e_bits = e_keys[order], owners[e_idx[order]], e_bits[order]
-        lo = np.searchsorted(e_keys, q_keys, side="left")
-        hi = np.searchsorted(e_keys, q_keys, side="right")
-        count = hi - lo
-        if int(count.sum()) == 0:
-            continue
-        at = concat_ranges(lo, count)
-        once = (np.repeat(q_bits, count) & e_bits[at]) == 0
-        q = np.repeat(queries[q_idx], count)[once]
-        e = e_own[at[once]]
-        ok = (level[q] < lvl) | (q < e)      # within a level both orders come up
-        q, e = q[ok], e[ok]
-        # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
-        chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
-        near = chord2 <= (rho[q] + rho[e]) ** 2
-        pa.append(q[near])
-        pb.append(e[near])
+        # Owners by corner, sorted by key: a query's cell at corner bq meets only
+        # owners at corners be with bq & be == 0 (see above), found by binary search.
+        by_corner = []
+        for be in range(8):
+            sel = np.flatnonzero(e_bits == be)
+            order = np.argsort(e_keys[sel], kind="stable")
+            by_corner.append((e_keys[sel][order], owners[e_idx[sel][order]]))
+        for bq in range(8):
+            sel = np.flatnonzero(q_bits == bq)
+            if sel.size == 0:
+                continue
+            qk, qi = q_keys[sel], queries[q_idx[sel]]
+            for be in range(8):
+                ek, eo = by_corner[be]
+                if bq & be or ek.size == 0:
+                    continue
+                lo = np.searchsorted(ek, qk, side="left")
+                count = np.searchsorted(ek, qk, side="right") - lo
+                if not count.any():
+                    continue
+                q = np.repeat(qi, count)
+                e = eo[concat_ranges(lo, count)]
+                ok = (level[q] < lvl) | (q < e)      # within a level both orders come up
+                q, e = q[ok], e[ok]
+                # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
+                chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
+                near = chord2 <= (rho[q] + rho[e]) ** 2
+                pa.append(q[near])
+                pb.append(e[near])
     if not pa:
         return empty, empty
     return active[np.concatenate(pa)], active[np.concatenate(pb)]
