@@ -130,3 +130,15 @@ def test_candidate_pairs_are_each_overlapping_pair_once(seed):
     i, k = i[both], k[both]
     overlap = rho[i] + rho[k] >= angle_between(w[i], w[k])
     assert set(zip(i[overlap].tolist(), k[overlap].tolist(), strict=True)) <= set(pairs)
+
+
+def test_angle_from_columns_is_geometry_angle_between_bit_for_bit():
+    from addon.geometry import angle_between
+    from addon.obstruction import _angle_between_rows
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(5000, 3)) * 10.0 ** rng.integers(-8, 8, (5000, 1))
+    w = v / np.linalg.norm(v, axis=1)[:, None]
+    w[:50] = w[50:100] * (1 + 1e-15)                    # nearly parallel pairs
+    i, k = rng.integers(0, 5000, 20000), rng.integers(0, 5000, 20000)
+    i[:50], k[:50] = np.arange(50), np.arange(50, 100)
+    assert np.array_equal(_angle_between_rows(w, i, k), angle_between(w[i], w[k]))
