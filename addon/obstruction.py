@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import angle_between, cap_overlap_fraction
+from .geometry import cap_overlap_fraction
 from .ranges import concat_ranges
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
