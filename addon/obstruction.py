@@ -121,35 +121,43 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         queries = np.flatnonzero(level <= lvl)
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
         q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
-        # Owners by corner, sorted by key: a query's cell at corner bq meets only
-        # owners at corners be with bq & be == 0 (see above), found by binary search.
-        by_corner = []
-        for be in range(8):
-            sel = np.flatnonzero(e_bits == be)
-            order = np.argsort(e_keys[sel], kind="stable")
-            by_corner.append((e_keys[sel][order], owners[e_idx[sel][order]]))
+
+        def meet(qk, qi, qb, ek, eo, eb, lvl=lvl):
+            """Pairs (query, owner) sharing a cell, in their home cell only, near."""
+            lo = np.searchsorted(ek, qk, side="left")
+            count = np.searchsorted(ek, qk, side="right") - lo
+            if not count.any():
+                return
+            at = concat_ranges(lo, count)
+            q, e = np.repeat(qi, count), eo[at]
+            ok = (level[q] < lvl) | (q < e)          # within a level both orders come up
+            if qb is not None:
+                ok &= (np.repeat(qb, count) & eb[at]) == 0
+            q, e = q[ok], e[ok]
+            # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
+            chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
+            near = chord2 <= (rho[q] + rho[e]) ** 2
+            pa.append(q[near])
+            pb.append(e[near])
+
+        order = np.argsort(e_keys, kind="stable")
+        ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
+        qi = queries[q_idx]
+        raw = int((np.searchsorted(ek, q_keys, side="right")
+                   - np.searchsorted(ek, q_keys, side="left")).sum())
+        if raw <= 4 * q_keys.size:
+            meet(q_keys, qi, q_bits, ek, eo, eb)
+            continue
+        # Crowded: split the owners by corner, so that a query's cell at corner bq
+        # is searched only among owners at corners be with bq & be == 0 (above),
+        # and a pair's other meetings are never expanded.
+        by_corner = [np.flatnonzero(eb == be) for be in range(8)]
         for bq in range(8):
             sel = np.flatnonzero(q_bits == bq)
-            if sel.size == 0:
-                continue
-            qk, qi = q_keys[sel], queries[q_idx[sel]]
             for be in range(8):
-                ek, eo = by_corner[be]
-                if bq & be or ek.size == 0:
-                    continue
-                lo = np.searchsorted(ek, qk, side="left")
-                count = np.searchsorted(ek, qk, side="right") - lo
-                if not count.any():
-                    continue
-                q = np.repeat(qi, count)
-                e = eo[concat_ranges(lo, count)]
-                ok = (level[q] < lvl) | (q < e)      # within a level both orders come up
-                q, e = q[ok], e[ok]
-                # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
-                chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
-                near = chord2 <= (rho[q] + rho[e]) ** 2
-                pa.append(q[near])
-                pb.append(e[near])
+                if sel.size and not bq & be and by_corner[be].size:
+                    k = by_corner[be]
+                    meet(q_keys[sel], qi[sel], None, ek[k], eo[k], None)
     if not pa:
         return empty, empty
     return active[np.concatenate(pa)], active[np.concatenate(pb)]
