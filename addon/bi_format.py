@@ -362,9 +362,10 @@ _SPHERE_TOKENS = len(_SPHERE_KEYS)
 _KEY_COLUMNS = [k for k, key in enumerate(_SPHERE_KEYS) if key is not None]
 _SPHERE_NUMBERS = [k for k, key in enumerate(_SPHERE_KEYS) if key is None]
 #: A line whose first token starts like a number continues a record: not the layout.
-_LINE_STARTS_WITH_NUMBER = re.compile(r"^\s*[-+.0-9]", re.MULTILINE)
-#: Numbers never start with a key's first character: such a token after another is a key.
-_KEY_INSIDE_LINE = re.compile(r"\S[^\S\n]+[TCRS#]")
+_LINE_STARTS_WITH_NUMBER = re.compile(r"\n[^\S\n]*[-+.0-9]")     # searched in "\n" + block
+#: Numbers never start with a key's first character: such a token after a blank is a
+#: key after another token (or an indented key: left to the record reader too).
+_KEY_INSIDE_LINE = re.compile(r"[^\S\n][TCRS#]")
 #: Within these characters, float() accepts exactly what _FLOAT_RE does.
 _NOT_NUMBER_CHAR = re.compile(r"[^0-9.eE+\-\n]")
 
@@ -376,25 +377,27 @@ def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
         return None
     block = "\n".join(reader.lines[reader.pos:])
     tokens = block.split()
-    if len(tokens) != _SPHERE_TOKENS * count or _LINE_STARTS_WITH_NUMBER.search(block):
+    if (len(tokens) != _SPHERE_TOKENS * count
+            or _LINE_STARTS_WITH_NUMBER.search("\n" + block)):
+        return None
+    # Column k of the layout is tokens[k::25]: list slices, compared and converted
+    # in C (no per-token Python code).
+    for k in _KEY_COLUMNS:
+        if tokens[k::_SPHERE_TOKENS] != [_SPHERE_KEYS[k]] * count:
+            return None
+    # No line starts with a number and no key follows a token on its line: one record a line.
+    if _KEY_INSIDE_LINE.search(block):
+        return None
+    columns = [tokens[k::_SPHERE_TOKENS] for k in _SPHERE_NUMBERS]
+    numbers = [t for column in columns for t in column]
+    if _NOT_NUMBER_CHAR.search("\n".join(numbers)):
         return None
     # numpy only here: the reader needs none for small files.
     import numpy as np
 
-    table = np.array(tokens, dtype=object).reshape(count, _SPHERE_TOKENS)
-    keys = np.array([_SPHERE_KEYS[k] for k in _KEY_COLUMNS], dtype=object)
-    if not np.all(table[:, _KEY_COLUMNS] == keys):
-        return None
-    # No line starts with a number and no key follows a token on its line: one record a line.
-    if _KEY_INSIDE_LINE.search(block):
-        return None
-    text = table[:, _SPHERE_NUMBERS]
-    numbers = text.ravel().tolist()
-    if _NOT_NUMBER_CHAR.search("\n".join(numbers)):
-        return None
     try:
         with np.errstate(all="ignore"):
-            v = np.array(list(map(float, numbers)), dtype=float).reshape(count, -1)
+            v = np.array(list(map(float, numbers)), dtype=float).reshape(-1, count).T
     except ValueError:
         return None
     center, radius, color = v[:, 0:3], v[:, 3], v[:, 4:7]
@@ -412,7 +415,7 @@ def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
                    *center.T.tolist(), radius.tolist(), ka.tolist(), kd.tolist(),
                    ks.tolist(), kt.tolist(), ex.tolist(), ior.tolist(), strict=True)]
     # Colours wait for the file's scale like the others; one entry for all of them.
-    color_text = text[:, 4:7]
+    color_text = columns[4:7]
 
     def store(scaled):
         for sphere, c in zip(spheres, scaled, strict=True):
@@ -422,23 +425,24 @@ def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
 
 
 class _BulkColors:
-    """The colour tokens of the bulk spheres, as `_Reader.colors` holds them: a
-    sequence of tokens whose conversion (`convert`) is done once per distinct token."""
+    """The colour tokens of the bulk spheres (three columns of text, their values),
+    as `_Reader.colors` holds them: iterating gives a token above 1 if there is one
+    (all `color_scale` asks); `convert` works once per distinct token."""
 
     def __init__(self, text, values):
         self.text, self.values = text, values
 
     def __iter__(self):                 # what `_Reader.color_scale` looks at
-        return iter(self.text[self.values > 1.0][:1].tolist() if (self.values > 1.0).any()
-                    else ())
+        rows, cols = (self.values > 1.0).nonzero()
+        return iter([self.text[int(cols[0])][int(rows[0])]] if rows.size else [])
 
     def convert(self, scale: float) -> list[tuple[float, float, float]]:
         if scale == 1.0:
-            return [tuple(c) for c in self.values.tolist()]
+            return list(map(tuple, self.values.tolist()))
         memo: dict[str, float] = {}
-        flat = [memo[t] if t in memo else memo.setdefault(t, _color_from_text(t, scale))
-                for t in self.text.ravel().tolist()]
-        return [tuple(flat[k:k + 3]) for k in range(0, len(flat), 3)]
+        r, g, b = ([memo[t] if t in memo else memo.setdefault(t, _color_from_text(t, scale))
+                    for t in column] for column in self.text)
+        return list(zip(r, g, b, strict=True))
 
 
 def _color_from_text(token: str, scale: float) -> float:
