@@ -189,7 +189,7 @@ class _Reader:
         # read in bulk (`_bulk_spheres`) without a Python object per line.
         self.lines = _strip_comments("\n".join(raw_lines), path).split("\n")
         self.pos = 0                             # index into `lines` of the next line
-        self.next: Optional[_Line] = None        # the record at `pos`, once split
+        self.next: _Line | None = None           # the record at `pos`, once split
         self.colors: list[tuple[list[str], Callable[[tuple], None]]] = []
 
     # -- errors ----------------------------------------------------------------
