@@ -1,7 +1,9 @@
 """Reader and writer of the thesis' `.bi` scene files (SPEC section 8).
 
 A file is plain UTF-8 text (a byte-order mark is allowed), one record a line: a
-key, then numbers separated by blanks. Records, in this order:
+key, then numbers separated by blanks. Lines end with LF, CRLF or a lone CR (an
+old Mac line break): universal newlines, as Python's `open()` reads text, so a
+line number in a message is the one an editor shows. Records, in this order:
 
     V w h                  viewport size: positive integers
     C x y z                camera position
@@ -183,9 +185,11 @@ class _Reader:
             raw_lines.pop()                      # a final newline ends the last line
         self.last_line = max(1, len(raw_lines))  # where "missing at end" is reported
         self.line_no = 1                         # line of the record being read
-        lines = _strip_comments("\n".join(raw_lines), path).split("\n")
-        self.records = [_Line(i, ln.split()) for i, ln in enumerate(lines, 1) if ln.split()]
-        self.pos = 0
+        # Records are split off lazily (`peek`): the spheres of a large file are
+        # read in bulk (`_bulk_spheres`) without a Python object per line.
+        self.lines = _strip_comments("\n".join(raw_lines), path).split("\n")
+        self.pos = 0                             # index into `lines` of the next line
+        self.next: _Line | None = None           # the record at `pos`, once split
         self.colors: list[tuple[list[str], Callable[[tuple], None]]] = []
 
     # -- errors ----------------------------------------------------------------
@@ -194,7 +198,14 @@ class _Reader:
 
     # -- records ---------------------------------------------------------------
     def peek(self) -> Optional[_Line]:
-        return self.records[self.pos] if self.pos < len(self.records) else None
+        if self.next is None:
+            while self.pos < len(self.lines):
+                tokens = self.lines[self.pos].split()
+                if tokens:
+                    self.next = _Line(self.pos + 1, tokens)
+                    break
+                self.pos += 1
+        return self.next
 
     def take(self, rec: Rec, what: str = "") -> list[str]:
         """The value tokens of the next record, which must be `rec`; `what`
@@ -205,6 +216,7 @@ class _Reader:
             self.line_no = self.last_line
             raise self.error(f"{expected}, got end of file")
         self.pos += 1
+        self.next = None
         self.line_no = line.number
         if line.tokens[0] != rec.key or len(line.tokens) != 1 + len(rec.args):
             raise self.error(f"{expected}, got '{_show(' '.join(line.tokens))}'")
@@ -259,7 +271,7 @@ class _Reader:
         while len(lights) < n_lights:
             lights.append(self.light(len(lights) + 1, n_lights))
         (n_objects,) = self.ints(N_OBJECTS)
-        objects = []
+        objects = _bulk_spheres(self, n_objects) or []
         while len(objects) < n_objects:
             objects.append(self.sphere(len(objects) + 1, n_objects))
         extra = self.peek()
@@ -269,7 +281,10 @@ class _Reader:
                              f"(O {n_objects}), got '{_show(' '.join(extra.tokens))}'")
         scale = self.color_scale()
         for tokens, store in self.colors:
-            store(tuple(_color_from_text(t, scale) for t in tokens))
+            if isinstance(tokens, _BulkColors):
+                store(tokens.convert(scale))
+            else:
+                store(tuple(_color_from_text(t, scale) for t in tokens))
         return Scene(width=width, height=height, camera=camera, lights=lights,
                      objects=objects, color_scale=scale)
 
@@ -335,6 +350,101 @@ class _Reader:
         return 255.0 if above_one else 1.0
 
 
+# The bulk path for the spheres: when the remaining tokens are exactly `count`
+# spheres in the written layout (keys where the layout puts them, the surface
+# records in the written order, plain numbers elsewhere, each line starting with
+# a key), they are converted and range-checked as arrays. Anything else, and
+# any value out of range, falls back to the record by record reader, which
+# names the line: errors are unchanged.
+_SPHERE_KEYS = ("T", "0", "C", None, None, None, "R", None, "S", "#C", None, None, None,
+                "#A", None, "#D", None, "#S", None, "#T", None, "#E", None, "#N", None)
+_SPHERE_TOKENS = len(_SPHERE_KEYS)
+_KEY_COLUMNS = [k for k, key in enumerate(_SPHERE_KEYS) if key is not None]
+_SPHERE_NUMBERS = [k for k, key in enumerate(_SPHERE_KEYS) if key is None]
+#: A line whose first token starts like a number continues a record: not the layout.
+_LINE_STARTS_WITH_NUMBER = re.compile(r"\n[^\S\n]*[-+.0-9]")     # searched in "\n" + block
+#: Numbers never start with a key's first character: such a token after a blank is a
+#: key after another token (or an indented key: left to the record reader too).
+_KEY_INSIDE_LINE = re.compile(r"[^\S\n][TCRS#]")
+#: Within these characters, float() accepts exactly what _FLOAT_RE does.
+_NOT_NUMBER_CHAR = re.compile(r"[^0-9.eE+\-\n]")
+
+
+def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
+    """The `count` spheres that end the file, read at once, or None (then the
+    record by record reader goes on from the same place)."""
+    if count < 64:                      # not worth it: the plain path is as fast
+        return None
+    block = "\n".join(reader.lines[reader.pos:])
+    tokens = block.split()
+    if (len(tokens) != _SPHERE_TOKENS * count
+            or _LINE_STARTS_WITH_NUMBER.search("\n" + block)):
+        return None
+    # Column k of the layout is tokens[k::25]: list slices, compared and converted
+    # in C (no per-token Python code).
+    for k in _KEY_COLUMNS:
+        if tokens[k::_SPHERE_TOKENS] != [_SPHERE_KEYS[k]] * count:
+            return None
+    # No line starts with a number and no key follows a token on its line: one record a line.
+    if _KEY_INSIDE_LINE.search(block):
+        return None
+    columns = [tokens[k::_SPHERE_TOKENS] for k in _SPHERE_NUMBERS]
+    numbers = [t for column in columns for t in column]
+    if _NOT_NUMBER_CHAR.search("\n".join(numbers)):
+        return None
+    # numpy only here: the reader needs none for small files.
+    import numpy as np
+
+    try:
+        with np.errstate(all="ignore"):
+            v = np.array(list(map(float, numbers)), dtype=float).reshape(-1, count).T
+    except ValueError:
+        return None
+    center, radius, color = v[:, 0:3], v[:, 3], v[:, 4:7]
+    ka, kd, ks, kt, ex, ior = v[:, 7], v[:, 8], v[:, 9], v[:, 10], v[:, 11], v[:, 12]
+    ok = (np.all(np.isfinite(v)) and np.all(radius > 0) and np.all(color >= 0)
+          and np.all(ka >= 0) and np.all(kd >= 0) and np.all(ks >= 0)
+          and np.all((kt >= 0) & (kt <= 1)) and np.all(ex >= 0) and np.all(ior > 0))
+    if not ok:
+        return None
+    reader.pos, reader.next = len(reader.lines), None
+    spheres = [Sphere(center=(x, y, z), radius=r,
+                      surface=Surface(ambient=a, diffuse=d, specular=s, transmission=t,
+                                      exponent=e, ior=n))
+               for x, y, z, r, a, d, s, t, e, n in zip(
+                   *center.T.tolist(), radius.tolist(), ka.tolist(), kd.tolist(),
+                   ks.tolist(), kt.tolist(), ex.tolist(), ior.tolist(), strict=True)]
+    # Colours wait for the file's scale like the others; one entry for all of them.
+    color_text = columns[4:7]
+
+    def store(scaled):
+        for sphere, c in zip(spheres, scaled, strict=True):
+            sphere.surface.color = c
+    reader.colors.append((_BulkColors(color_text, color), store))
+    return spheres
+
+
+class _BulkColors:
+    """The colour tokens of the bulk spheres (three columns of text, their values),
+    as `_Reader.colors` holds them: iterating gives a token above 1 if there is one
+    (all `color_scale` asks); `convert` works once per distinct token."""
+
+    def __init__(self, text, values):
+        self.text, self.values = text, values
+
+    def __iter__(self):                 # what `_Reader.color_scale` looks at
+        rows, cols = (self.values > 1.0).nonzero()
+        return iter([self.text[int(cols[0])][int(rows[0])]] if rows.size else [])
+
+    def convert(self, scale: float) -> list[tuple[float, float, float]]:
+        if scale == 1.0:
+            return list(map(tuple, self.values.tolist()))
+        memo: dict[str, float] = {}
+        r, g, b = ([memo[t] if t in memo else memo.setdefault(t, _color_from_text(t, scale))
+                    for t in column] for column in self.text)
+        return list(zip(r, g, b, strict=True))
+
+
 def _color_from_text(token: str, scale: float) -> float:
     """A colour component in 0-1. Dividing the exact decimal by 255 and rounding
     once makes the writer's text for `value * 255` read back bit for bit."""
@@ -363,7 +473,8 @@ def _decode(data: bytes, path: str) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
+        head = data[:exc.start]                  # LF, CRLF and a lone CR each end a line
+        line = head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
         raise BiFormatError(path, line, "expected UTF-8 text (the file has bytes "
                                         "that are not UTF-8)") from exc
 

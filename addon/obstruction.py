@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import angle_between, cap_overlap_fraction
+from .geometry import cap_overlap_fraction
 from .ranges import concat_ranges
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
@@ -43,13 +43,13 @@ def find_blockers(lens_rows: np.ndarray, direction: np.ndarray, ang: np.ndarray,
     row_of[lens_rows] = np.arange(n_rows)
 
     a, b = _candidate_pairs(direction, ang, obstacle, row_of >= 0)
-    # Orient every unordered pair both ways: (lens, obstacle).
-    lens = np.concatenate([a, b])
-    obst = np.concatenate([b, a])
+    # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
+    far_a = tlen[a] > tlen[b]
+    lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
     keep = (row_of[lens] >= 0) & obstacle[obst] & (tlen[obst] < tlen[lens])
     lens, obst = lens[keep], obst[keep]
     alpha, beta = ang[lens], ang[obst]
-    gamma = angle_between(direction[lens], direction[obst])
+    gamma = _angle_between_rows(direction, lens, obst)
     blocks = alpha + beta >= gamma
     lens, obst, alpha, beta, gamma = (x[blocks] for x in (lens, obst, alpha, beta, gamma))
     total = beta >= gamma + alpha
@@ -76,67 +76,108 @@ def find_blockers(lens_rows: np.ndarray, direction: np.ndarray, ang: np.ndarray,
     return Blockers(total_blocker, np.cumsum(offsets), obst, unblocked)
 
 
+def _angle_between_rows(direction, i, k):
+    """`geometry.angle_between(direction[i], direction[k])`, bit for bit, from the
+    columns (no (N, 3) gathers and no `np.cross` overhead: it is most of the
+    exact test's cost in a crowded view)."""
+    x, y, z = (np.ascontiguousarray(direction[:, c]) for c in range(3))
+    ax, ay, az, bx, by, bz = x[i], y[i], z[i], x[k], y[k], z[k]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+
+
 def _candidate_pairs(direction, ang, obstacle, lens_mask):
-    """Unordered pairs (a, b) of spheres whose angular discs may overlap.
+    """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
-    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect.
+    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect
+    (ρ is widened by a few ulps for rounding); pairs sharing a cell are kept if
+    that chord test holds.
     A hierarchy of uniform grids (cell sizes c₀·2^ℓ) holds each box in the level
     whose cells are at least twice its width, so a box touches at most 8 cells of
     its own level and of every coarser one. Each box is looked up in its own and
     all coarser levels: two intersecting boxes always share a cell of the coarser
     one's level. Near and far spheres (discs of very different sizes) thus cost
     no more than uniform ones.
+    A pair is kept only in the cell holding the lower corner of the two boxes'
+    overlap (and, within one level, with a < b): so each pair comes out once,
+    without sorting all candidates to drop repeats. A box spans at most two
+    cells per axis; that cell is the one where, on every axis, one of the two
+    boxes is in its lower cell (`_cell_keys`' corner bits: `bits_a & bits_b == 0`).
     """
     active = np.flatnonzero(obstacle | lens_mask)
     empty = np.zeros(0, dtype=np.int64)
     if active.size < 2:
         return empty, empty
-    w, rho = direction[active], ang[active]
+    w = direction[active]
+    rho = ang[active] * (1.0 + 1e-12) + 1e-15
     c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
     level = np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * rho / c0, 1.0)))).astype(np.int64)
+    wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
     pa, pb = [], []
     for lvl in np.unique(level):
         cell = c0 * 2.0 ** lvl
         owners = np.flatnonzero(level == lvl)
         queries = np.flatnonzero(level <= lvl)
-        e_keys, e_idx = _cell_keys(w[owners], rho[owners], cell)
-        q_keys, q_idx = _cell_keys(w[queries], rho[queries], cell)
+        e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
+        q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
+
+        def meet(qk, qi, qb, ek, eo, eb, lvl=lvl):
+            """Pairs (query, owner) sharing a cell, in their home cell only, near."""
+            lo = np.searchsorted(ek, qk, side="left")
+            count = np.searchsorted(ek, qk, side="right") - lo
+            if not count.any():
+                return
+            at = concat_ranges(lo, count)
+            q, e = np.repeat(qi, count), eo[at]
+            ok = (level[q] < lvl) | (q < e)          # within a level both orders come up
+            if qb is not None:
+                ok &= (np.repeat(qb, count) & eb[at]) == 0
+            q, e = q[ok], e[ok]
+            # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
+            chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
+            near = chord2 <= (rho[q] + rho[e]) ** 2
+            pa.append(q[near])
+            pb.append(e[near])
+
         order = np.argsort(e_keys, kind="stable")
-        e_keys, e_own = e_keys[order], owners[e_idx[order]]
-        lo = np.searchsorted(e_keys, q_keys, side="left")
-        hi = np.searchsorted(e_keys, q_keys, side="right")
-        count = hi - lo
-        total = int(count.sum())
-        if total == 0:
+        ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
+        qi = queries[q_idx]
+        raw = int((np.searchsorted(ek, q_keys, side="right")
+                   - np.searchsorted(ek, q_keys, side="left")).sum())
+        if raw <= 4 * q_keys.size:
+            meet(q_keys, qi, q_bits, ek, eo, eb)
             continue
-        q = np.repeat(queries[q_idx], count)
-        e = e_own[concat_ranges(lo, count)]
-        pa.append(q)
-        pb.append(e)
+        # Crowded: split the owners by corner, so that a query's cell at corner bq
+        # is searched only among owners at corners be with bq & be == 0 (above),
+        # and a pair's other meetings are never expanded.
+        by_corner = [np.flatnonzero(eb == be) for be in range(8)]
+        for bq in range(8):
+            sel = np.flatnonzero(q_bits == bq)
+            for be in range(8):
+                if sel.size and not bq & be and by_corner[be].size:
+                    k = by_corner[be]
+                    meet(q_keys[sel], qi[sel], None, ek[k], eo[k], None)
     if not pa:
         return empty, empty
-    a, b = np.concatenate(pa), np.concatenate(pb)
-    distinct = a != b
-    a, b = active[a[distinct]], active[b[distinct]]
-    n = direction.shape[0]
-    key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
-    return key // n, key % n
+    return active[np.concatenate(pa)], active[np.concatenate(pb)]
 
 
 def _cell_keys(w, rho, cell):
     """Keys of the (at most 8) cells of a grid of size `cell` that each box
-    [w − ρ, w + ρ] touches (2ρ ≤ cell), with the index of the box each key is for.
+    [w − ρ, w + ρ] touches (2ρ ≤ cell), with the index of the box each key is for
+    and which corner of the box's cells it is (bit 4: x, 2: y, 1: z upper).
     The grid is fixed in space (origin below −1, since |w| = 1), so keys of
     different box sets on the same level agree."""
     dims = int(math.ceil(2.5 / cell)) + 2
     lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
     hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
-    keys, idx = [], []
+    keys, idx, bits = [], [], []
     for d in ((0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1),
               (1, 0, 0), (1, 0, 1), (1, 1, 0), (1, 1, 1)):
         c = lo + d
         ok = np.all(c <= hi, axis=1)
         keys.append((c[ok, 0] * dims + c[ok, 1]) * dims + c[ok, 2])
         idx.append(np.flatnonzero(ok))
-    return np.concatenate(keys), np.concatenate(idx)
+        bits.append(np.full(idx[-1].size, 4 * d[0] + 2 * d[1] + d[2], dtype=np.uint8))
+    return np.concatenate(keys), np.concatenate(idx), np.concatenate(bits)

@@ -2,7 +2,7 @@
 with the pinned environment's python).
 
 Subcommands:
-  phase1 SCENE.bi [--json] [--model TIER]
+  phase1 SCENE.bi [--json [--indent N]] [--model TIER]
                              secondary light sources of a `.bi` scene and the
                              Blender light of each for a lens-light tier
                              (thesis|physical|fitted|exact_profile; default
@@ -87,8 +87,9 @@ def blender_lights(scene, result, model: str) -> list:
 
 
 def format_phase1_table(result, lights=None, model: str = "") -> str:
-    """A readable report of phase 1: one row per source (with `lights`, the energy
-    of its Blender light for the tier `model`), then the skipped pairs."""
+    """A readable report of phase 1: one row per source (with `lights`, a
+    `tier_tables.LightTable` or a list of `BlenderLight`, the energy of its
+    Blender light for the tier `model`), then the skipped pairs."""
     lines = [f"{len(result.sources)} secondary light source(s), "
              f"{len(result.skipped)} light × sphere pair(s) skipped", ""]
     if result.sources:
@@ -97,12 +98,14 @@ def format_phase1_table(result, lights=None, model: str = "") -> str:
                   f"{'spread°':>8} {'R_C':>8} {'intensity':>9} {energy} shadow")
         if lights is not None:
             lines.insert(1, f"energy: Blender light power (W) with the {model.lower()} tier")
+            energies = (lights.energy_w.tolist() if hasattr(lights, "energy_w")
+                        else [bl.energy_w for bl in lights])
         lines += [header, "-" * len(header)]
         for k, s in enumerate(result.sources):
             rc = f"{s.cylinder_radius:.4g}" if s.cylinder_radius is not None else "-"
             shadow = "full" if s.full else "non-full, blocked by " + ", ".join(
                 f"sphere {k}" for k in s.shadow_list)
-            e = f"{lights[k].energy_w:>10.4g} " if lights is not None else ""
+            e = f"{energies[k]:>10.4g} " if lights is not None else ""
             lines.append(f"{s.light:>5} {s.lens:>4}  {s.kind:<10} "
                          f"{_fmt_vec(s.position):<28} {s.spread_deg:>8.4g} {rc:>8} "
                          f"{s.intensity:>9.4g} {e} {shadow}")
@@ -110,6 +113,169 @@ def format_phase1_table(result, lights=None, model: str = "") -> str:
         lines += ["", "skipped:"]
         lines += [f"  light {k.light} × sphere {k.lens}: {k.reason}" for k in result.skipped]
     return "\n".join(lines)
+
+
+def phase1_light_table(scene, result, model: str):
+    """`blender_lights` for every source at once (`addon.tier_tables`: columns,
+    the same numbers as the per-source makers)."""
+    import numpy as np
+
+    from addon.tier_tables import bi_scene_light_table
+    radius = np.array([float(lt.radius) for lt in scene.lights], dtype=float)
+    return bi_scene_light_table(result._arrays, result.table, model, radius)
+
+
+def _split(flat: list, offsets: list) -> list[list]:
+    return [flat[a:b] for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
+
+
+def _skip_reasons(result) -> list[tuple[int, int, str]]:
+    """(light, lens, reason) of each skipped pair; a text made once per distinct
+    (code, the numbers it names)."""
+    from addon import phase1 as p1
+    a, k = result._arrays, result.skip_table
+    memo: dict = {}
+
+    def reason(code, lens, other):
+        key = (code, lens if code in (p1.INVALID_SPHERE_RADIUS, p1.INVALID_KT,
+                                      p1.NOT_CONVERGING) else -1, other)
+        if key not in memo:
+            memo[key] = p1.reason_text(code, float(a.radius[lens]), float(a.ior[lens]),
+                                       float(a.kt[lens]), other)
+        return memo[key]
+    return [(j, i, reason(c, i, o))
+            for j, i, c, o in zip(k.light.tolist(), k.lens.tolist(), k.code.tolist(),
+                                  k.other.tolist(), strict=True)]
+
+
+def phase1_json_rows(result, lights):
+    """The JSON of each source (with its Blender light) and of each skipped pair,
+    made from the columns: every array becomes a list once."""
+    import numpy as np
+    t = result.table
+    col = t.kind == 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        image = np.where(col, np.nan, 1.0 / t.vergence)
+        magnification = np.where(col, np.nan, -1.0 / (t.vergence * t.distance))
+
+    def maybe(values, when):                # None where `when`
+        return [None if c else v for v, c in zip(values.tolist(), when.tolist(), strict=True)]
+    bl = lights.json_columns()
+    bl_keys = list(bl)
+    blender = [dict(zip(bl_keys, row, strict=True)) for row in zip(*bl.values(), strict=True)]
+    shadow = _split(t.shadow_spheres.tolist(), t.shadow_offsets.tolist())
+    kinds = np.asarray(t.KINDS)[t.kind].tolist()
+    sources = [
+        {"light": j, "lens": i, "kind": k, "position": pos, "axis": ax, "spread_deg": sp,
+         "cylinder_radius": rc, "intensity": it, "color": c, "full": not sh,
+         "shadow_list": sh, "image_distance": im, "magnification": m, "brightness_factor": bf,
+         "unblocked_fraction": uf, "blender_light": b}
+        for j, i, k, pos, ax, sp, rc, it, c, sh, im, m, bf, uf, b in zip(
+            t.light.tolist(), t.lens.tolist(), kinds, t.position.tolist(), t.axis.tolist(),
+            np.degrees(t.spread).tolist(), maybe(t.cylinder_radius, ~col), t.intensity.tolist(),
+            t.color.tolist(), shadow, maybe(image, col), maybe(magnification, col),
+            t.brightness_factor.tolist(), t.unblocked_fraction.tolist(), blender, strict=True)]
+    skipped = [{"light": j, "lens": i, "reason": r} for j, i, r in _skip_reasons(result)]
+    return sources, skipped
+
+
+#: Rows encoded per `json.dumps` call when streaming (bounded memory, few writes).
+JSON_CHUNK = 20_000
+
+
+def write_phase1_json(out, model: str, sources: list, skipped: list,
+                      indent: int | None = None) -> None:
+    """`{"model": …, "sources": […], "skipped": […]}` to `out`, streamed in chunks
+    of rows, each encoded by the C encoder at once. `indent`: as `json.dump`'s
+    (the text is the same as `json.dump` of the whole object would write); None:
+    compact, no blanks."""
+    seps = (",", ":") if indent is None else (",", ": ")
+    nl = "" if indent is None else "\n"
+    pad = "" if indent is None else " " * indent
+
+    def rows(items, depth):
+        for start in range(0, len(items), JSON_CHUNK):
+            text = json.dumps(items[start:start + JSON_CHUNK], indent=indent,
+                              separators=seps)[1:-1]
+            if indent is not None:          # "\n  row,\n  row\n", one level deeper
+                text = text[:-1].replace("\n", "\n" + pad * (depth - 1))[1:]
+            yield ("," + nl if start else "") + text
+
+    out.write("{" + nl + pad + json.dumps("model") + seps[1] + json.dumps(model) + "," + nl)
+    for name, items, last in (("sources", sources, False), ("skipped", skipped, True)):
+        out.write(pad + json.dumps(name) + seps[1] + "[")
+        if items:
+            out.write(nl)
+            for chunk in rows(items, 2):
+                out.write(chunk)
+            out.write(nl + pad)
+        out.write("]" + ("" if last else ",") + nl)
+    out.write("}\n")
+
+
+#: One source of compact JSON, `%`-formatted from a flat row: a finite float by
+#: %r is the text `json.dumps` writes; R_C, image distance and magnification come
+#: as text ("null" where the source has none).
+_SOURCE_ROW = (
+    '{"light":%d,"lens":%d,"kind":"%s","position":[%r,%r,%r],"axis":[%r,%r,%r],'
+    '"spread_deg":%r,"cylinder_radius":%s,"intensity":%r,"color":[%r,%r,%r],"full":%s,'
+    '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%r,'
+    '"unblocked_fraction":%r,"blender_light":{"type":"SPOT","energy_w":%r,'
+    '"spot_size_deg":%r,"spot_blend":%r,"radius":%r}}')
+
+
+def _texts(values, present) -> list[str]:
+    """repr of each value where `present`, else "null" (JSON's None)."""
+    return [repr(v) if p else "null"
+            for v, p in zip(values.tolist(), present.tolist(), strict=True)]
+
+
+def phase1_compact_json(result, lights, model: str):
+    """The compact JSON of `phase1 --json` as chunks of text, formatted straight
+    from the columns (no dict per row): the same text as `write_phase1_json`.
+    None when a row needs `json.dumps`' care (a non-finite number, a light with
+    a profile table)."""
+    import numpy as np
+    t = result.table
+    if lights.profile_info is not None:
+        return None
+    col = t.kind == 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        image = np.where(col, 0.0, 1.0 / t.vergence)
+        magnification = np.where(col, 0.0, -1.0 / (t.vergence * t.distance))
+    floats = [t.position, t.axis, t.spread, t.intensity, t.color, t.brightness_factor,
+              t.unblocked_fraction, lights.energy_w, lights.spot_size_deg, lights.spot_blend,
+              lights.radius, image, magnification, np.where(col, t.cylinder_radius, 0.0)]
+    if not all(np.all(np.isfinite(f)) for f in floats):
+        return None
+    offsets, flat = t.shadow_offsets.tolist(), t.shadow_spheres.tolist()
+    shadow = [",".join(map(str, flat[a:b])) if b > a else ""
+              for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
+    full = np.where(np.diff(t.shadow_offsets) == 0, "true", "false").tolist()
+    columns = [t.light.tolist(), t.lens.tolist(), np.asarray(t.KINDS)[t.kind].tolist(),
+               *t.position.T.tolist(), *t.axis.T.tolist(), np.degrees(t.spread).tolist(),
+               _texts(t.cylinder_radius, col), t.intensity.tolist(), *t.color.T.tolist(),
+               full, shadow, _texts(image, ~col), _texts(magnification, ~col),
+               t.brightness_factor.tolist(), t.unblocked_fraction.tolist(),
+               lights.energy_w.tolist(), lights.spot_size_deg.tolist(),
+               lights.spot_blend.tolist(), lights.radius.tolist()]
+    rows = list(zip(*columns, strict=True))
+    reasons = _skip_reasons(result)
+
+    def chunks():
+        yield '{"model":' + json.dumps(model) + ',"sources":['
+        for start in range(0, len(rows), JSON_CHUNK):
+            yield ("," if start else "") + ",".join(
+                [_SOURCE_ROW % row for row in rows[start:start + JSON_CHUNK]])
+        yield '],"skipped":['
+        texts: dict[str, str] = {}
+        for start in range(0, len(reasons), JSON_CHUNK):
+            yield ("," if start else "") + ",".join(
+                [f'{{"light":{j},"lens":{i},"reason":'
+                 f'{texts.get(r) or texts.setdefault(r, json.dumps(r))}}}'
+                 for j, i, r in reasons[start:start + JSON_CHUNK]])
+        yield "]}\n"
+    return chunks()
 
 
 def cmd_phase1(args) -> int:
@@ -122,13 +288,16 @@ def cmd_phase1(args) -> int:
     except OSError as e:
         return _fail(f"{args.scene}: {e.strerror or e}")
     result = compute_phase1(scene)
-    lights = blender_lights(scene, result, args.model)
+    lights = phase1_light_table(scene, result, args.model)
     if args.json:
-        out = result.to_json()
-        for src, bl in zip(out["sources"], lights):
-            src["blender_light"] = bl.to_json()
-        json.dump({"model": args.model.upper(), **out}, sys.stdout, indent=2)
-        print()
+        chunks = (phase1_compact_json(result, lights, args.model.upper())
+                  if args.indent is None else None)
+        if chunks is not None:
+            for text in chunks:
+                sys.stdout.write(text)
+        else:
+            sources, skipped = phase1_json_rows(result, lights)
+            write_phase1_json(sys.stdout, args.model.upper(), sources, skipped, args.indent)
     else:
         print(format_phase1_table(result, lights, args.model))
     return 0
@@ -203,7 +372,10 @@ def main(argv=None) -> int:
 
     p = sub.add_parser("phase1", help="secondary light sources of a .bi scene")
     p.add_argument("scene", help="a .bi scene file")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--json", action="store_true",
+                   help="print JSON instead of a table (compact: one line, no blanks)")
+    p.add_argument("--indent", type=int, default=None, metavar="N",
+                   help="with --json: indent nested levels by N spaces, for people")
     p.add_argument("--model", choices=PHASE1_MODELS, default=PHASE1_DEFAULT_MODEL,
                    type=str.lower,
                    help=("lens-light tier of each source's Blender light (default: "

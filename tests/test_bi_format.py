@@ -496,7 +496,9 @@ def parse_only_bi_errors(text):
         scene = parse_bi(text, "fuzz.bi")
     except BiFormatError as err:
         assert err.path == "fuzz.bi" and str(err).startswith("fuzz.bi")
-        assert err.line is None or 1 <= err.line <= text.count("\n") + 2
+        # Universal newlines (the reader's rule): LF, CRLF and a lone CR end a line.
+        breaks = text.count("\n") + text.count("\r") - text.count("\r\n")
+        assert err.line is None or 1 <= err.line <= breaks + 2
     else:
         assert isinstance(scene, Scene)
         assert parse_bi(format_bi(scene)) == scene
@@ -533,3 +535,73 @@ def test_random_bytes_in_a_file_raise_only_bi_format_error(noise, at):
         assert err.path == name
     finally:
         os.unlink(name)
+
+
+def test_lone_cr_is_a_line_break():
+    # Universal newlines: an old Mac file (CR only) reads like LF and CRLF, and an
+    # error names the line an editor shows.
+    assert parse_bi(FIG3.replace("\n", "\r")) == parse_bi(FIG3)
+    bad = FIG3.replace("R 2", "R -2").replace("\n", "\r")
+    line = FIG3.replace("R 2", "R -2").splitlines().index("R -2") + 1
+    with pytest.raises(BiFormatError, match=f"^fuzz.bi:{line}: "):
+        parse_bi(bad, "fuzz.bi")
+
+
+def test_bad_utf8_is_reported_on_its_line_with_cr_breaks(tmp_path):
+    path = tmp_path / "mac.bi"
+    path.write_bytes(b"V 200 200\rC 0 0 10\r\xff\r")
+    with pytest.raises(BiFormatError, match=r":3: expected UTF-8"):
+        read_bi(path)
+
+
+def _many_spheres_text(n=100, scale255=False):
+    rng = __import__("random").Random(5)
+    objects = [Sphere(center=(rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(-9, 9)),
+                      radius=rng.uniform(0.1, 2),
+                      surface=Surface(color=(rng.choice([0.2, 0.5, 1.0]), 0.7, 0.25),
+                                      transmission=rng.choice([0.0, 0.9]), ior=1.5))
+               for _ in range(n)]
+    scene = Scene(lights=[Light(position=(0.0, 20.0, 0.0))], objects=objects,
+                  color_scale=255.0 if scale255 else 1.0)
+    return format_bi(scene)
+
+
+def _plain_parse(text, monkeypatch):
+    import addon.bi_format as bf
+    with monkeypatch.context() as m:
+        m.setattr(bf, "_bulk_spheres", lambda reader, count: None)
+        try:
+            return parse_bi(text, "big.bi")
+        except BiFormatError as err:
+            return str(err)
+
+
+@pytest.mark.parametrize("scale255", [False, True])
+def test_bulk_sphere_path_reads_like_the_record_reader(scale255, monkeypatch):
+    text = _many_spheres_text(scale255=scale255)
+    assert parse_bi(text, "big.bi") == _plain_parse(text, monkeypatch)
+
+
+@pytest.mark.parametrize("edit", [
+    ("R ", "R -"),                  # out of range: record reader's message and line
+    ("#T 0.9", "#T 1.9"),
+    ("#A 0.1\n#D", "#A 0.1 #D"),     # two records on a line
+    ("C ", "C\n"),                  # a record split over two lines
+    ("#A 0.1", "#A nan"),
+    ("#E 6", "#E 1_0"),
+    ("#N 1.5\n", "#N 1.5\n#N 1.5\n"),
+    ("#A 0.1\n#D 0.5", "#D 0.5\n#A 0.1"),   # other order: legal, record reader
+])
+def test_bulk_sphere_path_leaves_anything_else_to_the_record_reader(edit, monkeypatch):
+    text = _many_spheres_text()
+    cut = text.index("object 80")
+    text = text[:cut] + text[cut:].replace(*edit, 1)
+    got = parse_bi(text, "big.bi") if not isinstance(_plain_parse(text, monkeypatch), str) \
+        else None
+    want = _plain_parse(text, monkeypatch)
+    if isinstance(want, str):
+        with pytest.raises(BiFormatError) as err:
+            parse_bi(text, "big.bi")
+        assert str(err.value) == want
+    else:
+        assert got == want

@@ -150,3 +150,73 @@ def test_exact_profile_energy_is_twice_the_beams_flux():
     flux = exact_optics.lens_flux(i0, D, lens.radius, lens.surface.ior)
     kt = lens.surface.transmission
     assert out["blender_light"]["energy_w"] == pytest.approx(2 * flux * kt * kt, rel=1e-3)
+
+
+def test_json_is_compact_by_default_and_indent_is_for_people():
+    compact = phase1(FIG3, "--json")
+    assert compact.returncode == 0, compact.stderr
+    out = json.loads(compact.stdout)
+    # One line, no blanks between tokens: what json.dumps writes with the tightest separators.
+    assert compact.stdout == json.dumps(out, separators=(",", ":")) + "\n"
+    for n in (2, 4):
+        people = phase1(FIG3, "--json", "--indent", str(n))
+        assert people.returncode == 0, people.stderr
+        assert people.stdout == json.dumps(out, indent=n) + "\n"
+
+
+@pytest.mark.parametrize("indent", [None, 0, 2, 3])
+def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
+    """Rows are encoded a chunk at a time: the text is still exactly json.dump's."""
+    import io
+    import sys
+
+    from addon.phase1 import compute_phase1
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import cli
+    scene = read_bi(FIG1)
+    scene.lights = scene.lights * 5                  # 5 sources and 5 skipped pairs
+    result = compute_phase1(scene)
+    lights = cli.phase1_light_table(scene, result, "fitted")
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    assert len(sources) == 5 and len(skipped) == 5
+    monkeypatch.setattr(cli, "JSON_CHUNK", 2)
+    out = io.StringIO()
+    cli.write_phase1_json(out, "FITTED", sources, skipped, indent)
+    whole = {"model": "FITTED", "sources": sources, "skipped": skipped}
+    seps = (",", ":") if indent is None else None
+    assert out.getvalue() == json.dumps(whole, indent=indent, separators=seps) + "\n"
+    # and the rows are what the per-source objects say (SecondarySource.to_json)
+    for row, src, bl in zip(sources, result.sources,
+                                 cli.blender_lights(scene, result, "fitted"), strict=True):
+        assert {k: v for k, v in row.items() if k != "blender_light"} == src.to_json()
+        want = bl.to_json()
+        assert row["blender_light"].pop("type") == want.pop("type")
+        assert row["blender_light"] == pytest.approx(want, rel=1e-12)
+    assert [r["reason"] for r in skipped] == [k.reason for k in result.skipped]
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("model", MODELS)
+def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, monkeypatch):
+    """The fast compact writer (a `%` template per row) writes exactly the text
+    `json.dumps` makes of the rows, for every kind of source and skip reason."""
+    import sys
+    sys.path.insert(0, str(ROOT / "scripts"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cli
+    from test_tier_tables import random_scene
+
+    from addon.phase1 import compute_phase1
+    scene = random_scene(seed)
+    scene.objects[0].radius = -1.0                   # a skip reason that names a number
+    result = compute_phase1(scene)
+    lights = cli.phase1_light_table(scene, result, model)
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    monkeypatch.setattr(cli, "JSON_CHUNK", 7)
+    chunks = cli.phase1_compact_json(result, lights, model.upper())
+    whole = {"model": model.upper(), "sources": sources, "skipped": skipped}
+    if model == "exact_profile":
+        assert chunks is None                        # its profile goes through json.dumps
+        return
+    assert {s["kind"] for s in sources} == {"real", "virtual", "collimated"}
+    assert "".join(chunks) == json.dumps(whole, separators=(",", ":")) + "\n"

@@ -85,3 +85,60 @@ def test_dense_row_of_lenses_along_a_line_of_sight():
     assert [s.shadow_list for s in result.sources] == [list(range(i)) for i in range(n)]
     ref = thesis_obstruction(a, 0)
     assert all(ref[i] == ("partial", list(range(i))) for i in range(n))
+
+
+def dense_grid(nx, ny, nz, light, radius=0.3):
+    g = np.meshgrid(np.arange(float(nx)), np.arange(float(ny)), np.arange(float(nz)),
+                    indexing="ij")
+    c = np.column_stack([x.ravel() for x in g])
+    n = len(c)
+    return SceneArrays(np.array([light], dtype=float), np.ones(1), np.ones((1, 3)), c,
+                       np.full(n, radius), np.full(n, 1.5), np.full(n, 0.9))
+
+
+@pytest.mark.parametrize("light", [(4.7, 4.3, 3.0), (0.5, -1.0, 0.4), (4.5, 4.5, 1.5)])
+def test_dense_grid_with_a_close_light_equals_thesis_loop(light):
+    """Spheres on a grid, the light just above or beside it (discs of very different
+    sizes, heavily overlapping at grazing angles): the crowded case the broad phase
+    is tuned for."""
+    a = dense_grid(10, 10, 3, light)
+    result = compute_phase1(a)
+    ref = thesis_obstruction(a, 0)
+    got = {s.lens: ("partial", s.shadow_list) for s in result.sources}
+    got.update({k.lens: ("total", int(k.reason.rsplit(" ", 1)[1]))
+                for k in result.skipped if k.reason.startswith("totally blocked")})
+    assert got == ref
+    assert sum(v[0] == "total" for v in ref.values()) > 10
+    assert sum(len(v[1]) for v in ref.values() if v[0] == "partial") > 100
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_candidate_pairs_are_each_overlapping_pair_once(seed):
+    from addon.geometry import angle_between, radial_angle
+    from addon.obstruction import _candidate_pairs
+    rng = np.random.default_rng(seed)
+    a = random_scene(rng, 300, 1, outliers=seed % 2 == 1)
+    v = a.center - a.light_position[0]
+    d = np.linalg.norm(v, axis=1)
+    keep = d > a.radius
+    w, rho = v / d[:, None], np.where(keep, radial_angle(d, a.radius), 0.0)
+    p, q = _candidate_pairs(w, rho, keep, np.zeros(len(d), dtype=bool))
+    pairs = list(zip(np.minimum(p, q).tolist(), np.maximum(p, q).tolist(), strict=True))
+    assert len(pairs) == len(set(pairs))                                  # each once
+    i, k = np.triu_indices(len(d), 1)
+    both = keep[i] & keep[k]
+    i, k = i[both], k[both]
+    overlap = rho[i] + rho[k] >= angle_between(w[i], w[k])
+    assert set(zip(i[overlap].tolist(), k[overlap].tolist(), strict=True)) <= set(pairs)
+
+
+def test_angle_from_columns_is_geometry_angle_between_bit_for_bit():
+    from addon.geometry import angle_between
+    from addon.obstruction import _angle_between_rows
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(5000, 3)) * 10.0 ** rng.integers(-8, 8, (5000, 1))
+    w = v / np.linalg.norm(v, axis=1)[:, None]
+    w[:50] = w[50:100] * (1 + 1e-15)                    # nearly parallel pairs
+    i, k = rng.integers(0, 5000, 20000), rng.integers(0, 5000, 20000)
+    i[:50], k[:50] = np.arange(50), np.arange(50, 100)
+    assert np.array_equal(_angle_between_rows(w, i, k), angle_between(w[i], w[k]))
