@@ -130,7 +130,9 @@ def _incoming(samples: SourceSamples, lens: Lens, iota, phi):
     cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
     dirs = cos_psi[:, :, None, None] * u + sin_psi[:, :, None, None] * radial
     origins = np.broadcast_to(samples.points[:, None, None, :], dirs.shape)
-    jac = s * s * sin_i * cos_i / cos_psi
+    # cos ψ = 0 only for a light on the sphere (an invalid sample, zeroed by the caller)
+    jac = np.divide(s * s * sin_i * cos_i, cos_psi, out=np.zeros_like(cos_psi),
+                    where=cos_psi > 0.0)
     return origins, dirs, jac[:, :, None]
 
 
