@@ -153,6 +153,26 @@ def test_topology_is_fixed_while_the_light_moves():
     assert not np.allclose(images[0], images[1])
 
 
+def test_marbles_far_apart_get_disjoint_rasters_and_close_ones_share_one():
+    table = rectangle([0, 0, 0], [0, 0, 1], 200.0, 200.0, 4, 4)
+    bvh = build_bvh(table)
+
+    def marble(x, y):
+        lens = Lens(np.array([x, y, R]), R, N_IOR)
+        return trace_beam(_point([x, y, R + D]), lens, 16, 64)
+    apart = build_layer([marble(0.0, 0.0), marble(20.0, 5.0)], bvh, resolution=48)
+    assert len(apart.patches) == 2
+    boxes = [(p.edges_u[[0, -1]], p.edges_v[[0, -1]]) for p in apart.patches]
+    (u0, v0), (u1, v1) = boxes
+    assert u0[1] < u1[0] or u1[1] < u0[0] or v0[1] < v1[0] or v1[1] < v0[0]
+    flux = eo.lens_flux(I0, D, R, N_IOR)
+    for p in apart.patches:
+        assert len(p.sources) == 1 and p.flux == pytest.approx(flux, rel=0.01)
+    close = build_layer([marble(0.0, 0.0), marble(0.1, 0.0)], bvh, resolution=48)
+    assert len(close.patches) == 1 and list(close.patches[0].sources) == [0, 1]
+    assert close.flux_in_rasters == pytest.approx(2 * flux, rel=0.01)
+
+
 def test_sun_flux_and_core_at_the_back_focus():
     S = 100.0
     lens = Lens(np.zeros(3), R, N_IOR)

@@ -41,6 +41,7 @@ from .receiver_patches import ReceiverPatch, find_patches
 class PatchLayer:
     """The caustic on one planar receiver patch (texel (iy, ix) = face iy·res + ix)."""
     patch: int                  # index into the patch list
+    sources: np.ndarray         # indices of the beams whose caustic this raster holds
     object_id: int
     normal: np.ndarray          # (3,) unit, toward the side the light arrives from
     axis_u: np.ndarray          # (3,) in-plane; axis_u × axis_v = normal
@@ -138,53 +139,72 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
                 patches: tuple[np.ndarray, list[ReceiverPatch]] | None = None,
                 resolution: int = 128, clip_fraction: float = 1e-3, warp: bool = True,
                 subcells_per_texel: float = 2.0, max_subdivision: int = 48,
-                max_subcells: int = 8_000_000, offset: float | None = None) -> CausticLayer:
+                max_subcells: int = 8_000_000, offset: float | None = None,
+                merge_footprints: bool = True) -> CausticLayer:
     """Accumulate ``beams`` landed on ``bvh``'s mesh into per-patch irradiance rasters.
 
     ``patches``: the result of :func:`.find_patches` (computed when None). ``offset``:
     lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
-    sinh-spaced texel lines (else uniform)."""
+    sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
+    of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
+    own caustics); False: one raster per patch for all beams."""
     t0 = time.perf_counter()
     patch_of, plist = patches if patches is not None else find_patches(bvh.mesh)
     landed = land_beams(beams, bvh, patch_of)
     t1 = time.perf_counter()
     res = int(resolution)
 
-    # Which patches receive anything, their light side and their raster's lines.
+    # Which patches receive anything, their light side, and per patch the clusters of
+    # beams whose footprints overlap: one raster per (patch, cluster).
+    bid = np.concatenate([np.full(len(x.patch), i) for i, x in enumerate(landed)])
     pid = np.concatenate([x.patch for x in landed])
     pts = np.concatenate([x.point for x in landed])
     dirs = np.concatenate([x.dirs for x in landed])
-    wts = np.concatenate([x.node_flux for x in landed])
-    hit_patches = np.unique(pid[pid >= 0])
-    slot_of = np.full(len(plist), -1, dtype=np.int64)
-    slot_of[hit_patches] = np.arange(len(hit_patches))
-    frames = []
-    for p in hit_patches:                      # loop over patches, not rays
-        sel = pid == p
+    wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
+    slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
+    frames, members = [], []
+    on = np.nonzero(pid >= 0)[0]
+    on = on[np.lexsort((bid[on], pid[on]))]
+    p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
+    for k, start in enumerate(p_starts):       # loop over patches, not rays
+        idx = on[start:p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
+        p = int(pid[idx[0]])
         n = plist[p].normal
-        side = -np.sign(np.sum(wts[sel] * (dirs[sel] @ n))) or 1.0
+        side = -np.sign(np.sum(wts[idx] * (dirs[idx] @ n))) or 1.0
         n_out = n * side
         au, av = perpendicular_frame(n_out)
-        w = wts[sel] + 1e-300
-        axes = [_warp_axis(c, w, clip_fraction, res, warp)
-                for c in (pts[sel] @ au, pts[sel] @ av)]
-        frames.append((n_out, au, av, axes[0], axes[1]))
-    fr = {"au": np.array([f[1] for f in frames]).reshape(-1, 3),
-          "av": np.array([f[2] for f in frames]).reshape(-1, 3)}
-    for key, k in (("u", 3), ("v", 4)):
+        x, y = pts[idx] @ au, pts[idx] @ av
+        b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
+        b_ends = np.append(b_starts[1:], len(idx))
+        w_here = wts[idx]
+        boxes = np.array([[_weighted_quantile(c[a:e], w_here[a:e], q)
+                           for c in (x, y) for q in (0.5 * clip_fraction,
+                                                     1.0 - 0.5 * clip_fraction)]
+                          for a, e in zip(b_starts, b_ends, strict=True)])
+        comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
+        for comp in comps:
+            sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
+            beams_here = bid[idx[b_starts[comp]]]
+            slot_of[beams_here, p] = len(frames)
+            axes = [_warp_axis(c[sel], w_here[sel], clip_fraction, res, warp) for c in (x, y)]
+            frames.append((p, n_out, au, av, axes[0], axes[1]))
+            members.append(beams_here)
+    fr = {"au": np.array([f[2] for f in frames]).reshape(-1, 3),
+          "av": np.array([f[3] for f in frames]).reshape(-1, 3)}
+    for key, k in (("u", 4), ("v", 5)):
         for j, name in enumerate(("c", "s", "xi0", "dxi")):
             fr[key + name] = np.array([f[k][j] for f in frames])
 
-    n_slots = len(hit_patches)
+    n_slots = len(frames)
     rgb = np.zeros((n_slots * res * res, 3))
     flux_in = np.zeros(n_slots)
     flux_out = np.zeros(n_slots)
     lost = 0.0
     n_sub = 0
-    for lb in landed:                          # loop over beams
+    for bi, lb in enumerate(landed):           # loop over beams
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
-        slot = np.where(lb.patch >= 0, slot_of[np.maximum(lb.patch, 0)], -1)
+        slot = np.where(lb.patch >= 0, slot_of[bi][np.maximum(lb.patch, 0)], -1)
         corners = cell_corners(lb.beam.shape)
         cflux = lb.beam.cell_flux.reshape(-1)
         dens = lb.beam.node_density.reshape(-1)[corners]                     # (C, 4)
@@ -212,8 +232,7 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
     t2 = time.perf_counter()
 
     layers = []
-    for s, p in enumerate(hit_patches):
-        n_out, au, av, ax_u, ax_v = frames[s]
+    for s, (p, n_out, au, av, ax_u, ax_v) in enumerate(frames):
         eu, ev = _edges(ax_u, res), _edges(ax_v, res)
         area = np.diff(ev)[:, None] * np.diff(eu)[None, :]
         off = 0.1 * min(np.diff(eu).min(), np.diff(ev).min()) if offset is None else offset
@@ -224,7 +243,8 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
         a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
         faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
         layers.append(PatchLayer(
-            patch=int(p), object_id=plist[p].object_id, normal=n_out, axis_u=au, axis_v=av,
+            patch=int(p), sources=members[s], object_id=plist[p].object_id, normal=n_out,
+            axis_u=au, axis_v=av,
             origin=origin, edges_u=eu, edges_v=ev, resolution=res, irradiance=irr,
             flux=float(flux_in[s]), flux_outside=float(flux_out[s]),
             vertices=verts + off * n_out, faces=faces, uvs=uvs, uv_inside=inside))
@@ -235,6 +255,29 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
         flux_lost=lost, n_rays=sum(b.n_rays for b in beams),
         n_cells=sum(b.n_cells for b in beams), n_subcells=n_sub,
         timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0})
+
+
+def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
+    """Group boxes (m, 4: u_lo, u_hi, v_lo, v_hi) into clusters whose merged boxes do
+    not overlap: connected components of the overlap graph, repeated on the merged
+    boxes until they are disjoint (m is the number of beams on one patch: small)."""
+    groups = [np.array([i]) for i in range(len(boxes))]
+    cur = boxes.copy()
+    while True:
+        over = ((cur[:, None, 0] <= cur[None, :, 1]) & (cur[None, :, 0] <= cur[:, None, 1])
+                & (cur[:, None, 2] <= cur[None, :, 3]) & (cur[None, :, 2] <= cur[:, None, 3]))
+        label = np.arange(len(cur))
+        while True:                            # label propagation to the smallest index
+            new = np.where(over, label[None, :], len(cur)).min(axis=1)
+            if np.array_equal(new, label):
+                break
+            label = new
+        if len(np.unique(label)) == len(cur):
+            return groups
+        keys = np.unique(label)
+        groups = [np.concatenate([groups[i] for i in np.nonzero(label == k)[0]]) for k in keys]
+        cur = np.array([[cur[label == k, 0].min(), cur[label == k, 1].max(),
+                         cur[label == k, 2].min(), cur[label == k, 3].max()] for k in keys])
 
 
 def _warp_axis(x, w, clip_fraction, res, warp):
