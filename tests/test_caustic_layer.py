@@ -16,6 +16,8 @@ from addon.caustic_sheet.layer_metrics import radius_containing, relative_l1, ri
 from addon.caustic_sheet.meshes import merge, rectangle
 from addon.caustic_sheet.ray_budget import allocate, layer_resolution, pixel_size, ray_budget
 from addon.caustic_sheet.receiver_bvh import ReceiverMesh, _moller_trumbore, build_bvh, intersect
+from addon.caustic_sheet.receiver_index import build_index
+from addon.caustic_sheet.receiver_index import intersect as index_intersect
 
 R, N_IOR, D = 1.0, 1.5, 10.0
 I0 = 1.0                                   # W/sr: power 4π
@@ -31,7 +33,7 @@ def _point(pos):
 
 
 def _layer(light, lens, mesh, nr=32, na=128, res=128, **kw):
-    return build_layer([trace_beam(light, lens, nr, na)], build_bvh(mesh), resolution=res, **kw)
+    return build_layer([trace_beam(light, lens, nr, na)], build_index(mesh), resolution=res, **kw)
 
 
 def _only(layer):
@@ -59,7 +61,7 @@ def test_folds_add_past_the_focus():
     # Z = 1.5 R: every plane between the marginal and the paraxial crossing folds the map
     lens = Lens(np.zeros(3), R, N_IOR)
     beam = trace_beam(_point([0, 0, -D]), lens, 32, 128)
-    layer = build_layer([beam], build_bvh(rectangle([0, 0, 1.5], [0, 0, 1], 50, 50)))
+    layer = build_layer([beam], build_index(rectangle([0, 0, 1.5], [0, 0, 1], 50, 50)))
     landed = beam.exit_points + beam.exit_dirs * (
         (1.5 - beam.exit_points[..., 2]) / beam.exit_dirs[..., 2])[..., None]
     c = landed.reshape(-1, 3)[cell_corners(beam.shape)]
@@ -142,7 +144,7 @@ def test_two_receivers_split_the_beam_as_the_axis_crossings_say():
 def test_topology_is_fixed_while_the_light_moves():
     lens = Lens(np.zeros(3), R, N_IOR)
     floor = rectangle([0, 0, 3.0], [0, 0, 1], 200.0, 200.0, 4, 4)
-    bvh = build_bvh(floor)
+    bvh = build_index(floor)
     counts, images = set(), []
     for pos in ([0, 0, -D], [1.0, 0.5, -7.0], [-2.0, 0.0, -12.0]):
         layer = build_layer([trace_beam(_point(pos), lens, 16, 64)], bvh, resolution=48)
@@ -155,7 +157,7 @@ def test_topology_is_fixed_while_the_light_moves():
 
 def test_marbles_far_apart_get_disjoint_rasters_and_close_ones_share_one():
     table = rectangle([0, 0, 0], [0, 0, 1], 200.0, 200.0, 4, 4)
-    bvh = build_bvh(table)
+    bvh = build_index(table)
 
     def marble(x, y):
         lens = Lens(np.array([x, y, R]), R, N_IOR)
@@ -209,8 +211,7 @@ def test_layer_mesh_is_lifted_toward_the_light_with_the_receivers_uvs():
     n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     assert np.all(n @ p.normal > 0)                                 # faces face the light
     # rectangle's UV is affine in the plane: u = x/40 + 1/2 up to the frame's orientation
-    inside = p.uv_inside
-    assert inside.mean() > 0.99
+    assert p.uv_inside is None                                      # affine: exact everywhere
     uv_expected = np.column_stack([p.vertices[:, 0], p.vertices[:, 1]]) / 40.0 + 0.5
     err = np.minimum(np.abs(p.uvs - uv_expected), np.abs(p.uvs - uv_expected[:, ::-1]))
     assert err.max() < 1e-9
@@ -244,6 +245,26 @@ def test_bvh_nearest_hit_equals_brute_force():
             else hits.triangle[i] == -1
         if np.isfinite(best.min()):
             assert hits.triangle[i] == np.argmin(best)
+
+
+def test_planar_index_lands_like_the_bvh():
+    rng = np.random.default_rng(8)
+    table = rectangle([0, 0, 0], [0.1, 0.0, 1.0], 4.0, 3.0, 30, 20, object_id=1)
+    wall = rectangle([0, 2, 1], [0, -1, 0], 6.0, 2.0, 5, 5, object_id=2)
+    cen = rng.uniform(-1, 1, (200, 3))
+    junk = ReceiverMesh(np.repeat(cen, 3, 0) + rng.normal(0, 0.2, (600, 3)),
+                        np.arange(600).reshape(200, 3), np.zeros((600, 2)),
+                        np.full(200, 3))
+    mesh = merge(table, wall, junk)
+    index = build_index(mesh)
+    assert index.planes is not None and len(index.planes.patch) == 2
+    o = rng.uniform(-2, 2, (5000, 3))
+    d = rng.normal(size=(5000, 3))
+    a, b = index_intersect(index, o, d), intersect(build_bvh(mesh), o, d)
+    np.testing.assert_array_equal(a.triangle, b.triangle)
+    hit = a.triangle >= 0
+    np.testing.assert_allclose(a.t[hit], b.t[hit], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(a.u[hit], b.u[hit], atol=1e-9)
 
 
 def test_ray_budget_follows_flux_share_and_screen_size():

@@ -33,8 +33,8 @@ import numpy as np
 
 from .beam_trace import BeamGrid
 from .emitters import perpendicular_frame
-from .receiver_bvh import TriangleBvh, intersect
-from .receiver_patches import ReceiverPatch, find_patches
+from .receiver_index import ReceiverIndex, intersect
+from .receiver_patches import ReceiverPatch
 
 
 @dataclass
@@ -56,7 +56,8 @@ class PatchLayer:
     vertices: np.ndarray        # ((res+1)², 3) lifted by the offset along ``normal``
     faces: np.ndarray           # (res², 4) vertex indices, counter-clockwise about normal
     uvs: np.ndarray | None      # ((res+1)², 2) the receiver's UV at each vertex
-    uv_inside: np.ndarray | None  # ((res+1)²,) False: vertex beyond the patch (UV fitted)
+    uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
+    #                               None: the patch's UV is affine, valid everywhere
 
     @property
     def face_irradiance(self) -> np.ndarray:
@@ -118,7 +119,7 @@ def _weighted_quantile(x, w, q):
     return float(np.interp(q * cw[-1], cw, x[o]))
 
 
-def land_beams(beams: list[BeamGrid], bvh: TriangleBvh, patch_of_triangle: np.ndarray,
+def land_beams(beams: list[BeamGrid], index: ReceiverIndex,
                t_min_rel: float = 1e-7) -> list[_Landed]:
     """Land every node ray of every beam: nearest hit with t > −t_min_rel × the exit
     points' spread, so a receiver touching the sphere (a resting marble) still counts."""
@@ -127,30 +128,28 @@ def land_beams(beams: list[BeamGrid], bvh: TriangleBvh, patch_of_triangle: np.nd
         o = b.exit_points.reshape(-1, 3)
         d = b.exit_dirs.reshape(-1, 3)
         scale = max(float(np.ptp(o, axis=0).max()), 1e-300)
-        h = intersect(bvh, o, d, t_min=-t_min_rel * scale)
-        patch = np.where(h.triangle >= 0, patch_of_triangle[np.maximum(h.triangle, 0)], -1)
+        h = intersect(index, o, d, t_min=-t_min_rel * scale)
+        patch = np.where(h.triangle >= 0, index.patch_of[np.maximum(h.triangle, 0)], -1)
         nf = np.zeros(len(o))
         np.add.at(nf, cell_corners(b.shape), 0.25 * b.cell_flux.reshape(-1)[:, None])
         out.append(_Landed(b, patch, h.point, d, nf))
     return out
 
 
-def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
-                patches: tuple[np.ndarray, list[ReceiverPatch]] | None = None,
-                resolution: int = 128, clip_fraction: float = 1e-3, warp: bool = True,
-                subcells_per_texel: float = 2.0, max_subdivision: int = 48,
+def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 128,
+                clip_fraction: float = 1e-3, warp: bool = True,
+                subcells_per_texel: float = 2.0, max_subdivision: int = 16,
                 max_subcells: int = 8_000_000, offset: float | None = None,
                 merge_footprints: bool = True) -> CausticLayer:
-    """Accumulate ``beams`` landed on ``bvh``'s mesh into per-patch irradiance rasters.
-
-    ``patches``: the result of :func:`.find_patches` (computed when None). ``offset``:
+    """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
+    into per-patch irradiance rasters. ``offset``:
     lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
     sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
     of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
     own caustics); False: one raster per patch for all beams."""
     t0 = time.perf_counter()
-    patch_of, plist = patches if patches is not None else find_patches(bvh.mesh)
-    landed = land_beams(beams, bvh, patch_of)
+    plist = index.patches
+    landed = land_beams(beams, index)
     t1 = time.perf_counter()
     res = int(resolution)
 
@@ -201,13 +200,22 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
     flux_out = np.zeros(n_slots)
     lost = 0.0
     n_sub = 0
-    for bi, lb in enumerate(landed):           # loop over beams
+    # One vectorised pass per light colour (beams of one colour share the arithmetic).
+    colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
+    uniq, group = np.unique(colors, axis=0, return_inverse=True)
+    for gi, color in enumerate(uniq):          # loop over colours, usually one or two
+        members_g = [landed[i] for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        ids = [i for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
+        point = np.concatenate([lb.point for lb in members_g])
+        slot = np.concatenate([np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
+                               for i, lb in zip(ids, members_g, strict=True)])
+        corners = np.concatenate([cell_corners(lb.beam.shape) + base[k]
+                                  for k, lb in enumerate(members_g)])
+        cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+        dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
-        slot = np.where(lb.patch >= 0, slot_of[bi][np.maximum(lb.patch, 0)], -1)
-        corners = cell_corners(lb.beam.shape)
-        cflux = lb.beam.cell_flux.reshape(-1)
-        dens = lb.beam.node_density.reshape(-1)[corners]                     # (C, 4)
         cs = slot[corners]
         same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
         # cells across receivers (or missing): each corner its density-weighted share
@@ -219,16 +227,16 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
         sm = cs[mixed].reshape(-1)
         lost += float(share[sm < 0].sum())
         on = sm >= 0
-        _deposit(acc, out_acc, lb.point[cm[on]], sm[on], share[on], fr, res)
+        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr, res)
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
-            n_sub += _splat_cells(acc, out_acc, lb.point[corners[cidx]], cs[cidx, 0],
+            n_sub += _splat_cells(acc, out_acc, point[corners[cidx]], cs[cidx, 0],
                                   dens[cidx], cflux[cidx], fr, res,
                                   subcells_per_texel, max_subdivision, max_subcells)
         flux_in += acc.reshape(n_slots, -1).sum(axis=1)
         flux_out += out_acc
-        rgb += acc[:, None] * lb.beam.color
+        rgb += acc[:, None] * color
     t2 = time.perf_counter()
 
     layers = []
@@ -239,7 +247,7 @@ def build_layer(beams: list[BeamGrid], bvh: TriangleBvh,
         origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
         irr = rgb[s * res * res:(s + 1) * res * res].reshape(res, res, 3) / area[..., None]
         verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape(-1, 3)
-        uvs, inside = _vertex_uvs(bvh, plist[p], patch_of, p, verts, n_out)
+        uvs, inside = _vertex_uvs(index, plist[p], p, verts, n_out)
         a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
         faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
         layers.append(PatchLayer(
@@ -330,11 +338,9 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])                # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
-    # sub-cells per side: the quad's extent in the smallest local texel it touches
-    tx = np.minimum(_local_texel(x.min(1), fr, "u", slots),
-                    _local_texel(x.max(1), fr, "u", slots))
-    ty = np.minimum(_local_texel(y.min(1), fr, "v", slots),
-                    _local_texel(y.max(1), fr, "v", slots))
+    # sub-cells per side: the quad's extent in local texels at its centre
+    tx = _local_texel(x.mean(1), fr, "u", slots)
+    ty = _local_texel(y.mean(1), fr, "v", slots)
     size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
     m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
     total = int(np.sum(m * m))
@@ -358,25 +364,30 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     return n_sub
 
 
-def _vertex_uvs(bvh, patch: ReceiverPatch, patch_of, p, verts, n_out):
-    """The receiver's UV at each layer vertex: barycentric interpolation on the patch's
-    triangle under it, an affine least-squares fit over the patch elsewhere."""
-    mesh = bvh.mesh
+def _vertex_uvs(index: ReceiverIndex, patch: ReceiverPatch, p, verts, n_out):
+    """The receiver's UV at each layer vertex. A plane's UVs are usually affine in the
+    plane: then the least-squares affine fit is exact and used everywhere (``inside`` is
+    None). Otherwise barycentric interpolation on the patch's triangle under each vertex,
+    the affine fit beyond the patch (``inside`` False there)."""
+    mesh = index.mesh
     if mesh.uvs is None:
         return None, None
     uv = np.asarray(mesh.uvs, dtype=float)
-    h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
-    hits = intersect(bvh, verts + h * n_out, np.broadcast_to(-n_out, verts.shape),
-                     t_min=0.0, t_max=2.0 * h)
-    tri = hits.triangle
-    inside = (tri >= 0) & (patch_of[np.maximum(tri, 0)] == p)
-    tv = np.asarray(mesh.triangles)[np.maximum(tri, 0)]
-    bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], axis=1)
-    out = np.einsum("nk,nkj->nj", bary, uv[tv])
     vi = np.unique(np.asarray(mesh.triangles)[patch.triangles].reshape(-1))
     pv = np.asarray(mesh.vertices, dtype=float)[vi]
     au, av = perpendicular_frame(n_out)
     a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
     coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
     fit = np.column_stack([verts @ au, verts @ av, np.ones(len(verts))]) @ coef
+    scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
+    if np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale:
+        return fit, None
+    h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
+    hits = intersect(index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape),
+                     t_min=0.0, t_max=2.0 * h)
+    tri = hits.triangle
+    inside = (tri >= 0) & (index.patch_of[np.maximum(tri, 0)] == p)
+    tv = np.asarray(mesh.triangles)[np.maximum(tri, 0)]
+    bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], axis=1)
+    out = np.einsum("nk,nkj->nj", bary, uv[tv])
     return np.where(inside[:, None], out, fit), inside
