@@ -217,6 +217,27 @@ def test_layer_mesh_is_lifted_toward_the_light_with_the_receivers_uvs():
     assert err.max() < 1e-9
 
 
+def test_non_affine_uvs_are_interpolated_on_the_triangle_under_each_vertex():
+    lens = Lens(np.zeros(3), R, N_IOR)
+    plane = rectangle([0, 0, 3.0], [0, 0, 1], 4.0, 4.0, 2, 2, axis_u=[1, 0, 0])
+    uvs = np.column_stack([plane.vertices[:, 0] ** 2, plane.vertices[:, 1]])  # not affine
+    mesh = ReceiverMesh(plane.vertices, plane.triangles, uvs, plane.object_ids)
+    p = _only(_layer(_point([0, 0, -D]), lens, mesh, nr=12, na=48, res=24))
+    inside = p.uv_inside
+    assert inside is not None and inside.sum() > 0.5 * len(inside)
+    # reference: brute-force point-in-triangle on the 8 triangles, barycentric UVs
+    v = mesh.vertices[mesh.triangles][:, :, :2]                      # (8, 3, 2)
+    q = p.vertices[inside][:, None, :2]                               # (n, 1, 2)
+    m = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]], axis=-1)     # (8, 2, 2)
+    bc = np.einsum("tij,ntj->nti", np.linalg.inv(m), q - v[None, :, 0])
+    ok = (bc >= -1e-9).all(-1) & (bc.sum(-1) <= 1 + 1e-9)
+    t = np.argmax(ok, axis=1)
+    b = bc[np.arange(len(t)), t]
+    w = np.column_stack([1 - b.sum(1), b])
+    want = np.einsum("nk,nkj->nj", w, uvs[mesh.triangles[t]])
+    np.testing.assert_allclose(p.uvs[inside], want, atol=1e-9)
+
+
 def test_rays_that_miss_every_receiver_are_reported_lost():
     lens = Lens(np.zeros(3), R, N_IOR)
     small = rectangle([0.0, 0.0, 4.0], [0, 0, 1], 0.5, 0.5)        # catches the core only

@@ -139,7 +139,8 @@ def land_beams(beams: list[BeamGrid], index: ReceiverIndex,
 def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 128,
                 clip_fraction: float = 1e-3, warp: bool = True,
                 subcells_per_texel: float = 2.0, max_subdivision: int = 16,
-                max_subcells: int = 8_000_000, offset: float | None = None,
+                max_subcells: int = 8_000_000, flux_subcells_per_texel: float = 8.0,
+                offset: float | None = None,
                 merge_footprints: bool = True) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -233,13 +234,15 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
         if len(cidx):
             n_sub += _splat_cells(acc, out_acc, point[corners[cidx]], cs[cidx, 0],
                                   dens[cidx], cflux[cidx], fr, res,
-                                  subcells_per_texel, max_subdivision, max_subcells)
+                                  subcells_per_texel, max_subdivision, max_subcells,
+                                  flux_subcells_per_texel)
         flux_in += acc.reshape(n_slots, -1).sum(axis=1)
         flux_out += out_acc
         rgb += acc[:, None] * color
     t2 = time.perf_counter()
 
     layers = []
+    uv_fits = {}
     for s, (p, n_out, au, av, ax_u, ax_v) in enumerate(frames):
         eu, ev = _edges(ax_u, res), _edges(ax_v, res)
         area = np.diff(ev)[:, None] * np.diff(eu)[None, :]
@@ -247,7 +250,9 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
         origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
         irr = rgb[s * res * res:(s + 1) * res * res].reshape(res, res, 3) / area[..., None]
         verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape(-1, 3)
-        uvs, inside = _vertex_uvs(index, plist[p], p, verts, n_out)
+        if p not in uv_fits:                   # one fit per patch, shared by its rasters
+            uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
+        uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
         a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
         faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
         layers.append(PatchLayer(
@@ -334,7 +339,7 @@ def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
 
 
 def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel, m_max,
-                 max_subcells):
+                 max_subcells, flux_subcells_per_texel):
     """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])                # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
@@ -343,6 +348,12 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     ty = _local_texel(y.mean(1), fr, "v", slots)
     size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
     m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
+    # A dim cell's sampling error is a small share of the image: sub-cells by flux too,
+    # about ``flux_subcells_per_texel`` per texel of the rasters in all (the bright core
+    # keeps its geometric m; the wide faint halo cells get fewer points).
+    budget = flux_subcells_per_texel * res * res * (len(fr["au"]) if len(fr["au"]) else 1)
+    m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300)))
+    m = np.maximum(1, np.minimum(m, m_flux.astype(np.int64)))
     total = int(np.sum(m * m))
     if total > max_subcells:                   # keep memory bounded: coarser sub-cells
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
@@ -364,24 +375,36 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     return n_sub
 
 
-def _vertex_uvs(index: ReceiverIndex, patch: ReceiverPatch, p, verts, n_out):
-    """The receiver's UV at each layer vertex. A plane's UVs are usually affine in the
-    plane: then the least-squares affine fit is exact and used everywhere (``inside`` is
-    None). Otherwise barycentric interpolation on the patch's triangle under each vertex,
-    the affine fit beyond the patch (``inside`` False there)."""
+def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
+    """Least-squares affine map (plane coordinates → UV) over the patch's vertices and
+    whether it is exact; None without UVs."""
     mesh = index.mesh
     if mesh.uvs is None:
-        return None, None
+        return None
     uv = np.asarray(mesh.uvs, dtype=float)
     vi = np.unique(np.asarray(mesh.triangles)[patch.triangles].reshape(-1))
     pv = np.asarray(mesh.vertices, dtype=float)[vi]
     au, av = perpendicular_frame(n_out)
     a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
     coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
-    fit = np.column_stack([verts @ au, verts @ av, np.ones(len(verts))]) @ coef
     scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
-    if np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale:
+    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale)
+
+
+def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
+    """The receiver's UV at each layer vertex. A plane's UVs are usually affine in the
+    plane: then the least-squares affine fit is exact and used everywhere (``inside`` is
+    None). Otherwise barycentric interpolation on the patch's triangle under each vertex,
+    the affine fit beyond the patch (``inside`` False there)."""
+    if uv_fit is None:
+        return None, None
+    coef, exact = uv_fit
+    au, av = perpendicular_frame(n_out)
+    fit = np.column_stack([verts @ au, verts @ av, np.ones(len(verts))]) @ coef
+    if exact:
         return fit, None
+    mesh = index.mesh
+    uv = np.asarray(mesh.uvs, dtype=float)
     h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
     hits = intersect(index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape),
                      t_min=0.0, t_max=2.0 * h)
