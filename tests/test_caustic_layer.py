@@ -13,7 +13,7 @@ from addon.caustic_sheet.beam_trace import trace_beam
 from addon.caustic_sheet.caustic_layer import build_layer, cell_corners
 from addon.caustic_sheet.emitters import Lens, PointLight, SunLight
 from addon.caustic_sheet.layer_metrics import radius_containing, relative_l1, ring_irradiance
-from addon.caustic_sheet.meshes import merge, rectangle
+from addon.caustic_sheet.meshes import merge, rectangle, uv_sphere
 from addon.caustic_sheet.ray_budget import allocate, layer_resolution, pixel_size, ray_budget
 from addon.caustic_sheet.receiver_bvh import ReceiverMesh, _moller_trumbore, build_bvh, intersect
 from addon.caustic_sheet.receiver_index import build_index
@@ -153,6 +153,22 @@ def test_topology_is_fixed_while_the_light_moves():
         images.append(p.irradiance)
     assert len(counts) == 1
     assert not np.allclose(images[0], images[1])
+
+
+def test_the_lens_own_mesh_is_not_its_receiver():
+    # the ball's mesh, a bit larger than the fitted sphere (its faces outside it), is
+    # among the receivers: every ray leaving the sphere crosses it
+    lens = Lens(np.zeros(3), R, N_IOR)
+    table = rectangle([0, 0, 3.0], [0, 0, 1], 100.0, 100.0, 4, 4, object_id=1)
+    ball = uv_sphere([0.0, 0.0, 0.0], 1.05 * R, 12, 24, object_id=7)
+    index = build_index(merge(table, ball))
+    beam = trace_beam(_point([0, 0, -D]), lens, 16, 64)
+    blind = build_layer([beam], index, resolution=32)
+    assert sum(p.flux + p.flux_outside for p in blind.patches if p.object_id == 7) \
+        > 0.99 * blind.flux_emitted
+    seeing = build_layer([beam], index, resolution=32, own_objects=[7])
+    assert [p.object_id for p in seeing.patches] == [1]
+    assert seeing.flux_in_rasters == pytest.approx(eo.lens_flux(I0, D, R, N_IOR), rel=0.01)
 
 
 def test_marbles_far_apart_get_disjoint_rasters_and_close_ones_share_one():

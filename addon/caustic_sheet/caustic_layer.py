@@ -119,20 +119,38 @@ def _weighted_quantile(x, w, q):
     return float(np.interp(q * cw[-1], cw, x[o]))
 
 
-def land_beams(beams: list[BeamGrid], index: ReceiverIndex,
+def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
                t_min_rel: float = 1e-7) -> list[_Landed]:
-    """Land every node ray of every beam: nearest hit with t > −t_min_rel × the exit
-    points' spread, so a receiver touching the sphere (a resting marble) still counts."""
-    out = []
-    for b in beams:
-        o = b.exit_points.reshape(-1, 3)
-        d = b.exit_dirs.reshape(-1, 3)
-        scale = max(float(np.ptp(o, axis=0).max()), 1e-300)
-        h = intersect(index, o, d, t_min=-t_min_rel * scale)
-        patch = np.where(h.triangle >= 0, index.patch_of[np.maximum(h.triangle, 0)], -1)
-        nf = np.zeros(len(o))
+    """Land every node ray of every beam (all beams in one vectorised cast): nearest hit
+    with t > −t_min_rel × the exit points' spread, so a receiver touching the sphere (a
+    resting marble) still counts. ``own_objects``: per beam the object id of its lens'
+    own mesh if the receivers include it (or −1): hits on it are skipped, the ray goes
+    on from there (a lens is not its own receiver; other lenses may be receivers)."""
+    o = np.concatenate([b.exit_points.reshape(-1, 3) for b in beams])
+    d = np.concatenate([b.exit_dirs.reshape(-1, 3) for b in beams])
+    sizes = [b.n_rays for b in beams]
+    scale = np.repeat([max(float(np.ptp(b.exit_points.reshape(-1, 3), axis=0).max()), 1e-300)
+                       for b in beams], sizes)
+    h = intersect(index, o, d, t_min=-t_min_rel * scale)
+    tri, point = h.triangle, h.point
+    if own_objects is not None:
+        own = np.repeat(np.asarray(own_objects, dtype=np.int64), sizes)
+        ids = index.mesh.ids
+        for _ in range(4):                     # a convex lens mesh: at most a few hits
+            again = np.nonzero((tri >= 0) & (ids[np.maximum(tri, 0)] == own))[0]
+            if not len(again):
+                break
+            h2 = intersect(index, o[again], d[again], t_min=h.t[again] * (1 + 1e-9) + 1e-12)
+            tri[again], point[again] = h2.triangle, h2.point
+            h.t[again] = h2.t
+    patch = np.where(tri >= 0, index.patch_of[np.maximum(tri, 0)], -1)
+    out, start = [], 0
+    for b, n in zip(beams, sizes, strict=True):
+        nf = np.zeros(n)
         np.add.at(nf, cell_corners(b.shape), 0.25 * b.cell_flux.reshape(-1)[:, None])
-        out.append(_Landed(b, patch, h.point, d, nf))
+        sl = slice(start, start + n)
+        out.append(_Landed(b, patch[sl], point[sl], d[sl], nf))
+        start += n
     return out
 
 
@@ -141,16 +159,17 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
                 subcells_per_texel: float = 2.0, max_subdivision: int = 16,
                 max_subcells: int = 8_000_000, flux_subcells_per_texel: float = 8.0,
                 offset: float | None = None,
-                merge_footprints: bool = True) -> CausticLayer:
+                merge_footprints: bool = True, own_objects=None) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
     lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
     sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
     of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
-    own caustics); False: one raster per patch for all beams."""
+    own caustics); False: one raster per patch for all beams. ``own_objects``: per beam
+    the object id of its own lens among the receivers (see :func:`land_beams`)."""
     t0 = time.perf_counter()
     plist = index.patches
-    landed = land_beams(beams, index)
+    landed = land_beams(beams, index, own_objects)
     t1 = time.perf_counter()
     res = int(resolution)
 
