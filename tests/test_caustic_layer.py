@@ -14,6 +14,7 @@ from addon.caustic_sheet.caustic_layer import build_layer, cell_corners
 from addon.caustic_sheet.emitters import Lens, PointLight, SunLight
 from addon.caustic_sheet.layer_metrics import radius_containing, relative_l1, ring_irradiance
 from addon.caustic_sheet.meshes import merge, rectangle, uv_sphere
+from addon.caustic_sheet.pipeline import Camera, SheetSource, bake
 from addon.caustic_sheet.ray_budget import allocate, layer_resolution, pixel_size, ray_budget
 from addon.caustic_sheet.receiver_bvh import ReceiverMesh, _moller_trumbore, build_bvh, intersect
 from addon.caustic_sheet.receiver_index import build_index
@@ -302,6 +303,20 @@ def test_planar_index_lands_like_the_bvh():
     hit = a.triangle >= 0
     np.testing.assert_allclose(a.t[hit], b.t[hit], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(a.u[hit], b.u[hit], atol=1e-9)
+
+
+def test_bake_budgets_traces_and_layers_several_sources():
+    table = rectangle([0, 0, 0], [0, 0, 1], 100.0, 100.0, 4, 4, object_id=1)
+    near = Lens(np.array([0.0, 0.0, R]), R, N_IOR)
+    far = Lens(np.array([30.0, 0.0, R]), R, N_IOR)
+    sources = [SheetSource(_point([0, 0, R + D]), near),
+               SheetSource(_point([30.0, 0, R + 4 * D]), far)]      # 16× dimmer
+    cam = Camera(np.array([0.0, -40.0, 30.0]), math.radians(40.0), 640)
+    out = bake(sources, table, cam, rays_per_pixel=4.0, max_rays=8192)
+    assert out.budgets[1].n_rays < out.budgets[0].n_rays
+    assert len(out.layer.patches) == 2
+    want = eo.lens_flux(I0, D, R, N_IOR) + eo.lens_flux(I0, 4 * D, R, N_IOR)
+    assert out.layer.flux_in_rasters == pytest.approx(want, rel=0.01)
 
 
 def test_ray_budget_follows_flux_share_and_screen_size():
