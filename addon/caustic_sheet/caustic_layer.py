@@ -358,7 +358,7 @@ def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
 
 
 def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel, m_max,
-                 max_subcells, flux_subcells_per_texel):
+                 max_subcells, flux_subcells_per_texel, m_free=8):
     """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])                # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
@@ -367,12 +367,12 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     ty = _local_texel(y.mean(1), fr, "v", slots)
     size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
     m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
-    # A dim cell's sampling error is a small share of the image: sub-cells by flux too,
-    # about ``flux_subcells_per_texel`` per texel of the rasters in all (the bright core
-    # keeps its geometric m; the wide faint halo cells get fewer points).
+    # A dim cell's sampling error is a small share of the image: the cells that need
+    # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
+    # them by flux too, about ``flux_subcells_per_texel`` per texel of the rasters in all.
     budget = flux_subcells_per_texel * res * res * (len(fr["au"]) if len(fr["au"]) else 1)
-    m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300)))
-    m = np.maximum(1, np.minimum(m, m_flux.astype(np.int64)))
+    m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300))).astype(np.int64)
+    m = np.where(m <= m_free, m, np.maximum(m_free, np.minimum(m, m_flux)))
     total = int(np.sum(m * m))
     if total > max_subcells:                   # keep memory bounded: coarser sub-cells
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
