@@ -266,6 +266,16 @@ def test_rays_that_miss_every_receiver_are_reported_lost():
         layer.flux_emitted, rel=1e-9)
 
 
+def test_nothing_to_land_on_and_nothing_to_land():
+    lens = Lens(np.zeros(3), R, N_IOR)
+    behind = build_index(rectangle([0, 0, -30.0], [0, 0, 1], 10.0, 10.0))
+    layer = build_layer([trace_beam(_point([0, 0, -D]), lens, 8, 32)], behind, resolution=16)
+    assert layer.patches == [] and layer.flux_lost == pytest.approx(layer.flux_emitted)
+    assert build_layer([], behind).flux_emitted == 0.0
+    inside = build_layer([trace_beam(_point([0, 0, 0.1]), lens, 8, 32)], behind)
+    assert inside.patches == [] and inside.flux_emitted == 0.0
+
+
 def test_bvh_nearest_hit_equals_brute_force():
     rng = np.random.default_rng(5)
     cen = rng.uniform(-3, 3, (300, 3))

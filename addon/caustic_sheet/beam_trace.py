@@ -25,7 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exact_optics import two_surface_transmission
-from .emitters import Lens, SourceSamples, angular_factor, perpendicular_frame, source_samples
+from .emitters import (
+    Lens,
+    SourceSamples,
+    angular_factor,
+    is_isotropic,
+    perpendicular_frame,
+    source_samples,
+)
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 
@@ -168,8 +175,7 @@ def trace_beam(emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256,
     di, dp = iota[1] - iota[0], phi[1] - phi[0]
     qi = (iota[:-1, None] + 0.5 * di * (1.0 + _GL_X)).reshape(-1)        # (Nr·3,)
     qp = (phi[:, None] - 0.5 * dp + 0.5 * dp * (1.0 + _GL_X)).reshape(-1)  # (Na·3,)
-    if samples.parallel or isinstance(angular_factor(samples.emitter, exit_d[:1, :1, :1]),
-                                      float):
+    if samples.parallel or is_isotropic(samples.emitter):   # separable: 1-D in ι
         radial = _density(samples, lens, qi, np.zeros(1))[:, :, 0]        # (K, Nr·3)
         radial = (radial.reshape(len(valid), nr, 3) * _GL_W).sum(-1) * 0.5 * di
         cell = radial[:, :, None] * np.full(na, dp)

@@ -144,6 +144,9 @@ def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
             tri[again], point[again] = h2.triangle, h2.point
             h.t[again] = h2.t
     patch = np.where(tri >= 0, index.patch_of[np.maximum(tri, 0)], -1)
+    # a sample with no beam (its light inside the sphere) lands nowhere
+    valid = np.concatenate([np.repeat(b.valid, b.n_rays // len(b.valid)) for b in beams])
+    patch = np.where(valid, patch, -1)
     out, start = [], 0
     for b, n in zip(beams, sizes, strict=True):
         nf = np.zeros(n)
@@ -169,6 +172,8 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
     the object id of its own lens among the receivers (see :func:`land_beams`)."""
     t0 = time.perf_counter()
     plist = index.patches
+    if not beams:
+        return CausticLayer([], 0.0, 0.0, 0.0, 0.0, 0, 0, 0, {"total": 0.0})
     landed = land_beams(beams, index, own_objects)
     t1 = time.perf_counter()
     res = int(resolution)
@@ -255,7 +260,7 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
                                   dens[cidx], cflux[cidx], fr, res,
                                   subcells_per_texel, max_subdivision, max_subcells,
                                   flux_subcells_per_texel)
-        flux_in += acc.reshape(n_slots, -1).sum(axis=1)
+        flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
         rgb += acc[:, None] * color
     t2 = time.perf_counter()

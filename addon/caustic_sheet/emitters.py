@@ -166,6 +166,11 @@ def _dirs_to(pts: np.ndarray, c: np.ndarray) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1)[:, None]
 
 
+def is_isotropic(emitter) -> bool:
+    """True when a sample sends the same intensity toward every point of the lens."""
+    return isinstance(emitter, (PointLight, SunLight))
+
+
 def angular_factor(emitter, dirs: np.ndarray) -> np.ndarray | float:
     """Multiplier of a sample's weight toward unit directions ``dirs`` (…, 3): 1 for a
     point light or a sun, Blender's spot mask for a spot, cos θ⁺ for an area light."""
