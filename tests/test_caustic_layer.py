@@ -216,6 +216,31 @@ def test_sun_flux_and_core_at_the_back_focus():
     assert relative_l1(got, exact, np.diff(edges ** 2)) <= 0.05
 
 
+def test_moved_light_moves_the_caustic_along_its_axis_and_a_sphere_light_blurs_it():
+    lens = Lens(np.zeros(3), R, N_IOR)
+    Z, delta = 1.4, 0.3
+    index = build_index(rectangle([0, 0, Z], [0, 0, 1], 100.0, 100.0, 2, 2))
+
+    def layer_of(light, k=1):
+        return _only(build_layer([trace_beam(light, lens, 32, 128, k)], index, resolution=96))
+    shifted = layer_of(_point([delta, 0, -D]))
+    # the axial caustic (the brightest texel) lies on the beam's axis, light → lens
+    # centre, which meets the plane at x = −δ Z / D
+    peak = np.unravel_index(np.argmax(shifted.irradiance[..., 0]), (96, 96))
+    at = shifted.texel_centers()[peak]
+    texel = max(np.diff(shifted.edges_u)[peak[1]], np.diff(shifted.edges_v)[peak[0]])
+    assert at[0] == pytest.approx(-delta * Z / D, abs=1.5 * texel)
+    assert at[1] == pytest.approx(0.0, abs=1.5 * texel)
+    assert texel < 0.01
+    sharp = layer_of(_point([0, 0, -D]))
+    blurred = layer_of(PointLight(np.array([0, 0, -D]), 4 * math.pi * I0, radius=0.5), k=16)
+    r_sharp = radius_containing(sharp, [0, 0, Z], 0.5)
+    r_blur = radius_containing(blurred, [0, 0, Z], 0.5)
+    # each point of the source displaces the caustic by about Z·r/D (SPEC §10)
+    assert r_sharp < r_blur < r_sharp + Z * 0.5 / D
+    assert blurred.flux == pytest.approx(sharp.flux, rel=0.01)
+
+
 def test_layer_mesh_is_lifted_toward_the_light_with_the_receivers_uvs():
     lens = Lens(np.zeros(3), R, N_IOR)
     floor = rectangle([0, 0, 3.0], [0, 0, -1], 40.0, 40.0, 3, 3)   # winding faces away
