@@ -2,8 +2,9 @@
 
 Each beam's node rays are landed on the receivers (nearest hit beyond the exit point).
 A grid cell whose four corners land on the same planar patch spreads its flux over the
-landed quad: it is cut into m × m sub-cells (m from the quad's landed size, ≥ 2 per
-texel), each placed by bilinear interpolation of the four landed corners and weighted by
+landed quad: it is cut into m × m sub-cells (m from the quad's landed size, 2 per
+texel, up to 8 per side freely and beyond that as its share of the flux allows), each
+placed by bilinear interpolation of the four landed corners and weighted by
 the bilinear interpolation of the corners' flux densities, normalised to the cell's
 flux. Sub-cells are deposited into a regular raster in the patch's plane, so where the
 landed quads overlap (past the focus, at the caustic's folds) their flux adds instead of
@@ -12,8 +13,9 @@ gives each corner its density-weighted share; corners that miss every receiver c
 their share into ``flux_lost``. Flux that lands on a patch beyond its raster is
 ``flux_outside``. So emitted = rasters + outside + lost.
 
-One raster per patch that any ray reaches: ``resolution`` × ``resolution`` texels over
-the flux-weighted extent of the landings (the quantiles ``clip_fraction/2`` and
+One raster per patch that any ray reaches, or per cluster of beams whose footprints
+overlap on it (so rasters never overlap and each resolves its own caustics):
+``resolution`` × ``resolution`` texels over the flux-weighted extent of the landings (the quantiles ``clip_fraction/2`` and
 ``1 − clip_fraction/2``: a few grazing rays land very far away). A lens beam is a small
 bright core in a wide faint halo, so the texel lines are spaced by a separable sinh warp,
 ``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
