@@ -15,8 +15,9 @@ their share into ``flux_lost``. Flux that lands on a patch beyond its raster is
 
 One raster per patch that any ray reaches, or per cluster of beams whose footprints
 overlap on it (so rasters never overlap and each resolves its own caustics):
-``resolution`` × ``resolution`` texels over the flux-weighted extent of the landings (the quantiles ``clip_fraction/2`` and
-``1 − clip_fraction/2``: a few grazing rays land very far away). A lens beam is a small
+``resolution`` × ``resolution`` texels over the flux-weighted extent of the landings
+(the quantiles ``clip_fraction/2`` and ``1 − clip_fraction/2``: a few grazing rays land
+very far away). A lens beam is a small
 bright core in a wide faint halo, so the texel lines are spaced by a separable sinh warp,
 ``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
 median distance from it: texels are fine in the core and grow in the halo, and the faces
