@@ -1,0 +1,443 @@
+"""The caustic layer: the landed ray grids accumulated into irradiance rasters.
+
+Each beam's node rays are landed on the receivers (nearest hit beyond the exit point).
+A grid cell whose four corners land on the same planar patch spreads its flux over the
+landed quad: it is cut into m × m sub-cells (m from the quad's landed size, 2 per
+texel, up to 8 per side freely and beyond that as its share of the flux allows), each
+placed by bilinear interpolation of the four landed corners and weighted by
+the bilinear interpolation of the corners' flux densities, normalised to the cell's
+flux. Sub-cells are deposited into a regular raster in the patch's plane, so where the
+landed quads overlap (past the focus, at the caustic's folds) their flux adds instead of
+z-fighting. A cell whose corners land on different patches (an edge between receivers)
+gives each corner its density-weighted share; corners that miss every receiver carry
+their share into ``flux_lost``. Flux that lands on a patch beyond its raster is
+``flux_outside``. So emitted = rasters + outside + lost.
+
+One raster per patch that any ray reaches, or per cluster of beams whose footprints
+overlap on it (so rasters never overlap and each resolves its own caustics):
+``resolution`` × ``resolution`` texels over the flux-weighted extent of the landings
+(the quantiles ``clip_fraction/2`` and ``1 − clip_fraction/2``: a few grazing rays land
+very far away). A lens beam is a small
+bright core in a wide faint halo, so the texel lines are spaced by a separable sinh warp,
+``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
+median distance from it: texels are fine in the core and grow in the halo, and the faces
+stay rectangles that do not overlap. The resolution is a parameter, so the layer's
+topology is fixed while a light moves. Per patch the output is plain data for one
+emissive mesh: a grid of vertices lifted by ``offset`` along the normal toward the light
+(no z-fighting), quad faces, the irradiance per face (W/m², RGB = flux × light colour ×
+lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo / π).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .beam_trace import BeamGrid
+from .emitters import perpendicular_frame
+from .receiver_index import ReceiverIndex, intersect
+from .receiver_patches import ReceiverPatch
+
+
+@dataclass
+class PatchLayer:
+    """The caustic on one planar receiver patch (texel (iy, ix) = face iy·res + ix)."""
+    patch: int                  # index into the patch list
+    sources: np.ndarray         # indices of the beams whose caustic this raster holds
+    object_id: int
+    normal: np.ndarray          # (3,) unit, toward the side the light arrives from
+    axis_u: np.ndarray          # (3,) in-plane; axis_u × axis_v = normal
+    axis_v: np.ndarray
+    origin: np.ndarray          # (3,) the plane's point at (u, v) = (0, 0)
+    edges_u: np.ndarray         # (res+1,) texel lines: world = origin + u·axis_u + v·axis_v
+    edges_v: np.ndarray         # (res+1,)
+    resolution: int
+    irradiance: np.ndarray      # (res, res, 3) W/length² per texel (rows: v, columns: u)
+    flux: float                 # W (uncoloured) deposited in the raster
+    flux_outside: float         # W landed on the patch beyond the raster
+    vertices: np.ndarray        # ((res+1)², 3) lifted by the offset along ``normal``
+    faces: np.ndarray           # (res², 4) vertex indices, counter-clockwise about normal
+    uvs: np.ndarray | None      # ((res+1)², 2) the receiver's UV at each vertex
+    uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
+    #                               None: the patch's UV is affine, valid everywhere
+
+    @property
+    def face_irradiance(self) -> np.ndarray:
+        return self.irradiance.reshape(-1, 3)
+
+    def texel_areas(self) -> np.ndarray:
+        """(res, res) areas of the faces (length²)."""
+        return np.diff(self.edges_v)[:, None] * np.diff(self.edges_u)[None, :]
+
+    def texel_centers(self) -> np.ndarray:
+        """World positions (res, res, 3) of the texel centres, on the plane."""
+        cu = 0.5 * (self.edges_u[1:] + self.edges_u[:-1])
+        cv = 0.5 * (self.edges_v[1:] + self.edges_v[:-1])
+        return (self.origin + cu[None, :, None] * self.axis_u
+                + cv[:, None, None] * self.axis_v)
+
+    def texel_flux(self) -> np.ndarray:
+        """(res, res, 3) flux (W) of each texel."""
+        return self.irradiance * self.texel_areas()[..., None]
+
+
+@dataclass
+class CausticLayer:
+    patches: list[PatchLayer]
+    flux_emitted: float         # W leaving the lenses (all beams)
+    flux_in_rasters: float
+    flux_outside: float         # landed on a patch, beyond its raster
+    flux_lost: float            # missed every receiver
+    n_rays: int
+    n_cells: int
+    n_subcells: int
+    timings: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Landed:
+    beam: BeamGrid
+    patch: np.ndarray           # (N,) patch of each node ray, −1 = miss
+    point: np.ndarray           # (N, 3)
+    dirs: np.ndarray            # (N, 3)
+    node_flux: np.ndarray       # (N,) a quarter of each adjacent cell's flux
+
+
+def cell_corners(shape) -> np.ndarray:
+    """Flat node indices (K·Nr·Na, 4) of each cell's corners, in the order
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na)."""
+    k, nr, na = shape
+    kk, ii, jj = np.meshgrid(np.arange(k), np.arange(nr), np.arange(na), indexing="ij")
+    jn = (jj + 1) % na
+
+    def flat(i, j):
+        return ((kk * (nr + 1) + i) * na + j).reshape(-1)
+    return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+
+
+def _weighted_quantile(x, w, q):
+    o = np.argsort(x)
+    cw = np.cumsum(w[o])
+    return float(np.interp(q * cw[-1], cw, x[o]))
+
+
+def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
+               t_min_rel: float = 1e-7) -> list[_Landed]:
+    """Land every node ray of every beam (all beams in one vectorised cast): nearest hit
+    with t > −t_min_rel × the exit points' spread, so a receiver touching the sphere (a
+    resting marble) still counts. ``own_objects``: per beam the object id of its lens'
+    own mesh if the receivers include it (or −1): hits on it are skipped, the ray goes
+    on from there (a lens is not its own receiver; other lenses may be receivers)."""
+    o = np.concatenate([b.exit_points.reshape(-1, 3) for b in beams])
+    d = np.concatenate([b.exit_dirs.reshape(-1, 3) for b in beams])
+    sizes = [b.n_rays for b in beams]
+    scale = np.repeat([max(float(np.ptp(b.exit_points.reshape(-1, 3), axis=0).max()), 1e-300)
+                       for b in beams], sizes)
+    h = intersect(index, o, d, t_min=-t_min_rel * scale)
+    tri, point = h.triangle, h.point
+    if own_objects is not None:
+        own = np.repeat(np.asarray(own_objects, dtype=np.int64), sizes)
+        ids = index.mesh.ids
+        for _ in range(4):                     # a convex lens mesh: at most a few hits
+            again = np.nonzero((tri >= 0) & (ids[np.maximum(tri, 0)] == own))[0]
+            if not len(again):
+                break
+            h2 = intersect(index, o[again], d[again], t_min=h.t[again] * (1 + 1e-9) + 1e-12)
+            tri[again], point[again] = h2.triangle, h2.point
+            h.t[again] = h2.t
+    patch = np.where(tri >= 0, index.patch_of[np.maximum(tri, 0)], -1)
+    # a sample with no beam (its light inside the sphere) lands nowhere
+    valid = np.concatenate([np.repeat(b.valid, b.n_rays // len(b.valid)) for b in beams])
+    patch = np.where(valid, patch, -1)
+    out, start = [], 0
+    for b, n in zip(beams, sizes, strict=True):
+        nf = np.zeros(n)
+        np.add.at(nf, cell_corners(b.shape), 0.25 * b.cell_flux.reshape(-1)[:, None])
+        sl = slice(start, start + n)
+        out.append(_Landed(b, patch[sl], point[sl], d[sl], nf))
+        start += n
+    return out
+
+
+def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 128,
+                clip_fraction: float = 1e-3, warp: bool = True,
+                subcells_per_texel: float = 2.0, max_subdivision: int = 16,
+                max_subcells: int = 8_000_000, flux_subcells_per_texel: float = 8.0,
+                offset: float | None = None,
+                merge_footprints: bool = True, own_objects=None) -> CausticLayer:
+    """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
+    into per-patch irradiance rasters. ``offset``:
+    lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
+    sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
+    of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
+    own caustics); False: one raster per patch for all beams. ``own_objects``: per beam
+    the object id of its own lens among the receivers (see :func:`land_beams`)."""
+    t0 = time.perf_counter()
+    plist = index.patches
+    if not beams:
+        return CausticLayer([], 0.0, 0.0, 0.0, 0.0, 0, 0, 0, {"total": 0.0})
+    landed = land_beams(beams, index, own_objects)
+    t1 = time.perf_counter()
+    res = int(resolution)
+
+    # Which patches receive anything, their light side, and per patch the clusters of
+    # beams whose footprints overlap: one raster per (patch, cluster).
+    bid = np.concatenate([np.full(len(x.patch), i) for i, x in enumerate(landed)])
+    pid = np.concatenate([x.patch for x in landed])
+    pts = np.concatenate([x.point for x in landed])
+    dirs = np.concatenate([x.dirs for x in landed])
+    wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
+    slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
+    frames, members = [], []
+    on = np.nonzero(pid >= 0)[0]
+    on = on[np.lexsort((bid[on], pid[on]))]
+    p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
+    for k, start in enumerate(p_starts):       # loop over patches, not rays
+        idx = on[start:p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
+        p = int(pid[idx[0]])
+        n = plist[p].normal
+        side = -np.sign(np.sum(wts[idx] * (dirs[idx] @ n))) or 1.0
+        n_out = n * side
+        au, av = perpendicular_frame(n_out)
+        x, y = pts[idx] @ au, pts[idx] @ av
+        b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
+        b_ends = np.append(b_starts[1:], len(idx))
+        w_here = wts[idx]
+        boxes = np.array([[_weighted_quantile(c[a:e], w_here[a:e], q)
+                           for c in (x, y) for q in (0.5 * clip_fraction,
+                                                     1.0 - 0.5 * clip_fraction)]
+                          for a, e in zip(b_starts, b_ends, strict=True)])
+        comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
+        for comp in comps:
+            sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
+            beams_here = bid[idx[b_starts[comp]]]
+            slot_of[beams_here, p] = len(frames)
+            axes = [_warp_axis(c[sel], w_here[sel], clip_fraction, res, warp) for c in (x, y)]
+            frames.append((p, n_out, au, av, axes[0], axes[1]))
+            members.append(beams_here)
+    fr = {"au": np.array([f[2] for f in frames]).reshape(-1, 3),
+          "av": np.array([f[3] for f in frames]).reshape(-1, 3)}
+    for key, k in (("u", 4), ("v", 5)):
+        for j, name in enumerate(("c", "s", "xi0", "dxi")):
+            fr[key + name] = np.array([f[k][j] for f in frames])
+
+    n_slots = len(frames)
+    rgb = np.zeros((n_slots * res * res, 3))
+    flux_in = np.zeros(n_slots)
+    flux_out = np.zeros(n_slots)
+    lost = 0.0
+    n_sub = 0
+    # One vectorised pass per light colour (beams of one colour share the arithmetic).
+    colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
+    uniq, group = np.unique(colors, axis=0, return_inverse=True)
+    for gi, color in enumerate(uniq):          # loop over colours, usually one or two
+        members_g = [landed[i] for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        ids = [i for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
+        point = np.concatenate([lb.point for lb in members_g])
+        slot = np.concatenate([np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
+                               for i, lb in zip(ids, members_g, strict=True)])
+        corners = np.concatenate([cell_corners(lb.beam.shape) + base[k]
+                                  for k, lb in enumerate(members_g)])
+        cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+        dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
+        acc = np.zeros(n_slots * res * res)
+        out_acc = np.zeros(n_slots)
+        cs = slot[corners]
+        same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
+        # cells across receivers (or missing): each corner its density-weighted share
+        mixed = ~same & (cflux > 0.0)
+        dsum = dens[mixed].sum(axis=1, keepdims=True)
+        share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
+        share = (share * cflux[mixed, None]).reshape(-1)
+        cm = corners[mixed].reshape(-1)
+        sm = cs[mixed].reshape(-1)
+        lost += float(share[sm < 0].sum())
+        on = sm >= 0
+        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr, res)
+        # cells on one patch: m × m bilinear sub-cells
+        cidx = np.nonzero(same)[0]
+        if len(cidx):
+            n_sub += _splat_cells(acc, out_acc, point[corners[cidx]], cs[cidx, 0],
+                                  dens[cidx], cflux[cidx], fr, res,
+                                  subcells_per_texel, max_subdivision, max_subcells,
+                                  flux_subcells_per_texel)
+        flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
+        flux_out += out_acc
+        rgb += acc[:, None] * color
+    t2 = time.perf_counter()
+
+    layers = []
+    uv_fits = {}
+    for s, (p, n_out, au, av, ax_u, ax_v) in enumerate(frames):
+        eu, ev = _edges(ax_u, res), _edges(ax_v, res)
+        area = np.diff(ev)[:, None] * np.diff(eu)[None, :]
+        off = 0.1 * min(np.diff(eu).min(), np.diff(ev).min()) if offset is None else offset
+        origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
+        irr = rgb[s * res * res:(s + 1) * res * res].reshape(res, res, 3) / area[..., None]
+        verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape(-1, 3)
+        if p not in uv_fits:                   # one fit per patch, shared by its rasters
+            uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
+        uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
+        a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
+        faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
+        layers.append(PatchLayer(
+            patch=int(p), sources=members[s], object_id=plist[p].object_id, normal=n_out,
+            axis_u=au, axis_v=av,
+            origin=origin, edges_u=eu, edges_v=ev, resolution=res, irradiance=irr,
+            flux=float(flux_in[s]), flux_outside=float(flux_out[s]),
+            vertices=verts + off * n_out, faces=faces, uvs=uvs, uv_inside=inside))
+    t3 = time.perf_counter()
+    return CausticLayer(
+        patches=layers, flux_emitted=float(sum(b.total_flux for b in beams)),
+        flux_in_rasters=float(flux_in.sum()), flux_outside=float(flux_out.sum()),
+        flux_lost=lost, n_rays=sum(b.n_rays for b in beams),
+        n_cells=sum(b.n_cells for b in beams), n_subcells=n_sub,
+        timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0})
+
+
+def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
+    """Group boxes (m, 4: u_lo, u_hi, v_lo, v_hi) into clusters whose merged boxes do
+    not overlap: connected components of the overlap graph, repeated on the merged
+    boxes until they are disjoint (m is the number of beams on one patch: small)."""
+    groups = [np.array([i]) for i in range(len(boxes))]
+    cur = boxes.copy()
+    while True:
+        over = ((cur[:, None, 0] <= cur[None, :, 1]) & (cur[None, :, 0] <= cur[:, None, 1])
+                & (cur[:, None, 2] <= cur[None, :, 3]) & (cur[None, :, 2] <= cur[:, None, 3]))
+        label = np.arange(len(cur))
+        while True:                            # label propagation to the smallest index
+            new = np.where(over, label[None, :], len(cur)).min(axis=1)
+            if np.array_equal(new, label):
+                break
+            label = new
+        if len(np.unique(label)) == len(cur):
+            return groups
+        keys = np.unique(label)
+        groups = [np.concatenate([groups[i] for i in np.nonzero(label == k)[0]]) for k in keys]
+        cur = np.array([[cur[label == k, 0].min(), cur[label == k, 1].max(),
+                         cur[label == k, 2].min(), cur[label == k, 3].max()] for k in keys])
+
+
+def _warp_axis(x, w, clip_fraction, res, warp):
+    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``."""
+    lo = _weighted_quantile(x, w, 0.5 * clip_fraction)
+    hi = _weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
+    span = max(hi - lo, 1e-12 * (1.0 + abs(lo) + abs(hi)))
+    lo, hi = lo - span / res, hi + span / res            # a texel of margin
+    c = _weighted_quantile(x, w, 0.5)
+    s = max(_weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+    xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
+    return c, s, xi0, (xi1 - xi0) / res
+
+
+def _edges(axis, res):
+    c, s, xi0, dxi = axis
+    return c + s * np.sinh(xi0 + dxi * np.arange(res + 1))
+
+
+def _texel_index(x, fr, key, slots):
+    xi = np.arcsinh((x - fr[key + "c"][slots]) / fr[key + "s"][slots])
+    return np.floor((xi - fr[key + "xi0"][slots]) / fr[key + "dxi"][slots]).astype(np.int64)
+
+
+def _local_texel(x, fr, key, slots):
+    """Texel width at ``x``: dx/dξ · dξ = sqrt(s² + (x − c)²) · dξ."""
+    return np.hypot(fr[key + "s"][slots], x - fr[key + "c"][slots]) * fr[key + "dxi"][slots]
+
+
+def _deposit(acc, out_acc, points, slots, flux, fr, res):
+    """Add ``flux`` at world ``points`` into the rasters of ``slots`` (their texel)."""
+    if len(points) == 0:
+        return
+    x = np.einsum("ij,ij->i", points, fr["au"][slots])
+    y = np.einsum("ij,ij->i", points, fr["av"][slots])
+    _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res)
+
+
+def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
+    ix = _texel_index(x, fr, "u", slots)
+    iy = _texel_index(y, fr, "v", slots)
+    inside = (ix >= 0) & (ix < res) & (iy >= 0) & (iy < res)
+    idx = (slots * res + iy) * res + ix
+    acc += np.bincount(idx[inside], weights=flux[inside], minlength=len(acc))
+    out_acc += np.bincount(slots[~inside], weights=flux[~inside], minlength=len(out_acc))
+
+
+def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel, m_max,
+                 max_subcells, flux_subcells_per_texel, m_free=8):
+    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
+    x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])                # (C, 4)
+    y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
+    # sub-cells per side: the quad's extent in local texels at its centre
+    tx = _local_texel(x.mean(1), fr, "u", slots)
+    ty = _local_texel(y.mean(1), fr, "v", slots)
+    size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
+    m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
+    # A dim cell's sampling error is a small share of the image: the cells that need
+    # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
+    # them by flux too, about ``flux_subcells_per_texel`` per texel of the rasters in all.
+    budget = flux_subcells_per_texel * res * res * (len(fr["au"]) if len(fr["au"]) else 1)
+    m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300))).astype(np.int64)
+    m = np.where(m <= m_free, m, np.maximum(m_free, np.minimum(m, m_flux)))
+    total = int(np.sum(m * m))
+    if total > max_subcells:                   # keep memory bounded: coarser sub-cells
+        m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
+    dsum = dens.sum(axis=1)
+    dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
+    n_sub = 0
+    for mm in np.unique(m):                    # loop over subdivision levels
+        sel = np.nonzero(m == mm)[0]
+        g = (np.arange(mm) + 0.5) / mm
+        s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
+        bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
+        px = x[sel] @ bw.T                                                   # (c, q)
+        py = y[sel] @ bw.T
+        w = dens[sel] @ bw.T
+        w *= (flux[sel] / w.sum(axis=1))[:, None]
+        sl = np.repeat(slots[sel], len(s))
+        _deposit_2d(acc, out_acc, px.reshape(-1), py.reshape(-1), sl, w.reshape(-1), fr, res)
+        n_sub += w.size
+    return n_sub
+
+
+def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
+    """Least-squares affine map (plane coordinates → UV) over the patch's vertices and
+    whether it is exact; None without UVs."""
+    mesh = index.mesh
+    if mesh.uvs is None:
+        return None
+    uv = np.asarray(mesh.uvs, dtype=float)
+    vi = np.unique(np.asarray(mesh.triangles)[patch.triangles].reshape(-1))
+    pv = np.asarray(mesh.vertices, dtype=float)[vi]
+    au, av = perpendicular_frame(n_out)
+    a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
+    coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
+    scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
+    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale)
+
+
+def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
+    """The receiver's UV at each layer vertex. A plane's UVs are usually affine in the
+    plane: then the least-squares affine fit is exact and used everywhere (``inside`` is
+    None). Otherwise barycentric interpolation on the patch's triangle under each vertex,
+    the affine fit beyond the patch (``inside`` False there)."""
+    if uv_fit is None:
+        return None, None
+    coef, exact = uv_fit
+    au, av = perpendicular_frame(n_out)
+    fit = np.column_stack([verts @ au, verts @ av, np.ones(len(verts))]) @ coef
+    if exact:
+        return fit, None
+    mesh = index.mesh
+    uv = np.asarray(mesh.uvs, dtype=float)
+    h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
+    hits = intersect(index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape),
+                     t_min=0.0, t_max=2.0 * h)
+    tri = hits.triangle
+    inside = (tri >= 0) & (index.patch_of[np.maximum(tri, 0)] == p)
+    tv = np.asarray(mesh.triangles)[np.maximum(tri, 0)]
+    bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], axis=1)
+    out = np.einsum("nk,nkj->nj", bary, uv[tv])
+    return np.where(inside[:, None], out, fit), inside

@@ -1,0 +1,66 @@
+"""How many rays a caustic sheet gets: from its flux share and its size on screen.
+
+The layer resolves the caustic to the rays' landed cells (and sub-cells between them),
+so what matters is the number of rays per *pixel* the caustic covers; and a dim caustic
+tolerates a coarser grid, because the error of a piecewise representation is a fraction
+of the irradiance: to keep the absolute error even across sources the count scales with
+the source's flux relative to the brightest one. The count is capped per source and in
+total; the grid is Nr × Na cells with Na = 4 Nr (square cells in (ι, φ) at the rim).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RayBudget:
+    n_radial: int
+    n_azimuth: int
+
+    @property
+    def n_rays(self) -> int:
+        """Node rays per source sample: (Nr + 1) × Na."""
+        return (self.n_radial + 1) * self.n_azimuth
+
+
+def pixel_size(camera_position, target, fov: float, width_px: int) -> float:
+    """Length one pixel covers at ``target`` for a perspective camera of horizontal
+    field of view ``fov`` (rad) and ``width_px`` pixels across."""
+    dist = float(np.linalg.norm(np.asarray(target, float) - np.asarray(camera_position, float)))
+    return 2.0 * dist * math.tan(0.5 * fov) / max(1, int(width_px))
+
+
+def ray_budget(flux_share: float, extent: float, pixel: float, rays_per_pixel: float = 1.0,
+               min_rays: int = 1024, max_rays: int = 65536) -> RayBudget:
+    """Grid for one source. ``flux_share``: its flux over the brightest source's (0..1];
+    ``extent``: the caustic's size on the receiver (e.g. the lens' diameter, or the last
+    layer's core); ``pixel``: :func:`pixel_size` there."""
+    px = max(extent, 0.0) / max(pixel, 1e-300)
+    want = rays_per_pixel * px * px * min(max(flux_share, 0.0), 1.0)
+    n = float(np.clip(want, min_rays, max_rays))
+    nr = max(2, int(round(math.sqrt(n / 4.0))))
+    return RayBudget(nr, 4 * nr)
+
+
+def allocate(fluxes, extents, pixels, total_rays: int = 1_000_000, **kwargs) -> list[RayBudget]:
+    """Budgets for many sources: :func:`ray_budget` each, then scaled down together
+    (keeping each source's ``min_rays``) if the sum exceeds ``total_rays``."""
+    fluxes = np.asarray(fluxes, dtype=float)
+    top = fluxes.max() if len(fluxes) and fluxes.max() > 0 else 1.0
+    out = [ray_budget(f / top, e, p, **kwargs) for f, e, p in zip(fluxes, extents, pixels,
+                                                                   strict=True)]
+    total = sum(b.n_rays for b in out)
+    if total > total_rays:
+        k = math.sqrt(total_rays / total)
+        out = [RayBudget(max(2, int(b.n_radial * k)), 4 * max(2, int(b.n_radial * k)))
+               for b in out]
+    return out
+
+
+def layer_resolution(extent: float, pixel: float, min_res: int = 16, max_res: int = 256) -> int:
+    """Texels per side of a layer raster: about one texel per pixel of the caustic's
+    extent (the warp makes the core's texels finer still), capped."""
+    return int(np.clip(math.ceil(max(extent, 0.0) / max(pixel, 1e-300)), min_res, max_res))
