@@ -12,8 +12,18 @@ bpy = pytest.importorskip("bpy")   # the pinned environment has it
 
 # --------------------------------------------------------------------------- helpers
 
-def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
+def new_material(name):
+    """A new material with its default node tree (Principled BSDF → Material Output).
+    Blender 4.x makes the tree only when `use_nodes` is set; 5.0 always has it (and
+    deprecates `use_nodes`)."""
     mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    return mat
+
+
+def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Transmission Weight"].default_value = transmission
     bsdf.inputs["IOR"].default_value = ior
@@ -23,7 +33,7 @@ def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
 
 def node_material(name, kind, **inputs):
     """A material whose surface is one shader node of type `kind` (bl_idname)."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nt = mat.node_tree
     for node in list(nt.nodes):
         if node.type != "OUTPUT_MATERIAL":
@@ -257,7 +267,7 @@ def test_glass_and_refraction_bsdfs(empty_blend, kind, weight):
 
 def test_mix_shader_and_volume_absorption(empty_blend):
     from lens_lights.operators.scene_reader import read_blender_scene
-    mat = bpy.data.materials.new("Mixed")
+    mat = new_material("Mixed")
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     out = nt.nodes["Material Output"]

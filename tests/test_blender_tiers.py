@@ -35,6 +35,9 @@ def expected_lights(model="EXACT_PROFILE"):
 
 
 def set_engine(engine):
+    """Set the render engine; EEVEE's identifier was BLENDER_EEVEE_NEXT before 5.0."""
+    if engine == "BLENDER_EEVEE" and bpy.app.version < (5, 0, 0):
+        engine = "BLENDER_EEVEE_NEXT"
     bpy.context.scene.render.engine = engine
 
 
