@@ -151,3 +151,23 @@ def test_assemble_a_hand_made_scene():
     assert blocking.source_index == [1, 0]
     assert blocking.box_lo.tolist() == [[-5.0, -5.0, 0.0], [-1.0, -2.0, -1.0]]
     assert read.scene_size == pytest.approx(math.sqrt(10 ** 2 + 10 ** 2 + 7 ** 2))
+
+
+def test_ray_hits_on_spheres_and_boxes():
+    from addon.ray_hits import box_entries, sphere_hits
+    d = np.array([0.0, 0.0, 1.0])
+    origins = np.array([[0.0, 0.0, 0.0], [0.6, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    # unit sphere at z 5: the axis ray enters at 4; at x 0.6 at 5 − √(1 − 0.36) = 4.2;
+    # the ray at x 3 misses; from inside (z 5) the far side at 1
+    t = sphere_hits(np.array([[0.0, 0.0, 5.0]]), np.array([1.0]), origins, d)
+    assert t.tolist() == pytest.approx([4.0, 4.2, np.inf])
+    assert sphere_hits(np.array([[0.0, 0.0, 5.0]]), np.array([1.0]),
+                       np.array([[0.0, 0.0, 5.0]]), d).tolist() == [1.0]
+    assert sphere_hits(np.zeros((0, 3)), np.zeros(0), origins, d).tolist() == [np.inf] * 3
+    # box [−1, 1]² × [2, 3]: entered at 2 by the first two rays; the third misses it
+    enter, hit = box_entries(np.array([[-1.0, -1.0, 2.0]]), np.array([[1.0, 1.0, 3.0]]),
+                             origins, d, limit=10.0)
+    assert hit[:, 0].tolist() == [True, True, False]
+    assert enter[:2, 0].tolist() == [2.0, 2.0]
+    assert not box_entries(np.array([[-1.0, -1.0, 2.0]]), np.array([[1.0, 1.0, 3.0]]),
+                           origins, d, limit=1.0)[1].any()
