@@ -161,7 +161,21 @@ def test_clear_removes_everything_created_and_nothing_else(empty_blend):
     assert {o.name for o in bpy.data.objects} == {"Floor", "Marble", "Lamp"}
     assert [c.name for c in bpy.data.objects["Marble"].users_collection] == ["Scene Collection"]
     assert "Removed 1 lens light" in bpy.context.scene.lens_lights.last_report
-    assert bpy.ops.lens_lights.clear() == {"FINISHED"}        # clearing twice is fine
+    # nothing left to clear: Clear's poll says no (operators.scene_state)
+    from lens_lights.operators.scene_state import has_lens_lights
+    assert not has_lens_lights(bpy.context.scene)
+
+
+def test_there_is_something_to_clear_only_after_generate(empty_blend):
+    from lens_lights.operators.scene_state import has_lens_lights
+    basic_scene()
+    assert not has_lens_lights(bpy.context.scene)
+    generate()
+    assert has_lens_lights(bpy.context.scene)
+    # another scene has nothing of the extension's
+    assert not has_lens_lights(bpy.data.scenes.new("Other"))
+    bpy.ops.lens_lights.clear()
+    assert not has_lens_lights(bpy.context.scene)
 
 
 def test_undo_and_redo(empty_blend):

@@ -222,7 +222,8 @@ def test_panel_shows_the_tier_and_what_it_trades(empty_blend, model, engine, sho
     from types import SimpleNamespace
 
     from lens_lights.addon.lens_tiers import TIER_LINES
-    from lens_lights.operators.panel import VIEW3D_PT_lens_lights, _wrap
+    from lens_lights.addon.ui_text import wrap as _wrap
+    from lens_lights.operators.panel import VIEW3D_PT_lens_lights
     basic_scene()
     set_engine(engine)
     bpy.context.scene.lens_lights.energy_model = model
@@ -232,6 +233,35 @@ def test_panel_shows_the_tier_and_what_it_trades(empty_blend, model, engine, sho
     tier = {"Exact profile (Cycles)": "EXACT_PROFILE", "Fitted": "FITTED", "Physical": "PHYSICAL"}[shown]
     assert all(line in labels for line in _wrap(TIER_LINES[tier]))
     assert any("needs Cycles" in t for t in labels) == warned
+
+
+def test_panel_explains_the_power_of_an_exact_profile_light(empty_blend):
+    """Issue 10: an Exact-profile light shows a few mW as its power; the Object
+    sub-panel says why (a sampling weight; the node tree holds the intensity)."""
+    from types import SimpleNamespace
+
+    from lens_lights.addon.ui_text import wrap
+    from lens_lights.operators.panel import EXACT_POWER_NOTE, VIEW3D_PT_lens_lights_object
+    basic_scene()
+    set_engine("CYCLES")
+    for model, shown in (("EXACT_PROFILE", True), ("FITTED", False)):
+        bpy.context.scene.lens_lights.energy_model = model
+        generate()
+        (ll,) = lens_lights()
+        log = draw_panel(VIEW3D_PT_lens_lights_object, SimpleNamespace(scene=bpy.context.scene,
+                                                                      object=ll))
+        labels = [text for kind, text in log if kind == "label"]
+        assert ("sampling weight" in " ".join(labels)) == shown, model
+        assert all(line in labels for line in wrap(EXACT_POWER_NOTE)) == shown, model
+    # wrapped to the region's width: a wider sidebar, fewer lines
+    bpy.context.scene.lens_lights.energy_model = "EXACT_PROFILE"
+    generate()
+    (ll,) = lens_lights()
+    wide = SimpleNamespace(scene=bpy.context.scene, object=ll,
+                           region=SimpleNamespace(width=800), preferences=bpy.context.preferences)
+    labels = [text for kind, text in draw_panel(VIEW3D_PT_lens_lights_object, wide)
+              if kind == "label"]
+    assert EXACT_POWER_NOTE in labels
 
 
 def test_a_file_saved_with_physical_keeps_it(empty_blend, tmp_path):

@@ -171,3 +171,14 @@ def test_ray_hits_on_spheres_and_boxes():
     assert enter[:2, 0].tolist() == [2.0, 2.0]
     assert not box_entries(np.array([[-1.0, -1.0, 2.0]]), np.array([[1.0, 1.0, 3.0]]),
                            origins, d, limit=1.0)[1].any()
+
+
+def test_panel_text_wraps_to_the_region_width():
+    from addon.ui_text import DEFAULT_CHARS, chars_per_line, wrap
+    assert chars_per_line(None) == DEFAULT_CHARS
+    assert chars_per_line(300, 1.0) == 41           # (300 − 30) / 6.5 = 41.5
+    assert chars_per_line(600, 2.0) == 41           # the same at twice the scale
+    assert chars_per_line(20, 1.0) == 12            # never narrower
+    assert wrap("one two three four", 9) == ["one two", "three", "four"]
+    assert wrap("a verylongword b", 4) == ["a", "verylongword", "b"]
+    assert wrap("") == []
