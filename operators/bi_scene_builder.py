@@ -31,6 +31,7 @@ from ..addon.bi_records import (
     surface_from_dict,
 )
 from ..addon.scene import Camera, Light, Scene, Sphere, Surface
+from .material_reader import node_tree
 
 #: Custom property with the `.bi` numbers of an imported object or material.
 PROP = "lens_lights_bi"
@@ -231,9 +232,10 @@ def _stored(idblock):
 def principled_inputs(material) -> dict | None:
     """Values of the inputs of a material's Principled BSDF (the one feeding the
     output, or the first), or None without one."""
-    if material is None or material.node_tree is None:
+    tree = node_tree(material) if material is not None else None
+    if tree is None:
         return None
-    nodes = [n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED"]
+    nodes = [n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"]
     if not nodes:
         return None
     node = nodes[0]

@@ -8,6 +8,7 @@ socket's own value used. Muted nodes and links are skipped, reroutes followed.
 """
 from __future__ import annotations
 
+import bpy
 import numpy as np
 
 from ..addon.material_model import (
@@ -86,11 +87,21 @@ def _shader(socket, notes, depth=0):
                 name=node.name)
 
 
+def node_tree(material):
+    """The node tree a material renders with, or None (before Blender 5.0 a material
+    may keep a node tree with "Use Nodes" off: it renders its plain colours then;
+    from 5.0 every material uses its nodes and `use_nodes` is deprecated)."""
+    nt = material.node_tree
+    if nt is not None and bpy.app.version < (5, 0, 0) and not material.use_nodes:
+        return None
+    return nt
+
+
 def material_optics(material) -> MaterialOptics:
     """Lens optics of a Blender material (None: Blender's default grey, opaque)."""
     if material is None:
         return MaterialOptics(notes=["no material"])
-    nt = material.node_tree
+    nt = node_tree(material)
     if nt is None:
         return MaterialOptics(notes=["material without nodes"])
     out = nt.get_output_node("CYCLES") or nt.get_output_node("ALL")

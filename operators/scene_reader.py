@@ -74,7 +74,7 @@ from ..addon.scene_read import (  # noqa: F401
     surface_block,
 )
 from ..addon.sphere_fit import fit_sphere
-from .material_reader import main_material, material_optics
+from .material_reader import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
 from .render_probe import ProbeUnavailable, rendered_depsgraph  # noqa: F401  (re-exported)
 
@@ -210,7 +210,7 @@ def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
                                     absorption=optics.absorption)
     if material is None:
         color = (0.8, 0.8, 0.8)
-    elif material.node_tree is None:
+    elif node_tree(material) is None:
         color = tuple(material.diffuse_color[:3])
     else:
         color = optics.color
