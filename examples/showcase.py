@@ -41,6 +41,8 @@ LIGHTS = (
 def _material(name, color, roughness=0.5):
     import bpy
     mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True                # Blender 4.x: no node tree until then
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness

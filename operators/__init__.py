@@ -2,7 +2,18 @@
 
 Each module listed here has `register()` / `unregister()`; they run in this order
 and are undone in reverse, so that properties exist before the operators and panels
-that use them.
+that use them. The others register nothing (the render probe registers its engine
+only while it renders):
+
+* `scene_reader` reads the scene as the renderer sees it, with `render_probe` (the
+  render depsgraph), `material_reader` (materials' node trees) and `occluders`
+  (rays against the read geometry); the numpy work is in `addon.scene_read` and
+  `addon.instances`;
+* `light_builder` creates and removes the lens lights; `scene_state` says whether a
+  scene has any (Clear's poll);
+* `bi_scene_builder` builds and reads the Blender data of `.bi` scenes for `bi_io`.
+
+Nothing here runs without bpy; what can is in `addon/`.
 """
 import importlib
 

@@ -1,4 +1,4 @@
-"""File > Import / Export > "Bitracer scene (.bi)".
+"""File > Import / Export > "Bitracer Scene (.bi)".
 
 Also callable as `bpy.ops.import_scene.bi(filepath=…)` and
 `bpy.ops.export_scene.bi(filepath=…)`. A `.bi` file can be dropped on the 3D
@@ -14,19 +14,15 @@ import bpy
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from ..addon.bi_conversions import BlenderLimitError, header_line
+from ..addon.bi_conversions import BlenderLimitError
 from ..addon.bi_format import BiFormatError, read_bi, write_bi
-
-
-def _summary(items: list, limit: int = 8) -> str:
-    text = ", ".join(items[:limit])
-    return text + (f", … ({len(items) - limit} more)" if len(items) > limit else "")
+from ..addon.bi_records import file_line, summary
 
 
 class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
     """Import a Bitracer scene (.bi): camera, point lights, spheres and their materials"""
     bl_idname = "import_scene.bi"
-    bl_label = "Import Bitracer Scene"
+    bl_label = "Import Bitracer Scene (.bi)"
     bl_options = {"REGISTER", "UNDO", "PRESET"}
 
     filename_ext = ".bi"
@@ -47,7 +43,7 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
             built = builder.build_scene(scene, context, name=os.path.basename(path),
                                         progress=lambda i, n: wm.progress_update(i))
         except BlenderLimitError as e:
-            self.report({"ERROR"}, f"{path}:{self._line(path, e.record)}: {e}")
+            self.report({"ERROR"}, f"{path}:{file_line(path, e.record)}: {e}")
             return {"CANCELLED"}
         except Exception as e:  # never a traceback in the UI; details on the console
             traceback.print_exc()
@@ -61,19 +57,14 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
                               f"light(s), {len(built.spheres)} sphere(s)")
         return {"FINISHED"}
 
-    @staticmethod
-    def _line(path: str, key: str):
-        try:
-            with open(path, encoding="utf-8-sig", errors="replace") as f:
-                return header_line(f.read(), key) or 1
-        except OSError:
-            return 1
-
 
 class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
-    """Export the scene as a Bitracer scene (.bi): the camera, point lights and the spheres Lens Lights recognises"""
+    """Export the scene as a Bitracer scene (.bi): the camera, point lights and the
+    spheres Lens Lights recognises"""
     bl_idname = "export_scene.bi"
-    bl_label = "Export Bitracer Scene"
+    bl_label = "Export Bitracer Scene (.bi)"
+    bl_description = ("Export the scene as a Bitracer scene (.bi): the camera, point lights "
+                      "and the spheres Lens Lights recognises")
     bl_options = {"REGISTER", "PRESET"}
 
     filename_ext = ".bi"
@@ -102,7 +93,7 @@ class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
             print(f"{path}: left out of the .bi file:")
             for name, reason in read.left_out:
                 print(f"  {name}: {reason}")
-            self.report({"WARNING"}, f"Left out {len(read.left_out)} object(s): " + _summary(
+            self.report({"WARNING"}, f"Left out {len(read.left_out)} object(s): " + summary(
                 [f"{name} ({reason})" for name, reason in read.left_out]))
         self.report({"INFO"}, f"Exported {len(read.scene.lights)} light(s) and "
                               f"{len(read.scene.objects)} sphere(s) to {path}")
@@ -111,7 +102,7 @@ class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
 
 class IO_FH_lens_lights_bi(bpy.types.FileHandler):
     bl_idname = "IO_FH_lens_lights_bi"
-    bl_label = "Bitracer scene"
+    bl_label = "Bitracer Scene"
     bl_import_operator = "import_scene.bi"
     bl_export_operator = "export_scene.bi"
     bl_file_extensions = ".bi"
@@ -122,11 +113,11 @@ class IO_FH_lens_lights_bi(bpy.types.FileHandler):
 
 
 def menu_import(self, context):
-    self.layout.operator(IMPORT_SCENE_OT_bi.bl_idname, text="Bitracer scene (.bi)")
+    self.layout.operator(IMPORT_SCENE_OT_bi.bl_idname, text="Bitracer Scene (.bi)")
 
 
 def menu_export(self, context):
-    self.layout.operator(EXPORT_SCENE_OT_bi.bl_idname, text="Bitracer scene (.bi)")
+    self.layout.operator(EXPORT_SCENE_OT_bi.bl_idname, text="Bitracer Scene (.bi)")
 
 
 _classes = (IMPORT_SCENE_OT_bi, EXPORT_SCENE_OT_bi, IO_FH_lens_lights_bi)

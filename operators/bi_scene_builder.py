@@ -12,15 +12,26 @@ an edit of more than 1e-5 relative wins), so import → export reproduces the fi
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
-import bpy
 import bmesh
+import bpy
 from mathutils import Matrix, Vector
 
 from ..addon import bi_conversions as conv
+from ..addon.bi_records import (
+    as_tuple,
+    f32,
+    f32v,
+    light_name,
+    order_key,
+    scene_extent,
+    sphere_name,
+    surface_dict,
+    surface_from_dict,
+)
 from ..addon.scene import Camera, Light, Scene, Sphere, Surface
+from .material_reader import node_tree
 
 #: Custom property with the `.bi` numbers of an imported object or material.
 PROP = "lens_lights_bi"
@@ -30,15 +41,6 @@ COLOR_SCALE_PROP = "lens_lights_bi_color_scale"
 SPHERE_SEGMENTS, SPHERE_RINGS = 64, 32
 #: Relative tolerance under which Blender's value is "still the file's number".
 STORED_TOLERANCE = 1e-5
-
-
-def sphere_name(index: int) -> str:
-    """Name of the imported sphere `index` (0-based, as `lens-lights phase1` counts)."""
-    return f"Sphere {index}"
-
-
-def light_name(index: int) -> str:
-    return f"Light {index}"
 
 
 # --------------------------------------------------------------------------- import
@@ -64,18 +66,6 @@ def _principled(material) -> bpy.types.Node:
             or tree.nodes.new("ShaderNodeOutputMaterial")
         tree.links.new(node.outputs["BSDF"], out.inputs["Surface"])
     return node
-
-
-def surface_dict(surface: Surface) -> dict:
-    return {"color": list(surface.color), "ka": surface.ambient, "kd": surface.diffuse,
-            "ks": surface.specular, "kt": surface.transmission, "E": surface.exponent,
-            "n": surface.ior}
-
-
-def surface_from_dict(d) -> Surface:
-    return Surface(color=tuple(float(c) for c in d["color"]), ambient=float(d["ka"]),
-                   diffuse=float(d["kd"]), specular=float(d["ks"]),
-                   transmission=float(d["kt"]), exponent=float(d["E"]), ior=float(d["n"]))
 
 
 def make_material(name: str, surface: Surface) -> bpy.types.Material:
@@ -105,17 +95,6 @@ def _sphere_mesh(name: str) -> bpy.types.Mesh:
     return mesh
 
 
-def _scene_extent(scene: Scene) -> float:
-    """Largest distance from the camera to any light or sphere's far side."""
-    cam = Vector(scene.camera.position)
-    far = (Vector(scene.camera.target) - cam).length
-    for light in scene.lights:
-        far = max(far, (Vector(light.position) - cam).length)
-    for sphere in scene.objects:
-        far = max(far, (Vector(sphere.center) - cam).length + sphere.radius)
-    return far
-
-
 def build_camera(scene: Scene, context, collection, name: str = "Camera"):
     """The scene camera and render settings; returns (object, warnings)."""
     bc = conv.camera_to_blender(scene.camera, scene.width, scene.height)
@@ -127,7 +106,7 @@ def build_camera(scene: Scene, context, collection, name: str = "Camera"):
     data.lens_unit = "MILLIMETERS"
     data.lens = bc.lens
     data.dof.focus_distance = bc.focus_distance
-    extent = _scene_extent(scene)
+    extent = scene_extent(scene)
     data.clip_end = max(100.0, 2.0 * extent)
     data.clip_start = max(1e-6, min(0.1, extent * 1e-4))
     obj = bpy.data.objects.new(name, data)
@@ -240,18 +219,6 @@ class ExportRead:
     warnings: list = field(default_factory=list)
 
 
-def f32(x: float) -> float:
-    """The shortest decimal that reads back to the same float32 as `x` (Blender's
-    storage), as a double: 0.30000001192092896 → 0.3."""
-    import numpy as np
-    value = np.float32(x)
-    return float(str(value)) if np.isfinite(value) else float(x)
-
-
-def f32v(v) -> tuple:
-    return tuple(f32(c) for c in v)
-
-
 def _stored(idblock):
     value = idblock.get(PROP) if idblock is not None else None
     if value is None:
@@ -265,9 +232,10 @@ def _stored(idblock):
 def principled_inputs(material) -> dict | None:
     """Values of the inputs of a material's Principled BSDF (the one feeding the
     output, or the first), or None without one."""
-    if material is None or material.node_tree is None:
+    tree = node_tree(material) if material is not None else None
+    if tree is None:
         return None
-    nodes = [n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED"]
+    nodes = [n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"]
     if not nodes:
         return None
     node = nodes[0]
@@ -298,17 +266,6 @@ def surface_of_material(material, fallback: Surface | None = None) -> Surface:
                        specular=f32(s.specular), transmission=f32(s.transmission),
                        exponent=f32(s.exponent), ior=f32(s.ior))
     return fallback if fallback is not None else Surface()
-
-
-def _natural_key(name: str):
-    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", name)]
-
-
-def _order_key(obj, name):
-    stored = _stored(obj) or {}
-    index = stored.get("index")
-    return (0, int(index), _natural_key(name)) if isinstance(index, int) else \
-        (1, 0, _natural_key(name))
 
 
 def read_camera(context, warnings: list) -> tuple[Camera, int, int]:
@@ -367,38 +324,34 @@ def read_for_export(context) -> ExportRead:
     camera, width, height = read_camera(context, warnings)
 
     lights = []
-    for name, light in zip(read.light_sources, read.scene.lights):
+    for name, light in zip(read.light_sources, read.scene.lights, strict=True):
         obj = bpy.data.objects.get(name)
         stored = _stored(obj) or {}
-        position = conv.prefer_stored(f32v(light.position), _tuple(stored.get("position")),
+        position = conv.prefer_stored(f32v(light.position), as_tuple(stored.get("position")),
                                       STORED_TOLERANCE)
-        color = conv.prefer_stored(f32v(light.color), _tuple(stored.get("color")),
+        color = conv.prefer_stored(f32v(light.color), as_tuple(stored.get("color")),
                                    STORED_TOLERANCE)
         brightness = conv.prefer_stored(f32(conv.brightness_from_watts(light.brightness)),
                                         stored.get("brightness"), STORED_TOLERANCE)
-        lights.append((_order_key(obj, name), Light(position=position, color=color,
+        lights.append((order_key(stored, name), Light(position=position, color=color,
                                                     brightness=brightness, name=name)))
 
     spheres = []
-    for name, sphere in zip(read.sphere_sources, read.scene.objects):
+    for name, sphere in zip(read.sphere_sources, read.scene.objects, strict=True):
         obj = bpy.data.objects.get(name)
         stored = _stored(obj) or {}
         radius = conv.prefer_stored(f32(sphere.radius), stored.get("radius"), STORED_TOLERANCE)
-        center = conv.prefer_stored(f32v(sphere.center), _tuple(stored.get("center")),
+        center = conv.prefer_stored(f32v(sphere.center), as_tuple(stored.get("center")),
                                     STORED_TOLERANCE, scale=radius)
         material = obj.active_material if obj is not None else None
         surface = surface_of_material(material, fallback=sphere.surface)
-        spheres.append((_order_key(obj, name), Sphere(center=center, radius=radius,
+        spheres.append((order_key(stored, name), Sphere(center=center, radius=radius,
                                                       surface=surface, name=name)))
 
     lights.sort(key=lambda t: t[0])
     spheres.sort(key=lambda t: t[0])
     scale = float(context.scene.get(COLOR_SCALE_PROP, 1.0))
     scene = Scene(width=width, height=height, camera=camera,
-                  lights=[l for _, l in lights], objects=[s for _, s in spheres],
+                  lights=[light for _, light in lights], objects=[s for _, s in spheres],
                   color_scale=255.0 if scale == 255.0 else 1.0)
     return ExportRead(scene=scene, left_out=list(read.left_out), warnings=warnings)
-
-
-def _tuple(v):
-    return tuple(v) if v is not None else None

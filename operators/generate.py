@@ -39,6 +39,7 @@ from ..addon.report import error_text, report_message
 from ..addon.tiers import resolve_energy_model
 from . import light_builder
 from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
+from .scene_state import has_lens_lights
 
 #: The figures of the last run of `generate` (with "timings": seconds per step).
 LAST_FIGURES: dict = {}
@@ -168,7 +169,7 @@ def generate(context):
 class LENS_LIGHTS_OT_generate(bpy.types.Operator):
     """Turn every point light × glass sphere into a spot light that paints its caustic"""
     bl_idname = "lens_lights.generate"
-    bl_label = "Generate lens lights"
+    bl_label = "Generate Lens Lights"
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
@@ -186,12 +187,15 @@ class LENS_LIGHTS_OT_generate(bpy.types.Operator):
 class LENS_LIGHTS_OT_clear(bpy.types.Operator):
     """Remove the lens lights this extension created (and nothing else)"""
     bl_idname = "lens_lights.clear"
-    bl_label = "Clear lens lights"
+    bl_label = "Clear Lens Lights"
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context):
-        return context.scene is not None
+        if context.scene is None or not has_lens_lights(context.scene):
+            cls.poll_message_set("Nothing to clear: this scene has no lens lights")
+            return False
+        return True
 
     def execute(self, context):
         removed = light_builder.clear(context.scene)

@@ -7,11 +7,12 @@ instances, ten times that at 100 000), and the generator casts five rays per bea
 Here the geometry the reader already has is used:
 
 * the spheres (every instance that passed the sphere fit, lens or not) are hit
-  analytically, all at once in numpy;
+  analytically, all at once in numpy (`addon.ray_hits.sphere_hits`);
 * every other mesh instance (floors, walls, ellipsoids …) is first tested by its
-  world bounding box (a vectorised slab test); only the boxes a ray enters nearer
-  than the best hit so far are tested exactly, against a `mathutils.bvhtree.BVHTree`
-  of the instanced mesh in its local space (built once per mesh, on first use).
+  world bounding box (a vectorised slab test, `addon.ray_hits.box_entries`); only
+  the boxes a ray enters nearer than the best hit so far are tested exactly, against
+  a `mathutils.bvhtree.BVHTree` of the instanced mesh in its local space (built
+  once per mesh, on first use).
 
 Curves, text, surfaces and metaballs are hit as their evaluated mesh; hair curves,
 point clouds, volumes and grease pencil do not block (as for `Scene.ray_cast`,
@@ -23,6 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from ..addon.ray_hits import box_entries, sphere_hits
 
 #: Hits nearer than this share of the scene size to the ray's origin are ignored
 #: (the surface a ray starts on).
@@ -97,54 +100,15 @@ class Occluders:
         for source in self.sources:
             source.release()
 
-    def _sphere_hits(self, origins, d):
-        """Nearest t > 0 per origin against all spheres (inf: none)."""
-        if self.radii.size == 0:
-            return np.full(len(origins), np.inf)
-        # Relative to the first origin (the origins are close together), so that
-        # |oc|² = |C'|² − 2 C'·o + |o|² keeps its precision far from the world origin.
-        ref = origins[0]
-        o = origins - ref                                   # (k, 3), small
-        c = self.centers - ref                              # (S, 3)
-        cd = c @ d                                          # (S,)
-        r2 = self.radii ** 2
-        # Only spheres ahead of the origins and near the rays' line can be hit.
-        reach = float(np.linalg.norm(o, axis=1).max())
-        perp2 = np.einsum("sj,sj->s", c, c) - cd * cd
-        near_line = (cd + self.radii + reach > 0) & (perp2 <= (self.radii + reach) ** 2)
-        idx = np.flatnonzero(near_line)
-        out = np.full(len(origins), np.inf)
-        if idx.size == 0:
-            return out
-        c, cd, r2 = c[idx], cd[idx], r2[idx]
-        b = cd[None, :] - (o @ d)[:, None]                  # (k, S')
-        oc2 = (np.einsum("sj,sj->s", c, c)[None, :] - 2.0 * (o @ c.T)
-               + np.einsum("kj,kj->k", o, o)[:, None])
-        disc = b * b - (oc2 - r2[None, :])
-        with np.errstate(invalid="ignore"):
-            root = np.sqrt(disc)
-            near, far = b - root, b + root
-            t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
-        t = np.where(disc >= 0, t, np.inf)
-        return np.minimum(out, t.min(axis=1))
-
     def first_hit(self, origins, direction, limit) -> np.ndarray:
         """Distance from each origin (k × 3) along the unit `direction` to the first
         surface, within `limit` (inf: nothing)."""
         origins = np.asarray(origins, dtype=float).reshape(-1, 3)
         d = np.asarray(direction, dtype=float)
         d = d / np.linalg.norm(d)
-        best = self._sphere_hits(origins, d)
+        best = sphere_hits(self.centers, self.radii, origins, d)
         if len(self.source_index):
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv = np.where(d != 0, 1.0 / d, np.inf)
-                t0 = (self.box_lo[None] - origins[:, None]) * inv               # (k, N, 3)
-                t1 = (self.box_hi[None] - origins[:, None]) * inv
-                t0 = np.where(np.isnan(t0), -np.inf, t0)
-                t1 = np.where(np.isnan(t1), np.inf, t1)
-            enter = np.minimum(t0, t1).max(axis=2)
-            leave = np.maximum(t0, t1).min(axis=2)
-            hit_box = (leave >= np.maximum(enter, 0.0)) & (enter <= limit)
+            enter, hit_box = box_entries(self.box_lo, self.box_hi, origins, d, limit)
             for k in range(len(origins)):
                 cand = np.flatnonzero(hit_box[k])
                 if cand.size == 0:

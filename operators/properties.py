@@ -41,39 +41,39 @@ class LensLightsCreatedCollection(bpy.types.PropertyGroup):
 
 class LensLightsSceneSettings(bpy.types.PropertyGroup):
     energy_model: EnumProperty(
-        name="Energy model", items=_ENERGY_MODEL_ITEMS, default=DEFAULT_ENERGY_MODEL,
+        name="Energy Model", items=_ENERGY_MODEL_ITEMS, default=DEFAULT_ENERGY_MODEL,
         description="Which lens-light tier to build (how close to the exact caustic, "
                     "and which engines render it)")
     min_brightness: FloatProperty(
-        name="Minimum brightness", default=0.01, min=0.0, soft_max=1.0, precision=3,
+        name="Minimum Brightness", default=0.01, min=0.0, soft_max=1.0, precision=3,
         description=("Leave out lens lights whose caustic is dimmer than this share of "
                      "the primary light's irradiance at the lens"))
     max_lights: IntProperty(
-        name="Maximum lens lights", default=64, min=1, soft_max=512, max=100000,
+        name="Maximum Lens Lights", default=64, min=1, soft_max=512, max=100000,
         description="Create at most this many lens lights (the brightest)")
     spot_blend: FloatProperty(
-        name="Spot blend", default=DEFAULT_SPOT_BLEND, min=0.0, max=1.0,
+        name="Spot Blend", default=DEFAULT_SPOT_BLEND, min=0.0, max=1.0,
         description=("Softness of the edge of each lens light's cone (Thesis and Physical; "
                      "Fitted and Exact profile set their own)"))
     use_merge: BoolProperty(
-        name="Merge nearby lens lights", default=False,
+        name="Merge Nearby Lens Lights", default=False,
         description=("Make one lens light of the sources of one point light whose images lie "
                      "within the merge distance and point the same way (it carries their "
                      "summed power)"))
     merge_distance: FloatProperty(
-        name="Merge distance", default=0.05, min=0.0, soft_max=1.0, subtype="DISTANCE",
+        name="Merge Distance", default=0.05, min=0.0, soft_max=1.0, subtype="DISTANCE",
         precision=3, description="Sources whose images are this close may be merged")
 
     # The last run's figures (shown in the panel).
     last_run: BoolProperty(default=False, options={'HIDDEN'})
     last_created: IntProperty(name="Created", default=0)
-    last_sources: IntProperty(name="Secondary sources", default=0)
-    last_skipped: IntProperty(name="Skipped pairs", default=0)
-    last_primaries: IntProperty(name="Point lights", default=0)
+    last_sources: IntProperty(name="Secondary Sources", default=0)
+    last_skipped: IntProperty(name="Skipped Pairs", default=0)
+    last_primaries: IntProperty(name="Point Lights", default=0)
     last_lenses: IntProperty(name="Lenses", default=0)
-    last_left_out: IntProperty(name="Left out", default=0)
+    last_left_out: IntProperty(name="Left Out", default=0)
     last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
-    last_report: StringProperty(name="Last report", default="")
+    last_report: StringProperty(name="Last Report", default="")
 
     created_objects: CollectionProperty(type=LensLightsCreatedObject, options={'HIDDEN'})
     created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={'HIDDEN'})
@@ -89,13 +89,13 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
 
     # Set on the lights the extension creates.
     is_lens_light: BoolProperty(default=False, options={'HIDDEN'})
-    source_light: StringProperty(name="Primary light")
+    source_light: StringProperty(name="Primary Light")
     source_lens: StringProperty(name="Lens")
-    kind: StringProperty(name="Kind", description="real, virtual or collimated")
+    kind: StringProperty(name="Kind", description="Real, virtual or collimated")
     full: BoolProperty(name="Full", description="Nothing blocks the light on its way to the lens")
     unblocked_fraction: FloatProperty(name="Unblocked", precision=4)
-    energy_model: StringProperty(name="Energy model", description="The tier this light was made with")
-    relative_brightness: FloatProperty(name="Relative brightness", precision=4)
+    energy_model: StringProperty(name="Energy Model", description="The tier this light was made with")
+    relative_brightness: FloatProperty(name="Relative Brightness", precision=4)
     note: StringProperty(name="Note")
 
 

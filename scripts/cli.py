@@ -416,7 +416,15 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     try:
-        sys.exit(main())
+        code = main()
     except BrokenPipeError:          # `… | head` closed the pipe: not an error
         sys.stderr.close()
-        sys.exit(0)
+        code = 0
+    # The bpy module of Blender 4.2 crashes (4.5: hangs) in its static destructors at
+    # interpreter exit, after the work is done: leave without running them.
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (BrokenPipeError, ValueError):
+            pass
+    os._exit(code or 0)

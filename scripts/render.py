@@ -288,7 +288,8 @@ def set_lens_lights(on: bool) -> str:
     """Generate (on) or clear (off) the scene's lens lights; a short report."""
     import bpy
     if not on:
-        if _has_operator("lens_lights", "clear"):
+        # Clear's poll refuses a scene without lens lights: nothing to remove then.
+        if _has_operator("lens_lights", "clear") and bpy.ops.lens_lights.clear.poll():
             _run_operator(bpy.ops.lens_lights.clear, "removing lens lights")
         return "no lens lights"
     if not _has_operator("lens_lights", "generate"):

@@ -5,10 +5,11 @@ import hashlib
 import math
 
 import bpy
+from measuring_scene import new_material  # (scripts/): Blender 4.x needs use_nodes
 
 
 def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Transmission Weight"].default_value = transmission
     bsdf.inputs["IOR"].default_value = ior
@@ -18,7 +19,7 @@ def glass_material(name="Glass", ior=1.5, transmission=1.0, color=(1, 1, 1)):
 
 def node_material(name, kind, **inputs):
     """A material whose surface is one shader node of type `kind` (bl_idname)."""
-    mat = bpy.data.materials.new(name)
+    mat = new_material(name)
     nt = mat.node_tree
     for node in list(nt.nodes):
         if node.type != "OUTPUT_MATERIAL":
@@ -139,6 +140,7 @@ SKIP_PROPS = {"rna_type", "users", "session_uid", "is_evaluated", "original", "t
               # changes it, nothing of the extension's does (tests/test_blender_generate.py
               # pins that the snapshot is stable).
               "storage_type",
+              "uv_sculpt",        # Blender 4.2: reading ToolSettings.uv_sculpt.brush crashes
               "lens_lights"}      # the extension's own settings (checked separately)
 MAX_ITEMS = 64
 
@@ -200,7 +202,10 @@ def _struct(s, depth):
         else:
             out.append((pid, _value(value)))
     try:
-        out.append(("custom", tuple(sorted((k, repr(_idprop(s[k]))) for k in s.keys()))))
+        # Before 5.0 `keys()` also lists properties registered from Python
+        # (`scene.lens_lights`): only the custom ones count here.
+        out.append(("custom", tuple(sorted((k, repr(_idprop(s[k]))) for k in s.keys()
+                                           if k not in s.bl_rna.properties))))
     except (TypeError, AttributeError):
         pass
     return tuple(out)

@@ -43,8 +43,8 @@ def export_bi(path):
 
 def test_operators_and_menus_registered(extension):
     import bpy
-    assert bpy.ops.import_scene.bi.get_rna_type().name == "Import Bitracer Scene"
-    assert bpy.ops.export_scene.bi.get_rna_type().name == "Export Bitracer Scene"
+    assert bpy.ops.import_scene.bi.get_rna_type().name == "Import Bitracer Scene (.bi)"
+    assert bpy.ops.export_scene.bi.get_rna_type().name == "Export Bitracer Scene (.bi)"
     from lens_lights.operators import bi_io
     assert bi_io.menu_import in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
     assert bi_io.menu_export in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()

@@ -113,15 +113,15 @@ def test_instancer_visibility_in_the_render(empty_blend):
 
 
 def test_falls_back_to_the_viewport_and_says_so(empty_blend, monkeypatch):
-    from lens_lights.operators import scene_reader
+    from lens_lights.operators import render_probe
     basic = lit_row(["Marble"], glass_material())
     add_point_light("Lamp", (0, 0, 6))
     basic[0].hide_viewport = True            # only the render sees it
 
     def refuse(*a, **k):
-        raise scene_reader.ProbeUnavailable("a render is in progress")
+        raise render_probe.ProbeUnavailable("a render is in progress")
 
-    monkeypatch.setattr(scene_reader, "_probe", refuse)
+    monkeypatch.setattr(render_probe, "_probe", refuse)
     level, message, figures = generate()
     assert figures["how"] == "viewport (a render is in progress)"
     assert "scene read as the viewport (a render is in progress)" in message

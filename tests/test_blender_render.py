@@ -51,7 +51,7 @@ bpy = pytest.importorskip("bpy")
 from addon import exact_optics                      # noqa: E402
 from addon.tiers import head_on_transmission  # noqa: E402
 from measuring_scene import (add_top_camera, build_measuring_scene,  # noqa: E402 (scripts/)
-                             new_measuring_scene)
+                             new_material, new_measuring_scene)
 
 R, N, D, HEIGHT, TILT_DEG, POWER, ALBEDO = 0.5, 1.5, 2.0, 2.5, 20.0, 1000.0, 0.8
 D_FOCAL = N * R / (2 * (N - 1))                     # 0.75: front focal distance
@@ -334,7 +334,7 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
     sc.cycles.samples = 8
     sc.cycles.use_denoising = False
     bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, -5))
-    em = bpy.data.materials.new("Emitter")
+    em = new_material("Emitter")
     nt = em.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     e = nt.nodes.new("ShaderNodeEmission")
@@ -346,7 +346,7 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
     add_top_camera(0.0, 0.0, 5.0, view=0.05)
 
     def through(kind, color):
-        mat = bpy.data.materials.new(kind)
+        mat = new_material(kind)
         nt = mat.node_tree
         if kind == "principled":
             b = nt.nodes["Principled BSDF"]

@@ -10,7 +10,7 @@ import pytest
 from addon import exact_optics as eo
 from addon.caustic_sheet.beam_trace import trace_beam
 from addon.caustic_sheet.emitters import AreaLight, Lens, PointLight, SpotLight, SunLight
-from addon.spot_irradiance import spot_mask
+from addon.blender_spot import spot_mask
 
 R, N_IOR = 1.0, 1.5
 

@@ -74,6 +74,8 @@ INSTALL_AND_RUN = textwrap.dedent("""
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 1))
     sphere = bpy.context.object
     mat = bpy.data.materials.new("Glass")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True                # Blender 4.x: no node tree until then
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["IOR"].default_value = 1.5
@@ -93,6 +95,11 @@ INSTALL_AND_RUN = textwrap.dedent("""
         clear=sorted(clear), left=len(left),
         modules=sorted(m for m in sys.modules if m.endswith("lens_lights")),
         disabled=not addon_utils.check(module)[1])))
+    # Blender 4.2's bpy module crashes in its static destructors at exit, after
+    # the work: leave without running them.
+    import os
+    sys.stdout.flush()
+    os._exit(0)
 """)
 
 

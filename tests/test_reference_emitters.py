@@ -11,7 +11,7 @@ import pytest
 from reference_quadrature import angle_to, cone_grid, disc_mean_transmission
 
 from addon import exact_optics as xo
-from addon import spot_irradiance
+from addon import blender_spot as spot_irradiance
 from addon.reference import (
     AreaLight,
     Blocker,

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..spot_irradiance import spot_mask
+from ..blender_spot import spot_mask
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 

@@ -1,0 +1,343 @@
+"""A Blender scene as read for phase 1: the read's data (`BlenderSceneRead`), the
+rules that turn one object's numbers into a light or a lens (`light_power`,
+`lens_material`, …), and the assembly of the read from its object instances,
+vectorised over them (`assemble`).
+
+Pure (numpy only). The Blender side (`operators/scene_reader.py`) walks the
+depsgraph: per distinct evaluated object it makes one `InstanceGroup` (the
+numbers read from Blender: a light's power, a sphere's local fit and material
+optics …), per instance it notes the group, the world matrix and the instancer;
+`assemble` does the rest. Objects (``orig``) and mesh sources are carried through
+without being looked at.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .instances import Indexed, InstanceNames, LeftOut, instance_names, scale_codes, scale_reason
+from .tiers import LensOptics, PrimaryLight
+from .material_model import MaterialOptics
+from .phase1 import SceneArrays
+from .scene import Camera, Light, Scene, Sphere, Surface
+from .sphere_fit import BOX_RATIO, SphereFit, uniform_scales
+
+#: IOR used for a lens forced with "Always" when neither the material nor the
+#: override gives one.
+DEFAULT_LENS_IOR = 1.5
+#: `BlenderSceneRead.how` when the render depsgraph was read.
+RENDER = "render"
+
+LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP = range(3)
+
+
+@dataclass
+class InstanceGroup:
+    """What all instances of one evaluated object / data / original share."""
+    kind: int
+    name: str
+    orig: object
+    corners: np.ndarray | None = None          # local bounding box (8 × 3)
+    reason: str = ""                           # OTHER_GROUP: why it is no sphere
+    looks_like_lens: bool = False
+    # SPHERE_GROUP
+    center: np.ndarray | None = None           # local
+    radius: float = 0.0
+    ior: float = 1.0
+    kt: float = 0.0
+    lens_like: bool = False
+    optics: LensOptics | None = None
+    surface: Surface | None = None
+    notes: list = field(default_factory=list)
+    # LIGHT_GROUP
+    light_type: str = ""
+    power: float = 0.0
+    light_radius: float = 0.0
+    color: tuple = (1.0, 1.0, 1.0)
+    mesh_source: object = None                 # what blocks rays (`occluders`), or None
+
+
+@dataclass
+class BlenderSceneRead:
+    arrays: SceneArrays
+    width: int = 0
+    height: int = 0
+    camera: Camera = field(default_factory=Camera)
+    sphere_sources: Sequence = field(default_factory=list)
+    light_sources: list[str] = field(default_factory=list)
+    left_out: list[tuple[str, str]] = field(default_factory=list)
+    # For the generator (parallel to the spheres / lights):
+    sphere_objects: Sequence = field(default_factory=list)      # original bpy Objects
+    light_objects: list = field(default_factory=list)
+    lens_optics: Sequence = field(default_factory=list)
+    lens_candidates: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    material_notes: Sequence = field(default_factory=list)
+    primaries: list[PrimaryLight] = field(default_factory=list)
+    #: (name, reason) of left-out objects that looked like lenses (refracting
+    #: material or lens mode Always): the ones worth reporting to the user.
+    left_out_lenses: list[tuple[str, str]] = field(default_factory=list)
+    bounds: tuple[np.ndarray, np.ndarray] | None = None
+    #: What blocks rays (`operators.occluders.Occluders`): valid while the depsgraph read is.
+    occluders: object = None
+    #: RENDER, or "viewport (why the render depsgraph was not read)".
+    how: str = RENDER
+    lights: list[Light] = field(default_factory=list)
+    surfaces: Sequence = field(default_factory=list)   # `Surface` per sphere
+    _scene: Scene | None = field(default=None, repr=False)
+
+    @property
+    def scene(self) -> Scene:
+        """The read as an `addon.scene.Scene` (made on first use)."""
+        if self._scene is None:
+            a = self.arrays
+            spheres = [Sphere(center=tuple(float(x) for x in a.center[i]),
+                              radius=float(a.radius[i]), surface=self.surfaces[i],
+                              name=self.sphere_sources[i]) for i in range(len(a.radius))]
+            self._scene = Scene(width=self.width, height=self.height, camera=self.camera,
+                                lights=list(self.lights), objects=spheres)
+        return self._scene
+
+    @property
+    def scene_size(self) -> float:
+        """Diagonal of everything rendered (≥ a tiny positive number)."""
+        if self.bounds is None:
+            return 1.0
+        size = float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
+        return size if size > 0 and math.isfinite(size) else 1.0
+
+
+@dataclass
+class Blocking:
+    """The instances besides the spheres that block rays (for `Occluders`)."""
+    matrices: np.ndarray            # N × 4 × 4
+    box_lo: np.ndarray              # N × 3, world
+    box_hi: np.ndarray
+    source_index: list              # per instance, into `sources`
+    sources: list                   # one mesh source per group
+
+
+# --------------------------------------------------------------------------- one object
+
+def render_size(resolution_x: int, resolution_y: int, percentage: int) -> tuple[int, int]:
+    """The rendered image's size in pixels."""
+    return resolution_x * percentage // 100, resolution_y * percentage // 100
+
+
+def light_power(energy: float, exposure: float, normalize: bool, radius: float) -> float:
+    """A light's power in W: ``energy × 2^exposure``, × the sphere's area 4πr²
+    when its power is not normalised."""
+    power = float(energy) * 2.0 ** float(exposure)
+    if not normalize and radius > 0:
+        power *= 4.0 * math.pi * radius * radius
+    return power
+
+
+def light_color(color, temperature_color=None) -> tuple:
+    """A light's colour, × its blackbody colour when it uses a temperature."""
+    c = np.array(color[:3], dtype=float)
+    if temperature_color is not None:
+        c = c * np.array(temperature_color[:3], dtype=float)
+    return tuple(float(x) for x in c)
+
+
+def box_fit_failure(extent: np.ndarray) -> SphereFit | None:
+    """Why a mesh whose local bounding box has the sides `extent` cannot be a
+    sphere (None: it may be one, fit it)."""
+    if not np.all(np.isfinite(extent)):
+        return SphereFit(False, np.zeros(3), 0.0, "not a sphere: non-finite vertex coordinates")
+    if not extent.max() > 0:
+        return SphereFit(False, np.zeros(3), 0.0, "zero size: all its vertices are at one point")
+    if extent.min() < BOX_RATIO * extent.max():
+        dims = " × ".join(f"{e:.3g}" for e in extent)
+        return SphereFit(False, np.zeros(3), 0.0,
+                         f"not a sphere: its bounding box ({dims}) is not a cube")
+    return None
+
+
+def lens_material(optics: MaterialOptics, mode: str, ior_override: float | None = None):
+    """(ior, kt, transmission weight) of a sphere with the material `optics` and
+    the lens mode `mode` (AUTO: the material decides; ALWAYS: a lens even if
+    opaque, transmission 1 and IOR 1.5 unless known; NEVER: opaque); the IOR
+    override (not with NEVER) replaces the IOR."""
+    ior, kt = optics.ior, optics.transmission
+    weight = kt
+    if mode == "NEVER":
+        kt = weight = 0.0
+    elif mode == "ALWAYS" and not optics.is_transmissive:
+        kt = weight = 1.0
+        ior = DEFAULT_LENS_IOR
+    if ior_override is not None and mode != "NEVER":
+        ior = float(ior_override)
+    return ior, kt, weight
+
+
+def surface_block(optics: MaterialOptics, color) -> Surface:
+    """Thesis surface block for a sphere (the Phong numbers are approximations for
+    the `.bi` exporter: ka 0.1, kd 0.8(1 − kt), ks 0.2 for glass else 0.1, E 80)."""
+    kt = float(optics.transmission)
+    return Surface(color=tuple(float(c) for c in color), ambient=0.1,
+                   diffuse=round(0.8 * (1.0 - kt), 6), specular=0.2 if kt > 0 else 0.1,
+                   transmission=kt, exponent=80.0, ior=float(optics.ior) if kt > 0 else 1.0)
+
+
+def perspective_fov(angle_x, angle_y, angle, sensor_fit, width, height) -> tuple[float, float]:
+    """(horizontal, vertical) opening in degrees of a perspective camera: its
+    angles, except with the sensor fit AUTO, where `angle` spans the larger side."""
+    if sensor_fit != "AUTO":
+        return math.degrees(angle_x), math.degrees(angle_y)
+    half_tan = math.tan(angle / 2)
+    if width >= height:
+        return math.degrees(angle), math.degrees(2 * math.atan(half_tan * height / width))
+    return math.degrees(2 * math.atan(half_tan * width / height)), math.degrees(angle)
+
+
+def camera_from_matrix(m: np.ndarray, fov=(45.0, 45.0)) -> Camera:
+    """The `.bi` camera of a camera object's world matrix (it looks along −Z, +Y up)."""
+    pos = m[:3, 3]
+    fwd = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+    up = m[:3, 1] / np.linalg.norm(m[:3, 1])
+    return Camera(position=tuple(pos), target=tuple(pos + fwd * 10.0), up=tuple(up),
+                  fov_deg=(float(fov[0]), float(fov[1])))
+
+
+# --------------------------------------------------------------------------- all instances
+
+def world_boxes(groups, gid, kind, M):
+    """World bounding boxes (lo, hi: N × 3; NaN for lights and when no geometry
+    box is finite) of the instances, from their groups' local corners."""
+    n = gid.size
+    corners = np.array([g.corners if g.corners is not None else np.full((8, 3), np.nan)
+                        for g in groups]).reshape(-1, 8, 3)
+    box_lo = np.full((n, 3), np.nan)
+    box_hi = np.full((n, 3), np.nan)
+    geo = np.flatnonzero(kind != LIGHT_GROUP)
+    if geo.size:
+        w = np.einsum("nij,nkj->nki", M[geo, :3, :3], corners[gid[geo]]) + M[geo, None, :3, 3]
+        with np.errstate(invalid="ignore"):
+            finite = np.all(np.isfinite(w), axis=(1, 2))
+        if finite.any():
+            box_lo[geo] = w.min(axis=1)
+            box_hi[geo] = w.max(axis=1)
+    return box_lo, box_hi
+
+
+def _finite_rows(a: np.ndarray) -> np.ndarray:
+    return np.all(np.isfinite(a), axis=1)
+
+
+def add_lights(out: BlenderSceneRead, groups, gid, kind, M, names, left: LeftOut):
+    """The point lights (few: a Python loop) into `out`; the other lights left
+    out. Returns their positions, powers and colours (lists)."""
+    pos_list, power_list, color_list = [], [], []
+    for i in np.flatnonzero(kind == LIGHT_GROUP):
+        g = groups[gid[i]]
+        pos = M[i, :3, 3]
+        if g.light_type != "POINT":
+            left.add(i, f"{g.light_type.lower()} light: only point lights make lens lights", False)
+            continue
+        if not g.power > 0 or not math.isfinite(g.power):
+            left.add(i, f"point light without power ({g.power:g} W)", False)
+            continue
+        if not np.all(np.isfinite(pos)):
+            left.add(i, "invalid transform (non-finite numbers)", False)
+            continue
+        name = names[i]
+        out.lights.append(Light(position=tuple(float(x) for x in pos), color=g.color,
+                                brightness=g.power, radius=g.light_radius, name=name))
+        out.primaries.append(PrimaryLight(power_w=g.power, radius=g.light_radius, color=g.color))
+        out.light_sources.append(name)
+        out.light_objects.append(g.orig)
+        pos_list.append(pos)
+        power_list.append(g.power)
+        color_list.append(g.color)
+    return pos_list, power_list, color_list
+
+
+def blocking_instances(groups, gid, kind, M, box_lo, box_hi, ellipsoids) -> Blocking:
+    """What blocks rays besides the spheres: every other geometry instance with a
+    mesh, and the spheres that are none here (`ellipsoids`), with a finite box."""
+    blocking = np.concatenate([np.flatnonzero(kind == OTHER_GROUP), ellipsoids])
+    has_mesh = np.array([groups[g].mesh_source is not None for g in gid[blocking]], dtype=bool)
+    blocking = blocking[has_mesh & _finite_rows(box_lo[blocking]) & _finite_rows(box_hi[blocking])]
+    source_of = {g: k for k, g in enumerate(np.unique(gid[blocking]))}
+    return Blocking(M[blocking], box_lo[blocking], box_hi[blocking],
+                    [source_of[g] for g in gid[blocking]],
+                    [groups[g].mesh_source for g in source_of])
+
+
+def place_spheres(groups, sg, M_sph):
+    """World centres and radii of sphere instances (groups `sg`, matrices `M_sph`,
+    uniformly scaled)."""
+    local_c = np.array([g.center if g.kind == SPHERE_GROUP else np.zeros(3) for g in groups]
+                       ).reshape(-1, 3)
+    local_r = np.array([g.radius for g in groups], dtype=float)
+    scale = uniform_scales(M_sph)
+    center = np.einsum("nij,nj->ni", M_sph[:, :3, :3], local_c[sg]) + M_sph[:, :3, 3]
+    return center.reshape(-1, 3), local_r[sg] * scale
+
+
+def _per_sphere(groups, attr, sg, dtype):
+    if not sg.size:
+        return np.zeros(0, dtype=dtype)
+    return np.array([getattr(g, attr) for g in groups], dtype=dtype)[sg]
+
+
+def assemble(groups: list[InstanceGroup], gid: np.ndarray, M: np.ndarray, pid: np.ndarray,
+             parent_names: Sequence[str], how: str, width: int = 0, height: int = 0,
+             camera: Camera | None = None) -> tuple[BlenderSceneRead, Blocking]:
+    """The read of the instances (group `gid[i]`, world matrix `M[i]`, instancer
+    `pid[i]` into `parent_names` or −1), and what blocks rays besides its spheres."""
+    n = gid.size
+    kind = np.array([g.kind for g in groups], dtype=np.int64)[gid] if n else np.zeros(0, np.int64)
+    names: InstanceNames = instance_names([g.name for g in groups], gid, pid, parent_names)
+    box_lo, box_hi = world_boxes(groups, gid, kind, M)
+    out = BlenderSceneRead(arrays=None, width=width, height=height,
+                           camera=camera if camera is not None else Camera(), how=how)
+    left = LeftOut(names)
+    lens_of = lambda i: groups[gid[i]].looks_like_lens          # noqa: E731
+
+    light_pos, light_power_w, light_col = add_lights(out, groups, gid, kind, M, names, left)
+    other = np.flatnonzero(kind == OTHER_GROUP)
+    left.add_grouped(other, gid[other], lambda i: groups[gid[i]].reason, lens_of)
+
+    sph = np.flatnonzero(kind == SPHERE_GROUP)
+    uniform = np.isfinite(uniform_scales(M[sph]))
+    bad = sph[~uniform]
+    blocking = blocking_instances(groups, gid, kind, M, box_lo, box_hi, bad)
+    left.add_grouped(bad, scale_codes(M[bad]), lambda i: scale_reason(M[i]), lens_of)
+    sph = sph[uniform]
+    sg = gid[sph]
+    center, radius = place_spheres(groups, sg, M[sph])
+
+    out.arrays = SceneArrays(
+        light_position=np.asarray(light_pos, dtype=float).reshape(-1, 3),
+        light_brightness=np.asarray(light_power_w, dtype=float),
+        light_color=np.asarray(light_col, dtype=float).reshape(-1, 3),
+        center=center, radius=radius,
+        ior=_per_sphere(groups, "ior", sg, float), kt=_per_sphere(groups, "kt", sg, float))
+    out.sphere_sources = names.subset(sph)
+    out.sphere_objects = Indexed([g.orig for g in groups], sg)
+    out.lens_optics = Indexed([g.optics for g in groups], sg)
+    out.surfaces = Indexed([g.surface for g in groups], sg)
+    out.material_notes = Indexed([g.notes for g in groups], sg)
+    out.lens_candidates = _per_sphere(groups, "lens_like", sg, bool)
+
+    for name, reason, lens in left.entries():
+        out.left_out.append((name, reason))
+        if lens:
+            out.left_out_lenses.append((name, reason))
+    out.bounds = scene_bounds(box_lo, box_hi, out.arrays.light_position)
+    return out, blocking
+
+
+def scene_bounds(box_lo, box_hi, points):
+    """(lo, hi) of the finite boxes and the `points` (None: nothing)."""
+    finite = _finite_rows(box_lo) & _finite_rows(box_hi)
+    lo = np.concatenate([box_lo[finite], np.reshape(points, (-1, 3))])
+    hi = np.concatenate([box_hi[finite], np.reshape(points, (-1, 3))])
+    if not len(lo):
+        return None
+    return lo.min(axis=0), hi.max(axis=0)

@@ -1,0 +1,26 @@
+"""What the extension has made in a scene (for the operators' polls)."""
+from __future__ import annotations
+
+import bpy
+
+from .properties import COLLECTION_MARK
+
+
+def has_lens_lights(scene) -> bool:
+    """Whether Clear would remove anything: a lens light the extension created in
+    `scene` (listed in its registry and marked), a linking collection or an empty
+    "Lens Lights" collection it made, or one of its profile images nothing uses."""
+    if scene is None:
+        return False
+    settings = scene.lens_lights
+    for item in settings.created_objects:
+        ob = item.object
+        if ob is not None and ob.lens_lights.is_lens_light:
+            return True
+    for item in settings.created_collections:
+        coll = item.collection
+        mark = coll.get(COLLECTION_MARK) if coll is not None else None
+        if mark == "link" or (mark is not None and not coll.objects and not coll.children):
+            return True
+    return any(img.get(COLLECTION_MARK) == "profile" and img.users == 0
+               for img in bpy.data.images)
