@@ -7,9 +7,11 @@ in `addon/`.
 
 def register():
     from . import operators
+
     operators.register()
 
 
 def unregister():
     from . import operators
+
     operators.unregister()

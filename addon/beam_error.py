@@ -39,6 +39,7 @@ The truth is :class:`ExactBeam`: the exact meridional trace of
 one sort of the ray fan (``O(N log N)``) and then any number of radii cost
 ``O(log N)`` each.
 """
+
 from __future__ import annotations
 
 import math
@@ -47,13 +48,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import exact_optics as xo
-from .blender_spot import (FOUR_PI, profile_flux_within_radius,
-                              spot_flux_within_radius)
+from .blender_spot import FOUR_PI, profile_flux_within_radius, spot_flux_within_radius
 
 __all__ = [
-    "D_OVER_R", "IORS", "RECEIVERS_BEHIND", "PEAK_DISC",
-    "ExactBeam", "ReceiverFlux", "AxialSpot", "AxialProfile",
-    "ring_edges", "l1_error", "axial_peak", "CaseError", "evaluate_case",
+    "D_OVER_R",
+    "IORS",
+    "RECEIVERS_BEHIND",
+    "PEAK_DISC",
+    "ExactBeam",
+    "ReceiverFlux",
+    "AxialSpot",
+    "AxialProfile",
+    "ring_edges",
+    "l1_error",
+    "axial_peak",
+    "CaseError",
+    "evaluate_case",
     "model_from_light",
 ]
 
@@ -75,6 +85,7 @@ N_FAN = 20_000
 # The truth
 # ---------------------------------------------------------------------------
 
+
 @dataclass
 class ReceiverFlux:
     """Flux of the lens's beam within any radius on one receiving plane.
@@ -91,17 +102,17 @@ class ReceiverFlux:
     """
 
     Z: float
-    total: float                     # flux that reaches the plane (W)
+    total: float  # flux that reaches the plane (W)
     _keys: np.ndarray
     _lo: np.ndarray
     _hi: np.ndarray
     _wlo: np.ndarray
     _whi: np.ndarray
     _len: np.ndarray
-    _cum: np.ndarray                 # exclusive prefix sums of the pieces' flux
+    _cum: np.ndarray  # exclusive prefix sums of the pieces' flux
     _run_start: np.ndarray
     _S: float
-    _flat_g: np.ndarray              # pieces with constant |h|: steps
+    _flat_g: np.ndarray  # pieces with constant |h|: steps
     _flat_cum: np.ndarray
 
     def flux_within_radius(self, radii) -> np.ndarray:
@@ -115,7 +126,7 @@ class ReceiverFlux:
         nrun = self._run_start.size
         if nrun:
             runs = np.arange(nrun)
-            q = (runs[:, None] * self._S + rho[None, :])            # (B, M)
+            q = runs[:, None] * self._S + rho[None, :]  # (B, M)
             p = np.searchsorted(self._keys, q, side="right") - 1
             start = self._run_start[:, None]
             valid = p >= start
@@ -141,14 +152,20 @@ class ExactBeam:
 
     def __init__(self, I0, D, R, n, absorption=0.0, n_fan=N_FAN):
         xo._check_lens(D, R, n)
-        self.I0, self.D, self.R, self.n, self.absorption = float(I0), float(D), float(R), float(n), float(absorption)
+        self.I0, self.D, self.R, self.n, self.absorption = (
+            float(I0),
+            float(D),
+            float(R),
+            float(n),
+            float(absorption),
+        )
         iota = np.linspace(0.0, 0.5 * np.pi, int(n_fan) + 1)
         self._dx = iota[1] - iota[0]
         fan = xo.trace_rays_iota(iota, D, R, n, absorption)
         k = R / D
         domega = 2.0 * np.pi * k * k * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
         self._fan = fan
-        self._w = I0 * fan.transmission * domega       # flux per unit iota
+        self._w = I0 * fan.transmission * domega  # flux per unit iota
         self.lens_flux = float(np.sum(0.5 * (self._w[1:] + self._w[:-1])) * self._dx)
         self._cache: dict[float, ReceiverFlux] = {}
 
@@ -202,8 +219,10 @@ class ExactBeam:
         lB = L[cross] * (1.0 - s0[cross])
         # interleave in fan order: piece A of segment i, then its piece B
         order_key = np.concatenate([2.0 * idx, 2.0 * idx[cross] + 1.0])
-        G0 = np.concatenate([g0, gB0]); G1 = np.concatenate([g1, gB1])
-        W0 = np.concatenate([w0, wB0]); W1 = np.concatenate([w1, wB1])
+        G0 = np.concatenate([g0, gB0])
+        G1 = np.concatenate([g1, gB1])
+        W0 = np.concatenate([w0, wB0])
+        W1 = np.concatenate([w1, wB1])
         LL = np.concatenate([lA, lB])
         seq = np.argsort(order_key, kind="stable")
         okey = order_key[seq]
@@ -230,25 +249,47 @@ class ExactBeam:
         new_run = ~adjacent
         new_run[1:] |= direction[1:] != direction[:-1]
         run = np.cumsum(new_run) - 1
-        lo = np.minimum(G0, G1); hi = np.maximum(G0, G1)
-        wlo = np.where(G0 <= G1, W0, W1); whi = np.where(G0 <= G1, W1, W0)
+        lo = np.minimum(G0, G1)
+        hi = np.maximum(G0, G1)
+        wlo = np.where(G0 <= G1, W0, W1)
+        whi = np.where(G0 <= G1, W1, W0)
         gmax = float(hi.max()) if hi.size else 1.0
         S = 2.0 * gmax + 1.0
         order = np.lexsort((lo, run))
-        lo, hi, wlo, whi, LL, run = lo[order], hi[order], wlo[order], whi[order], LL[order], run[order]
+        lo, hi, wlo, whi, LL, run = (
+            lo[order],
+            hi[order],
+            wlo[order],
+            whi[order],
+            LL[order],
+            run[order],
+        )
         keys = run * S + lo
         fl = LL * 0.5 * (wlo + whi)
         cum = np.concatenate([[0.0], np.cumsum(fl)])
         nrun = int(run[-1]) + 1 if run.size else 0
         run_start = np.searchsorted(run, np.arange(nrun), side="left")
-        return ReceiverFlux(Z=Z, total=total, _keys=keys, _lo=lo, _hi=hi, _wlo=wlo,
-                            _whi=whi, _len=LL, _cum=cum, _run_start=run_start, _S=S,
-                            _flat_g=flat_g, _flat_cum=flat_cum)
+        return ReceiverFlux(
+            Z=Z,
+            total=total,
+            _keys=keys,
+            _lo=lo,
+            _hi=hi,
+            _wlo=wlo,
+            _whi=whi,
+            _len=LL,
+            _cum=cum,
+            _run_start=run_start,
+            _S=S,
+            _flat_g=flat_g,
+            _flat_cum=flat_cum,
+        )
 
 
 # ---------------------------------------------------------------------------
 # Models
 # ---------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class AxialSpot:
@@ -296,15 +337,23 @@ def model_from_light(light, source) -> AxialSpot | AxialProfile:
     and optionally ``profile`` (a dict with ``angles_deg`` and ``intensity_w_sr``, see
     :mod:`.tiers.exact_profile`).  The light must sit on the lens's axis (a light off the
     axis is projected onto it)."""
-    get = (lambda k, d=None: light.get(k, d)) if isinstance(light, dict) else \
-        (lambda k, d=None: getattr(light, k, d))
+    get = (
+        (lambda k, d=None: light.get(k, d))
+        if isinstance(light, dict)
+        else (lambda k, d=None: getattr(light, k, d))
+    )
     axis = np.asarray(source.axis, dtype=float)
-    apex = float(np.dot(np.asarray(get("location"), dtype=float) - np.asarray(source.lens_center), axis))
+    apex = float(
+        np.dot(np.asarray(get("location"), dtype=float) - np.asarray(source.lens_center), axis)
+    )
     profile = get("profile")
     if profile:
         pg = profile.get if isinstance(profile, dict) else (lambda k: getattr(profile, k))
-        return AxialProfile(apex, np.radians(np.asarray(pg("angles_deg"), dtype=float)),
-                            np.asarray(pg("intensity_w_sr"), dtype=float))
+        return AxialProfile(
+            apex,
+            np.radians(np.asarray(pg("angles_deg"), dtype=float)),
+            np.asarray(pg("intensity_w_sr"), dtype=float),
+        )
     facing = 1.0
     direction = get("direction")
     if direction is not None:
@@ -313,20 +362,34 @@ def model_from_light(light, source) -> AxialSpot | AxialProfile:
     # the cone actually made: below 1° Blender's spot_size stays 1° and the object's
     # x/y scale narrows it (tiers.base.cone_shape), recorded in cone_half_angle_deg
     made = float(get("cone_half_angle_deg", 0.0) or 0.0)
-    half = math.pi if kind == "POINT" else math.radians(made if made > 0.0 else 0.5 * float(get("spot_size_deg")))
-    return AxialSpot(apex=apex, intensity=float(get("energy_w")) / FOUR_PI,
-                     half_angle=half, blend=float(get("spot_blend", 0.0) or 0.0), facing=facing)
+    half = (
+        math.pi
+        if kind == "POINT"
+        else math.radians(made if made > 0.0 else 0.5 * float(get("spot_size_deg")))
+    )
+    return AxialSpot(
+        apex=apex,
+        intensity=float(get("energy_w")) / FOUR_PI,
+        half_angle=half,
+        blend=float(get("spot_blend", 0.0) or 0.0),
+        facing=facing,
+    )
 
 
 # ---------------------------------------------------------------------------
 # The error measure
 # ---------------------------------------------------------------------------
 
+
 def ring_edges(shadow_radius: float, n_uniform: int = 400, n_log: int = 100) -> np.ndarray:
     """Ring edges over the shadow disc: ``n_uniform`` uniform rings plus
     ``n_log`` geometric edges from ``1e-4`` of the radius (the axial caustic)."""
-    e = np.concatenate([np.linspace(0.0, shadow_radius, n_uniform + 1),
-                        shadow_radius * np.geomspace(1e-4, 1.0, n_log)])
+    e = np.concatenate(
+        [
+            np.linspace(0.0, shadow_radius, n_uniform + 1),
+            shadow_radius * np.geomspace(1e-4, 1.0, n_log),
+        ]
+    )
     return np.unique(e)
 
 
@@ -341,8 +404,14 @@ def l1_error(model, beam: ExactBeam, Z: float, edges=None) -> float:
     return float(np.sum(np.abs(np.diff(mod) - np.diff(true))) / denom)
 
 
-def axial_peak(flux_within, R: float, behind_min: float, behind_max: float,
-               n: int = 160, disc: float = PEAK_DISC) -> float:
+def axial_peak(
+    flux_within,
+    R: float,
+    behind_min: float,
+    behind_max: float,
+    n: int = 160,
+    disc: float = PEAK_DISC,
+) -> float:
     """Where along the axis (in units of R behind the back pole, within
     ``[behind_min, behind_max]``) the mean irradiance over the disc of radius
     ``disc * R`` around the axis is largest.  ``flux_within(Z, radii)``: a
@@ -356,7 +425,7 @@ def axial_peak(flux_within, R: float, behind_min: float, behind_max: float,
         y0, y1, y2 = val[k - 1], val[k], val[k + 1]
         den = y0 - 2.0 * y1 + y2
         if den < 0.0:
-            t = 0.5 * (y0 - y2) / den                       # in steps of log s
+            t = 0.5 * (y0 - y2) / den  # in steps of log s
             return float(np.exp(np.log(s[k]) + t * (np.log(s[1]) - np.log(s[0]))))
     return float(s[k])
 
@@ -365,11 +434,11 @@ def axial_peak(flux_within, R: float, behind_min: float, behind_max: float,
 class CaseError:
     """Error of one model for one lens and light (one case of the grid)."""
 
-    l1: np.ndarray                   # per receiver
-    receivers: tuple                 # in units of R behind the back pole
-    peak_true: float                 # brightest point on the axis, R behind the back pole
+    l1: np.ndarray  # per receiver
+    receivers: tuple  # in units of R behind the back pole
+    peak_true: float  # brightest point on the axis, R behind the back pole
     peak_model: float
-    flux_ratio: np.ndarray           # model flux / true flux in the disc, per receiver
+    flux_ratio: np.ndarray  # model flux / true flux in the disc, per receiver
 
     @property
     def l1_mean(self) -> float:
@@ -385,8 +454,9 @@ class CaseError:
         return abs(self.peak_model - self.peak_true)
 
 
-def evaluate_case(model, beam: ExactBeam, receivers=RECEIVERS_BEHIND,
-                  peak_true: float | None = None) -> CaseError:
+def evaluate_case(
+    model, beam: ExactBeam, receivers=RECEIVERS_BEHIND, peak_true: float | None = None
+) -> CaseError:
     """L1 error on every receiver plus the axial peak's position error.
     ``peak_true``: pass the (expensive) true peak when evaluating many models."""
     R = beam.R

@@ -62,6 +62,7 @@ Materials (Principled BSDF), from the surface block `#C #A #D #S #T #E #N`:
 World: the thesis lit with an ambient light of colour 0.1 0.1 0.1: the importer
   makes the world's background that colour (AMBIENT_COLOR).
 """
+
 from __future__ import annotations
 
 import math
@@ -96,6 +97,7 @@ OPAQUE_IOR = 1.5
 
 # --------------------------------------------------------------------------- lights
 
+
 def watts_from_brightness(brightness: float) -> float:
     """Blender point-light power (W) of a `.bi` light of this brightness."""
     return float(brightness) * WATTS_PER_BRIGHTNESS
@@ -108,20 +110,22 @@ def brightness_from_watts(watts: float) -> float:
 
 # --------------------------------------------------------------------------- camera
 
+
 @dataclass
 class BlenderCamera:
     """The Blender camera and render settings for a `.bi` camera."""
-    lens: float                 # focal length, mm
-    sensor_width: float         # mm
-    sensor_height: float        # mm (informative: the fit is horizontal)
-    sensor_fit: str             # 'HORIZONTAL'
+
+    lens: float  # focal length, mm
+    sensor_width: float  # mm
+    sensor_height: float  # mm (informative: the fit is horizontal)
+    sensor_fit: str  # 'HORIZONTAL'
     pixel_aspect_x: float
     pixel_aspect_y: float
     resolution_x: int
     resolution_y: int
-    focus_distance: float       # distance from the camera to its target
-    rotation: np.ndarray        # 3×3: columns = camera's local X, Y, Z in the world
-    up_was_parallel: bool       # U was (nearly) parallel to the view: a fallback up
+    focus_distance: float  # distance from the camera to its target
+    rotation: np.ndarray  # 3×3: columns = camera's local X, Y, Z in the world
+    up_was_parallel: bool  # U was (nearly) parallel to the view: a fallback up
 
 
 class BlenderLimitError(ValueError):
@@ -148,25 +152,34 @@ def lens_from_fov(fov_h_deg: float, sensor_width: float = SENSOR_WIDTH) -> tuple
     return lens, sensor_width
 
 
-def pixel_aspect_from_fov(fov_h_deg: float, fov_v_deg: float,
-                          width: int, height: int) -> tuple[float, float]:
+def pixel_aspect_from_fov(
+    fov_h_deg: float, fov_v_deg: float, width: int, height: int
+) -> tuple[float, float]:
     """Pixel aspect (x, y), the smaller 1, that makes a `width × height` image span
     both opening angles. ValueError beyond Blender's range [1, 200]."""
     ratio = (_tan_half(fov_h_deg) * height) / (_tan_half(fov_v_deg) * width)
     if not (1.0 / MAX_PIXEL_ASPECT <= ratio <= MAX_PIXEL_ASPECT):
         raise BlenderLimitError(
-            "B", f"opening angles {fov_h_deg:g}° × {fov_v_deg:g}° on a {width}×{height} image "
-            f"need a pixel aspect of {ratio:.4g}; Blender allows 1/200 to 200")
+            "B",
+            f"opening angles {fov_h_deg:g}° × {fov_v_deg:g}° on a {width}×{height} image "
+            f"need a pixel aspect of {ratio:.4g}; Blender allows 1/200 to 200",
+        )
     # Exactly 1 when the angles match the image's shape up to rounding.
     if abs(ratio - 1.0) <= 1e-12:
         return 1.0, 1.0
     return (ratio, 1.0) if ratio >= 1.0 else (1.0, 1.0 / ratio)
 
 
-def fov_from_blender(lens: float, sensor_width: float, sensor_height: float,
-                     sensor_fit: str, width: int, height: int,
-                     pixel_aspect_x: float = 1.0, pixel_aspect_y: float = 1.0
-                     ) -> tuple[float, float]:
+def fov_from_blender(
+    lens: float,
+    sensor_width: float,
+    sensor_height: float,
+    sensor_fit: str,
+    width: int,
+    height: int,
+    pixel_aspect_x: float = 1.0,
+    pixel_aspect_y: float = 1.0,
+) -> tuple[float, float]:
     """Opening angles (h, v) in degrees of a perspective Blender camera rendering
     `width × height` pixels, following Blender's own sensor-fit rule
     (BKE_camera_params_compute_viewplane): 'AUTO' fits `sensor_width` to the
@@ -174,8 +187,11 @@ def fov_from_blender(lens: float, sensor_width: float, sensor_height: float,
     `sensor_width` to the width, 'VERTICAL' `sensor_height` to the height."""
     ycor = pixel_aspect_y / pixel_aspect_x
     wide = width * pixel_aspect_x >= height * pixel_aspect_y
-    fit = sensor_fit if sensor_fit in ("HORIZONTAL", "VERTICAL") else (
-        "HORIZONTAL" if wide else "VERTICAL")
+    fit = (
+        sensor_fit
+        if sensor_fit in ("HORIZONTAL", "VERTICAL")
+        else ("HORIZONTAL" if wide else "VERTICAL")
+    )
     sensor = sensor_height if sensor_fit == "VERTICAL" else sensor_width
     t = sensor / (2.0 * lens)
     if fit == "HORIZONTAL":
@@ -215,23 +231,35 @@ def camera_to_blender(camera: Camera, width: int, height: int) -> BlenderCamera:
     cannot show (pixel aspect beyond 200, resolution outside 4–65536)."""
     for name, size in (("width", width), ("height", height)):
         if not MIN_RESOLUTION <= size <= MAX_RESOLUTION:
-            raise BlenderLimitError("V", f"viewport {name} {size} is outside Blender's render "
-                             f"resolution range {MIN_RESOLUTION}–{MAX_RESOLUTION}")
+            raise BlenderLimitError(
+                "V",
+                f"viewport {name} {size} is outside Blender's render "
+                f"resolution range {MIN_RESOLUTION}–{MAX_RESOLUTION}",
+            )
     fov_h, fov_v = camera.fov_deg
     lens, sensor_width = lens_from_fov(fov_h)
     pax, pay = pixel_aspect_from_fov(fov_h, fov_v, width, height)
     sensor_height = max(MIN_SENSOR, sensor_width * _tan_half(fov_v) / _tan_half(fov_h))
     rotation, parallel = look_at(camera.position, camera.target, camera.up)
     distance = float(np.linalg.norm(np.subtract(camera.target, camera.position)))
-    return BlenderCamera(lens=lens, sensor_width=sensor_width, sensor_height=sensor_height,
-                         sensor_fit="HORIZONTAL", pixel_aspect_x=pax, pixel_aspect_y=pay,
-                         resolution_x=int(width), resolution_y=int(height),
-                         focus_distance=distance, rotation=rotation,
-                         up_was_parallel=parallel)
+    return BlenderCamera(
+        lens=lens,
+        sensor_width=sensor_width,
+        sensor_height=sensor_height,
+        sensor_fit="HORIZONTAL",
+        pixel_aspect_x=pax,
+        pixel_aspect_y=pay,
+        resolution_x=int(width),
+        resolution_y=int(height),
+        focus_distance=distance,
+        rotation=rotation,
+        up_was_parallel=parallel,
+    )
 
 
-def camera_from_blender(position, rotation, focus_distance: float,
-                        fov_deg: tuple[float, float]) -> Camera:
+def camera_from_blender(
+    position, rotation, focus_distance: float, fov_deg: tuple[float, float]
+) -> Camera:
     """A `.bi` camera from a Blender camera's world position, world rotation (3×3,
     columns local X, Y, Z; scale is removed) and focus distance (<= 0: 1 unit)."""
     rotation = np.asarray(rotation, dtype=float)
@@ -240,10 +268,12 @@ def camera_from_blender(position, rotation, focus_distance: float,
     up = up / np.linalg.norm(up)
     distance = focus_distance if focus_distance > 0 else 1.0
     position = np.asarray(position, dtype=float)
-    return Camera(position=tuple(float(c) for c in position),
-                  target=tuple(float(c) for c in position + distance * forward),
-                  up=tuple(float(c) for c in up),
-                  fov_deg=(float(fov_deg[0]), float(fov_deg[1])))
+    return Camera(
+        position=tuple(float(c) for c in position),
+        target=tuple(float(c) for c in position + distance * forward),
+        up=tuple(float(c) for c in up),
+        fov_deg=(float(fov_deg[0]), float(fov_deg[1])),
+    )
 
 
 def same_view(camera_a: Camera, camera_b: Camera, tol: float = 1e-5) -> bool:
@@ -263,6 +293,7 @@ def same_view(camera_a: Camera, camera_b: Camera, tol: float = 1e-5) -> bool:
 
 
 # --------------------------------------------------------------------------- materials
+
 
 def principled_from_surface(surface: Surface) -> dict:
     """Principled BSDF input values (by input name) for a `.bi` surface."""
@@ -296,20 +327,24 @@ def surface_from_principled(inputs: dict, viewport=None) -> Surface:
     `principled_from_surface` where that is one-to-one; see the module's table."""
     kt = min(1.0, max(0.0, float(inputs.get("Transmission Weight", 0.0))))
     base = inputs.get("Base Color", (0.8, 0.8, 0.8, 1.0))
-    color = tuple(float(c) for c in (viewport if kt > 0.0 and viewport is not None
-                                     else base)[:3])
+    color = tuple(float(c) for c in (viewport if kt > 0.0 and viewport is not None else base)[:3])
     metallic = min(1.0, max(0.0, float(inputs.get("Metallic", 0.0))))
     roughness = min(1.0, max(0.0, float(inputs.get("Roughness", 0.5))))
     ior = float(inputs.get("IOR", 1.5))
     if kt > 0.0:
         metallic, exponent, n = 0.0, GLASS_EXPONENT, ior
     else:
-        exponent = (min(MAX_EXPONENT, 2.0 / roughness ** 2 - 2.0) if roughness > 0.0
-                    else MAX_EXPONENT)
+        exponent = min(MAX_EXPONENT, 2.0 / roughness**2 - 2.0) if roughness > 0.0 else MAX_EXPONENT
         n = 1.0
-    return Surface(color=tuple(max(0.0, c) for c in color), ambient=DEFAULT_AMBIENT,
-                   diffuse=(1.0 - metallic) * (1.0 - kt), specular=metallic * (1.0 - kt),
-                   transmission=kt, exponent=max(0.0, exponent), ior=n)
+    return Surface(
+        color=tuple(max(0.0, c) for c in color),
+        ambient=DEFAULT_AMBIENT,
+        diffuse=(1.0 - metallic) * (1.0 - kt),
+        specular=metallic * (1.0 - kt),
+        transmission=kt,
+        exponent=max(0.0, exponent),
+        ior=n,
+    )
 
 
 def principled_matches(a: dict, b: dict, tol: float = 1e-5) -> bool:
@@ -322,6 +357,7 @@ def principled_matches(a: dict, b: dict, tol: float = 1e-5) -> bool:
 
 
 # --------------------------------------------------------------------------- stored numbers
+
 
 def close(current, stored, tol: float, scale: float = 1.0) -> bool:
     """All components of `current` within `tol × max(scale, |stored|)` of `stored`."""
@@ -350,8 +386,8 @@ def header_line(text: str, key: str) -> int | None:
     """Line number (1-based) of the first record with `key` in a `.bi` text (used
     to point at the 'V' or 'B' record in messages about Blender's limits)."""
     import re
-    stripped = re.sub(r"/\*.*?\*/", lambda m: "\n" * m.group(0).count("\n"), text,
-                      flags=re.S)
+
+    stripped = re.sub(r"/\*.*?\*/", lambda m: "\n" * m.group(0).count("\n"), text, flags=re.S)
     for number, line in enumerate(stripped.splitlines(), 1):
         tokens = line.split()
         if tokens and tokens[0] == key:

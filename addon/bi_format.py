@@ -52,15 +52,17 @@ Errors: `BiFormatError` (a `ValueError`) is the only exception the reader lets
 out, whatever the input; its text is "FILE:LINE: what was expected". A record
 missing at the end of the file is reported on the file's last line.
 """
+
 from __future__ import annotations
 
 import math
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from decimal import Context, Decimal, localcontext
 from fractions import Fraction
-from typing import Callable, Optional, Union
+from typing import Union
 
 from .scene import Camera, Light, Scene, Sphere, Surface
 
@@ -72,7 +74,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 class BiFormatError(ValueError):
     """A `.bi` file that cannot be read: `str(e)` is "FILE:LINE: message"."""
 
-    def __init__(self, path: str, line: Optional[int], message: str):
+    def __init__(self, path: str, line: int | None, message: str):
         self.path = path
         self.line = line
         self.message = message
@@ -85,7 +87,7 @@ class BiFormatError(ValueError):
 
 # A check is (predicate, text shown in the message), e.g. (> 0, "> 0").
 Check = tuple[Callable[[float], bool], str]
-ANY: Optional[Check] = None
+ANY: Check | None = None
 NON_NEGATIVE: Check = (lambda v: v >= 0.0, ">= 0")
 POSITIVE: Check = (lambda v: v > 0.0, "> 0")
 UNIT: Check = (lambda v: 0.0 <= v <= 1.0, "in [0, 1]")
@@ -95,9 +97,9 @@ ANGLE: Check = (lambda v: 0.0 < v < 180.0, "in (0, 180)")
 @dataclass(frozen=True)
 class Rec:
     key: str
-    args: tuple[str, ...]     # names of the values, shown as <name>
-    what: str                 # what the record means, for messages
-    check: Optional[Check] = ANY
+    args: tuple[str, ...]  # names of the values, shown as <name>
+    what: str  # what the record means, for messages
+    check: Check | None = ANY
 
     @property
     def usage(self) -> str:
@@ -142,6 +144,7 @@ _INT_RE = re.compile(r"[+-]?\d{1,30}", re.ASCII)
 # --------------------------------------------------------------------------- #
 # Reading
 
+
 @dataclass
 class _Line:
     number: int
@@ -170,8 +173,9 @@ def _show(text: str, limit: int = 40) -> str:
     """Text of the offending line for a message: one line, printable, short."""
     if len(text) > limit:
         text = text[:limit] + "..."
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
-                   for c in text)
+    return "".join(
+        c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text
+    )
 
 
 class _Reader:
@@ -182,22 +186,22 @@ class _Reader:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
         raw_lines = text.split("\n")
         if raw_lines and raw_lines[-1] == "":
-            raw_lines.pop()                      # a final newline ends the last line
+            raw_lines.pop()  # a final newline ends the last line
         self.last_line = max(1, len(raw_lines))  # where "missing at end" is reported
-        self.line_no = 1                         # line of the record being read
+        self.line_no = 1  # line of the record being read
         # Records are split off lazily (`peek`): the spheres of a large file are
         # read in bulk (`_bulk_spheres`) without a Python object per line.
         self.lines = _strip_comments("\n".join(raw_lines), path).split("\n")
-        self.pos = 0                             # index into `lines` of the next line
-        self.next: _Line | None = None           # the record at `pos`, once split
+        self.pos = 0  # index into `lines` of the next line
+        self.next: _Line | None = None  # the record at `pos`, once split
         self.colors: list[tuple[list[str], Callable[[tuple], None]]] = []
 
     # -- errors ----------------------------------------------------------------
-    def error(self, message: str, line: Optional[int] = None) -> BiFormatError:
+    def error(self, message: str, line: int | None = None) -> BiFormatError:
         return BiFormatError(self.path, self.line_no if line is None else line, message)
 
     # -- records ---------------------------------------------------------------
-    def peek(self) -> Optional[_Line]:
+    def peek(self) -> _Line | None:
         if self.next is None:
             while self.pos < len(self.lines):
                 tokens = self.lines[self.pos].split()
@@ -225,38 +229,42 @@ class _Reader:
     # -- values ----------------------------------------------------------------
     def number(self, rec: Rec, name: str, token: str) -> float:
         if not _FLOAT_RE.fullmatch(token):
-            raise self.error(f"expected a number for <{name}> in '{rec.usage}' "
-                             f"({rec.what}), got '{_show(token)}'")
+            raise self.error(
+                f"expected a number for <{name}> in '{rec.usage}' "
+                f"({rec.what}), got '{_show(token)}'"
+            )
         value = float(token)
         if not math.isfinite(value):
-            raise self.error(f"expected a finite number for <{name}> ({rec.what}), "
-                             f"got '{_show(token)}'")
+            raise self.error(
+                f"expected a finite number for <{name}> ({rec.what}), got '{_show(token)}'"
+            )
         self.check(rec, name, token, value)
         return value
 
     def integer(self, rec: Rec, name: str, token: str) -> int:
         if not _INT_RE.fullmatch(token):
-            raise self.error(f"expected an integer for <{name}> in '{rec.usage}' "
-                             f"({rec.what}), got '{_show(token)}'")
+            raise self.error(
+                f"expected an integer for <{name}> in '{rec.usage}' "
+                f"({rec.what}), got '{_show(token)}'"
+            )
         value = int(token)
         self.check(rec, name, token, value)
         return value
 
     def check(self, rec: Rec, name: str, token: str, value: float) -> None:
         if rec.check is not None and not rec.check[0](value):
-            raise self.error(f"expected <{name}> {rec.check[1]} ({rec.what}), "
-                             f"got '{_show(token)}'")
+            raise self.error(f"expected <{name}> {rec.check[1]} ({rec.what}), got '{_show(token)}'")
 
     def floats(self, rec: Rec) -> tuple[float, ...]:
-        return tuple(self.number(rec, n, t) for n, t in zip(rec.args, self.take(rec)))
+        return tuple(self.number(rec, n, t) for n, t in zip(rec.args, self.take(rec), strict=False))
 
     def ints(self, rec: Rec) -> tuple[int, ...]:
-        return tuple(self.integer(rec, n, t) for n, t in zip(rec.args, self.take(rec)))
+        return tuple(self.integer(rec, n, t) for n, t in zip(rec.args, self.take(rec), strict=False))
 
     def color(self, rec: Rec, store: Callable[[tuple], None], what: str = "") -> None:
         """Check a colour now; convert it once the whole file's scale is known."""
         tokens = self.take(rec, what)
-        for name, token in zip(rec.args, tokens):
+        for name, token in zip(rec.args, tokens, strict=False):
             self.number(rec, name, token)
         self.colors.append((tokens, store))
 
@@ -277,16 +285,24 @@ class _Reader:
         extra = self.peek()
         if extra is not None:
             self.line_no = extra.number
-            raise self.error(f"expected end of file after {n_objects} object(s) "
-                             f"(O {n_objects}), got '{_show(' '.join(extra.tokens))}'")
+            raise self.error(
+                f"expected end of file after {n_objects} object(s) "
+                f"(O {n_objects}), got '{_show(' '.join(extra.tokens))}'"
+            )
         scale = self.color_scale()
         for tokens, store in self.colors:
             if isinstance(tokens, _BulkColors):
                 store(tokens.convert(scale))
             else:
                 store(tuple(_color_from_text(t, scale) for t in tokens))
-        return Scene(width=width, height=height, camera=camera, lights=lights,
-                     objects=objects, color_scale=scale)
+        return Scene(
+            width=width,
+            height=height,
+            camera=camera,
+            lights=lights,
+            objects=objects,
+            color_scale=scale,
+        )
 
     def camera(self) -> Camera:
         position = self.floats(CAM_POS)
@@ -301,8 +317,9 @@ class _Reader:
 
     def light(self, index: int, count: int) -> Light:
         light = Light(position=(0.0, 0.0, 0.0))
-        self.color(LIGHT_COLOR, lambda c: setattr(light, "color", c),
-                   f"colour of light {index} of {count}")
+        self.color(
+            LIGHT_COLOR, lambda c: setattr(light, "color", c), f"colour of light {index} of {count}"
+        )
         light.position = self.floats(LIGHT_POS)
         (light.brightness,) = self.floats(LIGHT_BRIGHT)
         return light
@@ -326,11 +343,15 @@ class _Reader:
             key = line.tokens[0]
             self.line_no = line.number
             if key not in SURFACE_RECS:
-                raise self.error(f"expected one of {' '.join(SURFACE_RECS)} (surface record), "
-                                 f"got '{_show(' '.join(line.tokens))}'")
+                raise self.error(
+                    f"expected one of {' '.join(SURFACE_RECS)} (surface record), "
+                    f"got '{_show(' '.join(line.tokens))}'"
+                )
             if key in seen:
-                raise self.error(f"duplicate '{key}' in the surface of object {index} "
-                                 f"(first at line {seen[key]})")
+                raise self.error(
+                    f"duplicate '{key}' in the surface of object {index} "
+                    f"(first at line {seen[key]})"
+                )
             seen[key] = line.number
             rec, attr = SURFACE_RECS[key]
             if key == "#C":
@@ -341,8 +362,9 @@ class _Reader:
         missing = [k for k in SURFACE_RECS if k not in seen]
         if missing:
             rec = SURFACE_RECS[missing[0]][0]
-            raise self.error(f"the surface of object {index} is missing '{rec.usage}' "
-                             f"({rec.what})", line=s_line)
+            raise self.error(
+                f"the surface of object {index} is missing '{rec.usage}' ({rec.what})", line=s_line
+            )
         return surface
 
     def color_scale(self) -> float:
@@ -356,13 +378,38 @@ class _Reader:
 # a key), they are converted and range-checked as arrays. Anything else, and
 # any value out of range, falls back to the record by record reader, which
 # names the line: errors are unchanged.
-_SPHERE_KEYS = ("T", "0", "C", None, None, None, "R", None, "S", "#C", None, None, None,
-                "#A", None, "#D", None, "#S", None, "#T", None, "#E", None, "#N", None)
+_SPHERE_KEYS = (
+    "T",
+    "0",
+    "C",
+    None,
+    None,
+    None,
+    "R",
+    None,
+    "S",
+    "#C",
+    None,
+    None,
+    None,
+    "#A",
+    None,
+    "#D",
+    None,
+    "#S",
+    None,
+    "#T",
+    None,
+    "#E",
+    None,
+    "#N",
+    None,
+)
 _SPHERE_TOKENS = len(_SPHERE_KEYS)
 _KEY_COLUMNS = [k for k, key in enumerate(_SPHERE_KEYS) if key is not None]
 _SPHERE_NUMBERS = [k for k, key in enumerate(_SPHERE_KEYS) if key is None]
 #: A line whose first token starts like a number continues a record: not the layout.
-_LINE_STARTS_WITH_NUMBER = re.compile(r"\n[^\S\n]*[-+.0-9]")     # searched in "\n" + block
+_LINE_STARTS_WITH_NUMBER = re.compile(r"\n[^\S\n]*[-+.0-9]")  # searched in "\n" + block
 #: Numbers never start with a key's first character: such a token after a blank is a
 #: key after another token (or an indented key: left to the record reader too).
 _KEY_INSIDE_LINE = re.compile(r"[^\S\n][TCRS#]")
@@ -373,12 +420,11 @@ _NOT_NUMBER_CHAR = re.compile(r"[^0-9.eE+\-\n]")
 def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
     """The `count` spheres that end the file, read at once, or None (then the
     record by record reader goes on from the same place)."""
-    if count < 64:                      # not worth it: the plain path is as fast
+    if count < 64:  # not worth it: the plain path is as fast
         return None
-    block = "\n".join(reader.lines[reader.pos:])
+    block = "\n".join(reader.lines[reader.pos :])
     tokens = block.split()
-    if (len(tokens) != _SPHERE_TOKENS * count
-            or _LINE_STARTS_WITH_NUMBER.search("\n" + block)):
+    if len(tokens) != _SPHERE_TOKENS * count or _LINE_STARTS_WITH_NUMBER.search("\n" + block):
         return None
     # Column k of the layout is tokens[k::25]: list slices, compared and converted
     # in C (no per-token Python code).
@@ -402,24 +448,45 @@ def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
         return None
     center, radius, color = v[:, 0:3], v[:, 3], v[:, 4:7]
     ka, kd, ks, kt, ex, ior = v[:, 7], v[:, 8], v[:, 9], v[:, 10], v[:, 11], v[:, 12]
-    ok = (np.all(np.isfinite(v)) and np.all(radius > 0) and np.all(color >= 0)
-          and np.all(ka >= 0) and np.all(kd >= 0) and np.all(ks >= 0)
-          and np.all((kt >= 0) & (kt <= 1)) and np.all(ex >= 0) and np.all(ior > 0))
+    ok = (
+        np.all(np.isfinite(v))
+        and np.all(radius > 0)
+        and np.all(color >= 0)
+        and np.all(ka >= 0)
+        and np.all(kd >= 0)
+        and np.all(ks >= 0)
+        and np.all((kt >= 0) & (kt <= 1))
+        and np.all(ex >= 0)
+        and np.all(ior > 0)
+    )
     if not ok:
         return None
     reader.pos, reader.next = len(reader.lines), None
-    spheres = [Sphere(center=(x, y, z), radius=r,
-                      surface=Surface(ambient=a, diffuse=d, specular=s, transmission=t,
-                                      exponent=e, ior=n))
-               for x, y, z, r, a, d, s, t, e, n in zip(
-                   *center.T.tolist(), radius.tolist(), ka.tolist(), kd.tolist(),
-                   ks.tolist(), kt.tolist(), ex.tolist(), ior.tolist(), strict=True)]
+    spheres = [
+        Sphere(
+            center=(x, y, z),
+            radius=r,
+            surface=Surface(ambient=a, diffuse=d, specular=s, transmission=t, exponent=e, ior=n),
+        )
+        for x, y, z, r, a, d, s, t, e, n in zip(
+            *center.T.tolist(),
+            radius.tolist(),
+            ka.tolist(),
+            kd.tolist(),
+            ks.tolist(),
+            kt.tolist(),
+            ex.tolist(),
+            ior.tolist(),
+            strict=True,
+        )
+    ]
     # Colours wait for the file's scale like the others; one entry for all of them.
     color_text = columns[4:7]
 
     def store(scaled):
         for sphere, c in zip(spheres, scaled, strict=True):
             sphere.surface.color = c
+
     reader.colors.append((_BulkColors(color_text, color), store))
     return spheres
 
@@ -432,7 +499,7 @@ class _BulkColors:
     def __init__(self, text, values):
         self.text, self.values = text, values
 
-    def __iter__(self):                 # what `_Reader.color_scale` looks at
+    def __iter__(self):  # what `_Reader.color_scale` looks at
         rows, cols = (self.values > 1.0).nonzero()
         return iter([self.text[int(cols[0])][int(rows[0])]] if rows.size else [])
 
@@ -440,8 +507,13 @@ class _BulkColors:
         if scale == 1.0:
             return list(map(tuple, self.values.tolist()))
         memo: dict[str, float] = {}
-        r, g, b = ([memo[t] if t in memo else memo.setdefault(t, _color_from_text(t, scale))
-                    for t in column] for column in self.text)
+        r, g, b = (
+            [
+                memo[t] if t in memo else memo.setdefault(t, _color_from_text(t, scale))
+                for t in column
+            ]
+            for column in self.text
+        )
         return list(zip(r, g, b, strict=True))
 
 
@@ -449,7 +521,7 @@ def _color_from_text(token: str, scale: float) -> float:
     """A colour component in 0-1. Dividing the exact decimal by 255 and rounding
     once makes the writer's text for `value * 255` read back bit for bit."""
     value = float(token)
-    if scale == 1.0 or value == 0.0:   # also avoids Fraction("1e-999999999")
+    if scale == 1.0 or value == 0.0:  # also avoids Fraction("1e-999999999")
         return value
     # Via Decimal: Fraction("1.000...") would hit int()'s 4300-digit limit.
     return float(Fraction(Decimal(token)) / 255)
@@ -465,18 +537,20 @@ def parse_bi(text: str, path: str = "<string>") -> Scene:
         raise
     except Exception as exc:  # a safety net: no other exception may escape
         line = reader.line_no if reader is not None else None
-        raise BiFormatError(path, line, f"cannot read this line ({type(exc).__name__}: "
-                                        f"{_show(str(exc), 80)})") from exc
+        raise BiFormatError(
+            path, line, f"cannot read this line ({type(exc).__name__}: {_show(str(exc), 80)})"
+        ) from exc
 
 
 def _decode(data: bytes, path: str) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        head = data[:exc.start]                  # LF, CRLF and a lone CR each end a line
+        head = data[: exc.start]  # LF, CRLF and a lone CR each end a line
         line = head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
-        raise BiFormatError(path, line, "expected UTF-8 text (the file has bytes "
-                                        "that are not UTF-8)") from exc
+        raise BiFormatError(
+            path, line, "expected UTF-8 text (the file has bytes that are not UTF-8)"
+        ) from exc
 
 
 def read_bi(path: PathLike) -> Scene:
@@ -493,6 +567,7 @@ def read_bi(path: PathLike) -> Scene:
 # --------------------------------------------------------------------------- #
 # Writing
 
+
 def _float_text(value: float) -> str:
     """Shortest text that reads back to the same double; integral values short."""
     if value.is_integer() and abs(value) < 1e16:
@@ -505,7 +580,7 @@ def _color_text(value: float, scale: float) -> str:
     if scale == 1.0 or value == 0.0:
         return _float_text(value)
     with localcontext(Context(prec=2000)):
-        exact = Decimal(value) * 255        # exact: a double has < 800 digits
+        exact = Decimal(value) * 255  # exact: a double has < 800 digits
     # The exact product always works; look for the shortest decimal that does.
     for digits in range(1, 2000):
         candidate = Context(prec=digits).plus(exact)
@@ -525,8 +600,10 @@ class _Writer:
 
     def fail(self, rec: Rec, name: str, value) -> ValueError:
         cond = f" {rec.check[1]}" if rec.check is not None else ""
-        return ValueError(f"cannot write {self.where}{rec.what}: expected <{name}> "
-                          f"a finite number{cond}, got {value!r}")
+        return ValueError(
+            f"cannot write {self.where}{rec.what}: expected <{name}> "
+            f"a finite number{cond}, got {value!r}"
+        )
 
     def value(self, rec: Rec, name: str, value) -> float:
         try:
@@ -543,34 +620,38 @@ class _Writer:
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok or (rec.check and not rec.check[0](value)):
-            raise ValueError(f"cannot write {self.where}{rec.what}: expected <{name}> "
-                             f"an integer{' ' + rec.check[1] if rec.check else ''}, "
-                             f"got {value!r}")
+            raise ValueError(
+                f"cannot write {self.where}{rec.what}: expected <{name}> "
+                f"an integer{' ' + rec.check[1] if rec.check else ''}, "
+                f"got {value!r}"
+            )
         return int(value)
 
     def record(self, rec: Rec, values, comment: str = "") -> None:
-        texts = [_float_text(self.value(rec, n, v))
-                 for n, v in zip(rec.args, self.sized(rec, values))]
+        texts = [
+            _float_text(self.value(rec, n, v)) for n, v in zip(rec.args, self.sized(rec, values), strict=False)
+        ]
         self.emit(rec, texts, comment)
 
     def int_record(self, rec: Rec, values, comment: str = "") -> None:
-        texts = [str(self.integer(rec, n, v))
-                 for n, v in zip(rec.args, self.sized(rec, values))]
+        texts = [str(self.integer(rec, n, v)) for n, v in zip(rec.args, self.sized(rec, values), strict=False)]
         self.emit(rec, texts, comment)
 
     def color(self, rec: Rec, values, scale: float) -> None:
-        values = [self.value(rec, n, v) for n, v in zip(rec.args, self.sized(rec, values))]
+        values = [self.value(rec, n, v) for n, v in zip(rec.args, self.sized(rec, values), strict=False)]
         texts = [_color_text(v, scale) for v in values]
-        for name, text, v in zip(rec.args, texts, values):
-            if not math.isfinite(float(text)):       # v * 255 beyond the largest double
+        for name, text, v in zip(rec.args, texts, values, strict=False):
+            if not math.isfinite(float(text)):  # v * 255 beyond the largest double
                 raise self.fail(rec, name, v)
         self.emit(rec, texts)
 
     def sized(self, rec: Rec, values) -> tuple:
         values = tuple(values)
         if len(values) != len(rec.args):
-            raise ValueError(f"cannot write {self.where}{rec.what}: expected "
-                             f"{len(rec.args)} values, got {len(values)}")
+            raise ValueError(
+                f"cannot write {self.where}{rec.what}: expected "
+                f"{len(rec.args)} values, got {len(values)}"
+            )
         return values
 
     def emit(self, rec: Rec, texts: list[str], comment: str = "") -> None:
@@ -589,13 +670,12 @@ def _write_scale(scene: Scene) -> float:
     try:
         colors = _scene_colors(scene)
     except (TypeError, ValueError):
-        return 1.0                                   # the writer reports the value
+        return 1.0  # the writer reports the value
     if any(not math.isfinite(c) for c in colors):
         return 1.0
     if any(c > 1.0 for c in colors):
-        return 255.0                                 # only 0-255 can say "above 1"
-    if scene.color_scale == 255.0 and \
-            any(float(_color_text(c, 255.0)) > 1.0 for c in colors):
+        return 255.0  # only 0-255 can say "above 1"
+    if scene.color_scale == 255.0 and any(float(_color_text(c, 255.0)) > 1.0 for c in colors):
         return 255.0
     return 1.0
 

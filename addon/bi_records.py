@@ -6,6 +6,7 @@ extent (for the camera's clipping) and the texts of the operators' reports.
 
 Pure (numpy only).
 """
+
 from __future__ import annotations
 
 import re
@@ -26,15 +27,27 @@ def light_name(index: int) -> str:
 
 
 def surface_dict(surface: Surface) -> dict:
-    return {"color": list(surface.color), "ka": surface.ambient, "kd": surface.diffuse,
-            "ks": surface.specular, "kt": surface.transmission, "E": surface.exponent,
-            "n": surface.ior}
+    return {
+        "color": list(surface.color),
+        "ka": surface.ambient,
+        "kd": surface.diffuse,
+        "ks": surface.specular,
+        "kt": surface.transmission,
+        "E": surface.exponent,
+        "n": surface.ior,
+    }
 
 
 def surface_from_dict(d) -> Surface:
-    return Surface(color=tuple(float(c) for c in d["color"]), ambient=float(d["ka"]),
-                   diffuse=float(d["kd"]), specular=float(d["ks"]),
-                   transmission=float(d["kt"]), exponent=float(d["E"]), ior=float(d["n"]))
+    return Surface(
+        color=tuple(float(c) for c in d["color"]),
+        ambient=float(d["ka"]),
+        diffuse=float(d["kd"]),
+        specular=float(d["ks"]),
+        transmission=float(d["kt"]),
+        exponent=float(d["E"]),
+        ior=float(d["n"]),
+    )
 
 
 def f32(x: float) -> float:
@@ -61,8 +74,9 @@ def order_key(stored: dict, name: str):
     """Where an object goes in the written file: by the index it was imported with
     (`stored`: its stored `.bi` numbers), then the others by name."""
     index = stored.get("index")
-    return (0, int(index), natural_key(name)) if isinstance(index, int) else \
-        (1, 0, natural_key(name))
+    return (
+        (0, int(index), natural_key(name)) if isinstance(index, int) else (1, 0, natural_key(name))
+    )
 
 
 def scene_extent(scene: Scene) -> float:

@@ -48,6 +48,7 @@ The light's ``radius`` (``shadow_soft_size``) is ignored: from a receiver that s
 the whole (small) emitting sphere, a uniformly emitting sphere gives the same
 irradiance as a point at its centre; lens lights keep it small.
 """
+
 from __future__ import annotations
 
 import math
@@ -170,6 +171,7 @@ def spot_ring_irradiance(intensity, h, half_angle, blend, edges):
 # Tabulated angular profile (the exact-profile tier)
 # ---------------------------------------------------------------------------
 
+
 def profile_flux_within_angle(gammas, intensities, gamma):
     """Flux (W) within angle ``gamma`` (array-like, radians) of the axis of a light
     whose radiant intensity (W/sr) is linear in the angle between the table's nodes
@@ -190,7 +192,7 @@ def profile_flux_within_angle(gammas, intensities, gamma):
         omc = 2.0 * np.sin(0.5 * x) ** 2
         small = np.abs(x) < 1e-3
         xs = np.where(small, x, 0.0)
-        s_minus = np.where(small, xs ** 3 / 3.0 - xs ** 5 / 30.0, np.sin(x) - x * np.cos(x))
+        s_minus = np.where(small, xs**3 / 3.0 - xs**5 / 30.0, np.sin(x) - x * np.cos(x))
         return a[k] * omc + slope[k] * s_minus
 
     seg_full = prim(g[1:], np.arange(g.size - 1)) - prim(g[:-1], np.arange(g.size - 1))

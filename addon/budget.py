@@ -17,6 +17,7 @@ that the lens's disc subtends (SPEC §4.2's cancellation-free form). The budget 
 
 The report says how many were dropped at each step, and how much flux that was.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
@@ -37,19 +38,24 @@ def caught_fraction(radius, distance):
 def source_flux(table: SourceTable, light_power) -> np.ndarray:
     """Estimated flux (W, or the light's brightness unit) each source carries."""
     power = np.asarray(light_power, dtype=float)[table.light]
-    return (power * caught_fraction(table.lens_radius, table.distance)
-            * table.brightness_factor * table.unblocked_fraction * table.emission)
+    return (
+        power
+        * caught_fraction(table.lens_radius, table.distance)
+        * table.brightness_factor
+        * table.unblocked_fraction
+        * table.emission
+    )
 
 
 @dataclass
 class BudgetReport:
     total: int = 0
     below_cutoff: int = 0
-    merged: int = 0                 # sources absorbed into another (not lost: their flux stays)
+    merged: int = 0  # sources absorbed into another (not lost: their flux stays)
     over_cap: int = 0
     kept: int = 0
     flux_total: float = 0.0
-    flux_dropped: float = 0.0       # by the cut-off and the cap
+    flux_dropped: float = 0.0  # by the cut-off and the cap
     notes: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
@@ -61,13 +67,20 @@ class BudgetReport:
         if self.over_cap:
             parts.append(f"{self.over_cap} over the maximum number")
         if self.flux_total > 0 and self.flux_dropped > 0:
-            parts.append(f"{100.0 * self.flux_dropped / self.flux_total:.2g}% of the lens flux left out")
+            parts.append(
+                f"{100.0 * self.flux_dropped / self.flux_total:.2g}% of the lens flux left out"
+            )
         return "; ".join(parts)
 
 
-def apply_budget(table: SourceTable, light_power, min_flux_fraction: float = 0.0,
-                 max_lights: int | None = None, merge_distance: float | None = None,
-                 merge_angle_deg: float = 5.0):
+def apply_budget(
+    table: SourceTable,
+    light_power,
+    min_flux_fraction: float = 0.0,
+    max_lights: int | None = None,
+    merge_distance: float | None = None,
+    merge_angle_deg: float = 5.0,
+):
     """Returns (kept table, energy scale per kept source, BudgetReport).
 
     The energy scale is 1 except for merged sources, where it is the group's
@@ -85,15 +98,16 @@ def apply_budget(table: SourceTable, light_power, min_flux_fraction: float = 0.0
 
     scale = np.ones(len(table))
     if merge_distance and len(table):
-        table, merged_flux, report.merged = merge_nearby(table, flux, merge_distance,
-                                                         merge_angle_deg)
+        table, merged_flux, report.merged = merge_nearby(
+            table, flux, merge_distance, merge_angle_deg
+        )
         lead_flux = source_flux(table, light_power)
         scale = np.where(lead_flux > 0, merged_flux / np.where(lead_flux > 0, lead_flux, 1.0), 1.0)
         flux = merged_flux
 
     if max_lights is not None and len(table) > max_lights:
         order = np.argsort(-flux, kind="stable")
-        chosen = np.sort(order[:max(max_lights, 0)])
+        chosen = np.sort(order[: max(max_lights, 0)])
         report.over_cap = len(table) - chosen.size
         report.flux_dropped += float(flux.sum() - flux[chosen].sum())
         table, flux, scale = take(table, chosen), flux[chosen], scale[chosen]
@@ -104,13 +118,17 @@ def apply_budget(table: SourceTable, light_power, min_flux_fraction: float = 0.0
 def take(table: SourceTable, rows: np.ndarray) -> SourceTable:
     """The sources `rows` of a table (shadow lists carried along)."""
     rows = np.asarray(rows, dtype=np.int64)
-    cols = {f.name: getattr(table, f.name)[rows] for f in fields(table)
-            if not f.name.startswith("shadow")}
+    cols = {
+        f.name: getattr(table, f.name)[rows]
+        for f in fields(table)
+        if not f.name.startswith("shadow")
+    }
     starts = table.shadow_offsets[rows]
     counts = table.shadow_offsets[rows + 1] - starts
     spheres = table.shadow_spheres[concat_ranges(starts, counts)]
-    return SourceTable(**cols, shadow_offsets=np.concatenate([[0], np.cumsum(counts)]),
-                       shadow_spheres=spheres)
+    return SourceTable(
+        **cols, shadow_offsets=np.concatenate([[0], np.cumsum(counts)]), shadow_spheres=spheres
+    )
 
 
 def merge_nearby(table: SourceTable, flux: np.ndarray, distance: float, angle_deg: float):
@@ -145,7 +163,9 @@ def merge_nearby(table: SourceTable, flux: np.ndarray, distance: float, angle_de
     norm = np.linalg.norm(axis, axis=1, keepdims=True)
     lead_group = group[lead]
     merged.position = pos[lead_group]
-    merged.axis = np.where(norm > 0, axis / np.where(norm > 0, norm, 1.0), table.axis[lead])[lead_group]
+    merged.axis = np.where(norm > 0, axis / np.where(norm > 0, norm, 1.0), table.axis[lead])[
+        lead_group
+    ]
     intensity = np.zeros(n_groups)
     np.add.at(intensity, group, table.intensity)
     merged.intensity = intensity[lead_group]

@@ -43,6 +43,7 @@ bundle in the solid angle ``dOmega = 2 pi sin(psi) dpsi`` carries the flux
 flux per area (W per unit length squared).  Light that misses the sphere is never
 included: only the lens's own beam.
 """
+
 from __future__ import annotations
 
 import math
@@ -75,6 +76,7 @@ __all__ = [
 # Fresnel
 # ---------------------------------------------------------------------------
 
+
 def fresnel_transmittance(cos_i, n1, n2):
     """Single-surface power transmittances ``(t_s, t_p)`` of a smooth interface.
 
@@ -98,7 +100,7 @@ def fresnel_transmittance(cos_i, n1, n2):
     n2 = np.asarray(n2, dtype=float)
     eta = n1 / n2
     sin2_i = (1.0 - c_i) * (1.0 + c_i)
-    k = 1.0 - eta * eta * sin2_i          # cos^2 of the refraction angle
+    k = 1.0 - eta * eta * sin2_i  # cos^2 of the refraction angle
     tir = k < 0.0
     c_t = np.sqrt(np.where(tir, 0.0, k))
     num = 4.0 * n1 * c_i * n2 * c_t
@@ -138,13 +140,16 @@ def two_surface_transmission(iota, n):
 # Geometry helpers
 # ---------------------------------------------------------------------------
 
+
 def _check_lens(D, R, n):
     if not (np.isfinite(R) and R > 0.0):
         raise ValueError(f"sphere radius must be finite and > 0, got {R!r}")
     if not (np.isfinite(n) and n > 0.0):
         raise ValueError(f"index of refraction must be finite and > 0, got {n!r}")
     if not (np.isfinite(D) and D > R):
-        raise ValueError(f"source distance must be finite and > R (outside the sphere), got D={D!r}, R={R!r}")
+        raise ValueError(
+            f"source distance must be finite and > R (outside the sphere), got D={D!r}, R={R!r}"
+        )
 
 
 def cone_half_angle(D, R):
@@ -164,6 +169,7 @@ def cone_one_minus_cos(D, R):
 # ---------------------------------------------------------------------------
 # Exact meridional ray trace
 # ---------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class RayFan:
@@ -229,9 +235,18 @@ def _trace(psi, iota, sin_iota, D, R, n, absorption):
     trans = fres * np.exp(-absorption * np.where(np.isnan(chord), 0.0, chord))
     trans = np.where(np.isnan(r), 0.0, trans)
     return RayFan(
-        psi=psi, iota=iota, r=r, b=b, theta_exit=theta, sin_theta_exit=sin_t,
-        crossing=crossing, entry_polar=iota - psi, exit_polar=np.pi + iota - psi - 2.0 * r,
-        chord=chord, fresnel=fres, transmission=trans,
+        psi=psi,
+        iota=iota,
+        r=r,
+        b=b,
+        theta_exit=theta,
+        sin_theta_exit=sin_t,
+        crossing=crossing,
+        entry_polar=iota - psi,
+        exit_polar=np.pi + iota - psi - 2.0 * r,
+        chord=chord,
+        fresnel=fres,
+        transmission=trans,
     )
 
 
@@ -257,7 +272,9 @@ def trace_rays(psi, D, R, n, absorption=0.0):
         iota = np.arcsin(s)
     fan = _trace(psi, iota, s, D, R, n, absorption)
     if np.any(np.isnan(s)):
-        fan = RayFan(**{**fan.__dict__, "transmission": np.where(np.isnan(s), 0.0, fan.transmission)})
+        fan = RayFan(
+            **{**fan.__dict__, "transmission": np.where(np.isnan(s), 0.0, fan.transmission)}
+        )
     return fan
 
 
@@ -275,6 +292,7 @@ def trace_rays_iota(iota, D, R, n, absorption=0.0):
 # ---------------------------------------------------------------------------
 # Paraxial reference
 # ---------------------------------------------------------------------------
+
 
 def paraxial_power(R, n):
     """Power of a ball lens, ``P = 2(n - 1)/(n R)`` (1/length); both principal
@@ -314,6 +332,7 @@ def on_axis_intensity(I0, D, R, n, absorption=0.0):
 # ---------------------------------------------------------------------------
 # Receiving plane
 # ---------------------------------------------------------------------------
+
 
 def _landing(fan, R, Z):
     """Signed height on the plane z = Z, NaN where the ray does not get there going
@@ -403,8 +422,8 @@ def flux_within_radius(I0, D, R, n, Z, radii, absorption=0.0, n_psi=200_000):
     flat_r = radii.reshape(-1)
     out = np.empty(flat_r.shape)
     chunk = max(1, int(4_000_000 // max(1, ha.size)))
-    for start in range(0, flat_r.size, chunk):      # loop over radii, not rays
-        rho = flat_r[start:start + chunk, None]
+    for start in range(0, flat_r.size, chunk):  # loop over radii, not rays
+        rho = flat_r[start : start + chunk, None]
         s1 = (-rho - ha) * inv
         s2 = (rho - ha) * inv
         lo = np.clip(np.minimum(s1, s2), 0.0, 1.0)
@@ -412,7 +431,7 @@ def flux_within_radius(I0, D, R, n, Z, radii, absorption=0.0, n_psi=200_000):
         lo = np.where(flat, np.where(np.abs(ha) < rho, 0.0, 1.0), lo)
         hi = np.where(flat, 1.0, hi)
         part = wa * (hi - lo) + 0.5 * dw * (hi * hi - lo * lo)
-        out[start:start + chunk] = np.sum(part, axis=1) * dx
+        out[start : start + chunk] = np.sum(part, axis=1) * dx
     return out.reshape(radii.shape)
 
 
@@ -445,6 +464,7 @@ def irradiance_on_plane(I0, D, R, n, Z, radii, absorption=0.0, n_psi=200_000):
 # Independent 3-D Monte-Carlo path tracer
 # ---------------------------------------------------------------------------
 
+
 def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
@@ -476,8 +496,9 @@ def _far_root(f, d, R):
     return beta, disc, q
 
 
-def monte_carlo_irradiance(I0, D, R, n, Z, radii_edges, n_rays, rng, absorption=0.0,
-                           chunk=500_000, return_stderr=False):
+def monte_carlo_irradiance(
+    I0, D, R, n, Z, radii_edges, n_rays, rng, absorption=0.0, chunk=500_000, return_stderr=False
+):
     """Irradiance (W/length^2) on the plane ``z = Z`` by an independent 3-D path tracer.
 
     Same conventions and ring-edge convention as :func:`irradiance_on_plane`; it does
@@ -504,14 +525,14 @@ def monte_carlo_irradiance(I0, D, R, n, Z, radii_edges, n_rays, rng, absorption=
     omc = cone_one_minus_cos(D, R)
     flux_per_ray = I0 * 2.0 * np.pi * omc / n_rays
     src = np.array([0.0, 0.0, -D])
-    c_out = (D - R) * (D + R)             # |src|^2 - R^2 without cancellation
+    c_out = (D - R) * (D + R)  # |src|^2 - R^2 without cancellation
     sum_w = np.zeros(edges.size - 1)
     sum_w2 = np.zeros(edges.size - 1)
     done = 0
-    while done < n_rays:                  # loop over chunks of rays, not single rays
+    while done < n_rays:  # loop over chunks of rays, not single rays
         m = min(chunk, n_rays - done)
         done += m
-        v = rng.random(m) * omc           # 1 - cos(psi), uniform
+        v = rng.random(m) * omc  # 1 - cos(psi), uniform
         phi = rng.random(m) * (2.0 * np.pi)
         sin_psi = np.sqrt(v * (2.0 - v))
         d = np.stack([sin_psi * np.cos(phi), sin_psi * np.sin(phi), 1.0 - v], axis=1)

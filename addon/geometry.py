@@ -3,9 +3,11 @@
 No `acos` of numbers near 1 anywhere: every angle is an `atan2` of quantities
 computed without cancellation.
 """
+
 from __future__ import annotations
 
 import numpy as np
+
 
 def radial_angle(distance, radius):
     """Half-angle under which a point at `distance` from a centre sees a sphere.
@@ -38,12 +40,13 @@ def cap_overlap_fraction(alpha, beta, gamma):
     sum of two "cap segments" cut by the plane through both circles' intersection.
     Works elementwise on broadcastable arrays; caps must have radius < π/2.
     """
-    alpha, beta, gamma = np.broadcast_arrays(*(np.asarray(x, dtype=float)
-                                               for x in (alpha, beta, gamma)))
+    alpha, beta, gamma = np.broadcast_arrays(
+        *(np.asarray(x, dtype=float) for x in (alpha, beta, gamma))
+    )
     out = np.zeros(alpha.shape)
     cap_a = _cap_area(alpha)
-    inside = beta >= gamma + alpha                      # obstacle covers the lens
-    contained = (alpha >= gamma + beta) & ~inside       # obstacle within the lens
+    inside = beta >= gamma + alpha  # obstacle covers the lens
+    contained = (alpha >= gamma + beta) & ~inside  # obstacle within the lens
     partial = (alpha + beta > gamma) & ~inside & ~contained
     out[inside] = 1.0
     out[contained] = _cap_area(beta[contained]) / cap_a[contained]

@@ -13,6 +13,7 @@ instancer index (−1: not an instance); everything here works on those arrays.
 * Left out: `LeftOut` gathers (name, reason) entries, one per instancer, object
   and reason ("Grid/Cube (250 instances)").
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -80,8 +81,9 @@ def occurrences(keys: np.ndarray) -> np.ndarray:
     return occ
 
 
-def instance_names(group_names: Sequence[str], gid: np.ndarray, pid: np.ndarray,
-                   parent_names: Sequence[str]) -> InstanceNames:
+def instance_names(
+    group_names: Sequence[str], gid: np.ndarray, pid: np.ndarray, parent_names: Sequence[str]
+) -> InstanceNames:
     """Names of the instances: the group's name, "instancer/name" for an instance
     (`pid[i]` ≥ 0 indexes `parent_names`), "#k" for the k-th repeat of a name.
     Each distinct (instancer, group) pair is formatted once."""
@@ -131,7 +133,7 @@ class LeftOut:
 
     def __init__(self, names: InstanceNames):
         self.names = names
-        self._left: dict[tuple[str, str], list] = {}     # (base, reason) → [count, first, lens?]
+        self._left: dict[tuple[str, str], list] = {}  # (base, reason) → [count, first, lens?]
 
     def add(self, i: int, reason: str, lens: bool, count: int = 1):
         """Leave out `count` instances named like instance `i` for `reason`;
@@ -159,8 +161,9 @@ class LeftOut:
         """(name, reason, looked like a lens): "name" for one instance, "base
         (N instances)" for several."""
         out = []
-        for (b, reason), (count, first, lens) in sorted(self._left.items(),
-                                                        key=lambda kv: kv[1][1]):
+        for (b, reason), (count, first, lens) in sorted(
+            self._left.items(), key=lambda kv: kv[1][1]
+        ):
             name = self.names[first] if count == 1 else f"{b} ({count} instances)"
             out.append((name, reason, lens))
         return out

@@ -26,6 +26,7 @@ the rules:
   ``σ = ρ (1 − c)`` per unit length and channel (Beer–Lambert, as Cycles); mixes
   and sums combine like the surface. Other volume nodes are ignored with a note.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -37,19 +38,19 @@ PRINCIPLED, GLASS, REFRACTION, OTHER = "PRINCIPLED", "GLASS", "REFRACTION", "OTH
 
 @dataclass(frozen=True)
 class Bsdf:
-    kind: str                           # PRINCIPLED | GLASS | REFRACTION | OTHER
+    kind: str  # PRINCIPLED | GLASS | REFRACTION | OTHER
     ior: float = 1.45
     color: Color = (1.0, 1.0, 1.0)
-    transmission: float = 0.0           # Principled: Transmission Weight
-    metallic: float = 0.0               # Principled
-    alpha: float = 1.0                  # Principled
-    name: str = ""                      # node name, for notes
+    transmission: float = 0.0  # Principled: Transmission Weight
+    metallic: float = 0.0  # Principled
+    alpha: float = 1.0  # Principled
+    name: str = ""  # node name, for notes
 
 
 @dataclass(frozen=True)
 class Mix:
     fac: float
-    first: object                        # a shader tree, or None (unconnected: black)
+    first: object  # a shader tree, or None (unconnected: black)
     second: object
 
 
@@ -68,10 +69,10 @@ class Absorption:
 @dataclass
 class MaterialOptics:
     ior: float = 1.0
-    transmission: float = 0.0           # kt: share of light refracted (0 opaque, 1 clear)
-    tint: Color = (1.0, 1.0, 1.0)       # colour of a path through the sphere (entry + exit)
+    transmission: float = 0.0  # kt: share of light refracted (0 opaque, 1 clear)
+    tint: Color = (1.0, 1.0, 1.0)  # colour of a path through the sphere (entry + exit)
     absorption: Color = (0.0, 0.0, 0.0)  # σ per unit length
-    color: Color = (0.8, 0.8, 0.8)      # the shaders' own colour (weighted mean), for `.bi`
+    color: Color = (0.8, 0.8, 0.8)  # the shaders' own colour (weighted mean), for `.bi`
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -137,8 +138,9 @@ def evaluate_material(surface, volume=None) -> MaterialOptics:
     optics = MaterialOptics(notes=notes)
     weights = sum(w for w, _ in lobes)
     if weights > 0.0:
-        optics.color = tuple(sum(w * _clamp01(b.color[k]) for w, b in lobes) / weights
-                             for k in range(3))
+        optics.color = tuple(
+            sum(w * _clamp01(b.color[k]) for w, b in lobes) / weights for k in range(3)
+        )
     if total > 0.0:
         optics.transmission = min(total, 1.0)
         optics.ior = ior_sum / total
@@ -159,10 +161,13 @@ def _absorption(node, notes) -> Color:
         if isinstance(n, Mix):
             f = _clamp01(n.fac)
             a, b = walk(n.first, w * (1.0 - f)), walk(n.second, w * f)
-            return tuple(x + y for x, y in zip(a, b))
+            return tuple(x + y for x, y in zip(a, b, strict=False))
         if isinstance(n, Add):
             a, b = walk(n.first, w), walk(n.second, w)
-            return tuple(x + y for x, y in zip(a, b))
-        notes.append(f"volume {getattr(n, 'name', '') or n!r} ignored (only Volume Absorption is used)")
+            return tuple(x + y for x, y in zip(a, b, strict=False))
+        notes.append(
+            f"volume {getattr(n, 'name', '') or n!r} ignored (only Volume Absorption is used)"
+        )
         return (0.0, 0.0, 0.0)
+
     return walk(node, 1.0)

@@ -5,6 +5,7 @@ broad phase finds the pairs whose angular discs (as seen from the light) can
 overlap, and the thesis' exact tests run only on those, vectorised. Results are
 identical to the full loop: the broad phase is conservative (see `_candidate_pairs`).
 """
+
 from __future__ import annotations
 
 import math
@@ -22,14 +23,20 @@ _MIN_CELL = 1e-6
 @dataclass
 class Blockers:
     """Per lens row (index into the `lens_rows` given to `find_blockers`)."""
-    total_blocker: np.ndarray        # sphere index of the nearest total blocker, or −1
-    shadow_offsets: np.ndarray       # CSR offsets into shadow_spheres (len rows + 1)
-    shadow_spheres: np.ndarray       # partial blockers, ascending per row
-    unblocked_fraction: np.ndarray   # share of the lens's flux no partial blocker covers
+
+    total_blocker: np.ndarray  # sphere index of the nearest total blocker, or −1
+    shadow_offsets: np.ndarray  # CSR offsets into shadow_spheres (len rows + 1)
+    shadow_spheres: np.ndarray  # partial blockers, ascending per row
+    unblocked_fraction: np.ndarray  # share of the lens's flux no partial blocker covers
 
 
-def find_blockers(lens_rows: np.ndarray, direction: np.ndarray, ang: np.ndarray,
-                  tlen: np.ndarray, obstacle: np.ndarray) -> Blockers:
+def find_blockers(
+    lens_rows: np.ndarray,
+    direction: np.ndarray,
+    ang: np.ndarray,
+    tlen: np.ndarray,
+    obstacle: np.ndarray,
+) -> Blockers:
     """The thesis' obstruction tests for the lenses `lens_rows` of one light.
 
     direction (S, 3): unit vectors light → sphere centre; ang (S,): radial angle
@@ -57,7 +64,7 @@ def find_blockers(lens_rows: np.ndarray, direction: np.ndarray, ang: np.ndarray,
     total_blocker = np.full(n_rows, -1, dtype=np.int64)
     if np.any(total):
         tl, to = lens[total], obst[total]
-        order = np.lexsort((to, tlen[to], tl))          # per lens: nearest, then lowest index
+        order = np.lexsort((to, tlen[to], tl))  # per lens: nearest, then lowest index
         tl, to = tl[order], to[order]
         first = np.r_[True, tl[1:] != tl[:-1]]
         total_blocker[row_of[tl[first]]] = to[first]
@@ -116,7 +123,7 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
     pa, pb = [], []
     for lvl in np.unique(level):
-        cell = c0 * 2.0 ** lvl
+        cell = c0 * 2.0**lvl
         owners = np.flatnonzero(level == lvl)
         queries = np.flatnonzero(level <= lvl)
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
@@ -130,7 +137,7 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
                 return
             at = concat_ranges(lo, count)
             q, e = np.repeat(qi, count), eo[at]
-            ok = (level[q] < lvl) | (q < e)          # within a level both orders come up
+            ok = (level[q] < lvl) | (q < e)  # within a level both orders come up
             if qb is not None:
                 ok &= (np.repeat(qb, count) & eb[at]) == 0
             q, e = q[ok], e[ok]
@@ -143,8 +150,11 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         order = np.argsort(e_keys, kind="stable")
         ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
         qi = queries[q_idx]
-        raw = int((np.searchsorted(ek, q_keys, side="right")
-                   - np.searchsorted(ek, q_keys, side="left")).sum())
+        raw = int(
+            (
+                np.searchsorted(ek, q_keys, side="right") - np.searchsorted(ek, q_keys, side="left")
+            ).sum()
+        )
         if raw <= 4 * q_keys.size:
             meet(q_keys, qi, q_bits, ek, eo, eb)
             continue
@@ -173,8 +183,16 @@ def _cell_keys(w, rho, cell):
     lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
     hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
     keys, idx, bits = [], [], []
-    for d in ((0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1),
-              (1, 0, 0), (1, 0, 1), (1, 1, 0), (1, 1, 1)):
+    for d in (
+        (0, 0, 0),
+        (0, 0, 1),
+        (0, 1, 0),
+        (0, 1, 1),
+        (1, 0, 0),
+        (1, 0, 1),
+        (1, 1, 0),
+        (1, 1, 1),
+    ):
         c = lo + d
         ok = np.all(c <= hi, axis=1)
         keys.append((c[ok, 0] * dims + c[ok, 1]) * dims + c[ok, 2])

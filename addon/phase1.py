@@ -13,6 +13,7 @@ Everything is vectorised over lights × lenses (and × obstacles for the obstruc
 tests); the only Python loop is over lights, each handling all spheres at once.
 No inf or NaN leaves this module: invalid input becomes a skipped pair with a reason.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,8 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import skip_reasons
-from .geometry import (angle_between, cap_overlap_fraction, radial_angle,  # noqa: F401
-                       tangent_length)
+from .geometry import (
+    radial_angle,  # noqa: F401
+    tangent_length,
+)
 from .obstruction import find_blockers
 from .ranges import concat_ranges
 from .scene import Scene
@@ -38,28 +41,28 @@ COLLIMATION_RATIO = 1e4
 
 @dataclass
 class SecondarySource:
-    light: int                      # index among the scene's lights
-    lens: int                       # index among the scene's objects
-    kind: str                       # "real" | "virtual" | "collimated"
-    position: np.ndarray            # image point (back vertex when collimated)
-    axis: np.ndarray                # unit beam direction, from the light through the lens
-    spread_deg: float               # θ, half-angle of the cone (0 when collimated)
-    cylinder_radius: float | None   # R_C for collimated sources
-    intensity: float                # I_j × brightness factor (eq. 5.22)
+    light: int  # index among the scene's lights
+    lens: int  # index among the scene's objects
+    kind: str  # "real" | "virtual" | "collimated"
+    position: np.ndarray  # image point (back vertex when collimated)
+    axis: np.ndarray  # unit beam direction, from the light through the lens
+    spread_deg: float  # θ, half-angle of the cone (0 when collimated)
+    cylinder_radius: float | None  # R_C for collimated sources
+    intensity: float  # I_j × brightness factor (eq. 5.22)
     color: tuple[float, float, float]
     full: bool
     shadow_list: list[int]
     # Quantities later stages need (energy models, Blender lights, reports):
-    brightness_factor: float        # exp(−(1 − kt)(2R + TR)/2)
-    distance: float                 # D, light to lens centre
+    brightness_factor: float  # exp(−(1 − kt)(2R + TR)/2)
+    distance: float  # D, light to lens centre
     lens_center: np.ndarray
     lens_radius: float
     ior: float
-    vergence: float                 # V = P − 1/D (1/length)
-    image_distance: float | None    # 1/V, signed, from the lens centre along the axis
-    magnification: float | None     # m = −(1/V)/D; None when collimated
-    alpha_deg: float                # half-angle under which the light sees the lens
-    unblocked_fraction: float       # share of the lit cap's flux no obstacle blocks
+    vergence: float  # V = P − 1/D (1/length)
+    image_distance: float | None  # 1/V, signed, from the lens centre along the axis
+    magnification: float | None  # m = −(1/V)/D; None when collimated
+    alpha_deg: float  # half-angle under which the light sees the lens
+    unblocked_fraction: float  # share of the lit cap's flux no obstacle blocks
     # Primaries other than point lights (`phase1_primaries`): the intensity toward
     # the lens in units of the primary's P/(4π), and the radius of the disc the
     # primary looks like from the lens (NaN: the primary's own radius).
@@ -91,13 +94,14 @@ class Skipped:
     light: int
     lens: int
     reason: str
-    code: int = -1                  # skip_reasons.Reason
+    code: int = -1  # skip_reasons.Reason
 
     def to_json(self) -> dict:
         return {"light": self.light, "lens": self.lens, "reason": self.reason}
 
 
 # --------------------------------------------------------------------------- optics
+
 
 def ball_lens_power(radius, ior):
     """Power of a ball lens, both principal planes at its centre: `2(n − 1)/(n R)`."""
@@ -120,21 +124,24 @@ def brightness_factor(radius, ior, kt):
 
 # --------------------------------------------------------------------------- input
 
+
 @dataclass
 class SceneArrays:
     """The numbers phase 1 needs, as arrays (lights L, spheres S)."""
-    light_position: np.ndarray      # (L, 3)
-    light_brightness: np.ndarray    # (L,)
-    light_color: np.ndarray         # (L, 3)
-    center: np.ndarray              # (S, 3)
-    radius: np.ndarray              # (S,)
-    ior: np.ndarray                 # (S,)
-    kt: np.ndarray                  # (S,)
+
+    light_position: np.ndarray  # (L, 3)
+    light_brightness: np.ndarray  # (L,)
+    light_color: np.ndarray  # (L, 3)
+    center: np.ndarray  # (S, 3)
+    radius: np.ndarray  # (S,)
+    ior: np.ndarray  # (S,)
+    kt: np.ndarray  # (S,)
 
     @classmethod
-    def from_scene(cls, scene: Scene) -> "SceneArrays":
+    def from_scene(cls, scene: Scene) -> SceneArrays:
         def arr(values, shape):
             return np.asarray(values, dtype=float).reshape(shape)
+
         nl, ns = len(scene.lights), len(scene.objects)
         return cls(
             light_position=arr([l.position for l in scene.lights], (nl, 3)),
@@ -152,10 +159,12 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
     lo, hi = [], []
     if np.any(valid_lights):
         p = arrays.light_position[valid_lights]
-        lo.append(p.min(axis=0)); hi.append(p.max(axis=0))
+        lo.append(p.min(axis=0))
+        hi.append(p.max(axis=0))
     if np.any(valid_spheres):
         c, r = arrays.center[valid_spheres], arrays.radius[valid_spheres, None]
-        lo.append((c - r).min(axis=0)); hi.append((c + r).max(axis=0))
+        lo.append((c - r).min(axis=0))
+        hi.append((c + r).max(axis=0))
     if not lo:
         return 1.0
     with np.errstate(over="ignore", invalid="ignore"):
@@ -170,9 +179,20 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
 # Why a light × sphere pair yields no source. Codes keep the skip table columnar
 # (a scene of 100 000 opaque spheres skips 100 000 pairs per light); the text is
 # made only when asked for.
-(INVALID_LIGHT, INVALID_SPHERE_NONFINITE, INVALID_SPHERE_RADIUS, OPAQUE, INVALID_KT,
- NOT_CONVERGING, LIGHT_INSIDE, LIGHT_ON_SURFACE, LIGHT_INSIDE_OTHER,
- LIGHT_ON_OTHER, TOTALLY_BLOCKED, OUT_OF_RANGE) = range(12)   # = skip_reasons.Reason
+(
+    INVALID_LIGHT,
+    INVALID_SPHERE_NONFINITE,
+    INVALID_SPHERE_RADIUS,
+    OPAQUE,
+    INVALID_KT,
+    NOT_CONVERGING,
+    LIGHT_INSIDE,
+    LIGHT_ON_SURFACE,
+    LIGHT_INSIDE_OTHER,
+    LIGHT_ON_OTHER,
+    TOTALLY_BLOCKED,
+    OUT_OF_RANGE,
+) = range(12)  # = skip_reasons.Reason
 
 
 def reason_text(code: int, radius: float, ior: float, kt: float, other: int) -> str:
@@ -188,37 +208,43 @@ def sphere_problems(a: SceneArrays) -> np.ndarray:
     code[(a.kt > 1) | (a.kt < 0)] = INVALID_KT
     code[a.kt == 0] = OPAQUE
     code[a.radius <= 0] = INVALID_SPHERE_RADIUS
-    finite = (np.all(np.isfinite(a.center), axis=1) & np.isfinite(a.radius)
-              & np.isfinite(a.ior) & np.isfinite(a.kt))
+    finite = (
+        np.all(np.isfinite(a.center), axis=1)
+        & np.isfinite(a.radius)
+        & np.isfinite(a.ior)
+        & np.isfinite(a.kt)
+    )
     code[~finite] = INVALID_SPHERE_NONFINITE
     return code
 
 
 # --------------------------------------------------------------------------- output
 
+
 @dataclass
 class SourceTable:
     """All secondary sources as columns (N sources), ordered by (light, lens)."""
-    light: np.ndarray               # (N,) int
-    lens: np.ndarray                # (N,) int
-    kind: np.ndarray                # (N,) 0 real, 1 virtual, 2 collimated
-    position: np.ndarray            # (N, 3)
-    axis: np.ndarray                # (N, 3)
-    spread: np.ndarray              # (N,) θ in radians
-    cylinder_radius: np.ndarray     # (N,) R_C, NaN unless collimated
+
+    light: np.ndarray  # (N,) int
+    lens: np.ndarray  # (N,) int
+    kind: np.ndarray  # (N,) 0 real, 1 virtual, 2 collimated
+    position: np.ndarray  # (N, 3)
+    axis: np.ndarray  # (N, 3)
+    spread: np.ndarray  # (N,) θ in radians
+    cylinder_radius: np.ndarray  # (N,) R_C, NaN unless collimated
     intensity: np.ndarray
-    color: np.ndarray               # (N, 3)
+    color: np.ndarray  # (N, 3)
     brightness_factor: np.ndarray
     distance: np.ndarray
-    lens_center: np.ndarray         # (N, 3)
+    lens_center: np.ndarray  # (N, 3)
     lens_radius: np.ndarray
     ior: np.ndarray
     vergence: np.ndarray
-    alpha: np.ndarray               # radians
+    alpha: np.ndarray  # radians
     unblocked_fraction: np.ndarray
-    emission: np.ndarray            # (N,) see SecondarySource.emission
-    source_radius: np.ndarray       # (N,) NaN: the primary's own radius
-    shadow_offsets: np.ndarray      # (N + 1,) CSR into shadow_spheres
+    emission: np.ndarray  # (N,) see SecondarySource.emission
+    source_radius: np.ndarray  # (N,) NaN: the primary's own radius
+    shadow_offsets: np.ndarray  # (N + 1,) CSR into shadow_spheres
     shadow_spheres: np.ndarray
 
     KINDS = (REAL, VIRTUAL, COLLIMATED)
@@ -227,7 +253,7 @@ class SourceTable:
         return int(self.light.size)
 
     def shadow_list(self, t: int) -> list[int]:
-        return self.shadow_spheres[self.shadow_offsets[t]:self.shadow_offsets[t + 1]].tolist()
+        return self.shadow_spheres[self.shadow_offsets[t] : self.shadow_offsets[t + 1]].tolist()
 
     def source(self, t: int) -> SecondarySource:
         kind = self.KINDS[self.kind[t]]
@@ -235,31 +261,40 @@ class SourceTable:
         V, D = float(self.vergence[t]), float(self.distance[t])
         shadow = self.shadow_list(t)
         return SecondarySource(
-            light=int(self.light[t]), lens=int(self.lens[t]), kind=kind,
-            position=self.position[t].copy(), axis=self.axis[t].copy(),
+            light=int(self.light[t]),
+            lens=int(self.lens[t]),
+            kind=kind,
+            position=self.position[t].copy(),
+            axis=self.axis[t].copy(),
             spread_deg=float(np.degrees(self.spread[t])),
             cylinder_radius=float(self.cylinder_radius[t]) if col else None,
             intensity=float(self.intensity[t]),
             color=tuple(float(c) for c in self.color[t]),
-            full=not shadow, shadow_list=shadow,
-            brightness_factor=float(self.brightness_factor[t]), distance=D,
-            lens_center=self.lens_center[t].copy(), lens_radius=float(self.lens_radius[t]),
-            ior=float(self.ior[t]), vergence=V,
+            full=not shadow,
+            shadow_list=shadow,
+            brightness_factor=float(self.brightness_factor[t]),
+            distance=D,
+            lens_center=self.lens_center[t].copy(),
+            lens_radius=float(self.lens_radius[t]),
+            ior=float(self.ior[t]),
+            vergence=V,
             image_distance=None if col else 1.0 / V,
             magnification=None if col else -1.0 / (V * D),
             alpha_deg=float(np.degrees(self.alpha[t])),
             unblocked_fraction=float(self.unblocked_fraction[t]),
-            emission=float(self.emission[t]), source_radius=float(self.source_radius[t]),
+            emission=float(self.emission[t]),
+            source_radius=float(self.source_radius[t]),
         )
 
 
 @dataclass
 class SkipTable:
     """Every light × sphere pair without a source, as columns, by (light, lens)."""
+
     light: np.ndarray
     lens: np.ndarray
     code: np.ndarray
-    other: np.ndarray               # the other sphere a reason names, or −1
+    other: np.ndarray  # the other sphere a reason names, or −1
 
     def __len__(self) -> int:
         return int(self.light.size)
@@ -287,30 +322,40 @@ class Phase1Result:
         if self._skipped is None:
             a, s = self._arrays, self.skip_table
             self._skipped = [
-                Skipped(int(j), int(i), reason_text(int(c), float(a.radius[i]),
-                                                    float(a.ior[i]), float(a.kt[i]), int(k)),
-                        int(c))
-                for j, i, c, k in zip(s.light, s.lens, s.code, s.other)]
+                Skipped(
+                    int(j),
+                    int(i),
+                    reason_text(
+                        int(c), float(a.radius[i]), float(a.ior[i]), float(a.kt[i]), int(k)
+                    ),
+                    int(c),
+                )
+                for j, i, c, k in zip(s.light, s.lens, s.code, s.other, strict=False)
+            ]
         return self._skipped
 
     def skip_counts(self) -> dict[str, int]:
         """How many pairs were skipped for each kind of reason (numbers left out)."""
         counts: dict[str, int] = {}
         codes, n = np.unique(self.skip_table.code, return_counts=True)
-        for c, k in zip(codes, n):
+        for c, k in zip(codes, n, strict=False):
             kind = skip_reasons.reason_kind(c)
             counts[kind] = counts.get(kind, 0) + int(k)
         return counts
 
     def to_json(self) -> dict:
-        return {"sources": [s.to_json() for s in self.sources],
-                "skipped": [s.to_json() for s in self.skipped]}
+        return {
+            "sources": [s.to_json() for s in self.sources],
+            "skipped": [s.to_json() for s in self.skipped],
+        }
 
 
 # --------------------------------------------------------------------------- phase 1
 
-def compute_phase1(scene: Scene | SceneArrays,
-                   collimation_ratio: float = COLLIMATION_RATIO) -> Phase1Result:
+
+def compute_phase1(
+    scene: Scene | SceneArrays, collimation_ratio: float = COLLIMATION_RATIO
+) -> Phase1Result:
     """All secondary light sources of a scene, and every pair that yields none.
 
     `collimation_ratio`: an image farther from its lens than this many times the
@@ -321,9 +366,11 @@ def compute_phase1(scene: Scene | SceneArrays,
     """
     a = scene if isinstance(scene, SceneArrays) else SceneArrays.from_scene(scene)
     n_lights, n_spheres = len(a.light_brightness), len(a.radius)
-    valid_light = (np.all(np.isfinite(a.light_position), axis=1)
-                   & np.isfinite(a.light_brightness)
-                   & np.all(np.isfinite(a.light_color), axis=1))
+    valid_light = (
+        np.all(np.isfinite(a.light_position), axis=1)
+        & np.isfinite(a.light_brightness)
+        & np.all(np.isfinite(a.light_color), axis=1)
+    )
     problem = sphere_problems(a)
     valid_sphere = (problem != INVALID_SPHERE_NONFINITE) & (problem != INVALID_SPHERE_RADIUS)
     far = collimation_ratio * scene_size(a, valid_light, valid_sphere)
@@ -344,13 +391,19 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     """Columns of the secondary sources of light j through every lens."""
     light = a.light_position[j]
     with np.errstate(over="ignore", invalid="ignore"):
-        to_center = a.center - light                                 # (S, 3)
+        to_center = a.center - light  # (S, 3)
         dist = _norm(to_center)
     rad = a.radius
     overflow = valid_sphere & ~(np.isfinite(dist) & np.all(np.isfinite(to_center), axis=1))
     if overflow.any():
-        skips.append((j, np.flatnonzero(overflow & (problem < 0)),
-                      np.full(int((overflow & (problem < 0)).sum()), OUT_OF_RANGE), -1))
+        skips.append(
+            (
+                j,
+                np.flatnonzero(overflow & (problem < 0)),
+                np.full(int((overflow & (problem < 0)).sum()), OUT_OF_RANGE),
+                -1,
+            )
+        )
         valid_sphere = valid_sphere & ~overflow
     with np.errstate(invalid="ignore"):
         surface = valid_sphere & (np.abs(dist - rad) <= SURFACE_TOLERANCE * rad)
@@ -358,10 +411,10 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     outside = valid_sphere & ~inside & ~surface
     with np.errstate(invalid="ignore", divide="ignore"):
         direction = to_center / dist[:, None]
-    ang = np.where(outside, radial_angle(dist, rad), 0.0)            # α or β
-    tlen = np.where(outside, tangent_length(dist, rad), 0.0)         # R_T
+    ang = np.where(outside, radial_angle(dist, rad), 0.0)  # α or β
+    tlen = np.where(outside, tangent_length(dist, rad), 0.0)  # R_T
 
-    lens = (problem < 0)
+    lens = problem < 0
     for mask, code in ((lens & inside, LIGHT_INSIDE), (lens & surface, LIGHT_ON_SURFACE)):
         if mask.any():
             skips.append((j, np.flatnonzero(mask), np.full(mask.sum(), code), -1))
@@ -379,8 +432,9 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     blk = find_blockers(lenses, direction, ang, tlen, outside)
     total = blk.total_blocker >= 0
     if total.any():
-        skips.append((j, lenses[total], np.full(total.sum(), TOTALLY_BLOCKED),
-                      blk.total_blocker[total]))
+        skips.append(
+            (j, lenses[total], np.full(total.sum(), TOTALLY_BLOCKED), blk.total_blocker[total])
+        )
     keep = ~total
     rows = np.flatnonzero(keep)
     lenses = lenses[keep]
@@ -391,10 +445,11 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     V = ball_lens_power(R, n) - 1.0 / D
     collimated = np.abs(V) * far <= 1.0
     alpha = ang[lenses]
-    phi = 2.0 * critical_angle(n) + alpha - 0.5 * np.pi     # exit point, from the back axis
-    height = R * np.sin(phi)                                 # d of eq. 5.10 (signed)
-    theta = np.where(collimated, 0.0,
-                     np.arctan2(np.abs(height * V), np.abs(R * np.cos(phi) * V - 1.0)))
+    phi = 2.0 * critical_angle(n) + alpha - 0.5 * np.pi  # exit point, from the back axis
+    height = R * np.sin(phi)  # d of eq. 5.10 (signed)
+    theta = np.where(
+        collimated, 0.0, np.arctan2(np.abs(height * V), np.abs(R * np.cos(phi) * V - 1.0))
+    )
     image = np.where(collimated, R, 1.0 / np.where(collimated, 1.0, V))
     factor = brightness_factor(R, n, a.kt[lenses])
     starts = blk.shadow_offsets[rows]
@@ -402,16 +457,27 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
     shadow = blk.shadow_spheres[concat_ranges(starts, counts)]
     m = lenses.size
     return dict(
-        light=np.full(m, j), lens=lenses,
+        light=np.full(m, j),
+        lens=lenses,
         kind=np.where(collimated, 2, np.where(V > 0, 0, 1)),
-        position=C + image[:, None] * u, axis=u, spread=theta,
+        position=C + image[:, None] * u,
+        axis=u,
+        spread=theta,
         cylinder_radius=np.where(collimated, np.abs(height), np.nan),
         intensity=a.light_brightness[j] * factor,
         color=np.broadcast_to(a.light_color[j], (m, 3)),
-        brightness_factor=factor, distance=D, lens_center=C, lens_radius=R, ior=n,
-        vergence=V, alpha=alpha, unblocked_fraction=blk.unblocked_fraction[rows],
-        emission=np.ones(m), source_radius=np.full(m, np.nan),
-        shadow_counts=counts, shadow_spheres=shadow,
+        brightness_factor=factor,
+        distance=D,
+        lens_center=C,
+        lens_radius=R,
+        ior=n,
+        vergence=V,
+        alpha=alpha,
+        unblocked_fraction=blk.unblocked_fraction[rows],
+        emission=np.ones(m),
+        source_radius=np.full(m, np.nan),
+        shadow_counts=counts,
+        shadow_spheres=shadow,
     )
 
 
@@ -425,19 +491,27 @@ def _norm(v: np.ndarray) -> np.ndarray:
 def _concat_sources(parts: list[dict]) -> SourceTable:
     names = [f for f in SourceTable.__dataclass_fields__ if not f.startswith("shadow")]
     if not parts:
-        parts = [dict({k: np.zeros((0, 3) if k in ("position", "axis", "color", "lens_center")
-                                   else 0) for k in names},
-                      shadow_counts=np.zeros(0, dtype=np.int64),
-                      shadow_spheres=np.zeros(0, dtype=np.int64))]
+        parts = [
+            dict(
+                {
+                    k: np.zeros((0, 3) if k in ("position", "axis", "color", "lens_center") else 0)
+                    for k in names
+                },
+                shadow_counts=np.zeros(0, dtype=np.int64),
+                shadow_spheres=np.zeros(0, dtype=np.int64),
+            )
+        ]
     cols = {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in names}
     counts = np.concatenate([p["shadow_counts"] for p in parts]).astype(np.int64)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     cols["light"] = cols["light"].astype(np.int64)
     cols["lens"] = cols["lens"].astype(np.int64)
     cols["kind"] = cols["kind"].astype(np.int64)
-    return SourceTable(**cols, shadow_offsets=offsets,
-                       shadow_spheres=np.concatenate([p["shadow_spheres"] for p in parts])
-                       .astype(np.int64))
+    return SourceTable(
+        **cols,
+        shadow_offsets=offsets,
+        shadow_spheres=np.concatenate([p["shadow_spheres"] for p in parts]).astype(np.int64),
+    )
 
 
 def _skip_table(skips) -> SkipTable:

@@ -16,6 +16,7 @@
 
 Point lights give exactly the sources (and skips) of `phase1.compute_phase1`.
 """
+
 from __future__ import annotations
 
 import math
@@ -47,18 +48,28 @@ from .ranges import concat_ranges
 from .skip_reasons import Reason
 
 
-def compute_phase1_primaries(spheres: SceneArrays, primaries,
-                             collimation_ratio: float = COLLIMATION_RATIO) -> Phase1Result:
+def compute_phase1_primaries(
+    spheres: SceneArrays, primaries, collimation_ratio: float = COLLIMATION_RATIO
+) -> Phase1Result:
     """The secondary sources of every primary (a list of `primaries` dataclasses, or
     `PrimaryArrays`) through the spheres of `spheres` (its light columns are
     ignored). Rows are ordered by (light, lens), light = index into `primaries`."""
-    pa = primaries if isinstance(primaries, PrimaryArrays) \
+    pa = (
+        primaries
+        if isinstance(primaries, PrimaryArrays)
         else PrimaryArrays.from_primaries(primaries)
+    )
     sun = pa.is_(SUN)
     local = np.flatnonzero(~sun)
-    lights = SceneArrays(light_position=pa.position[local], light_brightness=pa.power[local],
-                         light_color=pa.color[local], center=spheres.center,
-                         radius=spheres.radius, ior=spheres.ior, kt=spheres.kt)
+    lights = SceneArrays(
+        light_position=pa.position[local],
+        light_brightness=pa.power[local],
+        light_color=pa.color[local],
+        center=spheres.center,
+        radius=spheres.radius,
+        ior=spheres.ior,
+        kt=spheres.kt,
+    )
     res = phase1.compute_phase1(lights, collimation_ratio)
     table, skip = res.table, res.skip_table
     table.light = local[table.light]
@@ -69,22 +80,33 @@ def compute_phase1_primaries(spheres: SceneArrays, primaries,
         table.source_radius = source_radius(pa, table.light, table.lens_center)
         dark = ~(table.emission > 0.0)
         if dark.any():
-            skips.append(SkipTable(table.light[dark], table.lens[dark],
-                                   np.full(int(dark.sum()), int(Reason.OUTSIDE_EMISSION)),
-                                   np.full(int(dark.sum()), -1)))
+            skips.append(
+                SkipTable(
+                    table.light[dark],
+                    table.lens[dark],
+                    np.full(int(dark.sum()), int(Reason.OUTSIDE_EMISSION)),
+                    np.full(int(dark.sum()), -1),
+                )
+            )
             tables[0] = take(table, np.flatnonzero(~dark))
     for j in np.flatnonzero(sun):
         t, s = sun_sources(spheres, pa, int(j))
         tables.append(t)
         skips.append(s)
-    all_arrays = SceneArrays(light_position=np.nan_to_num(pa.position),
-                             light_brightness=pa.power, light_color=pa.color,
-                             center=spheres.center, radius=spheres.radius, ior=spheres.ior,
-                             kt=spheres.kt)
+    all_arrays = SceneArrays(
+        light_position=np.nan_to_num(pa.position),
+        light_brightness=pa.power,
+        light_color=pa.color,
+        center=spheres.center,
+        radius=spheres.radius,
+        ior=spheres.ior,
+        kt=spheres.kt,
+    )
     return Phase1Result(_concat_tables(tables), _concat_skips(skips), all_arrays)
 
 
 # --------------------------------------------------------------------------- suns
+
 
 def sun_sources(spheres: SceneArrays, pa: PrimaryArrays, j: int) -> tuple[SourceTable, SkipTable]:
     """The sources of sun `j` through every lens (the limit D → ∞, module docstring)."""
@@ -93,8 +115,9 @@ def sun_sources(spheres: SceneArrays, pa: PrimaryArrays, j: int) -> tuple[Source
     valid = (problem != phase1.INVALID_SPHERE_NONFINITE) & (problem != phase1.INVALID_SPHERE_RADIUS)
     lens = problem < 0
     lenses = np.flatnonzero(lens)
-    total, rows, offsets, shadow, unblocked = sun_blockers(spheres.center, spheres.radius,
-                                                           u, lenses, valid)
+    total, rows, offsets, shadow, unblocked = sun_blockers(
+        spheres.center, spheres.radius, u, lenses, valid
+    )
     skip_l = [np.flatnonzero(~lens & (problem >= 0)), lenses[total >= 0]]
     skip_c = [problem[skip_l[0]], np.full(int((total >= 0).sum()), phase1.TOTALLY_BLOCKED)]
     skip_o = [np.full(skip_l[0].size, -1), total[total >= 0]]
@@ -102,28 +125,43 @@ def sun_sources(spheres: SceneArrays, pa: PrimaryArrays, j: int) -> tuple[Source
     ids = lenses[keep]
     m = ids.size
     R, n, C = spheres.radius[ids], spheres.ior[ids], spheres.center[ids]
-    V = ball_lens_power(R, n)                                 # the limit of P − 1/D
+    V = ball_lens_power(R, n)  # the limit of P − 1/D
     D = SUN_DISTANCE * R
-    phi = 2.0 * critical_angle(n) - 0.5 * np.pi               # eq. 5.14's exit point at α = 0
+    phi = 2.0 * critical_angle(n) - 0.5 * np.pi  # eq. 5.14's exit point at α = 0
     height = R * np.sin(phi)
     theta = np.arctan2(np.abs(height * V), np.abs(R * np.cos(phi) * V - 1.0))
     factor = brightness_factor(R, n, spheres.kt[ids])
     starts, counts = offsets[keep], offsets[keep + 1] - offsets[keep]
     table = SourceTable(
-        light=np.full(m, j, dtype=np.int64), lens=ids.astype(np.int64),
-        kind=np.zeros(m, dtype=np.int64), position=C + (1.0 / V)[:, None] * u,
-        axis=np.broadcast_to(u, (m, 3)).copy(), spread=theta,
-        cylinder_radius=np.full(m, np.nan), intensity=pa.power[j] * factor,
-        color=np.broadcast_to(pa.color[j], (m, 3)).copy(), brightness_factor=factor,
-        distance=D, lens_center=C, lens_radius=R, ior=n, vergence=V, alpha=np.zeros(m),
-        unblocked_fraction=unblocked[keep], emission=D * D,
+        light=np.full(m, j, dtype=np.int64),
+        lens=ids.astype(np.int64),
+        kind=np.zeros(m, dtype=np.int64),
+        position=C + (1.0 / V)[:, None] * u,
+        axis=np.broadcast_to(u, (m, 3)).copy(),
+        spread=theta,
+        cylinder_radius=np.full(m, np.nan),
+        intensity=pa.power[j] * factor,
+        color=np.broadcast_to(pa.color[j], (m, 3)).copy(),
+        brightness_factor=factor,
+        distance=D,
+        lens_center=C,
+        lens_radius=R,
+        ior=n,
+        vergence=V,
+        alpha=np.zeros(m),
+        unblocked_fraction=unblocked[keep],
+        emission=D * D,
         source_radius=D * math.tan(0.5 * float(pa.angle[j])),
         shadow_offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
-        shadow_spheres=shadow[concat_ranges(starts, counts)].astype(np.int64))
+        shadow_spheres=shadow[concat_ranges(starts, counts)].astype(np.int64),
+    )
     skip_l = np.concatenate(skip_l).astype(np.int64)
-    return table, SkipTable(np.full(skip_l.size, j, dtype=np.int64), skip_l,
-                            np.concatenate(skip_c).astype(np.int64),
-                            np.concatenate(skip_o).astype(np.int64))
+    return table, SkipTable(
+        np.full(skip_l.size, j, dtype=np.int64),
+        skip_l,
+        np.concatenate(skip_c).astype(np.int64),
+        np.concatenate(skip_o).astype(np.int64),
+    )
 
 
 def sun_blockers(center, radius, u, lenses, obstacle):
@@ -156,7 +194,7 @@ def sun_blockers(center, radius, u, lenses, obstacle):
     total_blocker = np.full(n_rows, -1, dtype=np.int64)
     if total.any():
         tl, to = li[total], ok[total]
-        order = np.lexsort((to, t[to], tl))                 # nearest, then lowest index
+        order = np.lexsort((to, t[to], tl))  # nearest, then lowest index
         tl, to = tl[order], to[order]
         first = np.r_[True, tl[1:] != tl[:-1]]
         total_blocker[row_of[tl[first]]] = to[first]
@@ -184,8 +222,7 @@ def disc_overlap(a, b, d):
         a, b, d = a[part], b[part], d[part]
         # tri = twice the area of the triangle (a, b, d); the half-angles of the
         # chord seen from each centre by atan2 (SPEC §4.2), sin θ_a = tri/(d·a)
-        tri = 0.5 * np.sqrt(np.maximum((-d + a + b) * (d + a - b) * (d - a + b) * (d + a + b),
-                                       0.0))
+        tri = 0.5 * np.sqrt(np.maximum((-d + a + b) * (d + a - b) * (d - a + b) * (d + a + b), 0.0))
         theta_a = np.arctan2(tri, 0.5 * (d * d + a * a - b * b))
         theta_b = np.arctan2(tri, 0.5 * (d * d + b * b - a * a))
         out[part] = a * a * theta_a + b * b * theta_b - tri
@@ -222,19 +259,24 @@ def _disc_pairs(xy, radius, lenses, obstacles):
 
 # --------------------------------------------------------------------------- joining
 
+
 def _concat_tables(tables) -> SourceTable:
     tables = [t for t in tables if len(t)] or tables[:1]
     names = [f.name for f in fields(SourceTable) if not f.name.startswith("shadow")]
     cols = {k: np.concatenate([np.asarray(getattr(t, k)) for t in tables]) for k in names}
     counts = np.concatenate([np.diff(t.shadow_offsets) for t in tables]).astype(np.int64)
-    joined = SourceTable(**cols, shadow_offsets=np.concatenate([[0], np.cumsum(counts)]),
-                         shadow_spheres=np.concatenate([t.shadow_spheres for t in tables])
-                         .astype(np.int64))
+    joined = SourceTable(
+        **cols,
+        shadow_offsets=np.concatenate([[0], np.cumsum(counts)]),
+        shadow_spheres=np.concatenate([t.shadow_spheres for t in tables]).astype(np.int64),
+    )
     return take(joined, np.lexsort((joined.lens, joined.light)))
 
 
 def _concat_skips(skips) -> SkipTable:
-    cols = [np.concatenate([getattr(s, k) for s in skips]).astype(np.int64)
-            for k in ("light", "lens", "code", "other")]
+    cols = [
+        np.concatenate([getattr(s, k) for s in skips]).astype(np.int64)
+        for k in ("light", "lens", "code", "other")
+    ]
     order = np.lexsort((cols[1], cols[0]))
     return SkipTable(*(c[order] for c in cols))

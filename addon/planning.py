@@ -14,6 +14,7 @@
 
 Every pair left without a light is a `skip_reasons.SkippedPair` (code + details).
 """
+
 from __future__ import annotations
 
 import math
@@ -51,22 +52,29 @@ MERGE_ANGLE_DEG = 5.0
 
 # --------------------------------------------------------------------------- selection
 
+
 @dataclass
 class Selection:
     """The pre-selected sources (`select_sources`)."""
-    table: object                   # phase1.SourceTable of the kept (possibly merged) sources
-    scale: np.ndarray               # energy scale per kept source (merged: group flux / lead's)
-    sources: list                   # SecondarySource per kept row
+
+    table: object  # phase1.SourceTable of the kept (possibly merged) sources
+    scale: np.ndarray  # energy scale per kept source (merged: group flux / lead's)
+    sources: list  # SecondarySource per kept row
     budget: BudgetReport
-    flux_total: float               # estimated flux of all sources
-    flux_kept: np.ndarray           # estimated flux per kept row (merged: the group's)
-    preselect: int | None           # how many were allowed through (None: no limit)
+    flux_total: float  # estimated flux of all sources
+    flux_kept: np.ndarray  # estimated flux per kept row (merged: the group's)
+    preselect: int | None  # how many were allowed through (None: no limit)
 
 
-def select_sources(result: Phase1Result, light_power, *, max_lights: int | None,
-                   merge_distance: float | None = None,
-                   merge_angle_deg: float = MERGE_ANGLE_DEG,
-                   preselect_factor: int = PRESELECT_FACTOR) -> Selection:
+def select_sources(
+    result: Phase1Result,
+    light_power,
+    *,
+    max_lights: int | None,
+    merge_distance: float | None = None,
+    merge_angle_deg: float = MERGE_ANGLE_DEG,
+    preselect_factor: int = PRESELECT_FACTOR,
+) -> Selection:
     """Merge nearby sources (if `merge_distance`) and keep the
     ``preselect_factor × max_lights`` strongest by estimated flux, vectorised;
     only those become `SecondarySource` objects."""
@@ -74,15 +82,23 @@ def select_sources(result: Phase1Result, light_power, *, max_lights: int | None,
     power = np.asarray(light_power, dtype=float).reshape(-1)
     flux_total = float(np.sum(source_flux(table, power))) if len(table) else 0.0
     pre = None if max_lights is None else preselect_factor * max(int(max_lights), 1)
-    kept, scale, report = apply_budget(table, power, 0.0, pre, merge_distance or None,
-                                       merge_angle_deg)
+    kept, scale, report = apply_budget(
+        table, power, 0.0, pre, merge_distance or None, merge_angle_deg
+    )
     flux_kept = source_flux(kept, power) * scale if len(kept) else np.zeros(0)
-    return Selection(kept, np.asarray(scale, dtype=float),
-                     [kept.source(t) for t in range(len(kept))],
-                     report, flux_total, flux_kept, pre)
+    return Selection(
+        kept,
+        np.asarray(scale, dtype=float),
+        [kept.source(t) for t in range(len(kept))],
+        report,
+        flux_total,
+        flux_kept,
+        pre,
+    )
 
 
 # --------------------------------------------------------------------------- beams
+
 
 def may_be_beam(source, scene_bounds, scene_size) -> bool:
     """Whether `make_blender_light` may draw `source` as a beam (a spot behind the
@@ -139,8 +155,15 @@ def receiver_distance(occluders, source, scene_size):
     side /= np.linalg.norm(side)
     other = np.cross(u, side)
     rim = RIM_OFFSET * r
-    origins = np.array([c + rim * side, c - rim * side, c + rim * other, c - rim * other,
-                        c + u * (r * (1.0 + 1e-6))])
+    origins = np.array(
+        [
+            c + rim * side,
+            c - rim * side,
+            c + rim * other,
+            c - rim * other,
+            c + u * (r * (1.0 + 1e-6)),
+        ]
+    )
     hits = np.asarray(occluders.first_hit(origins, u, limit), dtype=float)
     found = []
     for a, b in ((0, 1), (2, 3)):
@@ -156,9 +179,10 @@ def receiver_distance(occluders, source, scene_size):
 
 # --------------------------------------------------------------------------- lights
 
+
 @dataclass
 class PlannedLight:
-    source: object                     # phase1.SecondarySource
+    source: object  # phase1.SecondarySource
     light: BlenderLight
     light_name: str
     lens_name: str
@@ -171,7 +195,7 @@ class Plan:
     #: `.code` and `.details`), lenses only (a pair whose sphere is no lens, e.g.
     #: opaque, is not listed).
     skipped: list[SkippedPair]
-    not_lenses: int = 0                # pairs whose sphere is no lens (not reported)
+    not_lenses: int = 0  # pairs whose sphere is no lens (not reported)
 
     def skipped_summary(self, first: int = 3) -> str:
         """'A × B: reason; …' for the first few skipped pairs (and how many more)."""
@@ -182,12 +206,24 @@ class Plan:
         return "; ".join(parts)
 
 
-def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
-                optics=None, light_names=None, lens_names=None, lens_candidates=None,
-                min_brightness: float = 0.0, max_lights: int | None = None,
-                spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
-                scene_bounds=None, far_limit=None, energy_scale=None,
-                receiver_limit=None) -> Plan:
+def plan_lights(
+    result,
+    primaries,
+    model: str = DEFAULT_ENERGY_MODEL,
+    *,
+    optics=None,
+    light_names=None,
+    lens_names=None,
+    lens_candidates=None,
+    min_brightness: float = 0.0,
+    max_lights: int | None = None,
+    spot_blend: float = DEFAULT_SPOT_BLEND,
+    scene_size: float = 1.0,
+    scene_bounds=None,
+    far_limit=None,
+    energy_scale=None,
+    receiver_limit=None,
+) -> Plan:
     """The Blender lights for a phase-1 result, brightest first.
 
     `primaries[j]`: `PrimaryLight` of light j; `optics[i]`: `LensOptics` of sphere i
@@ -212,17 +248,24 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
         if lens_candidates is not None and not lens_candidates[k.lens]:
             plan.not_lenses += 1
         else:
-            plan.skipped.append(SkippedPair(light_name(k.light), lens_name(k.lens), k.code,
-                                            text=k.reason))
+            plan.skipped.append(
+                SkippedPair(light_name(k.light), lens_name(k.lens), k.code, text=k.reason)
+            )
     candidates = []
     for t, src in enumerate(result.sources):
         limit = far_limit(src) if far_limit is not None else None
         near = receiver_limit(src) if receiver_limit is not None else None
-        bl = make_blender_light(src, primaries[src.light], model,
-                                optics=optics[src.lens] if optics else None,
-                                spot_blend=spot_blend, scene_size=scene_size,
-                                scene_bounds=scene_bounds, collimated_distance=limit,
-                                receiver_distance=near)
+        bl = make_blender_light(
+            src,
+            primaries[src.light],
+            model,
+            optics=optics[src.lens] if optics else None,
+            spot_blend=spot_blend,
+            scene_size=scene_size,
+            scene_bounds=scene_bounds,
+            collimated_distance=limit,
+            receiver_distance=near,
+        )
         f = 1.0 if energy_scale is None else float(energy_scale[t])
         if f != 1.0:
             bl.energy_w *= f
@@ -233,32 +276,45 @@ def plan_lights(result, primaries, model: str = DEFAULT_ENERGY_MODEL, *,
         if not (bl.energy_w > 0 and math.isfinite(bl.energy_w)):
             plan.skipped.append(SkippedPair(*names, Reason.NO_LIGHT_THROUGH))
         elif bl.relative_brightness < min_brightness:
-            plan.skipped.append(SkippedPair(*names, Reason.DIMMER_THAN_CUTOFF, dict(
-                relative=bl.relative_brightness, cutoff=min_brightness)))
+            plan.skipped.append(
+                SkippedPair(
+                    *names,
+                    Reason.DIMMER_THAN_CUTOFF,
+                    dict(relative=bl.relative_brightness, cutoff=min_brightness),
+                )
+            )
         else:
             candidates.append(PlannedLight(src, bl, *names))
     candidates.sort(key=lambda p: -p.light.reference_irradiance)
     limit = len(candidates) if max_lights is None else max(int(max_lights), 0)
     plan.lights = candidates[:limit]
     for p in candidates[limit:]:
-        plan.skipped.append(SkippedPair(p.light_name, p.lens_name, Reason.BEYOND_MAXIMUM,
-                                        dict(limit=limit)))
+        plan.skipped.append(
+            SkippedPair(p.light_name, p.lens_name, Reason.BEYOND_MAXIMUM, dict(limit=limit))
+        )
     return plan
 
 
 # --------------------------------------------------------------------------- a scene
 
+
 @dataclass
 class Work:
-    read: object                       # scene_reader.BlenderSceneRead
+    read: object  # scene_reader.BlenderSceneRead
     result: Phase1Result
     selection: Selection
     plan: Plan
     timings: dict = field(default_factory=dict)
 
 
-def plan_result(read, result: Phase1Result, options: dict, timings: dict | None = None, *,
-                preselect_factor: int = PRESELECT_FACTOR) -> Work:
+def plan_result(
+    read,
+    result: Phase1Result,
+    options: dict,
+    timings: dict | None = None,
+    *,
+    preselect_factor: int = PRESELECT_FACTOR,
+) -> Work:
     """The pre-selection and the plan for phase 1's `result` on a scene read
     (`read.arrays`, `primaries`, `lens_optics`, names, `scene_size`, `bounds`,
     `occluders`: `scene_reader.read_depsgraph`); `options`: energy_model,
@@ -277,19 +333,33 @@ def plan_result(read, result: Phase1Result, options: dict, timings: dict | None 
     light sits at or behind the surface its caustic falls on."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
-    selection = select_sources(result, read.arrays.light_brightness,
-                               max_lights=options["max_lights"],
-                               merge_distance=options["merge_distance"],
-                               preselect_factor=preselect_factor)
+    selection = select_sources(
+        result,
+        read.arrays.light_brightness,
+        max_lights=options["max_lights"],
+        merge_distance=options["merge_distance"],
+        preselect_factor=preselect_factor,
+    )
     timings["budget"] = time.perf_counter() - t
     t = time.perf_counter()
     model = options["energy_model"]
-    common = dict(optics=read.lens_optics, light_names=read.light_sources,
-                  lens_names=read.sphere_sources, min_brightness=options["min_brightness"],
-                  max_lights=options["max_lights"], spot_blend=options["spot_blend"],
-                  scene_size=read.scene_size, scene_bounds=read.bounds)
-    first = plan_lights(SimpleNamespace(sources=selection.sources, skipped=[]), read.primaries,
-                        model, energy_scale=selection.scale, **common)
+    common = dict(
+        optics=read.lens_optics,
+        light_names=read.light_sources,
+        lens_names=read.sphere_sources,
+        min_brightness=options["min_brightness"],
+        max_lights=options["max_lights"],
+        spot_blend=options["spot_blend"],
+        scene_size=read.scene_size,
+        scene_bounds=read.bounds,
+    )
+    first = plan_lights(
+        SimpleNamespace(sources=selection.sources, skipped=[]),
+        read.primaries,
+        model,
+        energy_scale=selection.scale,
+        **common,
+    )
     rows = {id(src): k for k, src in enumerate(selection.sources)}
     chosen = [p.source for p in first.lights]
     size = read.scene_size
@@ -302,10 +372,16 @@ def plan_result(read, result: Phase1Result, options: dict, timings: dict | None 
     def receiver_limit(src):
         return receiver_distance(read.occluders, src, size)
 
-    plan = plan_lights(SimpleNamespace(sources=chosen, skipped=[]), read.primaries,
-                       model, far_limit=far_limit, receiver_limit=receiver_limit,
-                       energy_scale=[selection.scale[rows[id(s)]] for s in chosen], **common)
+    plan = plan_lights(
+        SimpleNamespace(sources=chosen, skipped=[]),
+        read.primaries,
+        model,
+        far_limit=far_limit,
+        receiver_limit=receiver_limit,
+        energy_scale=[selection.scale[rows[id(s)]] for s in chosen],
+        **common,
+    )
     plan.skipped[:0] = first.skipped
     timings["plan"] = time.perf_counter() - t
-    read.occluders.release()                # the depsgraph may go away after this
+    read.occluders.release()  # the depsgraph may go away after this
     return Work(read, result, selection, plan, timings)

@@ -20,6 +20,7 @@ light of power ``P`` has the intensity ``P/(4π)``; a spot multiplies it by
 gives the irradiance ``S`` on a plane facing it; an area light is a Lambertian
 emitter on its local −Z side of radiance ``P/(π A)``.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,25 +50,28 @@ AREA_POINTS = 8
 
 # --------------------------------------------------------------------------- the lights
 
+
 @dataclass(frozen=True)
 class PointPrimary:
     """``light.type == 'POINT'``."""
-    position: Vec3                      # matrix_world.translation
-    power_w: float                      # light.energy (× 2^exposure)
-    radius: float = 0.0                 # light.shadow_soft_size
-    color: Vec3 = (1.0, 1.0, 1.0)       # light.color
+
+    position: Vec3  # matrix_world.translation
+    power_w: float  # light.energy (× 2^exposure)
+    radius: float = 0.0  # light.shadow_soft_size
+    color: Vec3 = (1.0, 1.0, 1.0)  # light.color
     name: str = ""
 
 
 @dataclass(frozen=True)
 class SpotPrimary:
     """``light.type == 'SPOT'``."""
-    position: Vec3                      # matrix_world.translation
-    direction: Vec3                     # the object's local −Z in world space
-    power_w: float                      # light.energy
-    spot_size: float                    # light.spot_size (full cone angle, radians)
-    blend: float = 0.15                 # light.spot_blend
-    radius: float = 0.0                 # light.shadow_soft_size
+
+    position: Vec3  # matrix_world.translation
+    direction: Vec3  # the object's local −Z in world space
+    power_w: float  # light.energy
+    spot_size: float  # light.spot_size (full cone angle, radians)
+    blend: float = 0.15  # light.spot_blend
+    radius: float = 0.0  # light.shadow_soft_size
     color: Vec3 = (1.0, 1.0, 1.0)
     name: str = ""
 
@@ -75,9 +79,10 @@ class SpotPrimary:
 @dataclass(frozen=True)
 class SunPrimary:
     """``light.type == 'SUN'``."""
-    direction: Vec3                     # local −Z in world space: where the light travels
-    strength: float                     # light.energy (W/m² on a plane facing the sun)
-    angle: float = 0.0                  # light.angle (angular diameter, radians)
+
+    direction: Vec3  # local −Z in world space: where the light travels
+    strength: float  # light.energy (W/m² on a plane facing the sun)
+    angle: float = 0.0  # light.angle (angular diameter, radians)
     color: Vec3 = (1.0, 1.0, 1.0)
     name: str = ""
 
@@ -85,13 +90,14 @@ class SunPrimary:
 @dataclass(frozen=True)
 class AreaPrimary:
     """``light.type == 'AREA'``: Lambertian on its local −Z side."""
-    position: Vec3                      # matrix_world.translation (the centre)
-    direction: Vec3                     # local −Z in world space (the emitting side)
-    axis_x: Vec3                        # local +X in world space (size_x runs along it)
-    power_w: float                      # light.energy
-    shape: str = SQUARE                 # light.shape
-    size_x: float = 1.0                 # light.size × the object's x scale
-    size_y: float = 1.0                 # light.size_y × y scale (SQUARE, DISK: = size_x)
+
+    position: Vec3  # matrix_world.translation (the centre)
+    direction: Vec3  # local −Z in world space (the emitting side)
+    axis_x: Vec3  # local +X in world space (size_x runs along it)
+    power_w: float  # light.energy
+    shape: str = SQUARE  # light.shape
+    size_x: float = 1.0  # light.size × the object's x scale
+    size_y: float = 1.0  # light.size_y × y scale (SQUARE, DISK: = size_x)
     color: Vec3 = (1.0, 1.0, 1.0)
     name: str = ""
 
@@ -121,22 +127,24 @@ def from_matrix(matrix) -> tuple[Vec3, Vec3, Vec3, float, float]:
 
 # --------------------------------------------------------------------------- columns
 
+
 @dataclass
 class PrimaryArrays:
     """The primaries as columns (L lights)."""
-    kind: np.ndarray            # (L,) index into KINDS
-    position: np.ndarray        # (L, 3); a sun's is NaN
-    direction: np.ndarray       # (L, 3) unit: spot axis, sun's travel, area's −Z
-    axis_x: np.ndarray          # (L, 3) unit (area lights; else 0)
-    power: np.ndarray           # (L,) W; a sun: its nominal 4π·S (see `nominal_power`)
-    radius: np.ndarray          # (L,) point / spot radius
-    half_angle: np.ndarray      # (L,) spot: spot_size/2 (π otherwise)
-    blend: np.ndarray           # (L,)
-    strength: np.ndarray        # (L,) sun: S (W/m²)
-    angle: np.ndarray           # (L,) sun: angular diameter
-    shape: np.ndarray           # (L,) area: shape name ("" otherwise)
-    size: np.ndarray            # (L, 2) area: size_x, size_y
-    color: np.ndarray           # (L, 3)
+
+    kind: np.ndarray  # (L,) index into KINDS
+    position: np.ndarray  # (L, 3); a sun's is NaN
+    direction: np.ndarray  # (L, 3) unit: spot axis, sun's travel, area's −Z
+    axis_x: np.ndarray  # (L, 3) unit (area lights; else 0)
+    power: np.ndarray  # (L,) W; a sun: its nominal 4π·S (see `nominal_power`)
+    radius: np.ndarray  # (L,) point / spot radius
+    half_angle: np.ndarray  # (L,) spot: spot_size/2 (π otherwise)
+    blend: np.ndarray  # (L,)
+    strength: np.ndarray  # (L,) sun: S (W/m²)
+    angle: np.ndarray  # (L,) sun: angular diameter
+    shape: np.ndarray  # (L,) area: shape name ("" otherwise)
+    size: np.ndarray  # (L, 2) area: size_x, size_y
+    color: np.ndarray  # (L, 3)
 
     def __len__(self) -> int:
         return int(self.kind.size)
@@ -144,11 +152,21 @@ class PrimaryArrays:
     @classmethod
     def from_primaries(cls, primaries) -> PrimaryArrays:
         n = len(primaries)
-        a = cls(kind=np.zeros(n, dtype=np.int64), position=np.full((n, 3), np.nan),
-                direction=np.zeros((n, 3)), axis_x=np.zeros((n, 3)), power=np.zeros(n),
-                radius=np.zeros(n), half_angle=np.full(n, math.pi), blend=np.zeros(n),
-                strength=np.zeros(n), angle=np.zeros(n), shape=np.full(n, "", dtype=object),
-                size=np.zeros((n, 2)), color=np.ones((n, 3)))
+        a = cls(
+            kind=np.zeros(n, dtype=np.int64),
+            position=np.full((n, 3), np.nan),
+            direction=np.zeros((n, 3)),
+            axis_x=np.zeros((n, 3)),
+            power=np.zeros(n),
+            radius=np.zeros(n),
+            half_angle=np.full(n, math.pi),
+            blend=np.zeros(n),
+            strength=np.zeros(n),
+            angle=np.zeros(n),
+            shape=np.full(n, "", dtype=object),
+            size=np.zeros((n, 2)),
+            color=np.ones((n, 3)),
+        )
         for j, p in enumerate(primaries):
             a.color[j] = p.color
             if isinstance(p, SunPrimary):
@@ -170,7 +188,7 @@ class PrimaryArrays:
                 a.kind[j] = KINDS.index(AREA)
                 a.direction[j] = _unit(p.direction)
                 x = np.asarray(p.axis_x, dtype=float)
-                x = x - np.dot(x, a.direction[j]) * a.direction[j]   # keep it in the plane
+                x = x - np.dot(x, a.direction[j]) * a.direction[j]  # keep it in the plane
                 a.axis_x[j] = x / np.linalg.norm(x)
                 a.shape[j] = p.shape if p.shape in SHAPES else SQUARE
                 square = a.shape[j] in (SQUARE, DISK)
@@ -197,8 +215,15 @@ def tier_primaries(primaries) -> list:
     point or spot light's; colour): what `planning.plan_lights` takes as
     ``primaries``; each source's ``emission`` and ``source_radius`` do the rest."""
     from .tiers.base import PrimaryLight  # the tiers need nothing of this module
-    return [PrimaryLight(power_w=nominal_power(p), radius=float(getattr(p, "radius", 0.0)),
-                         color=tuple(float(c) for c in p.color)) for p in primaries]
+
+    return [
+        PrimaryLight(
+            power_w=nominal_power(p),
+            radius=float(getattr(p, "radius", 0.0)),
+            color=tuple(float(c) for c in p.color),
+        )
+        for p in primaries
+    ]
 
 
 def _unit(v) -> np.ndarray:
@@ -222,8 +247,17 @@ def cap_one_minus_cos(D, R):
 
 # --------------------------------------------------------------------------- toward a lens
 
-def spot_share(position, direction, half_angle, blend, centers, radii,
-               rings: int = SPOT_RINGS, sectors: int = SPOT_SECTORS) -> np.ndarray:
+
+def spot_share(
+    position,
+    direction,
+    half_angle,
+    blend,
+    centers,
+    radii,
+    rings: int = SPOT_RINGS,
+    sectors: int = SPOT_SECTORS,
+) -> np.ndarray:
     """Mean of a spot's mask over the cap a lens subtends (N pairs): 1 when the lens
     lies inside the full-intensity cone, 0 outside the cone, else a quadrature of
     equal solid-angle cells (a cone covering part of the lens gives that part's light)."""
@@ -231,8 +265,9 @@ def spot_share(position, direction, half_angle, blend, centers, radii,
     D = np.linalg.norm(to, axis=-1)
     w = to / D[:, None]
     alpha = np.arctan2(radii, np.sqrt(np.maximum((D - radii) * (D + radii), 0.0)))
-    gamma = np.arctan2(np.linalg.norm(np.cross(w, direction), axis=-1),
-                       np.sum(w * direction, axis=-1))
+    gamma = np.arctan2(
+        np.linalg.norm(np.cross(w, direction), axis=-1), np.sum(w * direction, axis=-1)
+    )
     # the full-intensity cone: 1 − cos ψ ≤ (1 − blend)(1 − cos H), i.e.
     # sin(ψ/2) ≤ sqrt(1 − blend)·sin(H/2) (atan2, no acos: SPEC §4.2)
     s = np.sqrt(np.clip(1.0 - blend, 0.0, 1.0)) * np.sin(0.5 * np.asarray(half_angle, float))
@@ -242,13 +277,14 @@ def spot_share(position, direction, half_angle, blend, centers, radii,
     if edge.size:
         w_e = w[edge]
         e1, e2 = _basis(w_e)
-        t = (np.arange(rings) + 0.5) / rings                      # equal solid angle rings
+        t = (np.arange(rings) + 0.5) / rings  # equal solid angle rings
         one_m = cap_one_minus_cos(D[edge], np.asarray(radii, float)[edge])[:, None] * t
         cos_p, sin_p = 1.0 - one_m, np.sqrt(one_m * (2.0 - one_m))
         phi = 2.0 * math.pi * (np.arange(sectors) + 0.5) / sectors
-        d = (cos_p[..., None, None] * w_e[:, None, None, :]
-             + sin_p[..., None, None] * (np.cos(phi)[:, None] * e1[:, None, None, :]
-                                         + np.sin(phi)[:, None] * e2[:, None, None, :]))
+        d = cos_p[..., None, None] * w_e[:, None, None, :] + sin_p[..., None, None] * (
+            np.cos(phi)[:, None] * e1[:, None, None, :]
+            + np.sin(phi)[:, None] * e2[:, None, None, :]
+        )
         dirs = direction[edge] if np.ndim(direction) == 2 else direction
         dirs = np.broadcast_to(dirs, (edge.size, 3))
         c = np.einsum("nrsk,nk->nrs", d, dirs)
@@ -283,8 +319,9 @@ def _area_points(shape, sx, sy, n: int = AREA_POINTS):
     return uv.reshape(-1, 2), 1.0 / (n * n)
 
 
-def area_flux(position, direction, axis_x, power, shape, sx, sy, centers, radii,
-              n: int = AREA_POINTS) -> np.ndarray:
+def area_flux(
+    position, direction, axis_x, power, shape, sx, sy, centers, radii, n: int = AREA_POINTS
+) -> np.ndarray:
     """Flux (W) an area light sends into a sphere (N pairs): radiance ``P/(πA)`` times
     ``∫_A cos θ · π sin²α dA`` (the form factor of a sphere fully above a surface
     element: ``cos θ (R/d)²``), by quadrature over the light's surface; a sphere
@@ -292,8 +329,8 @@ def area_flux(position, direction, axis_x, power, shape, sx, sy, centers, radii,
     ``cos θ`` clamped at 0, an approximation)."""
     uv, weight = _area_points(shape, sx, sy, n)
     ey = np.cross(direction, axis_x)
-    pts = position + uv[:, :1] * axis_x + uv[:, 1:] * ey          # (K, 3)
-    to = np.asarray(centers, float)[:, None, :] - pts[None]         # (N, K, 3)
+    pts = position + uv[:, :1] * axis_x + uv[:, 1:] * ey  # (K, 3)
+    to = np.asarray(centers, float)[:, None, :] - pts[None]  # (N, K, 3)
     d2 = np.einsum("nki,nki->nk", to, to)
     cos_t = np.maximum(np.einsum("nki,i->nk", to, direction) / np.sqrt(d2), 0.0)
     sin2 = np.minimum(np.asarray(radii, float)[:, None] ** 2 / d2, 1.0)
@@ -314,19 +351,34 @@ def emission_toward(arrays: PrimaryArrays, light, centers, radii) -> np.ndarray:
     spot = np.flatnonzero(kind == KINDS.index(SPOT))
     if spot.size:
         j = light[spot]
-        out[spot] = spot_share(arrays.position[j], arrays.direction[j],
-                               arrays.half_angle[j], arrays.blend[j], centers[spot], radii[spot])
+        out[spot] = spot_share(
+            arrays.position[j],
+            arrays.direction[j],
+            arrays.half_angle[j],
+            arrays.blend[j],
+            centers[spot],
+            radii[spot],
+        )
     area = np.flatnonzero(kind == KINDS.index(AREA))
     for j in np.unique(light[area]):
         rows = area[light[area] == j]
         c, r = centers[rows], radii[rows]
-        flux = area_flux(arrays.position[j], arrays.direction[j], arrays.axis_x[j],
-                         arrays.power[j], arrays.shape[j], *arrays.size[j], c, r)
+        flux = area_flux(
+            arrays.position[j],
+            arrays.direction[j],
+            arrays.axis_x[j],
+            arrays.power[j],
+            arrays.shape[j],
+            *arrays.size[j],
+            c,
+            r,
+        )
         D = np.linalg.norm(c - arrays.position[j], axis=-1)
         omega = 2.0 * math.pi * cap_one_minus_cos(D, r)
         with np.errstate(divide="ignore", invalid="ignore"):
-            out[rows] = np.where(arrays.power[j] > 0,
-                                 flux / (arrays.power[j] / (4.0 * math.pi) * omega), 0.0)
+            out[rows] = np.where(
+                arrays.power[j] > 0, flux / (arrays.power[j] / (4.0 * math.pi) * omega), 0.0
+            )
     return out
 
 
@@ -340,9 +392,13 @@ def lens_flux(arrays: PrimaryArrays, light, centers, radii) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         D = np.linalg.norm(centers - arrays.position[light], axis=-1)
     omega = 2.0 * math.pi * cap_one_minus_cos(np.where(sun, 1.0, D), radii)
-    point = (arrays.power[light] / (4.0 * math.pi) * omega
-             * emission_toward(arrays, light, centers, radii))
-    return np.where(sun, arrays.strength[light] * math.pi * radii ** 2, point)
+    point = (
+        arrays.power[light]
+        / (4.0 * math.pi)
+        * omega
+        * emission_toward(arrays, light, centers, radii)
+    )
+    return np.where(sun, arrays.strength[light] * math.pi * radii**2, point)
 
 
 def source_radius(arrays: PrimaryArrays, light, centers, equivalent_distance=None):
@@ -365,6 +421,7 @@ def source_radius(arrays: PrimaryArrays, light, centers, equivalent_distance=Non
 
         def perp2(e):
             return 1.0 - np.sum(e * w, axis=-1) ** 2
+
         round_ = np.isin(arrays.shape[j], (DISK, ELLIPSE))
         k = np.where(round_, 1.0 / 16.0, 1.0 / 12.0)
         sx, sy = arrays.size[j, 0], arrays.size[j, 1]

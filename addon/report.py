@@ -4,6 +4,7 @@ Skipped pairs are counted by their reason's code (`skip_reasons`): phase 1's fro
 its skip table, planning's from `Plan.skipped`, the pre-selection's from the
 budget.
 """
+
 from __future__ import annotations
 
 import traceback
@@ -26,10 +27,13 @@ def skip_report(work):
     a = read.arrays
     for k in np.flatnonzero(cand)[:REPORT_FIRST]:
         i = int(s.lens[k])
-        details = dict(radius=float(a.radius[i]), ior=float(a.ior[i]), kt=float(a.kt[i]),
-                       other=int(s.other[k]))
-        first.append(f"{read.light_sources[int(s.light[k])]} × {read.sphere_sources[i]}: "
-                     + reason_text(int(s.code[k]), details))
+        details = dict(
+            radius=float(a.radius[i]), ior=float(a.ior[i]), kt=float(a.kt[i]), other=int(s.other[k])
+        )
+        first.append(
+            f"{read.light_sources[int(s.light[k])]} × {read.sphere_sources[i]}: "
+            + reason_text(int(s.code[k]), details)
+        )
     if cand.any():
         sub = SkipTable(s.light[cand], s.lens[cand], s.code[cand], s.other[cand])
         counts.update(Phase1Result(result.table, sub, a).skip_counts())
@@ -59,14 +63,17 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
     skipped, first, counts = skip_report(work)
     # Flux without a light: every source's estimated flux minus the built lights'.
     rows = {id(src): t for t, src in enumerate(sel.sources)}
-    built = sum(float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights
-                if id(p.source) in rows)
+    built = sum(
+        float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights if id(p.source) in rows
+    )
     left_share = (1.0 - built / sel.flux_total) if sel.flux_total > 0 else 0.0
     left_share = min(max(left_share, 0.0), 1.0) if made else (1.0 if sel.flux_total > 0 else 0.0)
 
     level = "INFO"
-    parts = [f"Created {plural(made, 'lens light')} ({plural(lights, 'point light')}"
-             f" × {plural(lenses, 'lens', 'lenses')})"]
+    parts = [
+        f"Created {plural(made, 'lens light')} ({plural(lights, 'point light')}"
+        f" × {plural(lenses, 'lens', 'lenses')})"
+    ]
     if not lights:
         level = "WARNING"
         parts.append("no point light is enabled for rendering")
@@ -79,8 +86,12 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
             text += f"; and {skipped - len(first)} more"
         parts.append(text)
         if len(counts) > 1 or skipped > len(first):
-            parts.append("by reason: " + ", ".join(
-                f"{n} {kind}" for kind, n in sorted(counts.items(), key=lambda kv: -kv[1])))
+            parts.append(
+                "by reason: "
+                + ", ".join(
+                    f"{n} {kind}" for kind, n in sorted(counts.items(), key=lambda kv: -kv[1])
+                )
+            )
     if sel.budget.merged:
         parts.append(f"merged {plural(sel.budget.merged, 'source')} into nearby lens lights")
     if left_share > 0 and len(result.table):
@@ -88,14 +99,24 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
     if read.left_out_lenses:
         shown = "; ".join(f"{n}: {why}" for n, why in read.left_out_lenses[:REPORT_FIRST])
         more = len(read.left_out_lenses) - REPORT_FIRST
-        parts.append(f"left out {plural(len(read.left_out_lenses), 'object')}: {shown}"
-                     + (f"; and {more} more" if more > 0 else ""))
+        parts.append(
+            f"left out {plural(len(read.left_out_lenses), 'object')}: {shown}"
+            + (f"; and {more} more" if more > 0 else "")
+        )
     if not read_as_rendered:
         parts.append(f"scene read as the {read.how}")
-    figures = dict(created=made, sources=len(result.table), skipped=skipped,
-                   skipped_by_reason=counts, merged=sel.budget.merged,
-                   primaries=lights, lenses=lenses, left_out=len(read.left_out_lenses),
-                   flux_left_out=left_share, how=read.how)
+    figures = dict(
+        created=made,
+        sources=len(result.table),
+        skipped=skipped,
+        skipped_by_reason=counts,
+        merged=sel.budget.merged,
+        primaries=lights,
+        lenses=lenses,
+        left_out=len(read.left_out_lenses),
+        flux_left_out=left_share,
+        how=read.how,
+    )
     return level, "; ".join(parts), figures
 
 

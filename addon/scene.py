@@ -3,6 +3,7 @@
 Colours are stored in 0–1; `Scene.color_scale` remembers the scale the file used
 (1 or 255) so that writing a scene back gives the numbers it was read from.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -13,13 +14,14 @@ Vec3 = tuple[float, float, float]
 @dataclass
 class Surface:
     """Thesis surface block (`#C #A #D #S #T #E #N`)."""
+
     color: Vec3 = (1.0, 1.0, 1.0)
-    ambient: float = 0.1        # ka
-    diffuse: float = 0.5        # kd
-    specular: float = 0.4       # ks (also global reflection)
-    transmission: float = 0.0   # kt, 0 = opaque
-    exponent: float = 6.0       # Phong exponent E
-    ior: float = 1.0            # n
+    ambient: float = 0.1  # ka
+    diffuse: float = 0.5  # kd
+    specular: float = 0.4  # ks (also global reflection)
+    transmission: float = 0.0  # kt, 0 = opaque
+    exponent: float = 6.0  # Phong exponent E
+    ior: float = 1.0  # n
 
 
 @dataclass
@@ -40,7 +42,7 @@ class Light:
     position: Vec3
     color: Vec3 = (1.0, 1.0, 1.0)
     brightness: float = 1.0
-    radius: float = 0.0         # not in `.bi`; Blender's point-light radius
+    radius: float = 0.0  # not in `.bi`; Blender's point-light radius
     name: str = ""
 
 
@@ -49,7 +51,7 @@ class Camera:
     position: Vec3 = (0.0, 0.0, 10.0)
     target: Vec3 = (0.0, 0.0, 0.0)
     up: Vec3 = (0.0, 1.0, 0.0)
-    fov_deg: tuple[float, float] = (45.0, 45.0)   # horizontal, vertical opening
+    fov_deg: tuple[float, float] = (45.0, 45.0)  # horizontal, vertical opening
 
 
 @dataclass
@@ -59,4 +61,4 @@ class Scene:
     camera: Camera = field(default_factory=Camera)
     lights: list[Light] = field(default_factory=list)
     objects: list[Sphere] = field(default_factory=list)
-    color_scale: float = 1.0    # 1 or 255: the scale colours are written in
+    color_scale: float = 1.0  # 1 or 255: the scale colours are written in

@@ -10,6 +10,7 @@ optics …), per instance it notes the group, the world matrix and the instancer
 `assemble` does the rest. Objects (``orig``) and mesh sources are carried through
 without being looked at.
 """
+
 from __future__ import annotations
 
 import math
@@ -19,11 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .instances import Indexed, InstanceNames, LeftOut, instance_names, scale_codes, scale_reason
-from .tiers import LensOptics, PrimaryLight
 from .material_model import MaterialOptics
 from .phase1 import SceneArrays
 from .scene import Camera, Light, Scene, Sphere, Surface
 from .sphere_fit import BOX_RATIO, SphereFit, uniform_scales
+from .tiers import LensOptics, PrimaryLight
 
 #: IOR used for a lens forced with "Always" when neither the material nor the
 #: override gives one.
@@ -37,14 +38,15 @@ LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP = range(3)
 @dataclass
 class InstanceGroup:
     """What all instances of one evaluated object / data / original share."""
+
     kind: int
     name: str
     orig: object
-    corners: np.ndarray | None = None          # local bounding box (8 × 3)
-    reason: str = ""                           # OTHER_GROUP: why it is no sphere
+    corners: np.ndarray | None = None  # local bounding box (8 × 3)
+    reason: str = ""  # OTHER_GROUP: why it is no sphere
     looks_like_lens: bool = False
     # SPHERE_GROUP
-    center: np.ndarray | None = None           # local
+    center: np.ndarray | None = None  # local
     radius: float = 0.0
     ior: float = 1.0
     kt: float = 0.0
@@ -57,7 +59,7 @@ class InstanceGroup:
     power: float = 0.0
     light_radius: float = 0.0
     color: tuple = (1.0, 1.0, 1.0)
-    mesh_source: object = None                 # what blocks rays (`occluders`), or None
+    mesh_source: object = None  # what blocks rays (`occluders`), or None
 
 
 @dataclass
@@ -70,7 +72,7 @@ class BlenderSceneRead:
     light_sources: list[str] = field(default_factory=list)
     left_out: list[tuple[str, str]] = field(default_factory=list)
     # For the generator (parallel to the spheres / lights):
-    sphere_objects: Sequence = field(default_factory=list)      # original bpy Objects
+    sphere_objects: Sequence = field(default_factory=list)  # original bpy Objects
     light_objects: list = field(default_factory=list)
     lens_optics: Sequence = field(default_factory=list)
     lens_candidates: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
@@ -85,7 +87,7 @@ class BlenderSceneRead:
     #: RENDER, or "viewport (why the render depsgraph was not read)".
     how: str = RENDER
     lights: list[Light] = field(default_factory=list)
-    surfaces: Sequence = field(default_factory=list)   # `Surface` per sphere
+    surfaces: Sequence = field(default_factory=list)  # `Surface` per sphere
     _scene: Scene | None = field(default=None, repr=False)
 
     @property
@@ -93,11 +95,22 @@ class BlenderSceneRead:
         """The read as an `addon.scene.Scene` (made on first use)."""
         if self._scene is None:
             a = self.arrays
-            spheres = [Sphere(center=tuple(float(x) for x in a.center[i]),
-                              radius=float(a.radius[i]), surface=self.surfaces[i],
-                              name=self.sphere_sources[i]) for i in range(len(a.radius))]
-            self._scene = Scene(width=self.width, height=self.height, camera=self.camera,
-                                lights=list(self.lights), objects=spheres)
+            spheres = [
+                Sphere(
+                    center=tuple(float(x) for x in a.center[i]),
+                    radius=float(a.radius[i]),
+                    surface=self.surfaces[i],
+                    name=self.sphere_sources[i],
+                )
+                for i in range(len(a.radius))
+            ]
+            self._scene = Scene(
+                width=self.width,
+                height=self.height,
+                camera=self.camera,
+                lights=list(self.lights),
+                objects=spheres,
+            )
         return self._scene
 
     @property
@@ -112,14 +125,16 @@ class BlenderSceneRead:
 @dataclass
 class Blocking:
     """The instances besides the spheres that block rays (for `Occluders`)."""
-    matrices: np.ndarray            # N × 4 × 4
-    box_lo: np.ndarray              # N × 3, world
+
+    matrices: np.ndarray  # N × 4 × 4
+    box_lo: np.ndarray  # N × 3, world
     box_hi: np.ndarray
-    source_index: list              # per instance, into `sources`
-    sources: list                   # one mesh source per group
+    source_index: list  # per instance, into `sources`
+    sources: list  # one mesh source per group
 
 
 # --------------------------------------------------------------------------- one object
+
 
 def render_size(resolution_x: int, resolution_y: int, percentage: int) -> tuple[int, int]:
     """The rendered image's size in pixels."""
@@ -152,8 +167,9 @@ def box_fit_failure(extent: np.ndarray) -> SphereFit | None:
         return SphereFit(False, np.zeros(3), 0.0, "zero size: all its vertices are at one point")
     if extent.min() < BOX_RATIO * extent.max():
         dims = " × ".join(f"{e:.3g}" for e in extent)
-        return SphereFit(False, np.zeros(3), 0.0,
-                         f"not a sphere: its bounding box ({dims}) is not a cube")
+        return SphereFit(
+            False, np.zeros(3), 0.0, f"not a sphere: its bounding box ({dims}) is not a cube"
+        )
     return None
 
 
@@ -178,9 +194,15 @@ def surface_block(optics: MaterialOptics, color) -> Surface:
     """Thesis surface block for a sphere (the Phong numbers are approximations for
     the `.bi` exporter: ka 0.1, kd 0.8(1 − kt), ks 0.2 for glass else 0.1, E 80)."""
     kt = float(optics.transmission)
-    return Surface(color=tuple(float(c) for c in color), ambient=0.1,
-                   diffuse=round(0.8 * (1.0 - kt), 6), specular=0.2 if kt > 0 else 0.1,
-                   transmission=kt, exponent=80.0, ior=float(optics.ior) if kt > 0 else 1.0)
+    return Surface(
+        color=tuple(float(c) for c in color),
+        ambient=0.1,
+        diffuse=round(0.8 * (1.0 - kt), 6),
+        specular=0.2 if kt > 0 else 0.1,
+        transmission=kt,
+        exponent=80.0,
+        ior=float(optics.ior) if kt > 0 else 1.0,
+    )
 
 
 def perspective_fov(angle_x, angle_y, angle, sensor_fit, width, height) -> tuple[float, float]:
@@ -199,18 +221,24 @@ def camera_from_matrix(m: np.ndarray, fov=(45.0, 45.0)) -> Camera:
     pos = m[:3, 3]
     fwd = -m[:3, 2] / np.linalg.norm(m[:3, 2])
     up = m[:3, 1] / np.linalg.norm(m[:3, 1])
-    return Camera(position=tuple(pos), target=tuple(pos + fwd * 10.0), up=tuple(up),
-                  fov_deg=(float(fov[0]), float(fov[1])))
+    return Camera(
+        position=tuple(pos),
+        target=tuple(pos + fwd * 10.0),
+        up=tuple(up),
+        fov_deg=(float(fov[0]), float(fov[1])),
+    )
 
 
 # --------------------------------------------------------------------------- all instances
+
 
 def world_boxes(groups, gid, kind, M):
     """World bounding boxes (lo, hi: N × 3; NaN for lights and when no geometry
     box is finite) of the instances, from their groups' local corners."""
     n = gid.size
-    corners = np.array([g.corners if g.corners is not None else np.full((8, 3), np.nan)
-                        for g in groups]).reshape(-1, 8, 3)
+    corners = np.array(
+        [g.corners if g.corners is not None else np.full((8, 3), np.nan) for g in groups]
+    ).reshape(-1, 8, 3)
     box_lo = np.full((n, 3), np.nan)
     box_hi = np.full((n, 3), np.nan)
     geo = np.flatnonzero(kind != LIGHT_GROUP)
@@ -245,8 +273,15 @@ def add_lights(out: BlenderSceneRead, groups, gid, kind, M, names, left: LeftOut
             left.add(i, "invalid transform (non-finite numbers)", False)
             continue
         name = names[i]
-        out.lights.append(Light(position=tuple(float(x) for x in pos), color=g.color,
-                                brightness=g.power, radius=g.light_radius, name=name))
+        out.lights.append(
+            Light(
+                position=tuple(float(x) for x in pos),
+                color=g.color,
+                brightness=g.power,
+                radius=g.light_radius,
+                name=name,
+            )
+        )
         out.primaries.append(PrimaryLight(power_w=g.power, radius=g.light_radius, color=g.color))
         out.light_sources.append(name)
         out.light_objects.append(g.orig)
@@ -263,16 +298,21 @@ def blocking_instances(groups, gid, kind, M, box_lo, box_hi, ellipsoids) -> Bloc
     has_mesh = np.array([groups[g].mesh_source is not None for g in gid[blocking]], dtype=bool)
     blocking = blocking[has_mesh & _finite_rows(box_lo[blocking]) & _finite_rows(box_hi[blocking])]
     source_of = {g: k for k, g in enumerate(np.unique(gid[blocking]))}
-    return Blocking(M[blocking], box_lo[blocking], box_hi[blocking],
-                    [source_of[g] for g in gid[blocking]],
-                    [groups[g].mesh_source for g in source_of])
+    return Blocking(
+        M[blocking],
+        box_lo[blocking],
+        box_hi[blocking],
+        [source_of[g] for g in gid[blocking]],
+        [groups[g].mesh_source for g in source_of],
+    )
 
 
 def place_spheres(groups, sg, M_sph):
     """World centres and radii of sphere instances (groups `sg`, matrices `M_sph`,
     uniformly scaled)."""
-    local_c = np.array([g.center if g.kind == SPHERE_GROUP else np.zeros(3) for g in groups]
-                       ).reshape(-1, 3)
+    local_c = np.array(
+        [g.center if g.kind == SPHERE_GROUP else np.zeros(3) for g in groups]
+    ).reshape(-1, 3)
     local_r = np.array([g.radius for g in groups], dtype=float)
     scale = uniform_scales(M_sph)
     center = np.einsum("nij,nj->ni", M_sph[:, :3, :3], local_c[sg]) + M_sph[:, :3, 3]
@@ -285,19 +325,32 @@ def _per_sphere(groups, attr, sg, dtype):
     return np.array([getattr(g, attr) for g in groups], dtype=dtype)[sg]
 
 
-def assemble(groups: list[InstanceGroup], gid: np.ndarray, M: np.ndarray, pid: np.ndarray,
-             parent_names: Sequence[str], how: str, width: int = 0, height: int = 0,
-             camera: Camera | None = None) -> tuple[BlenderSceneRead, Blocking]:
+def assemble(
+    groups: list[InstanceGroup],
+    gid: np.ndarray,
+    M: np.ndarray,
+    pid: np.ndarray,
+    parent_names: Sequence[str],
+    how: str,
+    width: int = 0,
+    height: int = 0,
+    camera: Camera | None = None,
+) -> tuple[BlenderSceneRead, Blocking]:
     """The read of the instances (group `gid[i]`, world matrix `M[i]`, instancer
     `pid[i]` into `parent_names` or −1), and what blocks rays besides its spheres."""
     n = gid.size
     kind = np.array([g.kind for g in groups], dtype=np.int64)[gid] if n else np.zeros(0, np.int64)
     names: InstanceNames = instance_names([g.name for g in groups], gid, pid, parent_names)
     box_lo, box_hi = world_boxes(groups, gid, kind, M)
-    out = BlenderSceneRead(arrays=None, width=width, height=height,
-                           camera=camera if camera is not None else Camera(), how=how)
+    out = BlenderSceneRead(
+        arrays=None,
+        width=width,
+        height=height,
+        camera=camera if camera is not None else Camera(),
+        how=how,
+    )
     left = LeftOut(names)
-    lens_of = lambda i: groups[gid[i]].looks_like_lens          # noqa: E731
+    lens_of = lambda i: groups[gid[i]].looks_like_lens  # noqa: E731
 
     light_pos, light_power_w, light_col = add_lights(out, groups, gid, kind, M, names, left)
     other = np.flatnonzero(kind == OTHER_GROUP)
@@ -316,8 +369,11 @@ def assemble(groups: list[InstanceGroup], gid: np.ndarray, M: np.ndarray, pid: n
         light_position=np.asarray(light_pos, dtype=float).reshape(-1, 3),
         light_brightness=np.asarray(light_power_w, dtype=float),
         light_color=np.asarray(light_col, dtype=float).reshape(-1, 3),
-        center=center, radius=radius,
-        ior=_per_sphere(groups, "ior", sg, float), kt=_per_sphere(groups, "kt", sg, float))
+        center=center,
+        radius=radius,
+        ior=_per_sphere(groups, "ior", sg, float),
+        kt=_per_sphere(groups, "kt", sg, float),
+    )
     out.sphere_sources = names.subset(sph)
     out.sphere_objects = Indexed([g.orig for g in groups], sg)
     out.lens_optics = Indexed([g.optics for g in groups], sg)

@@ -6,6 +6,7 @@ scene of 100 000 opaque spheres skips 100 000 pairs per light); planning adds it
 own (`planning.plan_lights`, the pre-selection). The report counts by code and
 never reads a reason back out of its text.
 """
+
 from __future__ import annotations
 
 from enum import IntEnum
@@ -25,7 +26,7 @@ class Reason(IntEnum):
     LIGHT_ON_OTHER = 9
     TOTALLY_BLOCKED = 10
     OUT_OF_RANGE = 11
-    OUTSIDE_EMISSION = 12       # outside a spot's cone, behind an area light
+    OUTSIDE_EMISSION = 12  # outside a spot's cone, behind an area light
     # planning (details: relative, cutoff / limit / count)
     NO_LIGHT_THROUGH = 100
     DIMMER_THAN_CUTOFF = 101
@@ -65,8 +66,9 @@ _TEXT = {
     Reason.TOTALLY_BLOCKED: "totally blocked by sphere {other}",
     Reason.OUT_OF_RANGE: "out of range (the light's distance overflows floating point)",
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off ({relative:.3g} < {cutoff:g})",
-    Reason.OUTSIDE_EMISSION: ("outside the light's emission (beyond the spot's cone or "
-                              "behind the area light)"),
+    Reason.OUTSIDE_EMISSION: (
+        "outside the light's emission (beyond the spot's cone or behind the area light)"
+    ),
 }
 
 
@@ -88,8 +90,9 @@ class SkippedPair(tuple):
     code: Reason
     details: dict
 
-    def __new__(cls, light: str, lens: str, code: int, details: dict | None = None,
-                text: str | None = None):
+    def __new__(
+        cls, light: str, lens: str, code: int, details: dict | None = None, text: str | None = None
+    ):
         details = dict(details or {})
         self = super().__new__(cls, (light, lens, text or reason_text(code, details)))
         self.code, self.details = Reason(code), details

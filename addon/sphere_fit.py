@@ -22,6 +22,7 @@ walls) before any fit. `to_world` accepts rotations, reflections, translations
 and a uniform scale: the three axes of the matrix must have the same length
 within ``SCALE_TOLERANCE`` (0.1 %) and be perpendicular to that precision.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,11 +44,11 @@ MIN_VERTICES = 6
 @dataclass
 class SphereFit:
     ok: bool
-    center: np.ndarray          # (3,), local space
+    center: np.ndarray  # (3,), local space
     radius: float
-    reason: str = ""            # why it is not a sphere (empty when ok)
-    vertex_deviation: float = 0.0   # max |dist − r| / r over the vertices
-    face_depth: float = 0.0     # max (r − |face centre − c|) / r over the faces
+    reason: str = ""  # why it is not a sphere (empty when ok)
+    vertex_deviation: float = 0.0  # max |dist − r| / r over the vertices
+    face_depth: float = 0.0  # max (r − |face centre − c|) / r over the faces
 
 
 def _fail(reason, center=None, radius=0.0, **kw) -> SphereFit:
@@ -80,9 +81,15 @@ def least_squares_sphere(points) -> tuple[np.ndarray, float] | None:
     return mean + scale * c, float(scale * np.sqrt(r2))
 
 
-def fit_sphere(vertices, face_centers=None, face_normals=None, face_areas=None,
-               vertex_tolerance=VERTEX_TOLERANCE, face_tolerance=FACE_TOLERANCE,
-               closure_tolerance=CLOSURE_TOLERANCE) -> SphereFit:
+def fit_sphere(
+    vertices,
+    face_centers=None,
+    face_normals=None,
+    face_areas=None,
+    vertex_tolerance=VERTEX_TOLERANCE,
+    face_tolerance=FACE_TOLERANCE,
+    closure_tolerance=CLOSURE_TOLERANCE,
+) -> SphereFit:
     """Decide whether a mesh is a sphere and fit it (local space).
 
     `vertices` (N × 3); optional face data of the same mesh: `face_centers` (F × 3),
@@ -104,9 +111,13 @@ def fit_sphere(vertices, face_centers=None, face_normals=None, face_areas=None,
     center, radius = fit
     dev = float(np.max(np.abs(np.linalg.norm(v - center, axis=1) - radius)) / radius)
     if dev > vertex_tolerance:
-        return _fail(f"not a sphere: vertices deviate up to {100 * dev:.3g} % of the "
-                     f"radius (tolerance {100 * vertex_tolerance:g} %)",
-                     center, radius, vertex_deviation=dev)
+        return _fail(
+            f"not a sphere: vertices deviate up to {100 * dev:.3g} % of the "
+            f"radius (tolerance {100 * vertex_tolerance:g} %)",
+            center,
+            radius,
+            vertex_deviation=dev,
+        )
     depth = 0.0
     if face_centers is not None:
         fc = np.asarray(face_centers, dtype=float).reshape(-1, 3)
@@ -114,18 +125,30 @@ def fit_sphere(vertices, face_centers=None, face_normals=None, face_areas=None,
             return _fail("not a sphere: no faces", center, radius, vertex_deviation=dev)
         depth = float(np.max(radius - np.linalg.norm(fc - center, axis=1)) / radius)
         if depth > face_tolerance:
-            return _fail(f"too coarse for a sphere: faces lie up to {100 * depth:.3g} % "
-                         f"of the radius inside it (tolerance {100 * face_tolerance:g} %)",
-                         center, radius, vertex_deviation=dev, face_depth=depth)
+            return _fail(
+                f"too coarse for a sphere: faces lie up to {100 * depth:.3g} % "
+                f"of the radius inside it (tolerance {100 * face_tolerance:g} %)",
+                center,
+                radius,
+                vertex_deviation=dev,
+                face_depth=depth,
+            )
     if face_normals is not None and face_areas is not None:
         n = np.asarray(face_normals, dtype=float).reshape(-1, 3)
         a = np.asarray(face_areas, dtype=float).reshape(-1)
         total = a.sum()
-        open_share = float(np.linalg.norm((n * a[:, None]).sum(axis=0)) / total) if total > 0 else 1.0
+        open_share = (
+            float(np.linalg.norm((n * a[:, None]).sum(axis=0)) / total) if total > 0 else 1.0
+        )
         if open_share > closure_tolerance:
-            return _fail(f"not a sphere: the surface is not closed (area-weighted normals "
-                         f"add up to {100 * open_share:.3g} % of its area)",
-                         center, radius, vertex_deviation=dev, face_depth=depth)
+            return _fail(
+                f"not a sphere: the surface is not closed (area-weighted normals "
+                f"add up to {100 * open_share:.3g} % of its area)",
+                center,
+                radius,
+                vertex_deviation=dev,
+                face_depth=depth,
+            )
     return SphereFit(True, center, radius, "", dev, depth)
 
 
@@ -135,11 +158,12 @@ def uniform_scales(matrices) -> np.ndarray:
     shears or has a zero or non-finite scale."""
     m3 = np.asarray(matrices, dtype=float)[..., :3, :3]
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        gram = np.einsum("...ji,...jk->...ik", m3, m3)       # s² I for a similarity
+        gram = np.einsum("...ji,...jk->...ik", m3, m3)  # s² I for a similarity
         s2 = np.trace(gram, axis1=-2, axis2=-1) / 3.0
         ok = np.all(np.isfinite(m3), axis=(-2, -1)) & (s2 > 0) & np.isfinite(s2)
-        dev = np.max(np.abs(gram / np.where(ok, s2, 1.0)[..., None, None] - np.eye(3)),
-                     axis=(-2, -1))
+        dev = np.max(
+            np.abs(gram / np.where(ok, s2, 1.0)[..., None, None] - np.eye(3)), axis=(-2, -1)
+        )
         ok &= dev <= 2 * SCALE_TOLERANCE
         return np.where(ok, np.sqrt(np.where(ok, s2, 1.0)), np.nan)
 

@@ -3,6 +3,7 @@
 Pure. Blender's `UILayout.label` does not wrap: `operators/panel.py` splits long
 texts into lines of about as many characters as fit the region's width.
 """
+
 from __future__ import annotations
 
 #: Characters per line when the region's width is unknown (a sidebar of the

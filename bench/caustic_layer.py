@@ -8,6 +8,7 @@ build the layers of 64 lens lights on a table scene of 10 000 triangles.
 
     ./lens-lights bench caustic_layer [--quick]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,7 +32,7 @@ from addon.caustic_sheet.receiver_index import build_index  # noqa: E402
 
 REPORTS = ROOT / "reports"
 R, N_IOR, D = 1.0, 1.5, 10.0
-I0 = 1.0                                   # W/sr (a 4π W point light)
+I0 = 1.0  # W/sr (a 4π W point light)
 
 
 def accuracy_case(name, Z, nr, na, res, rings=40):
@@ -50,11 +51,18 @@ def accuracy_case(name, Z, nr, na, res, rings=40):
     exact = eo.irradiance_on_plane(I0, D, R, N_IOR, Z, edges)
     flux = eo.lens_flux(I0, D, R, N_IOR)
     return {
-        "name": name, "Z": Z, "grid": f"{nr} × {na}", "rays": beam.n_rays, "res": res,
-        "l1": relative_l1(got, exact, np.diff(edges ** 2)),
+        "name": name,
+        "Z": Z,
+        "grid": f"{nr} × {na}",
+        "rays": beam.n_rays,
+        "res": res,
+        "l1": relative_l1(got, exact, np.diff(edges**2)),
         "flux_ratio": layer.flux_in_rasters / flux,
-        "outside": layer.flux_outside / flux, "lost": layer.flux_lost / flux,
-        "seconds": seconds, "patch": patch, "r_max": r_max,
+        "outside": layer.flux_outside / flux,
+        "lost": layer.flux_lost / flux,
+        "seconds": seconds,
+        "patch": patch,
+        "r_max": r_max,
     }
 
 
@@ -69,15 +77,16 @@ def table_scene(n_lenses=64):
     r = 0.02
     side = int(round(math.sqrt(n_lenses)))
     xs, ys = np.meshgrid(np.linspace(-0.8, 0.8, side), np.linspace(-0.45, 0.45, side))
-    lenses = [Lens(np.array([x, y, r]), r, N_IOR) for x, y in zip(xs.ravel(), ys.ravel(),
-                                                                  strict=True)]
+    lenses = [
+        Lens(np.array([x, y, r]), r, N_IOR) for x, y in zip(xs.ravel(), ys.ravel(), strict=True)
+    ]
     return mesh, lenses, PointLight(np.array([0.3, -0.2, 1.5]), 100.0)
 
 
 def timing_case(nr, na, res, repeats=3):
     mesh, lenses, light = table_scene()
     best = None
-    for _ in range(repeats):                   # best of a few: the machine is shared
+    for _ in range(repeats):  # best of a few: the machine is shared
         t0, c0 = time.perf_counter(), time.process_time()
         index = build_index(mesh)
         t1 = time.perf_counter()
@@ -85,13 +94,23 @@ def timing_case(nr, na, res, repeats=3):
         t2 = time.perf_counter()
         layer = build_layer(beams, index, resolution=res)
         t3, c3 = time.perf_counter(), time.process_time()
-        row = {"cpu": c3 - c0, "grid": f"{nr} × {na}", "res": res, "sources": len(lenses),
-               "triangles": len(mesh.triangles), "rays": layer.n_rays,
-               "index": t1 - t0, "trace": t2 - t1, "land": layer.timings["land"],
-               "splat": layer.timings["splat"], "mesh": layer.timings["mesh"],
-               "total": t3 - t0, "rasters": len(layer.patches),
-               "flux_ratio": layer.flux_in_rasters / layer.flux_emitted,
-               "lost": layer.flux_lost / layer.flux_emitted}
+        row = {
+            "cpu": c3 - c0,
+            "grid": f"{nr} × {na}",
+            "res": res,
+            "sources": len(lenses),
+            "triangles": len(mesh.triangles),
+            "rays": layer.n_rays,
+            "index": t1 - t0,
+            "trace": t2 - t1,
+            "land": layer.timings["land"],
+            "splat": layer.timings["splat"],
+            "mesh": layer.timings["mesh"],
+            "total": t3 - t0,
+            "rasters": len(layer.patches),
+            "flux_ratio": layer.flux_in_rasters / layer.flux_emitted,
+            "lost": layer.flux_lost / layer.flux_emitted,
+        }
         if best is None or row["total"] < best["total"]:
             best = row
     best["rays_per_s_land"] = best["rays"] / best["land"]
@@ -111,6 +130,7 @@ def exact_image(patch, Z):
 
 def picture(cases, path):
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
@@ -123,20 +143,23 @@ def picture(cases, path):
         hi = max(layer_img.max(), exact_img.max())
         norm = LogNorm(vmin=hi * 1e-4, vmax=hi)
         lim = case["r_max"]
-        for ax, img, title in ((row[0], layer_img, "caustic layer"),
-                               (row[1], exact_img, "exact (SPEC §6 integral)")):
-            ax.pcolormesh(p.edges_u, p.edges_v, np.maximum(img, hi * 1e-5), norm=norm,
-                          cmap="inferno")
+        for ax, img, title in (
+            (row[0], layer_img, "caustic layer"),
+            (row[1], exact_img, "exact (SPEC §6 integral)"),
+        ):
+            ax.pcolormesh(
+                p.edges_u, p.edges_v, np.maximum(img, hi * 1e-5), norm=norm, cmap="inferno"
+            )
             ax.set_xlim(-lim, lim)
             ax.set_ylim(-lim, lim)
             ax.set_aspect("equal")
             ax.set_title(f"{case['name']}: {title}")
         edges = np.linspace(0.0, lim, 81)
         mid = 0.5 * (edges[1:] + edges[:-1])
-        row[2].semilogy(mid, eo.irradiance_on_plane(I0, D, R, N_IOR, case["Z"], edges),
-                        "k-", label="exact")
-        row[2].semilogy(mid, ring_irradiance(p, [0, 0, case["Z"]], edges), "r--",
-                        label="layer")
+        row[2].semilogy(
+            mid, eo.irradiance_on_plane(I0, D, R, N_IOR, case["Z"], edges), "k-", label="exact"
+        )
+        row[2].semilogy(mid, ring_irradiance(p, [0, 0, case["Z"]], edges), "r--", label="layer")
         row[2].set_xlabel("radius / R")
         row[2].set_ylabel("ring irradiance (W/R²)")
         row[2].set_title(f"L1 {case['l1']:.3f}, flux ratio {case['flux_ratio']:.4f}")
@@ -167,9 +190,11 @@ def write_report(cases, timings, path):
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for c in cases:
-        lines.append(f"| {c['name']} | {c['Z']:g} | {c['grid']} | {c['rays']} | "
-                     f"{c['res']}² | {c['l1']:.4f} | {c['flux_ratio']:.4f} | "
-                     f"{c['outside']:.1e} | {c['lost']:.1e} | {c['seconds']:.3f} |")
+        lines.append(
+            f"| {c['name']} | {c['Z']:g} | {c['grid']} | {c['rays']} | "
+            f"{c['res']}² | {c['l1']:.4f} | {c['flux_ratio']:.4f} | "
+            f"{c['outside']:.1e} | {c['lost']:.1e} | {c['seconds']:.3f} |"
+        )
     lines += [
         "",
         "EEVEE's best spot-light tier today (Fitted) has L1 0.50 on the same measure;",
@@ -202,7 +227,8 @@ def write_report(cases, timings, path):
             f"{t['trace']:.3f} | {t['land']:.3f} | {t['splat']:.3f} | {t['mesh']:.3f} | "
             f"**{t['total']:.3f}** | {t['cpu']:.3f} | {t['rays_per_s_land']:.0f} | "
             f"{t['rays_per_s_total']:.0f} | {t['rasters']} | {t['flux_ratio']:.4f} | "
-            f"{t['lost']:.1e} |")
+            f"{t['lost']:.1e} |"
+        )
     lines += [
         "",
         "The issue's goal is < 0.5 s for 64 lens lights of a table scene. Lost: flux that",
@@ -223,14 +249,21 @@ def main(argv=None):
         accuracy_case("near the focus (folds)", 1.5, 32, 128, 128),
     ]
     for c in cases:
-        print(f"{c['name']:>24}: L1 {c['l1']:.4f} flux ratio {c['flux_ratio']:.4f} "
-              f"({c['seconds']:.3f} s)")
+        print(
+            f"{c['name']:>24}: L1 {c['l1']:.4f} flux ratio {c['flux_ratio']:.4f} "
+            f"({c['seconds']:.3f} s)"
+        )
     repeats = 1 if args.quick else 3
-    timings = [timing_case(8, 32, 32, repeats), timing_case(16, 64, 64, repeats),
-               timing_case(32, 128, 64, repeats)]
+    timings = [
+        timing_case(8, 32, 32, repeats),
+        timing_case(16, 64, 64, repeats),
+        timing_case(32, 128, 64, repeats),
+    ]
     for t in timings:
-        print(f"64 sources, {t['grid']}: {t['total']:.3f} s, "
-              f"{t['rays_per_s_land']:.0f} rays/s landing")
+        print(
+            f"64 sources, {t['grid']}: {t['total']:.3f} s, "
+            f"{t['rays_per_s_land']:.0f} rays/s landing"
+        )
     REPORTS.mkdir(exist_ok=True)
     picture([cases[0], cases[3], cases[2]], REPORTS / "caustic_layer.png")
     write_report(cases, timings, REPORTS / "caustic_layer.md")

@@ -6,6 +6,7 @@ a grid over x = R/D and n (see `addon/tiers/fitted.py`).
 One process, one core. The table is data (JSON, one row per line: small and
 diffable), read once by `addon.tiers.fitted.fitted_table`.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,6 +24,7 @@ from addon.tiers.spot_fit import SUN_DISTANCE, fit_spot  # noqa: E402
 def table_json(columns: dict) -> str:
     """The file's text: ``X``, ``N`` and per quantity of `TABLE_COLUMNS` a row per
     x (values to 6 significant digits)."""
+
     def row(values):
         return json.dumps([float(f"{v:.6g}") for v in values])
 
@@ -44,9 +46,12 @@ def main() -> int:
             w, e, r, b = fit.invariants(D)
             for k, v in zip(TABLE_COLUMNS, (w, e, r, b, fit.l1), strict=True):
                 rows[k].append(v)
-            print(f"x={x:5.3f} D/R={D:9.4g} n={n:4.2f}: apex {fit.apex:9.4g} "
-                  f"k {fit.intensity:9.4g} H {fit.half_angle_deg:7.3f}° blend {fit.blend:.3f}  "
-                  f"L1 {fit.l1:.3f}", flush=True)
+            print(
+                f"x={x:5.3f} D/R={D:9.4g} n={n:4.2f}: apex {fit.apex:9.4g} "
+                f"k {fit.intensity:9.4g} H {fit.half_angle_deg:7.3f}° blend {fit.blend:.3f}  "
+                f"L1 {fit.l1:.3f}",
+                flush=True,
+            )
         for k in TABLE_COLUMNS:
             cols[k].append(rows[k])
     TABLE_FILE.write_text(table_json(cols), encoding="utf-8")

@@ -11,6 +11,7 @@ on that plane: the relative L1 error over the lens's shadow disc and the flux
 ratio there (`addon.beam_error`). A light at or behind the receiver's plane puts
 nothing on its lit side (L1 = 1, flux 0).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,7 +49,7 @@ def _model(light, src, Z):
         key = (round(src.distance / R, 9), round(src.ior, 9))
         try:
             prof = xp._cached_profile(*key, bool(apex < R))
-        except TypeError:                       # a checkout without the near table
+        except TypeError:  # a checkout without the near table
             prof = xp._cached_profile(*key)
         I0 = light.energy_w / (4 * math.pi) / (prof.flux / (2 * math.pi))
         return xp._Profile2D(prof, R, I0)
@@ -57,8 +58,10 @@ def _model(light, src, Z):
 
 def case(D_over_R, Z_over_R, n):
     D, Z = D_over_R * R, Z_over_R * R
-    scene = Scene(lights=[Light((0.0, 0.0, D))],
-                  objects=[Sphere((0.0, 0.0, 0.0), R, Surface(transmission=1.0, ior=n))])
+    scene = Scene(
+        lights=[Light((0.0, 0.0, D))],
+        objects=[Sphere((0.0, 0.0, 0.0), R, Surface(transmission=1.0, ior=n))],
+    )
     src = compute_phase1(scene).sources[0]
     bounds = ((-0.5, -0.5, -Z), (0.5, 0.5, D))
     size = math.dist(*bounds)
@@ -69,9 +72,10 @@ def case(D_over_R, Z_over_R, n):
     for name in TIERS:
         kw = dict(scene_size=size, scene_bounds=bounds)
         try:
-            light = make_blender_light(src, PrimaryLight(4 * math.pi), name,
-                                       receiver_distance=Z, **kw)
-        except TypeError:                       # a checkout without the near field
+            light = make_blender_light(
+                src, PrimaryLight(4 * math.pi), name, receiver_distance=Z, **kw
+            )
+        except TypeError:  # a checkout without the near field
             light = make_blender_light(src, PrimaryLight(4 * math.pi), name, **kw)
         mod = np.asarray(_model(light, src, Z).flux_within_radius(Z, edges), float)
         l1 = float(np.sum(np.abs(np.diff(mod) - np.diff(true))) / (true[-1] - true[0]))

@@ -20,6 +20,7 @@ Collection instancing makes one object per sphere; beyond ``--max-collection``
 spheres it is run only as an ``--extra`` case (once), since Blender's own cost per
 object (building the scene, evaluating depsgraphs, the undo step) dominates there.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,7 +36,6 @@ sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT))
 
 import bpy  # noqa: E402
-
 from dev_extension import load_extension  # noqa: E402
 
 REPORT = ROOT / "reports" / "operator_scale.md"
@@ -67,8 +67,12 @@ def gn_instances(n, material, height):
     nodes, links = tree.nodes, tree.links
     out = nodes.new("NodeGroupOutput")
     grid = nodes.new("GeometryNodeMeshGrid")
-    for key, value in (("Size X", SPACING * (side - 1)), ("Size Y", SPACING * (side - 1)),
-                       ("Vertices X", side), ("Vertices Y", side)):
+    for key, value in (
+        ("Size X", SPACING * (side - 1)),
+        ("Size Y", SPACING * (side - 1)),
+        ("Vertices X", side),
+        ("Vertices Y", side),
+    ):
         grid.inputs[key].default_value = value
     sphere = nodes.new("GeometryNodeMeshUVSphere")
     sphere.inputs["Radius"].default_value = RADIUS
@@ -110,7 +114,10 @@ def build_scene(n, kind, layout):
     side = grid_side(n)
     bpy.ops.mesh.primitive_plane_add(size=SPACING * side + 4)
     bpy.context.object.name = "Floor"
-    for name, loc in (("Lamp A", (0.3 * side, 0.2 * side, 12.0)), ("Lamp B", (-0.25 * side, -0.1 * side, 9.0))):
+    for name, loc in (
+        ("Lamp A", (0.3 * side, 0.2 * side, 12.0)),
+        ("Lamp B", (-0.25 * side, -0.1 * side, 9.0)),
+    ):
         data = bpy.data.lights.new(name, "POINT")
         data.energy = 1000.0
         data.shadow_soft_size = 0.1
@@ -132,6 +139,7 @@ def build_scene(n, kind, layout):
 
 def run_case(n, kind, layout, max_lights, merge, repeat):
     from lens_lights.operators import generate as gen
+
     t = time.perf_counter()
     spheres = build_scene(n, kind, layout)
     setup = time.perf_counter() - t
@@ -152,19 +160,36 @@ def run_case(n, kind, layout, max_lights, merge, repeat):
     total, fig, result = best
     tm = fig.get("timings", {})
     inside = sum(tm.get(k, 0.0) for k in ("read", "phase1", "budget", "plan"))
-    row = dict(kind=kind, layout=layout, spheres=spheres, sources=fig.get("sources", 0), created=fig.get("created", 0),
-               merged=fig.get("merged", 0), setup=setup, total=total, first=first,
-               probe=tm.get("probe_total", 0.0) - inside, read=tm.get("read", 0.0),
-               phase1=tm.get("phase1", 0.0), budget=tm.get("budget", 0.0), plan=tm.get("plan", 0.0),
-               build=tm.get("build", 0.0), other=total - fig.get("seconds", 0.0),
-               model=fig.get("energy_model", "?"),
-               how=fig.get("how"), result=result,
-               report=bpy.context.scene.lens_lights.last_report)
-    print(f"{kind:>10} {layout:>8} {spheres:>7} spheres: first run {first:.2f} s, best {total:.2f} s  (probe {row['probe']:.2f}, read "
-          f"{row['read']:.2f}, phase 1 {row['phase1']:.2f}, budget {row['budget']:.2f}, plan "
-          f"{row['plan']:.2f}, build {row['build']:.2f}, outside generate {row['other']:.2f}); "
-          f"{row['sources']} sources → "
-          f"{row['created']} lights [{row['how']}]", flush=True)
+    row = dict(
+        kind=kind,
+        layout=layout,
+        spheres=spheres,
+        sources=fig.get("sources", 0),
+        created=fig.get("created", 0),
+        merged=fig.get("merged", 0),
+        setup=setup,
+        total=total,
+        first=first,
+        probe=tm.get("probe_total", 0.0) - inside,
+        read=tm.get("read", 0.0),
+        phase1=tm.get("phase1", 0.0),
+        budget=tm.get("budget", 0.0),
+        plan=tm.get("plan", 0.0),
+        build=tm.get("build", 0.0),
+        other=total - fig.get("seconds", 0.0),
+        model=fig.get("energy_model", "?"),
+        how=fig.get("how"),
+        result=result,
+        report=bpy.context.scene.lens_lights.last_report,
+    )
+    print(
+        f"{kind:>10} {layout:>8} {spheres:>7} spheres: first run {first:.2f} s, best {total:.2f} s  (probe {row['probe']:.2f}, read "
+        f"{row['read']:.2f}, phase 1 {row['phase1']:.2f}, budget {row['budget']:.2f}, plan "
+        f"{row['plan']:.2f}, build {row['build']:.2f}, outside generate {row['other']:.2f}); "
+        f"{row['sources']} sources → "
+        f"{row['created']} lights [{row['how']}]",
+        flush=True,
+    )
     return row
 
 
@@ -205,10 +230,12 @@ def write_report(rows, args):
         "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in rows:
-        lines.append(f"| {r['kind']} | {r['layout']} | {r['spheres']} | {r['sources']} | {r['created']} | "
-                     f"{r['first']:.2f} | **{r['total']:.2f}** | {r['probe']:.2f} | {r['read']:.2f} | "
-                     f"{r['phase1']:.2f} | {r['budget']:.2f} | {r['plan']:.2f} | {r['build']:.2f} | "
-                     f"{r['other']:.2f} |")
+        lines.append(
+            f"| {r['kind']} | {r['layout']} | {r['spheres']} | {r['sources']} | {r['created']} | "
+            f"{r['first']:.2f} | **{r['total']:.2f}** | {r['probe']:.2f} | {r['read']:.2f} | "
+            f"{r['phase1']:.2f} | {r['budget']:.2f} | {r['plan']:.2f} | {r['build']:.2f} | "
+            f"{r['other']:.2f} |"
+        )
     lines += ["", "Reports of the runs:", ""]
     for r in rows:
         lines.append(f"* {r['kind']}, {r['layout']}, {r['spheres']}: {r['report']}")
@@ -226,17 +253,26 @@ def main(argv=None):
     ap.add_argument("--merge", type=float, default=0.0)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--max-collection", type=int, default=10_000)
-    ap.add_argument("--extra", nargs="*", default=[], metavar="KIND:LAYOUT:COUNT",
-                    help="more cases, run once each (e.g. collection:floating:100000)")
+    ap.add_argument(
+        "--extra",
+        nargs="*",
+        default=[],
+        metavar="KIND:LAYOUT:COUNT",
+        help="more cases, run once each (e.g. collection:floating:100000)",
+    )
     ap.add_argument("--no-report", action="store_true")
     args = ap.parse_args(argv)
     ext = load_extension()
     ext.register()
     kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)
     layouts = ("table", "floating") if args.layout == "both" else (args.layout,)
-    rows = [run_case(n, kind, layout, args.max_lights, args.merge, args.repeat)
-            for n in args.counts for kind in kinds for layout in layouts
-            if kind == "gn" or n <= args.max_collection]
+    rows = [
+        run_case(n, kind, layout, args.max_lights, args.merge, args.repeat)
+        for n in args.counts
+        for kind in kinds
+        for layout in layouts
+        if kind == "gn" or n <= args.max_collection
+    ]
     for case in args.extra:
         kind, layout, n = case.split(":")
         rows.append(run_case(int(n), kind, layout, args.max_lights, args.merge, 1))

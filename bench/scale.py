@@ -14,6 +14,7 @@ for one light and is multiplied by the number of lights (it is linear in them).
 
     ./lens-lights bench scale [--quick] [--repeat N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,8 +40,16 @@ from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
 sys.path.insert(0, str(ROOT / "scripts"))
 import cli  # noqa: E402
 
-CASES = [(1, 10), (1, 100), (1, 1_000), (1, 10_000), (1, 100_000),
-         (10, 1_000), (16, 10_000), (100, 1_000)]
+CASES = [
+    (1, 10),
+    (1, 100),
+    (1, 1_000),
+    (1, 10_000),
+    (1, 100_000),
+    (10, 1_000),
+    (16, 10_000),
+    (100, 1_000),
+]
 #: The plain-Python thesis loop is run for real up to this many pair tests.
 THESIS_LOOP_BUDGET = 2.5e7
 #: `phase1 --json` end to end: (lights, spheres) and the goal in seconds.
@@ -53,16 +62,31 @@ DENSE_GOAL = 1.0
 def droplet_scene(n_lights: int, n_spheres: int, seed: int = 1) -> SceneArrays:
     """Glass droplets on a window pane (a thin slab), lights in front of it."""
     rng = np.random.default_rng(seed)
-    side = 2.0 * math.sqrt(n_spheres)              # constant droplet density
-    c = np.column_stack([rng.uniform(-side, side, n_spheres),
-                         rng.uniform(-side, side, n_spheres),
-                         rng.uniform(0.0, 0.3, n_spheres)])
+    side = 2.0 * math.sqrt(n_spheres)  # constant droplet density
+    c = np.column_stack(
+        [
+            rng.uniform(-side, side, n_spheres),
+            rng.uniform(-side, side, n_spheres),
+            rng.uniform(0.0, 0.3, n_spheres),
+        ]
+    )
     r = rng.uniform(0.05, 0.3, n_spheres)
-    lights = np.column_stack([rng.uniform(-side, side, n_lights),
-                              rng.uniform(-side, side, n_lights),
-                              rng.uniform(5.0, 40.0, n_lights)])
-    return SceneArrays(lights, np.ones(n_lights), np.ones((n_lights, 3)), c, r,
-                       np.full(n_spheres, 1.33), np.full(n_spheres, 0.95))
+    lights = np.column_stack(
+        [
+            rng.uniform(-side, side, n_lights),
+            rng.uniform(-side, side, n_lights),
+            rng.uniform(5.0, 40.0, n_lights),
+        ]
+    )
+    return SceneArrays(
+        lights,
+        np.ones(n_lights),
+        np.ones((n_lights, 3)),
+        c,
+        r,
+        np.full(n_spheres, 1.33),
+        np.full(n_spheres, 0.95),
+    )
 
 
 def thesis_loop(a: SceneArrays):
@@ -132,20 +156,31 @@ def best_wall(fn, repeat):
 
 
 def cpu_time() -> float:
-    me, kids = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
-                                                      resource.RUSAGE_CHILDREN))
+    me, kids = (resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def bi_scene(a: SceneArrays) -> Scene:
     """The droplet scene as a `.bi` scene (colours in 0–1)."""
-    lights = [Light(position=tuple(p), color=tuple(c), brightness=b)
-              for p, c, b in zip(a.light_position.tolist(), a.light_color.tolist(),
-                                 a.light_brightness.tolist(), strict=True)]
-    objects = [Sphere(center=tuple(c), radius=r,
-                      surface=Surface(color=(0.9, 0.95, 1.0), transmission=kt, ior=n))
-               for c, r, n, kt in zip(a.center.tolist(), a.radius.tolist(), a.ior.tolist(),
-                                      a.kt.tolist(), strict=True)]
+    lights = [
+        Light(position=tuple(p), color=tuple(c), brightness=b)
+        for p, c, b in zip(
+            a.light_position.tolist(),
+            a.light_color.tolist(),
+            a.light_brightness.tolist(),
+            strict=True,
+        )
+    ]
+    objects = [
+        Sphere(
+            center=tuple(c),
+            radius=r,
+            surface=Surface(color=(0.9, 0.95, 1.0), transmission=kt, ior=n),
+        )
+        for c, r, n, kt in zip(
+            a.center.tolist(), a.radius.tolist(), a.ior.tolist(), a.kt.tolist(), strict=True
+        )
+    ]
     return Scene(lights=lights, objects=objects)
 
 
@@ -160,6 +195,7 @@ def end_to_end(n_lights, n_spheres, folder: Path, repeat: int) -> dict:
 
     def run():
         subprocess.run(cmd, stdout=subprocess.DEVNULL, check=True)
+
     cpu = best_of(run, repeat)
     wall = best_wall(run, repeat)
     out = subprocess.run(cmd, capture_output=True, check=True).stdout
@@ -168,22 +204,38 @@ def end_to_end(n_lights, n_spheres, folder: Path, repeat: int) -> dict:
     scene = read_bi(path)
     stage["phase 1"] = best_of(lambda: compute_phase1(scene), repeat)
     result = compute_phase1(scene)
-    stage["tier lights"] = best_of(lambda: cli.phase1_light_table(scene, result, "fitted"),
-                                   repeat)
+    stage["tier lights"] = best_of(lambda: cli.phase1_light_table(scene, result, "fitted"), repeat)
     lights = cli.phase1_light_table(scene, result, "fitted")
-    stage["JSON"] = best_of(lambda: "".join(cli.phase1_compact_json(result, lights, "FITTED")),
-                            repeat)
-    one = SceneArrays(a.light_position[:1], a.light_brightness[:1], a.light_color[:1],
-                      a.center, a.radius, a.ior, a.kt)
+    stage["JSON"] = best_of(
+        lambda: "".join(cli.phase1_compact_json(result, lights, "FITTED")), repeat
+    )
+    one = SceneArrays(
+        a.light_position[:1],
+        a.light_brightness[:1],
+        a.light_color[:1],
+        a.center,
+        a.radius,
+        a.ior,
+        a.kt,
+    )
     if n_spheres * n_spheres <= THESIS_LOOP_BUDGET:
         t0 = cpu_time()
         thesis_loop(one)
         thesis, note = (cpu_time() - t0) * n_lights, "measured (1 light) × lights"
     else:
         thesis, note = None, ""
-    return dict(lights=n_lights, spheres=n_spheres, lines=lines, sources=len(result.table),
-                json_mb=len(out) / 1e6, cpu=cpu, wall=wall, stage=stage, thesis=thesis,
-                thesis_note=note)
+    return dict(
+        lights=n_lights,
+        spheres=n_spheres,
+        lines=lines,
+        sources=len(result.table),
+        json_mb=len(out) / 1e6,
+        cpu=cpu,
+        wall=wall,
+        stage=stage,
+        thesis=thesis,
+        thesis_note=note,
+    )
 
 
 def dense_grid(n_lights: int = 1) -> SceneArrays:
@@ -196,13 +248,21 @@ def dense_grid(n_lights: int = 1) -> SceneArrays:
     n = len(c)
     lights = np.array([[49.7, 49.3, 11.0]] * n_lights)
     lights[:, 0] += 3.1 * np.arange(n_lights)
-    return SceneArrays(lights, np.ones(n_lights), np.ones((n_lights, 3)), c, np.full(n, 0.3),
-                       np.full(n, 1.5), np.full(n, 0.9))
+    return SceneArrays(
+        lights,
+        np.ones(n_lights),
+        np.ones((n_lights, 3)),
+        c,
+        np.full(n, 0.3),
+        np.full(n, 1.5),
+        np.full(n, 0.9),
+    )
 
 
 def dense_case(repeat: int) -> dict:
     from addon import obstruction
     from addon.phase1 import TOTALLY_BLOCKED
+
     a = dense_grid()
     t = best_of(lambda: compute_phase1(a), repeat)
     counted = {}
@@ -212,6 +272,7 @@ def dense_case(repeat: int) -> dict:
         pairs = original(*args)
         counted["pairs"] = int(pairs[0].size)
         return pairs
+
     obstruction._candidate_pairs = counting
     try:
         r = compute_phase1(a)
@@ -222,8 +283,9 @@ def dense_case(repeat: int) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--quick", action="store_true", help="skip the 100 000-sphere cases")
     ap.add_argument("--repeat", type=int, default=3, help="runs per timing (the best counts)")
     ap.add_argument("--out", default=str(ROOT / "reports" / "scale.md"))
@@ -241,13 +303,16 @@ def main(argv=None) -> int:
             e2e.append(row)
             st = ", ".join(f"{k} {v:.2f} s" for k, v in row["stage"].items())
             thesis = f"; thesis loop {row['thesis']:.1f} s" if row["thesis"] else ""
-            print(f"phase1 --json {n_lights} × {n_spheres}: {row['cpu']:.2f} s CPU, "
-                  f"{row['wall']:.2f} s wall end to end "
-                  f"({st}){thesis}", flush=True)
+            print(
+                f"phase1 --json {n_lights} × {n_spheres}: {row['cpu']:.2f} s CPU, "
+                f"{row['wall']:.2f} s wall end to end "
+                f"({st}){thesis}",
+                flush=True,
+            )
 
     # 2. Phase 1 alone.
     rows = []
-    thesis_rate = None          # seconds per pair test of the plain loop
+    thesis_rate = None  # seconds per pair test of the plain loop
     for n_lights, n_spheres in CASES:
         if args.quick and n_spheres > 10_000:
             continue
@@ -265,15 +330,21 @@ def main(argv=None) -> int:
             t_thesis = thesis_rate * pairs
             thesis_note = "extrapolated"
         rows.append((n_lights, n_spheres, n_src, t, peak, t_thesis, thesis_note))
-        print(f"{n_lights:>4} × {n_spheres:>7}: phase 1 {t * 1e3:9.1f} ms, "
-              f"peak {peak / 2**20:7.1f} MiB, {n_src} sources; thesis loop "
-              f"{t_thesis:10.2f} s ({thesis_note}), speed-up {t_thesis / t:,.0f}×", flush=True)
+        print(
+            f"{n_lights:>4} × {n_spheres:>7}: phase 1 {t * 1e3:9.1f} ms, "
+            f"peak {peak / 2**20:7.1f} MiB, {n_src} sources; thesis loop "
+            f"{t_thesis:10.2f} s ({thesis_note}), speed-up {t_thesis / t:,.0f}×",
+            flush=True,
+        )
 
     # 3. The dense grid.
     dense = None if args.quick else dense_case(args.repeat)
     if dense:
-        print(f"dense grid: {dense['time']:.2f} s per light, {dense['pairs']:,} candidate "
-              f"pairs, {dense['blocks']:,} blocks", flush=True)
+        print(
+            f"dense grid: {dense['time']:.2f} s per light, {dense['pairs']:,} candidate "
+            f"pairs, {dense['blocks']:,} blocks",
+            flush=True,
+        )
     load_after = os.getloadavg()
 
     lines = [
@@ -316,11 +387,15 @@ def main(argv=None) -> int:
             f"{r['json_mb']:.1f} | {st['read']:.2f} | {st['phase 1']:.2f} | "
             f"{st['tier lights']:.2f} | {st['JSON']:.2f} | **{r['cpu']:.2f}** ({r['wall']:.2f}) | "
             f"{goal} | "
-            f"{thesis} | {speed} |")
+            f"{thesis} | {speed} |"
+        )
     read_rate = [r["lines"] / r["stage"]["read"] for r in e2e if r["spheres"] >= 10_000]
     if read_rate:
-        lines += ["", f"The `.bi` reader: {min(read_rate) / 1e6:.2f}–{max(read_rate) / 1e6:.2f} "
-                  "M lines/s on these files (goal ≥ 1 M lines/s)."]
+        lines += [
+            "",
+            f"The `.bi` reader: {min(read_rate) / 1e6:.2f}–{max(read_rate) / 1e6:.2f} "
+            "M lines/s on these files (goal ≥ 1 M lines/s).",
+        ]
     lines += [
         "",
         "## Phase 1 alone",
@@ -336,8 +411,10 @@ def main(argv=None) -> int:
     ]
     for n_lights, n_spheres, n_src, t, peak, t_thesis, note in rows:
         mark = "" if note == "measured" else " (extrap.)"
-        lines.append(f"| {n_lights} | {n_spheres:,} | {n_src:,} | {t * 1e3:,.1f} | "
-                     f"{peak / 2**20:,.1f} | {t_thesis:,.2f}{mark} | {t_thesis / t:,.0f}× |")
+        lines.append(
+            f"| {n_lights} | {n_spheres:,} | {n_src:,} | {t * 1e3:,.1f} | "
+            f"{peak / 2**20:,.1f} | {t_thesis:,.2f}{mark} | {t_thesis / t:,.0f}× |"
+        )
     if dense:
         lines += [
             "",
@@ -358,21 +435,28 @@ def main(argv=None) -> int:
     for r in e2e:
         if r["goal"]:
             ok = "met" if r["cpu"] < r["goal"] else "NOT met"
-            lines.append(f"- `phase1 --json` {r['lights']} × {r['spheres']:,}: "
-                         f"{r['cpu']:.2f} s CPU end to end (goal < {r['goal']:g} s): {ok}")
+            lines.append(
+                f"- `phase1 --json` {r['lights']} × {r['spheres']:,}: "
+                f"{r['cpu']:.2f} s CPU end to end (goal < {r['goal']:g} s): {ok}"
+            )
         elif r["thesis"]:
             x = r["thesis"] / r["cpu"]
             ok = "met" if x >= SPEEDUP_GOAL else "NOT met"
-            lines.append(f"- `phase1 --json` {r['lights']} × {r['spheres']:,}: {x:,.0f}× faster "
-                         f"than the plain thesis loop end to end (goal ≥ {SPEEDUP_GOAL:g}×): {ok}")
+            lines.append(
+                f"- `phase1 --json` {r['lights']} × {r['spheres']:,}: {x:,.0f}× faster "
+                f"than the plain thesis loop end to end (goal ≥ {SPEEDUP_GOAL:g}×): {ok}"
+            )
     if read_rate:
         ok = "met" if min(read_rate) >= 1e6 else "NOT met"
-        lines.append(f"- `.bi` reader: {min(read_rate) / 1e6:.2f} M lines/s at least "
-                     f"(goal ≥ 1 M lines/s): {ok}")
+        lines.append(
+            f"- `.bi` reader: {min(read_rate) / 1e6:.2f} M lines/s at least "
+            f"(goal ≥ 1 M lines/s): {ok}"
+        )
     if dense:
         ok = "met" if dense["time"] < DENSE_GOAL else "NOT met"
-        lines.append(f"- dense grid: {dense['time']:.2f} s per light (goal < {DENSE_GOAL:g} s): "
-                     f"{ok}")
+        lines.append(
+            f"- dense grid: {dense['time']:.2f} s per light (goal < {DENSE_GOAL:g} s): {ok}"
+        )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n")

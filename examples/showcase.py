@@ -14,6 +14,7 @@ caustics at all; "Generate lens lights" adds one spot light per light × marble.
 
 Sizes are real: marbles 3–5 cm in radius, the lights 0.7–0.9 m away.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,9 +41,10 @@ LIGHTS = (
 
 def _material(name, color, roughness=0.5):
     import bpy
+
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True                # Blender 4.x: no node tree until then
+        mat.use_nodes = True  # Blender 4.x: no node tree until then
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*color, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness
@@ -65,6 +67,7 @@ def build_showcase(scene):
     camera and light render settings set; engine and samples left to the caller
     except for sensible defaults). Returns a dict of the objects made."""
     import bpy
+
     made = {}
     coll = scene.collection
 
@@ -83,7 +86,7 @@ def build_showcase(scene):
         ob = bpy.data.objects.new(name, m)
         coll.objects.link(ob)
         _uv_sphere(m, radius, 48, 24)
-        ob.location = (x, y, radius)          # resting on the table
+        ob.location = (x, y, radius)  # resting on the table
         ob.data.materials.append(_glass(f"Glass {name.split()[-1]}", tint))
         made[name] = ob
 
@@ -95,8 +98,11 @@ def build_showcase(scene):
         ob = bpy.data.objects.new(name, data)
         coll.objects.link(ob)
         a, e = math.radians(azimuth), math.radians(elevation)
-        ob.location = (dist * math.cos(e) * math.cos(a), dist * math.cos(e) * math.sin(a),
-                       dist * math.sin(e))
+        ob.location = (
+            dist * math.cos(e) * math.cos(a),
+            dist * math.cos(e) * math.sin(a),
+            dist * math.sin(e),
+        )
         made[name] = ob
 
     cam_data = bpy.data.cameras.new("Camera")
@@ -119,15 +125,16 @@ def build_showcase(scene):
 
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = 480, 270, 100
-    scene.cycles.caustics_refractive = False     # path-traced caustics: noise only
+    scene.cycles.caustics_refractive = False  # path-traced caustics: noise only
     scene.cycles.caustics_reflective = False
-    scene.eevee.use_raytracing = True            # glass that refracts in EEVEE
+    scene.eevee.use_raytracing = True  # glass that refracts in EEVEE
     scene.eevee.taa_render_samples = 32
     return made
 
 
 def _uv_sphere(mesh, radius, segments, rings):
     import bmesh
+
     bm = bmesh.new()
     bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
     for f in bm.faces:
@@ -138,23 +145,27 @@ def _uv_sphere(mesh, radius, segments, rings):
 
 def _look_at(ob, target):
     from mathutils import Vector
+
     direction = Vector(target) - ob.location
     ob.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
 
 
 # --------------------------------------------------------------------------- script
 
+
 def _load_extension():
     """The repository as the package `lens_lights`, registered (as Blender would
     load the installed extension); reuses an already registered one."""
     import bpy
+
     if hasattr(bpy.types.Scene, "lens_lights") and hasattr(bpy.ops.lens_lights, "generate"):
         return
     name = "lens_lights"
     module = sys.modules.get(name)
     if module is None:
         spec = importlib.util.spec_from_file_location(
-            name, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
+            name, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)]
+        )
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -173,10 +184,10 @@ def _engine_id(scene, engine):
     return ident
 
 
-def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 270),
-                        samples=32):
+def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 270), samples=32):
     """Render the showcase without and with lens lights per engine; returns the paths."""
     import bpy
+
     _load_extension()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -209,11 +220,13 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", default=str(ROOT / "docs"), help="output folder (default: docs/)")
-    parser.add_argument("--engines", default="eevee,cycles",
-                        help="comma-separated: eevee, cycles (default: both)")
+    parser.add_argument(
+        "--engines", default="eevee,cycles", help="comma-separated: eevee, cycles (default: both)"
+    )
     parser.add_argument("--resolution", default="480x270", help="WxH (default 480x270)")
     parser.add_argument("--samples", type=int, default=32, help="samples per pixel (default 32)")
     args = parser.parse_args(argv)

@@ -15,6 +15,7 @@ only while it renders):
 
 Nothing here runs without bpy; what can is in `addon/`.
 """
+
 import importlib
 
 _MODULE_NAMES = (

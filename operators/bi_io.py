@@ -5,6 +5,7 @@ Also callable as `bpy.ops.import_scene.bi(filepath=…)` and
 viewport too (a FileHandler). Errors are reported as "FILE:LINE: message" (the
 core's BiFormatError), never as a traceback in the interface.
 """
+
 from __future__ import annotations
 
 import os
@@ -21,6 +22,7 @@ from ..addon.bi_records import file_line, summary
 
 class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
     """Import a Bitracer scene (.bi): camera, point lights, spheres and their materials"""
+
     bl_idname = "import_scene.bi"
     bl_label = "Import Bitracer Scene (.bi)"
     bl_options = {"REGISTER", "UNDO", "PRESET"}
@@ -30,6 +32,7 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
 
     def execute(self, context):
         from . import bi_scene_builder as builder
+
         path = self.filepath
         try:
             scene = read_bi(path)
@@ -40,8 +43,12 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
         wm.progress_begin(0, max(1, len(scene.lights) + len(scene.objects)))
         built = None
         try:
-            built = builder.build_scene(scene, context, name=os.path.basename(path),
-                                        progress=lambda i, n: wm.progress_update(i))
+            built = builder.build_scene(
+                scene,
+                context,
+                name=os.path.basename(path),
+                progress=lambda i, n: wm.progress_update(i),
+            )
         except BlenderLimitError as e:
             self.report({"ERROR"}, f"{path}:{file_line(path, e.record)}: {e}")
             return {"CANCELLED"}
@@ -53,18 +60,24 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
             wm.progress_end()
         for warning in built.warnings:
             self.report({"WARNING"}, f"{path}: {warning}")
-        self.report({"INFO"}, f"Imported {os.path.basename(path)}: {len(built.lights)} "
-                              f"light(s), {len(built.spheres)} sphere(s)")
+        self.report(
+            {"INFO"},
+            f"Imported {os.path.basename(path)}: {len(built.lights)} "
+            f"light(s), {len(built.spheres)} sphere(s)",
+        )
         return {"FINISHED"}
 
 
 class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
     """Export the scene as a Bitracer scene (.bi): the camera, point lights and the
     spheres Lens Lights recognises"""
+
     bl_idname = "export_scene.bi"
     bl_label = "Export Bitracer Scene (.bi)"
-    bl_description = ("Export the scene as a Bitracer scene (.bi): the camera, point lights "
-                      "and the spheres Lens Lights recognises")
+    bl_description = (
+        "Export the scene as a Bitracer scene (.bi): the camera, point lights "
+        "and the spheres Lens Lights recognises"
+    )
     bl_options = {"REGISTER", "PRESET"}
 
     filename_ext = ".bi"
@@ -72,6 +85,7 @@ class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
 
     def execute(self, context):
         from . import bi_scene_builder as builder
+
         path = self.filepath
         try:
             read = builder.read_for_export(context)
@@ -93,10 +107,16 @@ class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
             print(f"{path}: left out of the .bi file:")
             for name, reason in read.left_out:
                 print(f"  {name}: {reason}")
-            self.report({"WARNING"}, f"Left out {len(read.left_out)} object(s): " + summary(
-                [f"{name} ({reason})" for name, reason in read.left_out]))
-        self.report({"INFO"}, f"Exported {len(read.scene.lights)} light(s) and "
-                              f"{len(read.scene.objects)} sphere(s) to {path}")
+            self.report(
+                {"WARNING"},
+                f"Left out {len(read.left_out)} object(s): "
+                + summary([f"{name} ({reason})" for name, reason in read.left_out]),
+            )
+        self.report(
+            {"INFO"},
+            f"Exported {len(read.scene.lights)} light(s) and "
+            f"{len(read.scene.objects)} sphere(s) to {path}",
+        )
         return {"FINISHED"}
 
 

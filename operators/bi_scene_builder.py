@@ -10,6 +10,7 @@ colour scale on the scene (`lens_lights_bi_color_scale`). The exporter writes th
 stored numbers back while Blender's values still match them (Blender keeps float32;
 an edit of more than 1e-5 relative wins), so import → export reproduces the file.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -45,6 +46,7 @@ STORED_TOLERANCE = 1e-5
 
 # --------------------------------------------------------------------------- import
 
+
 @dataclass
 class BuiltScene:
     collection: bpy.types.Collection
@@ -57,13 +59,14 @@ class BuiltScene:
 def _principled(material) -> bpy.types.Node:
     """The Principled BSDF of a material, creating the node tree if needed."""
     if material.node_tree is None or (bpy.app.version < (5, 0, 0) and not material.use_nodes):
-        material.use_nodes = True          # Blender 4.x; always on from 5.0
+        material.use_nodes = True  # Blender 4.x; always on from 5.0
     tree = material.node_tree
     node = next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
     if node is None:
         node = tree.nodes.new("ShaderNodeBsdfPrincipled")
-        out = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"), None) \
-            or tree.nodes.new("ShaderNodeOutputMaterial")
+        out = next((n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"), None) or tree.nodes.new(
+            "ShaderNodeOutputMaterial"
+        )
         tree.links.new(node.outputs["BSDF"], out.inputs["Surface"])
     return node
 
@@ -85,8 +88,9 @@ def _sphere_mesh(name: str) -> bpy.types.Mesh:
     mesh = bpy.data.meshes.new(name)
     bm = bmesh.new()
     try:
-        bmesh.ops.create_uvsphere(bm, u_segments=SPHERE_SEGMENTS, v_segments=SPHERE_RINGS,
-                                  radius=1.0)
+        bmesh.ops.create_uvsphere(
+            bm, u_segments=SPHERE_SEGMENTS, v_segments=SPHERE_RINGS, radius=1.0
+        )
         for face in bm.faces:
             face.smooth = True
         bm.to_mesh(mesh)
@@ -115,9 +119,13 @@ def build_camera(scene: Scene, context, collection, name: str = "Camera"):
     obj.rotation_mode = "XYZ"
     obj.rotation_euler = Matrix([list(row) for row in bc.rotation]).to_euler("XYZ")
     cam = scene.camera
-    obj[PROP] = {"position": list(cam.position), "target": list(cam.target),
-                 "up": list(cam.up), "fov": list(cam.fov_deg),
-                 "viewport": [scene.width, scene.height]}
+    obj[PROP] = {
+        "position": list(cam.position),
+        "target": list(cam.target),
+        "up": list(cam.up),
+        "fov": list(cam.fov_deg),
+        "viewport": [scene.width, scene.height],
+    }
     render = context.scene.render
     render.resolution_x, render.resolution_y = bc.resolution_x, bc.resolution_y
     render.resolution_percentage = 100
@@ -138,8 +146,12 @@ def build_light(light: Light, index: int, collection) -> bpy.types.Object:
     obj = bpy.data.objects.new(name, data)
     collection.objects.link(obj)
     obj.location = light.position
-    obj[PROP] = {"index": index, "position": list(light.position),
-                 "color": list(light.color), "brightness": light.brightness}
+    obj[PROP] = {
+        "index": index,
+        "position": list(light.position),
+        "color": list(light.color),
+        "brightness": light.brightness,
+    }
     return obj
 
 
@@ -191,7 +203,7 @@ def build_scene(scene: Scene, context, name: str = "bi scene", progress=None) ->
     """Create the camera, lights, spheres (with materials) and world of `scene`
     in a new collection `name` of the current Blender scene. Raises ValueError
     for what Blender cannot represent (checked before anything is created)."""
-    conv.camera_to_blender(scene.camera, scene.width, scene.height)   # validate first
+    conv.camera_to_blender(scene.camera, scene.width, scene.height)  # validate first
     collection = bpy.data.collections.new(name)
     context.scene.collection.children.link(collection)
     camera, warnings = build_camera(scene, context, collection)
@@ -212,10 +224,11 @@ def build_scene(scene: Scene, context, name: str = "bi scene", progress=None) ->
 
 # --------------------------------------------------------------------------- export
 
+
 @dataclass
 class ExportRead:
     scene: Scene
-    left_out: list = field(default_factory=list)     # (name, reason)
+    left_out: list = field(default_factory=list)  # (name, reason)
     warnings: list = field(default_factory=list)
 
 
@@ -262,9 +275,15 @@ def surface_of_material(material, fallback: Surface | None = None) -> Surface:
             pass
     if inputs is not None:
         s = conv.surface_from_principled(inputs, tuple(material.diffuse_color))
-        return Surface(color=f32v(s.color), ambient=s.ambient, diffuse=f32(s.diffuse),
-                       specular=f32(s.specular), transmission=f32(s.transmission),
-                       exponent=f32(s.exponent), ior=f32(s.ior))
+        return Surface(
+            color=f32v(s.color),
+            ambient=s.ambient,
+            diffuse=f32(s.diffuse),
+            specular=f32(s.specular),
+            transmission=f32(s.transmission),
+            exponent=f32(s.exponent),
+            ior=f32(s.ior),
+        )
     return fallback if fallback is not None else Surface()
 
 
@@ -279,8 +298,10 @@ def read_camera(context, warnings: list) -> tuple[Camera, int, int]:
         return Camera(), width, height
     data = obj.data
     if data.type != "PERSP":
-        warnings.append(f"camera '{obj.name}' is {data.type.lower()}, not perspective: "
-                        "written as a perspective camera with its focal length")
+        warnings.append(
+            f"camera '{obj.name}' is {data.type.lower()}, not perspective: "
+            "written as a perspective camera with its focal length"
+        )
     if data.shift_x or data.shift_y:
         warnings.append(f"camera '{obj.name}': lens shift cannot be written in .bi; ignored")
     depsgraph = context.evaluated_depsgraph_get()
@@ -293,21 +314,40 @@ def read_camera(context, warnings: list) -> tuple[Camera, int, int]:
         along = (data.dof.focus_object.matrix_world.translation - position).dot(forward)
         if along > 0:
             distance = along
-    fov = conv.fov_from_blender(data.lens, data.sensor_width, data.sensor_height,
-                                data.sensor_fit, width, height,
-                                render.pixel_aspect_x, render.pixel_aspect_y)
-    camera = conv.camera_from_blender([f32(c) for c in position],
-                                      [list(r) for r in rotation], distance,
-                                      (f32(fov[0]), f32(fov[1])))
-    camera = Camera(position=camera.position, target=f32v(camera.target),
-                    up=f32v(camera.up), fov_deg=camera.fov_deg)
+    fov = conv.fov_from_blender(
+        data.lens,
+        data.sensor_width,
+        data.sensor_height,
+        data.sensor_fit,
+        width,
+        height,
+        render.pixel_aspect_x,
+        render.pixel_aspect_y,
+    )
+    camera = conv.camera_from_blender(
+        [f32(c) for c in position],
+        [list(r) for r in rotation],
+        distance,
+        (f32(fov[0]), f32(fov[1])),
+    )
+    camera = Camera(
+        position=camera.position,
+        target=f32v(camera.target),
+        up=f32v(camera.up),
+        fov_deg=camera.fov_deg,
+    )
     stored = _stored(obj)
     if stored is not None:
         try:
-            file_cam = Camera(position=tuple(stored["position"]), target=tuple(stored["target"]),
-                              up=tuple(stored["up"]), fov_deg=tuple(stored["fov"]))
-            if (conv.same_view(camera, file_cam, STORED_TOLERANCE)
-                    and conv.close(camera.fov_deg, file_cam.fov_deg, STORED_TOLERANCE)):
+            file_cam = Camera(
+                position=tuple(stored["position"]),
+                target=tuple(stored["target"]),
+                up=tuple(stored["up"]),
+                fov_deg=tuple(stored["fov"]),
+            )
+            if conv.same_view(camera, file_cam, STORED_TOLERANCE) and conv.close(
+                camera.fov_deg, file_cam.fov_deg, STORED_TOLERANCE
+            ):
                 camera = file_cam
         except (KeyError, TypeError, ValueError):
             pass
@@ -319,6 +359,7 @@ def read_for_export(context) -> ExportRead:
     the objects phase 1 recognises as spheres (operators/scene_reader.py); every
     other object is listed in `left_out` with the reason."""
     from .scene_reader import read_blender_scene
+
     read = read_blender_scene(context)
     warnings: list = []
     camera, width, height = read_camera(context, warnings)
@@ -327,31 +368,50 @@ def read_for_export(context) -> ExportRead:
     for name, light in zip(read.light_sources, read.scene.lights, strict=True):
         obj = bpy.data.objects.get(name)
         stored = _stored(obj) or {}
-        position = conv.prefer_stored(f32v(light.position), as_tuple(stored.get("position")),
-                                      STORED_TOLERANCE)
-        color = conv.prefer_stored(f32v(light.color), as_tuple(stored.get("color")),
-                                   STORED_TOLERANCE)
-        brightness = conv.prefer_stored(f32(conv.brightness_from_watts(light.brightness)),
-                                        stored.get("brightness"), STORED_TOLERANCE)
-        lights.append((order_key(stored, name), Light(position=position, color=color,
-                                                    brightness=brightness, name=name)))
+        position = conv.prefer_stored(
+            f32v(light.position), as_tuple(stored.get("position")), STORED_TOLERANCE
+        )
+        color = conv.prefer_stored(
+            f32v(light.color), as_tuple(stored.get("color")), STORED_TOLERANCE
+        )
+        brightness = conv.prefer_stored(
+            f32(conv.brightness_from_watts(light.brightness)),
+            stored.get("brightness"),
+            STORED_TOLERANCE,
+        )
+        lights.append(
+            (
+                order_key(stored, name),
+                Light(position=position, color=color, brightness=brightness, name=name),
+            )
+        )
 
     spheres = []
     for name, sphere in zip(read.sphere_sources, read.scene.objects, strict=True):
         obj = bpy.data.objects.get(name)
         stored = _stored(obj) or {}
         radius = conv.prefer_stored(f32(sphere.radius), stored.get("radius"), STORED_TOLERANCE)
-        center = conv.prefer_stored(f32v(sphere.center), as_tuple(stored.get("center")),
-                                    STORED_TOLERANCE, scale=radius)
+        center = conv.prefer_stored(
+            f32v(sphere.center), as_tuple(stored.get("center")), STORED_TOLERANCE, scale=radius
+        )
         material = obj.active_material if obj is not None else None
         surface = surface_of_material(material, fallback=sphere.surface)
-        spheres.append((order_key(stored, name), Sphere(center=center, radius=radius,
-                                                      surface=surface, name=name)))
+        spheres.append(
+            (
+                order_key(stored, name),
+                Sphere(center=center, radius=radius, surface=surface, name=name),
+            )
+        )
 
     lights.sort(key=lambda t: t[0])
     spheres.sort(key=lambda t: t[0])
     scale = float(context.scene.get(COLOR_SCALE_PROP, 1.0))
-    scene = Scene(width=width, height=height, camera=camera,
-                  lights=[light for _, light in lights], objects=[s for _, s in spheres],
-                  color_scale=255.0 if scale == 255.0 else 1.0)
+    scene = Scene(
+        width=width,
+        height=height,
+        camera=camera,
+        lights=[light for _, light in lights],
+        objects=[s for _, s in spheres],
+        color_scale=255.0 if scale == 255.0 else 1.0,
+    )
     return ExportRead(scene=scene, left_out=list(read.left_out), warnings=warnings)

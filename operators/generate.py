@@ -26,6 +26,7 @@ The figures are kept in `scene.lens_lights.last_*` for the panel and, with the
 time of each step, in `LAST_FIGURES`. A progress bar runs in the window (no-op
 without one).
 """
+
 from __future__ import annotations
 
 import time
@@ -82,12 +83,17 @@ def _options(settings) -> dict:
     merge = bool(getattr(settings, "use_merge", False))
     # The tier to build: AUTO → the most accurate for the scene's engine; Exact
     # profile outside Cycles → Fitted, with a warning in the report.
-    model, model_warning = resolve_energy_model(settings.energy_model,
-                                                settings.id_data.render.engine)
-    return dict(energy_model=model, model_warning=model_warning,
-                min_brightness=float(settings.min_brightness),
-                max_lights=int(settings.max_lights), spot_blend=float(settings.spot_blend),
-                merge_distance=float(settings.merge_distance) if merge else None)
+    model, model_warning = resolve_energy_model(
+        settings.energy_model, settings.id_data.render.engine
+    )
+    return dict(
+        energy_model=model,
+        model_warning=model_warning,
+        min_brightness=float(settings.min_brightness),
+        max_lights=int(settings.max_lights),
+        spot_blend=float(settings.spot_blend),
+        merge_distance=float(settings.merge_distance) if merge else None,
+    )
 
 
 def _store(settings, message, figures):
@@ -118,7 +124,7 @@ def generate(context):
             work, how = rendered_depsgraph(context, lambda dg: plan_scene(dg, scene, options))
             work.read.how = how
             work.timings["probe_total"] = time.perf_counter() - t
-        except Exception as exc:            # noqa: BLE001  (reported, never raised)
+        except Exception as exc:  # noqa: BLE001  (reported, never raised)
             message = error_text("read the scene", exc)
             traceback.print_exc()
             figures = dict(changed=False, seconds=time.perf_counter() - t0)
@@ -133,13 +139,17 @@ def generate(context):
         total = max(len(plan.lights), 1)
         try:
             light_builder.clear(scene)
-            made = light_builder.build(scene, plan, work.read.sphere_objects,
-                                       progress=lambda k: progress(60 + 40 * k / total))
-        except Exception as exc:            # noqa: BLE001
+            made = light_builder.build(
+                scene,
+                plan,
+                work.read.sphere_objects,
+                progress=lambda k: progress(60 + 40 * k / total),
+            )
+        except Exception as exc:  # noqa: BLE001
             traceback.print_exc()
             try:
                 light_builder.clear(scene)
-            except Exception:               # noqa: BLE001
+            except Exception:  # noqa: BLE001
                 traceback.print_exc()
             message = error_text("create the lens lights", exc) + " (the lens lights were removed)"
             figures = dict(changed=True, created=0, seconds=time.perf_counter() - t0)
@@ -150,9 +160,10 @@ def generate(context):
         progress(100)
 
     try:
-        level, message, figures = report_message(work, len(made),
-                                                 read_as_rendered=work.read.how == RENDER)
-    except Exception as exc:                # noqa: BLE001  (the lights are made: say so)
+        level, message, figures = report_message(
+            work, len(made), read_as_rendered=work.read.how == RENDER
+        )
+    except Exception as exc:  # noqa: BLE001  (the lights are made: say so)
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
@@ -168,6 +179,7 @@ def generate(context):
 
 class LENS_LIGHTS_OT_generate(bpy.types.Operator):
     """Turn every point light × glass sphere into a spot light that paints its caustic"""
+
     bl_idname = "lens_lights.generate"
     bl_label = "Generate Lens Lights"
     bl_options = {"REGISTER", "UNDO"}
@@ -186,6 +198,7 @@ class LENS_LIGHTS_OT_generate(bpy.types.Operator):
 
 class LENS_LIGHTS_OT_clear(bpy.types.Operator):
     """Remove the lens lights this extension created (and nothing else)"""
+
     bl_idname = "lens_lights.clear"
     bl_label = "Clear Lens Lights"
     bl_options = {"REGISTER", "UNDO"}

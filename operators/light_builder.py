@@ -31,6 +31,7 @@ Everything created is listed in `scene.lens_lights.created_*` and marked
 `properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
 and then the marked profile images nothing uses any more.
 """
+
 from __future__ import annotations
 
 import math
@@ -91,20 +92,25 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     a marked image with the same key and size (from `image_cache`, then from
     `bpy.data`); a table without a key gets an image of its own."""
     import numpy as np
+
     key = profile.get("key")
     H, K = int(profile["height"]), int(profile["width"])
     if key is not None:
         if image_cache is not None and key in image_cache:
             return image_cache[key]
         for img in bpy.data.images:
-            if (_is_profile_image(img) and img.get(PROFILE_KEY) == key
-                    and tuple(img.size) == (K, H)
-                    and (img.packed_file is not None or img.has_data)):
+            if (
+                _is_profile_image(img)
+                and img.get(PROFILE_KEY) == key
+                and tuple(img.size) == (K, H)
+                and (img.packed_file is not None or img.has_data)
+            ):
                 if image_cache is not None:
                     image_cache[key] = img
                 return img
-    img = bpy.data.images.new(PROFILE_PREFIX + (key or "table"), width=K, height=H,
-                              float_buffer=True, alpha=False)
+    img = bpy.data.images.new(
+        PROFILE_PREFIX + (key or "table"), width=K, height=H, float_buffer=True, alpha=False
+    )
     img[COLLECTION_MARK] = "profile"
     if key is not None:
         img[PROFILE_KEY] = key
@@ -117,7 +123,7 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
     img.pixels.foreach_set(rgba.ravel())
     img.update()
-    img.pack()                                  # kept in the .blend (as OpenEXR)
+    img.pack()  # kept in the .blend (as OpenEXR)
     if image_cache is not None and key is not None:
         image_cache[key] = img
     return img
@@ -168,15 +174,18 @@ def build_profile_nodes(data, profile: dict, image):
     nt.links.new(comb.outputs[0], tex.inputs["Vector"])
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    nt.links.new(math_node("MULTIPLY", tex.outputs["Color"], float(profile["strength_scale"])),
-                 em.inputs["Strength"])
+    nt.links.new(
+        math_node("MULTIPLY", tex.outputs["Color"], float(profile["strength_scale"])),
+        em.inputs["Strength"],
+    )
     out = nt.nodes.new("ShaderNodeOutputLight")
     nt.links.new(em.outputs[0], out.inputs["Surface"])
     return nt
 
 
-def create_light(scene, planned, lens_object, collection, link_cache, model_name="",
-                 image_cache=None):
+def create_light(
+    scene, planned, lens_object, collection, link_cache, model_name="", image_cache=None
+):
     """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
     tree; `image_cache` shares profile images within a run)."""
     bl = planned.light
@@ -194,7 +203,7 @@ def create_light(scene, planned, lens_object, collection, link_cache, model_name
         try:
             build_profile_nodes(data, profile, profile_image(profile, image_cache))
         except Exception:
-            bpy.data.lights.remove(data)        # not registered yet: clear would miss it
+            bpy.data.lights.remove(data)  # not registered yet: clear would miss it
             raise
     ob = bpy.data.objects.new(name, data)
     collection.objects.link(ob)
@@ -229,8 +238,16 @@ def build(scene, plan, lens_objects, progress=None):
     images: dict = {}
     made = []
     for k, planned in enumerate(plan.lights):
-        made.append(create_light(scene, planned, lens_objects[planned.source.lens],
-                                 collection, cache, image_cache=images))
+        made.append(
+            create_light(
+                scene,
+                planned,
+                lens_objects[planned.source.lens],
+                collection,
+                cache,
+                image_cache=images,
+            )
+        )
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made
@@ -256,10 +273,10 @@ def clear(scene) -> int:
     datas = {ob.data for ob in objects if ob.data is not None}
     removed = len(objects)
     if objects:
-        bpy.data.batch_remove(objects)          # one pass: fast for many lights
+        bpy.data.batch_remove(objects)  # one pass: fast for many lights
     orphans = [d for d in datas if d.users == 0]
     if orphans:
-        bpy.data.batch_remove(orphans)          # with their embedded node trees
+        bpy.data.batch_remove(orphans)  # with their embedded node trees
     remove_unused_profile_images()
     settings.created_objects.clear()
     keep = []
@@ -270,7 +287,7 @@ def clear(scene) -> int:
         if coll.get(COLLECTION_MARK) == "link" or (not coll.objects and not coll.children):
             bpy.data.collections.remove(coll)
         else:
-            keep.append(coll)       # the user put something of theirs in it
+            keep.append(coll)  # the user put something of theirs in it
     settings.created_collections.clear()
     for coll in keep:
         _register_collection(settings, coll)

@@ -6,6 +6,7 @@ optics (`material_optics`). Unlinked input values are read; a Value or RGB node
 feeding an input gives its value; anything else driving an input is noted and the
 socket's own value used. Muted nodes and links are skipped, reroutes followed.
 """
+
 from __future__ import annotations
 
 import bpy
@@ -58,33 +59,46 @@ def _shader(socket, notes, depth=0):
         return None
     t = node.type
     if t == "BSDF_PRINCIPLED":
-        return Bsdf(PRINCIPLED, ior=_input_value(node, "IOR", 1.5, notes),
-                    color=_input_value(node, "Base Color", (0.8, 0.8, 0.8), notes),
-                    transmission=_input_value(node, "Transmission Weight", 0.0, notes),
-                    metallic=_input_value(node, "Metallic", 0.0, notes),
-                    alpha=_input_value(node, "Alpha", 1.0, notes), name=node.name)
+        return Bsdf(
+            PRINCIPLED,
+            ior=_input_value(node, "IOR", 1.5, notes),
+            color=_input_value(node, "Base Color", (0.8, 0.8, 0.8), notes),
+            transmission=_input_value(node, "Transmission Weight", 0.0, notes),
+            metallic=_input_value(node, "Metallic", 0.0, notes),
+            alpha=_input_value(node, "Alpha", 1.0, notes),
+            name=node.name,
+        )
     if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
-        return Bsdf(GLASS if t == "BSDF_GLASS" else REFRACTION,
-                    ior=_input_value(node, "IOR", 1.5, notes),
-                    color=_input_value(node, "Color", (1.0, 1.0, 1.0), notes), name=node.name)
+        return Bsdf(
+            GLASS if t == "BSDF_GLASS" else REFRACTION,
+            ior=_input_value(node, "IOR", 1.5, notes),
+            color=_input_value(node, "Color", (1.0, 1.0, 1.0), notes),
+            name=node.name,
+        )
     if t == "MIX_SHADER":
         fac = _input_value(node, "Fac", 0.5, notes)
-        return Mix(fac if isinstance(fac, float) else 0.5,
-                   _shader(node.inputs[1], notes, depth + 1),
-                   _shader(node.inputs[2], notes, depth + 1))
+        return Mix(
+            fac if isinstance(fac, float) else 0.5,
+            _shader(node.inputs[1], notes, depth + 1),
+            _shader(node.inputs[2], notes, depth + 1),
+        )
     if t == "ADD_SHADER":
-        return Add(_shader(node.inputs[0], notes, depth + 1),
-                   _shader(node.inputs[1], notes, depth + 1))
+        return Add(
+            _shader(node.inputs[0], notes, depth + 1), _shader(node.inputs[1], notes, depth + 1)
+        )
     if t == "VOLUME_ABSORPTION":
-        return Absorption(_input_value(node, "Density", 1.0, notes),
-                          _input_value(node, "Color", (0.8, 0.8, 0.8), notes))
+        return Absorption(
+            _input_value(node, "Density", 1.0, notes),
+            _input_value(node, "Color", (0.8, 0.8, 0.8), notes),
+        )
     color = _input_value(node, "Color", None, notes) if "Color" in node.inputs else None
     if color is None and "Base Color" in node.inputs:
         color = _input_value(node, "Base Color", None, notes)
     if t in ("GROUP", "CUSTOM"):
         notes.append(f"node '{node.name}' ({node.bl_idname}) not looked into: treated as opaque")
-    return Bsdf(OTHER, color=tuple(color) if isinstance(color, tuple) else (0.8, 0.8, 0.8),
-                name=node.name)
+    return Bsdf(
+        OTHER, color=tuple(color) if isinstance(color, tuple) else (0.8, 0.8, 0.8), name=node.name
+    )
 
 
 def node_tree(material):
@@ -126,8 +140,11 @@ def main_material(ob, mesh):
         mesh.polygons.foreach_get("material_index", idx)
         area = np.empty(n)
         mesh.polygons.foreach_get("area", area)
-        k = int(np.argmax(np.bincount(np.clip(idx, 0, len(slots) - 1), weights=area,
-                                      minlength=len(slots))))
+        k = int(
+            np.argmax(
+                np.bincount(np.clip(idx, 0, len(slots) - 1), weights=area, minlength=len(slots))
+            )
+        )
     else:
         k = 0
     return slots[k].material

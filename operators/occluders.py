@@ -19,6 +19,7 @@ point clouds, volumes and grease pencil do not block (as for `Scene.ray_cast`,
 which sees only meshes). A sphere is hit as the exact sphere, not its polygons
 (the difference is under 1 % of the radius, the fit's tolerance).
 """
+
 from __future__ import annotations
 
 import math
@@ -59,6 +60,7 @@ class MeshSource:
     def tree(self):
         if self._tree is None:
             from mathutils.bvhtree import BVHTree
+
             if self._arrays is None:
                 if self._mesh is None:
                     self._tree = False
@@ -66,8 +68,11 @@ class MeshSource:
                 self._arrays = mesh_triangles(self._mesh)
                 self._mesh = None
             v, t = self._arrays
-            self._tree = BVHTree.FromPolygons(v.tolist(), t.tolist(), all_triangles=True) \
-                if len(t) else False
+            self._tree = (
+                BVHTree.FromPolygons(v.tolist(), t.tolist(), all_triangles=True)
+                if len(t)
+                else False
+            )
         return self._tree
 
 
@@ -124,6 +129,7 @@ class Occluders:
 
     def _mesh_hit(self, n, origin, d) -> float:
         from mathutils import Vector
+
         tree = self.sources[self.source_index[n]].tree()
         if not tree:
             return math.inf

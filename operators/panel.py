@@ -12,6 +12,7 @@ Long texts are wrapped to the region's width (`addon.ui_text`); labels are
 translatable (`iface_` with format placeholders; names and numbers are not
 translated).
 """
+
 import bpy
 from bpy.app.translations import pgettext_iface as iface_
 
@@ -21,8 +22,10 @@ from ..addon.ui_text import chars_per_line, wrap
 
 #: Shown for an Exact-profile lens light (issue 10): its Blender power is only what
 #: Cycles samples it by; the node tree's emission carries the caustic's intensity.
-EXACT_POWER_NOTE = ("The power shown in the light's properties is a sampling weight; "
-                    "its node tree holds the intensity")
+EXACT_POWER_NOTE = (
+    "The power shown in the light's properties is a sampling weight; "
+    "its node tree holds the intensity"
+)
 
 
 def _width(context) -> int:
@@ -37,7 +40,7 @@ def _lines(layout, text, width, **kw):
     """`text` (already translated) as labels wrapped to `width` characters."""
     for line in wrap(text, width):
         layout.label(text=line, translate=False, **kw)
-        kw.pop("icon", None)            # only on the first line
+        kw.pop("icon", None)  # only on the first line
 
 
 def _figure(layout, text, value):
@@ -67,15 +70,18 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         # The tier that will be built (AUTO resolved for the engine) and what it trades.
         tier, warning = resolve_energy_model(settings.energy_model, context.scene.render.engine)
         info = col.column(align=True)
-        info.label(text=iface_("Builds: {}").format(iface_(ENERGY_MODELS[tier].label)),
-                   icon="ERROR" if warning else "INFO", translate=False)
+        info.label(
+            text=iface_("Builds: {}").format(iface_(ENERGY_MODELS[tier].label)),
+            icon="ERROR" if warning else "INFO",
+            translate=False,
+        )
         _lines(info, iface_(TIER_LINES.get(tier, "")), width)
         if warning:
             _lines(info, iface_(warning), width)
         col.prop(settings, "min_brightness")
         col.prop(settings, "max_lights")
         sub = col.row()
-        sub.active = tier in ("THESIS", "PHYSICAL")     # the other tiers set their own blend
+        sub.active = tier in ("THESIS", "PHYSICAL")  # the other tiers set their own blend
         sub.prop(settings, "spot_blend")
         row = col.row(heading="Merge Nearby")
         row.prop(settings, "use_merge", text="")
@@ -121,13 +127,20 @@ class VIEW3D_PT_lens_lights_object(bpy.types.Panel):
             col = layout.column(align=True)
             _figure(col, "From: {}", meta.source_light)
             _figure(col, "Lens: {}", meta.source_lens)
-            col.label(text=iface_("Kind: {}, {}").format(
-                iface_(meta.kind), iface_("full") if meta.full else iface_("non-full")),
-                translate=False)
+            col.label(
+                text=iface_("Kind: {}, {}").format(
+                    iface_(meta.kind), iface_("full") if meta.full else iface_("non-full")
+                ),
+                translate=False,
+            )
             if not meta.full:
                 _figure(col, "Unblocked: {}", f"{meta.unblocked_fraction:.3f}")
-            col.label(text=iface_("Model: {}, brightness {}").format(
-                meta.energy_model, f"{meta.relative_brightness:.3g}"), translate=False)
+            col.label(
+                text=iface_("Model: {}, brightness {}").format(
+                    meta.energy_model, f"{meta.relative_brightness:.3g}"
+                ),
+                translate=False,
+            )
             _lines(col, meta.note, width)
             if meta.energy_model == EXACT_PROFILE:
                 _lines(layout.column(align=True), iface_(EXACT_POWER_NOTE), width, icon="INFO")

@@ -33,6 +33,7 @@ probe cannot run (a render is in progress, the render is refused), the viewport
 depsgraph is read instead with the render-visibility rules applied by hand, and
 the read says so (``BlenderSceneRead.how``).
 """
+
 from __future__ import annotations
 
 import math
@@ -55,12 +56,12 @@ class _ProbeRun:
         self.fn, self.done, self.value, self.error = fn, False, None, None
 
     def __call__(self, depsgraph):
-        if self.done:               # multi-view: one call is enough
+        if self.done:  # multi-view: one call is enough
             return
         self.done = True
         try:
             self.value = self.fn(depsgraph)
-        except BaseException as exc:        # re-raised outside the render
+        except BaseException as exc:  # re-raised outside the render
             self.error = exc
 
 
@@ -70,6 +71,7 @@ _ACTIVE_RUN: _ProbeRun | None = None
 class LENS_LIGHTS_RE_probe(bpy.types.RenderEngine):
     """Registered only while `rendered_depsgraph` renders: hands over the render
     depsgraph and draws nothing."""
+
     bl_idname = "LENS_LIGHTS_PROBE"
     bl_label = "Lens Lights scene probe"
     bl_use_preview = False
@@ -106,13 +108,14 @@ def _probe(scene, view_layer, fn):
         for layer in copy.view_layers:
             layer.use = layer.name == view_layer.name
         if copy.camera is None:
-            camera = bpy.data.objects.new("Lens Lights probe camera",
-                                          bpy.data.cameras.new("Lens Lights probe camera"))
+            camera = bpy.data.objects.new(
+                "Lens Lights probe camera", bpy.data.cameras.new("Lens Lights probe camera")
+            )
             copy.collection.objects.link(camera)
             copy.camera = camera
         _ACTIVE_RUN = run
         bpy.ops.render.render(scene=copy.name, layer=view_layer.name)
-    except Exception as exc:                    # noqa: BLE001  (the caller falls back)
+    except Exception as exc:  # noqa: BLE001  (the caller falls back)
         if run.error is None:
             raise ProbeUnavailable(f"the probe render failed: {str(exc).strip()}") from None
     finally:
@@ -123,18 +126,25 @@ def _probe(scene, view_layer, fn):
             steps.append(lambda: bpy.data.scenes.remove(copy))
         if camera is not None:
             data = camera.data
-            steps += [lambda: bpy.data.objects.remove(camera),
-                      lambda: bpy.data.cameras.remove(data)]
+            steps += [
+                lambda: bpy.data.objects.remove(camera),
+                lambda: bpy.data.cameras.remove(data),
+            ]
         if registered:
             steps.append(lambda: bpy.utils.unregister_class(LENS_LIGHTS_RE_probe))
-        steps.append(lambda: [bpy.data.images.remove(img) for img in list(bpy.data.images)
-                              if img.type == "RENDER_RESULT"
-                              and img.as_pointer() not in results_before])
+        steps.append(
+            lambda: [
+                bpy.data.images.remove(img)
+                for img in list(bpy.data.images)
+                if img.type == "RENDER_RESULT" and img.as_pointer() not in results_before
+            ]
+        )
         for step in steps:
             try:
                 step()
-            except Exception:                   # noqa: BLE001
+            except Exception:  # noqa: BLE001
                 import traceback
+
                 traceback.print_exc()
     if run.error is not None:
         raise run.error

@@ -46,13 +46,13 @@ Rules:
   Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
 * Lights the extension created are skipped entirely.
 """
+
 from __future__ import annotations
 
 import bpy
 import numpy as np
 
 from ..addon.instances import Indexed, InstanceNames  # noqa: F401  (re-exported)
-from ..addon.tiers import LensOptics
 from ..addon.material_model import MaterialOptics
 from ..addon.scene import Camera
 from ..addon.scene_read import (  # noqa: F401
@@ -74,18 +74,29 @@ from ..addon.scene_read import (  # noqa: F401
     surface_block,
 )
 from ..addon.sphere_fit import fit_sphere
+from ..addon.tiers import LensOptics
 from .material_reader import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
 from .render_probe import ProbeUnavailable, rendered_depsgraph  # noqa: F401  (re-exported)
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME",
-                  "GREASEPENCIL"}
+GEOMETRY_TYPES = {
+    "MESH",
+    "CURVE",
+    "SURFACE",
+    "META",
+    "FONT",
+    "CURVES",
+    "POINTCLOUD",
+    "VOLUME",
+    "GREASEPENCIL",
+}
 #: Geometry that blocks rays (`occluders`) through its evaluated mesh.
 MESHABLE_TYPES = {"CURVE", "SURFACE", "META", "FONT"}
 READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 
 
 # --------------------------------------------------------------------------- visibility
+
 
 def _render_visible_objects(view_layer) -> set:
     """Original objects in at least one collection enabled for rendering (used
@@ -110,6 +121,7 @@ def _is_lens_light(ob) -> bool:
 
 
 # --------------------------------------------------------------------------- geometry
+
 
 def _mesh_arrays(mesh):
     nv, nf = len(mesh.vertices), len(mesh.polygons)
@@ -158,22 +170,33 @@ def _camera(scene) -> Camera:
     data = cam.data
     fov = (45.0, 45.0)
     if data.type == "PERSP":
-        fov = perspective_fov(data.angle_x, data.angle_y, data.angle, data.sensor_fit,
-                              *_render_size(scene))
+        fov = perspective_fov(
+            data.angle_x, data.angle_y, data.angle, data.sensor_fit, *_render_size(scene)
+        )
     return camera_from_matrix(np.array([list(row) for row in cam.matrix_world], dtype=float), fov)
 
 
 # --------------------------------------------------------------------------- groups
 
+
 def _light_group(ob, orig) -> InstanceGroup:
     ld = ob.data
     radius = float(ld.shadow_soft_size)
-    power = light_power(ld.energy, getattr(ld, "exposure", 0.0), getattr(ld, "normalize", True),
-                        radius)
-    color = light_color(ld.color, ld.temperature_color if getattr(ld, "use_temperature", False)
-                        else None)
-    return InstanceGroup(LIGHT_GROUP, ob.name, orig, light_type=ld.type, power=power,
-                         light_radius=radius, color=color)
+    power = light_power(
+        ld.energy, getattr(ld, "exposure", 0.0), getattr(ld, "normalize", True), radius
+    )
+    color = light_color(
+        ld.color, ld.temperature_color if getattr(ld, "use_temperature", False) else None
+    )
+    return InstanceGroup(
+        LIGHT_GROUP,
+        ob.name,
+        orig,
+        light_type=ld.type,
+        power=power,
+        light_radius=radius,
+        color=color,
+    )
 
 
 def _material_optics_cached(material, cache) -> MaterialOptics:
@@ -190,24 +213,32 @@ def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
     corners = _corners(ob)
     if ob.type != "MESH":
         source = MeshSource.from_object(ob) if ob.type in MESHABLE_TYPES else None
-        return InstanceGroup(OTHER_GROUP, ob.name, orig, corners,
-                             f"not a mesh ({ob.type.lower()})", looks_like_lens=mode == "ALWAYS",
-                             mesh_source=source)
+        return InstanceGroup(
+            OTHER_GROUP,
+            ob.name,
+            orig,
+            corners,
+            f"not a mesh ({ob.type.lower()})",
+            looks_like_lens=mode == "ALWAYS",
+            mesh_source=source,
+        )
     mesh = ob.data
     if len(mesh.vertices) == 0:
-        return None                          # nothing rendered (e.g. an instancer's own mesh)
+        return None  # nothing rendered (e.g. an instancer's own mesh)
     source = MeshSource(mesh)
     material = main_material(ob, mesh)
     optics = _material_optics_cached(material, optics_cache)
     looks_like_lens = mode == "ALWAYS" or (mode == "AUTO" and optics.is_transmissive)
     fit = _local_fit(mesh, corners, fit_cache)
     if not fit.ok:
-        return InstanceGroup(OTHER_GROUP, ob.name, orig, corners, fit.reason, looks_like_lens,
-                             mesh_source=source)
+        return InstanceGroup(
+            OTHER_GROUP, ob.name, orig, corners, fit.reason, looks_like_lens, mesh_source=source
+        )
     override = settings.ior_override if settings and settings.use_ior_override else None
     ior, kt, weight = lens_material(optics, mode, override)
-    surface_optics = MaterialOptics(ior=ior, transmission=kt, tint=optics.tint,
-                                    absorption=optics.absorption)
+    surface_optics = MaterialOptics(
+        ior=ior, transmission=kt, tint=optics.tint, absorption=optics.absorption
+    )
     if material is None:
         color = (0.8, 0.8, 0.8)
     elif node_tree(material) is None:
@@ -215,12 +246,24 @@ def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
     else:
         color = optics.color
     return InstanceGroup(
-        SPHERE_GROUP, ob.name, orig, corners, "", looks_like_lens, mesh_source=source,
-        center=np.asarray(fit.center, dtype=float), radius=float(fit.radius),
-        ior=float(ior), kt=float(kt), lens_like=kt > 0.0 and ior > 1.0,
-        optics=LensOptics(transmission_weight=weight, tint=tuple(optics.tint),
-                          absorption=tuple(optics.absorption)),
-        surface=surface_block(surface_optics, color), notes=list(optics.notes))
+        SPHERE_GROUP,
+        ob.name,
+        orig,
+        corners,
+        "",
+        looks_like_lens,
+        mesh_source=source,
+        center=np.asarray(fit.center, dtype=float),
+        radius=float(fit.radius),
+        ior=float(ior),
+        kt=float(kt),
+        lens_like=kt > 0.0 and ior > 1.0,
+        optics=LensOptics(
+            transmission_weight=weight, tint=tuple(optics.tint), absorption=tuple(optics.absorption)
+        ),
+        surface=surface_block(surface_optics, color),
+        notes=list(optics.notes),
+    )
 
 
 def _classify(ob, orig, groups, fit_cache, optics_cache) -> int:
@@ -237,6 +280,7 @@ def _classify(ob, orig, groups, fit_cache, optics_cache) -> int:
 
 
 # --------------------------------------------------------------------------- main
+
 
 def read_blender_scene(context_or_depsgraph) -> BlenderSceneRead:
     """The scene as the renderer sees it (see the module's docstring): from a
@@ -298,12 +342,13 @@ class _InstanceWalk:
         key = (ob.as_pointer(), orig.as_pointer(), data.as_pointer() if data is not None else 0)
         gid = self.keys.get(key)
         if gid is None:
-            gid = self.keys[key] = _classify(ob, orig, self.groups, self.fit_cache,
-                                             self.optics_cache)
+            gid = self.keys[key] = _classify(
+                ob, orig, self.groups, self.fit_cache, self.optics_cache
+            )
         if gid < 0:
             return
         self.gid.append(gid)
-        self.mats.append(np.array(inst.matrix_world))      # copied now: the iterator reuses it
+        self.mats.append(np.array(inst.matrix_world))  # copied now: the iterator reuses it
         self.pid.append(pid)
 
 
@@ -312,8 +357,9 @@ def read_depsgraph(depsgraph, scene=None) -> BlenderSceneRead:
     camera and resolution the read reports (default: the depsgraph's)."""
     scene = scene if scene is not None else depsgraph.scene
     viewport = depsgraph.mode != "RENDER"
-    walk = _InstanceWalk(viewport, _render_visible_objects(depsgraph.view_layer)
-                         if viewport else None)
+    walk = _InstanceWalk(
+        viewport, _render_visible_objects(depsgraph.view_layer) if viewport else None
+    )
     for inst in depsgraph.object_instances:
         walk.add(inst)
     return _assemble(scene, walk, RENDER if not viewport else "viewport")
@@ -323,11 +369,24 @@ def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
     """Everything after the pass over the instances (`addon.scene_read.assemble`),
     and the occluders made of the instances' meshes."""
     width, height = _render_size(scene)
-    read, blocking = assemble(walk.groups, np.asarray(walk.gid, dtype=np.int64),
-                              np.array(walk.mats).reshape(-1, 4, 4),
-                              np.asarray(walk.pid, dtype=np.int64), walk.parent_names, how,
-                              width, height, _camera(scene))
-    read.occluders = Occluders(read.arrays.center, read.arrays.radius, blocking.matrices,
-                               blocking.box_lo, blocking.box_hi, blocking.source_index,
-                               blocking.sources)
+    read, blocking = assemble(
+        walk.groups,
+        np.asarray(walk.gid, dtype=np.int64),
+        np.array(walk.mats).reshape(-1, 4, 4),
+        np.asarray(walk.pid, dtype=np.int64),
+        walk.parent_names,
+        how,
+        width,
+        height,
+        _camera(scene),
+    )
+    read.occluders = Occluders(
+        read.arrays.center,
+        read.arrays.radius,
+        blocking.matrices,
+        blocking.box_lo,
+        blocking.box_hi,
+        blocking.source_index,
+        blocking.sources,
+    )
     return read

@@ -1,4 +1,5 @@
 """What the extension has made in a scene (for the operators' polls)."""
+
 from __future__ import annotations
 
 import bpy
@@ -22,5 +23,4 @@ def has_lens_lights(scene) -> bool:
         mark = coll.get(COLLECTION_MARK) if coll is not None else None
         if mark == "link" or (mark is not None and not coll.objects and not coll.children):
             return True
-    return any(img.get(COLLECTION_MARK) == "profile" and img.users == 0
-               for img in bpy.data.images)
+    return any(img.get(COLLECTION_MARK) == "profile" and img.users == 0 for img in bpy.data.images)

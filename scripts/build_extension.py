@@ -10,6 +10,7 @@ Copies the work tree without hidden files and folders (``.git``, ``.pytest_cache
 then ``blender_ext.py validate ZIP``, and prints the zip's path. Exit status 0 on
 success; the tool's own output goes to stderr.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,8 +18,8 @@ import importlib.util
 import re
 import shutil
 import subprocess
-import tempfile
 import sys
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -52,9 +53,14 @@ def run_tool(*args) -> subprocess.CompletedProcess:
 def _ignore(folder, names):
     """Leave out hidden entries, caches and earlier builds when staging the tree."""
     top = Path(folder).resolve() == ROOT
-    return {n for n in names
-            if n.startswith(".") or n == "__pycache__" or n.endswith((".pyc", ".zip"))
-            or (top and n == DEFAULT_OUTPUT.name)}
+    return {
+        n
+        for n in names
+        if n.startswith(".")
+        or n == "__pycache__"
+        or n.endswith((".pyc", ".zip"))
+        or (top and n == DEFAULT_OUTPUT.name)
+    }
 
 
 def build(output_dir: Path = DEFAULT_OUTPUT) -> Path:
@@ -80,10 +86,17 @@ def build(output_dir: Path = DEFAULT_OUTPUT) -> Path:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="build_extension", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--output-dir", type=Path, default=DEFAULT_OUTPUT,
-                        help=f"where the zip goes (default: {DEFAULT_OUTPUT})")
+    parser = argparse.ArgumentParser(
+        prog="build_extension",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--output-dir",
+        type=Path,
+        default=DEFAULT_OUTPUT,
+        help=f"where the zip goes (default: {DEFAULT_OUTPUT})",
+    )
     args = parser.parse_args(argv)
     try:
         path = build(args.output_dir)

@@ -21,6 +21,7 @@ Subcommands:
   fuzz [--count N] [--seed S]
                              fuzz the .bi reader and `phase1` (100 000 inputs by default)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,6 +45,7 @@ def _fail(message: str) -> int:
 
 # --------------------------------------------------------------------------- phase1
 
+
 def _fmt_vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
 
@@ -63,8 +65,10 @@ def blender_lights(scene, result, model: str) -> list:
     colour, a sphere's transmission weight is its kt (clear: Base Color white),
     the scene's bounds are those of its lights and spheres."""
     import numpy as np
+
     from addon.bi_conversions import watts_from_brightness
     from addon.tiers import LensOptics, PrimaryLight, make_blender_light
+
     pts = [np.asarray(l.position, dtype=float) for l in scene.lights]
     for o in scene.objects:
         c, r = np.asarray(o.center, dtype=float), abs(float(o.radius))
@@ -78,11 +82,17 @@ def blender_lights(scene, result, model: str) -> list:
     out = []
     for s in result.sources:
         light = scene.lights[s.light]
-        primary = PrimaryLight(power_w=watts_from_brightness(light.brightness),
-                               radius=float(light.radius), color=tuple(light.color))
+        primary = PrimaryLight(
+            power_w=watts_from_brightness(light.brightness),
+            radius=float(light.radius),
+            color=tuple(light.color),
+        )
         optics = LensOptics(transmission_weight=float(scene.objects[s.lens].surface.transmission))
-        out.append(make_blender_light(s, primary, model.upper(), optics=optics,
-                                      scene_size=size, scene_bounds=bounds))
+        out.append(
+            make_blender_light(
+                s, primary, model.upper(), optics=optics, scene_size=size, scene_bounds=bounds
+            )
+        )
     return out
 
 
@@ -90,25 +100,38 @@ def format_phase1_table(result, lights=None, model: str = "") -> str:
     """A readable report of phase 1: one row per source (with `lights`, a
     `tier_tables.LightTable` or a list of `BlenderLight`, the energy of its
     Blender light for the tier `model`), then the skipped pairs."""
-    lines = [f"{len(result.sources)} secondary light source(s), "
-             f"{len(result.skipped)} light × sphere pair(s) skipped", ""]
+    lines = [
+        f"{len(result.sources)} secondary light source(s), "
+        f"{len(result.skipped)} light × sphere pair(s) skipped",
+        "",
+    ]
     if result.sources:
         energy = f"{'energy W':>10} " if lights is not None else ""
-        header = (f"{'light':>5} {'lens':>4}  {'kind':<10} {'position':<28} "
-                  f"{'spread°':>8} {'R_C':>8} {'intensity':>9} {energy} shadow")
+        header = (
+            f"{'light':>5} {'lens':>4}  {'kind':<10} {'position':<28} "
+            f"{'spread°':>8} {'R_C':>8} {'intensity':>9} {energy} shadow"
+        )
         if lights is not None:
             lines.insert(1, f"energy: Blender light power (W) with the {model.lower()} tier")
-            energies = (lights.energy_w.tolist() if hasattr(lights, "energy_w")
-                        else [bl.energy_w for bl in lights])
+            energies = (
+                lights.energy_w.tolist()
+                if hasattr(lights, "energy_w")
+                else [bl.energy_w for bl in lights]
+            )
         lines += [header, "-" * len(header)]
         for k, s in enumerate(result.sources):
             rc = f"{s.cylinder_radius:.4g}" if s.cylinder_radius is not None else "-"
-            shadow = "full" if s.full else "non-full, blocked by " + ", ".join(
-                f"sphere {k}" for k in s.shadow_list)
+            shadow = (
+                "full"
+                if s.full
+                else "non-full, blocked by " + ", ".join(f"sphere {k}" for k in s.shadow_list)
+            )
             e = f"{energies[k]:>10.4g} " if lights is not None else ""
-            lines.append(f"{s.light:>5} {s.lens:>4}  {s.kind:<10} "
-                         f"{_fmt_vec(s.position):<28} {s.spread_deg:>8.4g} {rc:>8} "
-                         f"{s.intensity:>9.4g} {e} {shadow}")
+            lines.append(
+                f"{s.light:>5} {s.lens:>4}  {s.kind:<10} "
+                f"{_fmt_vec(s.position):<28} {s.spread_deg:>8.4g} {rc:>8} "
+                f"{s.intensity:>9.4g} {e} {shadow}"
+            )
     if result.skipped:
         lines += ["", "skipped:"]
         lines += [f"  light {k.light} × sphere {k.lens}: {k.reason}" for k in result.skipped]
@@ -121,6 +144,7 @@ def phase1_light_table(scene, result, model: str):
     import numpy as np
 
     from addon.tier_tables import bi_scene_light_table
+
     radius = np.array([float(lt.radius) for lt in scene.lights], dtype=float)
     return bi_scene_light_table(result._arrays, result.table, model, radius)
 
@@ -133,48 +157,87 @@ def _skip_reasons(result) -> list[tuple[int, int, str]]:
     """(light, lens, reason) of each skipped pair; a text made once per distinct
     (code, the numbers it names)."""
     from addon import phase1 as p1
+
     a, k = result._arrays, result.skip_table
     memo: dict = {}
 
     def reason(code, lens, other):
-        key = (code, lens if code in (p1.INVALID_SPHERE_RADIUS, p1.INVALID_KT,
-                                      p1.NOT_CONVERGING) else -1, other)
+        key = (
+            code,
+            lens if code in (p1.INVALID_SPHERE_RADIUS, p1.INVALID_KT, p1.NOT_CONVERGING) else -1,
+            other,
+        )
         if key not in memo:
-            memo[key] = p1.reason_text(code, float(a.radius[lens]), float(a.ior[lens]),
-                                       float(a.kt[lens]), other)
+            memo[key] = p1.reason_text(
+                code, float(a.radius[lens]), float(a.ior[lens]), float(a.kt[lens]), other
+            )
         return memo[key]
-    return [(j, i, reason(c, i, o))
-            for j, i, c, o in zip(k.light.tolist(), k.lens.tolist(), k.code.tolist(),
-                                  k.other.tolist(), strict=True)]
+
+    return [
+        (j, i, reason(c, i, o))
+        for j, i, c, o in zip(
+            k.light.tolist(), k.lens.tolist(), k.code.tolist(), k.other.tolist(), strict=True
+        )
+    ]
 
 
 def phase1_json_rows(result, lights):
     """The JSON of each source (with its Blender light) and of each skipped pair,
     made from the columns: every array becomes a list once."""
     import numpy as np
+
     t = result.table
     col = t.kind == 2
     with np.errstate(divide="ignore", invalid="ignore"):
         image = np.where(col, np.nan, 1.0 / t.vergence)
         magnification = np.where(col, np.nan, -1.0 / (t.vergence * t.distance))
 
-    def maybe(values, when):                # None where `when`
+    def maybe(values, when):  # None where `when`
         return [None if c else v for v, c in zip(values.tolist(), when.tolist(), strict=True)]
+
     bl = lights.json_columns()
     bl_keys = list(bl)
     blender = [dict(zip(bl_keys, row, strict=True)) for row in zip(*bl.values(), strict=True)]
     shadow = _split(t.shadow_spheres.tolist(), t.shadow_offsets.tolist())
     kinds = np.asarray(t.KINDS)[t.kind].tolist()
     sources = [
-        {"light": j, "lens": i, "kind": k, "position": pos, "axis": ax, "spread_deg": sp,
-         "cylinder_radius": rc, "intensity": it, "color": c, "full": not sh,
-         "shadow_list": sh, "image_distance": im, "magnification": m, "brightness_factor": bf,
-         "unblocked_fraction": uf, "blender_light": b}
+        {
+            "light": j,
+            "lens": i,
+            "kind": k,
+            "position": pos,
+            "axis": ax,
+            "spread_deg": sp,
+            "cylinder_radius": rc,
+            "intensity": it,
+            "color": c,
+            "full": not sh,
+            "shadow_list": sh,
+            "image_distance": im,
+            "magnification": m,
+            "brightness_factor": bf,
+            "unblocked_fraction": uf,
+            "blender_light": b,
+        }
         for j, i, k, pos, ax, sp, rc, it, c, sh, im, m, bf, uf, b in zip(
-            t.light.tolist(), t.lens.tolist(), kinds, t.position.tolist(), t.axis.tolist(),
-            np.degrees(t.spread).tolist(), maybe(t.cylinder_radius, ~col), t.intensity.tolist(),
-            t.color.tolist(), shadow, maybe(image, col), maybe(magnification, col),
-            t.brightness_factor.tolist(), t.unblocked_fraction.tolist(), blender, strict=True)]
+            t.light.tolist(),
+            t.lens.tolist(),
+            kinds,
+            t.position.tolist(),
+            t.axis.tolist(),
+            np.degrees(t.spread).tolist(),
+            maybe(t.cylinder_radius, ~col),
+            t.intensity.tolist(),
+            t.color.tolist(),
+            shadow,
+            maybe(image, col),
+            maybe(magnification, col),
+            t.brightness_factor.tolist(),
+            t.unblocked_fraction.tolist(),
+            blender,
+            strict=True,
+        )
+    ]
     skipped = [{"light": j, "lens": i, "reason": r} for j, i, r in _skip_reasons(result)]
     return sources, skipped
 
@@ -183,8 +246,9 @@ def phase1_json_rows(result, lights):
 JSON_CHUNK = 20_000
 
 
-def write_phase1_json(out, model: str, sources: list, skipped: list,
-                      indent: int | None = None) -> None:
+def write_phase1_json(
+    out, model: str, sources: list, skipped: list, indent: int | None = None
+) -> None:
     """`{"model": …, "sources": […], "skipped": […]}` to `out`, streamed in chunks
     of rows, each encoded by the C encoder at once. `indent`: as `json.dump`'s
     (the text is the same as `json.dump` of the whole object would write); None:
@@ -195,9 +259,10 @@ def write_phase1_json(out, model: str, sources: list, skipped: list,
 
     def rows(items, depth):
         for start in range(0, len(items), JSON_CHUNK):
-            text = json.dumps(items[start:start + JSON_CHUNK], indent=indent,
-                              separators=seps)[1:-1]
-            if indent is not None:          # "\n  row,\n  row\n", one level deeper
+            text = json.dumps(items[start : start + JSON_CHUNK], indent=indent, separators=seps)[
+                1:-1
+            ]
+            if indent is not None:  # "\n  row,\n  row\n", one level deeper
                 text = text[:-1].replace("\n", "\n" + pad * (depth - 1))[1:]
             yield ("," + nl if start else "") + text
 
@@ -221,13 +286,15 @@ _SOURCE_ROW = (
     '"spread_deg":%r,"cylinder_radius":%s,"intensity":%r,"color":[%r,%r,%r],"full":%s,'
     '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%r,'
     '"unblocked_fraction":%r,"blender_light":{"type":"SPOT","energy_w":%r,'
-    '"spot_size_deg":%r,"spot_blend":%r,"radius":%r}}')
+    '"spot_size_deg":%r,"spot_blend":%r,"radius":%r}}'
+)
 
 
 def _texts(values, present) -> list[str]:
     """repr of each value where `present`, else "null" (JSON's None)."""
-    return [repr(v) if p else "null"
-            for v, p in zip(values.tolist(), present.tolist(), strict=True)]
+    return [
+        repr(v) if p else "null" for v, p in zip(values.tolist(), present.tolist(), strict=True)
+    ]
 
 
 def phase1_compact_json(result, lights, model: str):
@@ -236,6 +303,7 @@ def phase1_compact_json(result, lights, model: str):
     None when a row needs `json.dumps`' care (a non-finite number, a light with
     a profile table)."""
     import numpy as np
+
     t = result.table
     if lights.profile_info is not None:
         return None
@@ -243,22 +311,51 @@ def phase1_compact_json(result, lights, model: str):
     with np.errstate(divide="ignore", invalid="ignore"):
         image = np.where(col, 0.0, 1.0 / t.vergence)
         magnification = np.where(col, 0.0, -1.0 / (t.vergence * t.distance))
-    floats = [t.position, t.axis, t.spread, t.intensity, t.color, t.brightness_factor,
-              t.unblocked_fraction, lights.energy_w, lights.spot_size_deg, lights.spot_blend,
-              lights.radius, image, magnification, np.where(col, t.cylinder_radius, 0.0)]
+    floats = [
+        t.position,
+        t.axis,
+        t.spread,
+        t.intensity,
+        t.color,
+        t.brightness_factor,
+        t.unblocked_fraction,
+        lights.energy_w,
+        lights.spot_size_deg,
+        lights.spot_blend,
+        lights.radius,
+        image,
+        magnification,
+        np.where(col, t.cylinder_radius, 0.0),
+    ]
     if not all(np.all(np.isfinite(f)) for f in floats):
         return None
     offsets, flat = t.shadow_offsets.tolist(), t.shadow_spheres.tolist()
-    shadow = [",".join(map(str, flat[a:b])) if b > a else ""
-              for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
+    shadow = [
+        ",".join(map(str, flat[a:b])) if b > a else ""
+        for a, b in zip(offsets[:-1], offsets[1:], strict=True)
+    ]
     full = np.where(np.diff(t.shadow_offsets) == 0, "true", "false").tolist()
-    columns = [t.light.tolist(), t.lens.tolist(), np.asarray(t.KINDS)[t.kind].tolist(),
-               *t.position.T.tolist(), *t.axis.T.tolist(), np.degrees(t.spread).tolist(),
-               _texts(t.cylinder_radius, col), t.intensity.tolist(), *t.color.T.tolist(),
-               full, shadow, _texts(image, ~col), _texts(magnification, ~col),
-               t.brightness_factor.tolist(), t.unblocked_fraction.tolist(),
-               lights.energy_w.tolist(), lights.spot_size_deg.tolist(),
-               lights.spot_blend.tolist(), lights.radius.tolist()]
+    columns = [
+        t.light.tolist(),
+        t.lens.tolist(),
+        np.asarray(t.KINDS)[t.kind].tolist(),
+        *t.position.T.tolist(),
+        *t.axis.T.tolist(),
+        np.degrees(t.spread).tolist(),
+        _texts(t.cylinder_radius, col),
+        t.intensity.tolist(),
+        *t.color.T.tolist(),
+        full,
+        shadow,
+        _texts(image, ~col),
+        _texts(magnification, ~col),
+        t.brightness_factor.tolist(),
+        t.unblocked_fraction.tolist(),
+        lights.energy_w.tolist(),
+        lights.spot_size_deg.tolist(),
+        lights.spot_blend.tolist(),
+        lights.radius.tolist(),
+    ]
     rows = list(zip(*columns, strict=True))
     reasons = _skip_reasons(result)
 
@@ -266,21 +363,27 @@ def phase1_compact_json(result, lights, model: str):
         yield '{"model":' + json.dumps(model) + ',"sources":['
         for start in range(0, len(rows), JSON_CHUNK):
             yield ("," if start else "") + ",".join(
-                [_SOURCE_ROW % row for row in rows[start:start + JSON_CHUNK]])
+                [_SOURCE_ROW % row for row in rows[start : start + JSON_CHUNK]]
+            )
         yield '],"skipped":['
         texts: dict[str, str] = {}
         for start in range(0, len(reasons), JSON_CHUNK):
             yield ("," if start else "") + ",".join(
-                [f'{{"light":{j},"lens":{i},"reason":'
-                 f'{texts.get(r) or texts.setdefault(r, json.dumps(r))}}}'
-                 for j, i, r in reasons[start:start + JSON_CHUNK]])
+                [
+                    f'{{"light":{j},"lens":{i},"reason":'
+                    f"{texts.get(r) or texts.setdefault(r, json.dumps(r))}}}"
+                    for j, i, r in reasons[start : start + JSON_CHUNK]
+                ]
+            )
         yield "]}\n"
+
     return chunks()
 
 
 def cmd_phase1(args) -> int:
     from addon.bi_format import BiFormatError, read_bi
     from addon.phase1 import compute_phase1
+
     try:
         scene = read_bi(args.scene)
     except BiFormatError as e:
@@ -290,8 +393,9 @@ def cmd_phase1(args) -> int:
     result = compute_phase1(scene)
     lights = phase1_light_table(scene, result, args.model)
     if args.json:
-        chunks = (phase1_compact_json(result, lights, args.model.upper())
-                  if args.indent is None else None)
+        chunks = (
+            phase1_compact_json(result, lights, args.model.upper()) if args.indent is None else None
+        )
         if chunks is not None:
             for text in chunks:
                 sys.stdout.write(text)
@@ -326,13 +430,17 @@ def cmd_test(args, extra) -> int:
     code = subprocess.call(cmd, cwd=ROOT)
     if code != 0 or chosen or not targets:
         return code
-    print(f"lens-lights: the Blender tests on Blender {MINIMUM_BLENDER} "
-          "(the manifest's minimum)", flush=True)
-    return subprocess.call([str(ROOT / "lens-lights"), "test", "--blender", MINIMUM_BLENDER,
-                            *extra], cwd=ROOT)
+    print(
+        f"lens-lights: the Blender tests on Blender {MINIMUM_BLENDER} (the manifest's minimum)",
+        flush=True,
+    )
+    return subprocess.call(
+        [str(ROOT / "lens-lights"), "test", "--blender", MINIMUM_BLENDER, *extra], cwd=ROOT
+    )
 
 
 # --------------------------------------------------------------------------- bench
+
 
 def cmd_bench(args, extra) -> int:
     script = ROOT / "bench" / f"{args.name}.py"
@@ -344,9 +452,11 @@ def cmd_bench(args, extra) -> int:
 
 # --------------------------------------------------------------------------- render, demo, build
 
+
 def _load_script(name: str):
     """A module of scripts/ by file (cli.py may run from anywhere)."""
     import importlib.util
+
     path = ROOT / "scripts" / f"{name}.py"
     spec = importlib.util.spec_from_file_location(f"lens_lights_scripts_{name}", path)
     module = importlib.util.module_from_spec(spec)
@@ -366,38 +476,61 @@ def cmd_build(args, extra) -> int:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="lens-lights", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="lens-lights",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("phase1", help="secondary light sources of a .bi scene")
     p.add_argument("scene", help="a .bi scene file")
-    p.add_argument("--json", action="store_true",
-                   help="print JSON instead of a table (compact: one line, no blanks)")
-    p.add_argument("--indent", type=int, default=None, metavar="N",
-                   help="with --json: indent nested levels by N spaces, for people")
-    p.add_argument("--model", choices=PHASE1_MODELS, default=PHASE1_DEFAULT_MODEL,
-                   type=str.lower,
-                   help=("lens-light tier of each source's Blender light (default: "
-                         f"{PHASE1_DEFAULT_MODEL}, the most accurate that renders in both "
-                         "EEVEE and Cycles; exact_profile is Cycles only)"))
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print JSON instead of a table (compact: one line, no blanks)",
+    )
+    p.add_argument(
+        "--indent",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --json: indent nested levels by N spaces, for people",
+    )
+    p.add_argument(
+        "--model",
+        choices=PHASE1_MODELS,
+        default=PHASE1_DEFAULT_MODEL,
+        type=str.lower,
+        help=(
+            "lens-light tier of each source's Blender light (default: "
+            f"{PHASE1_DEFAULT_MODEL}, the most accurate that renders in both "
+            "EEVEE and Cycles; exact_profile is Cycles only)"
+        ),
+    )
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
 
     # Its options (--count, --seed) and --help are scripts/fuzz_bi.py's own.
-    sub.add_parser("fuzz", add_help=False,
-                   help="fuzz the .bi reader and phase1 (`fuzz --help`: its options)")
+    sub.add_parser(
+        "fuzz", add_help=False, help="fuzz the .bi reader and phase1 (`fuzz --help`: its options)"
+    )
 
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
 
     render = _load_script("render")
-    render.add_render_arguments(sub.add_parser(
-        "render", help="render a .blend or .bi scene (with lens lights by default)"))
-    render.add_demo_arguments(sub.add_parser(
-        "demo", help="render the showcase scene without and with lens lights"))
-    sub.add_parser("build", add_help=False,
-                   help="build the extension's zip (args go to scripts/build_extension.py)")
+    render.add_render_arguments(
+        sub.add_parser("render", help="render a .blend or .bi scene (with lens lights by default)")
+    )
+    render.add_demo_arguments(
+        sub.add_parser("demo", help="render the showcase scene without and with lens lights")
+    )
+    sub.add_parser(
+        "build",
+        add_help=False,
+        help="build the extension's zip (args go to scripts/build_extension.py)",
+    )
 
     args, extra = parser.parse_known_args(argv)
     if args.command == "build":
@@ -410,14 +543,13 @@ def main(argv=None) -> int:
         return subprocess.call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
     if extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
-    return {"phase1": cmd_phase1, "render": cmd_render,
-            "demo": cmd_render}[args.command](args)
+    return {"phase1": cmd_phase1, "render": cmd_render, "demo": cmd_render}[args.command](args)
 
 
 if __name__ == "__main__":
     try:
         code = main()
-    except BrokenPipeError:          # `… | head` closed the pipe: not an error
+    except BrokenPipeError:  # `… | head` closed the pipe: not an error
         sys.stderr.close()
         code = 0
     # The bpy module of Blender 4.2 crashes (4.5: hangs) in its static destructors at

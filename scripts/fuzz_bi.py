@@ -19,6 +19,7 @@ line of a refused import is captured); the run ends with a summary: inputs,
 parsed, refused as expected, failures (the first 5 failures are shown in full).
 Exit status 0 without failures, 1 with, 2 for bad arguments.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,8 +42,32 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from addon.bi_format import BiFormatError, parse_bi  # noqa: E402
 from addon.phase1 import compute_phase1  # noqa: E402
 
-TOKENS = ["0", "-1", "1e308", "1e-320", "nan", "inf", "-inf", "1e999", "x", "", "1.5.2",
-          "0x10", "+3", "  ", "/*", "*/", "#T", "T", "S", "L", "O", "2", "-0", "99999999999"]
+TOKENS = [
+    "0",
+    "-1",
+    "1e308",
+    "1e-320",
+    "nan",
+    "inf",
+    "-inf",
+    "1e999",
+    "x",
+    "",
+    "1.5.2",
+    "0x10",
+    "+3",
+    "  ",
+    "/*",
+    "*/",
+    "#T",
+    "T",
+    "S",
+    "L",
+    "O",
+    "2",
+    "-0",
+    "99999999999",
+]
 
 
 def mutate(text: str, rng: random.Random) -> str:
@@ -64,7 +89,7 @@ def mutate(text: str, rng: random.Random) -> str:
             words[rng.randrange(len(words))] = rng.choice(TOKENS)
             lines[i] = " ".join(words)
         elif op == 4:
-            lines[i] = lines[i][:rng.randrange(len(lines[i]) + 1)]
+            lines[i] = lines[i][: rng.randrange(len(lines[i]) + 1)]
         elif op == 5:
             lines = lines[:i]
         elif op == 6:
@@ -73,7 +98,7 @@ def mutate(text: str, rng: random.Random) -> str:
             s = lines[i]
             if s:
                 k = rng.randrange(len(s))
-                lines[i] = s[:k] + chr(rng.randrange(1, 0x3000)) + s[k + 1:]
+                lines[i] = s[:k] + chr(rng.randrange(1, 0x3000)) + s[k + 1 :]
     return "\n".join(lines)
 
 
@@ -92,11 +117,13 @@ def check_phase1_json(scene) -> None:
         if isinstance(x, list):
             for v in x:
                 finite(v)
+
     finite(compute_phase1(scene).to_json())
 
 
 def check_cli(text: str, tmp: Path) -> None:
     import cli
+
     path = tmp / "fuzz.bi"
     path.write_bytes(text.encode("utf-8", "surrogatepass"))
     out, err = io.StringIO(), io.StringIO()
@@ -145,11 +172,12 @@ def check_import_operator(text: str, tmp: Path) -> None:
         with captured_output(printed):
             import bpy
             from dev_extension import PACKAGE, load_extension
+
             if PACKAGE not in sys.modules:
                 load_extension().register()
             bpy.ops.wm.read_factory_settings(use_empty=True)
             bpy.ops.import_scene.bi(filepath=str(path))
-    except RuntimeError as e:          # the operator's ERROR report, as bpy.ops raises it
+    except RuntimeError as e:  # the operator's ERROR report, as bpy.ops raises it
         msg = str(e)
         if "Traceback" in msg or f"{path}:" not in msg:
             raise AssertionError(f"bad import report: {msg!r}") from e
@@ -170,12 +198,24 @@ def positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="lens-lights fuzz", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--count", type=positive_int, default=100_000, metavar="N",
-                    help="number of generated inputs (default: 100000)")
-    ap.add_argument("--seed", type=int, default=0,
-                    help="seed of the generator (default: 0); the same seed, the same inputs")
+    ap = argparse.ArgumentParser(
+        prog="lens-lights fuzz",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "--count",
+        type=positive_int,
+        default=100_000,
+        metavar="N",
+        help="number of generated inputs (default: 100000)",
+    )
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the generator (default: 0); the same seed, the same inputs",
+    )
     return ap
 
 
@@ -208,8 +248,10 @@ def main(argv=None) -> int:
             if (n + 1) % 10_000 == 0:
                 print(f"{n + 1} inputs, {failures} failures", flush=True)
     dt = time.perf_counter() - t0
-    print(f"fuzz: {args.count} inputs in {dt:.1f} s: {parsed} parsed, {errors} refused as "
-          f"expected (an error with a line number), {failures} failure(s)")
+    print(
+        f"fuzz: {args.count} inputs in {dt:.1f} s: {parsed} parsed, {errors} refused as "
+        f"expected (an error with a line number), {failures} failure(s)"
+    )
     return 1 if failures else 0
 
 

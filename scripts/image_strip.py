@@ -7,6 +7,7 @@ Images are float RGB arrays, rows top to bottom. The image formats are those of
 display-referred values (the view transform applied); OpenEXR holds linear scene
 values as 32-bit floats.
 """
+
 from __future__ import annotations
 
 import os
@@ -18,8 +19,15 @@ LABEL_WITHOUT, LABEL_WITH = "WITHOUT LENS LIGHTS", "WITH LENS LIGHTS"
 SHORT_WITHOUT, SHORT_WITH = "WITHOUT", "WITH"
 
 #: File extension → Blender's `ImageFormatSettings.file_format`.
-IMAGE_FORMATS = {".png": "PNG", ".jpg": "JPEG", ".jpeg": "JPEG", ".exr": "OPEN_EXR",
-                 ".tif": "TIFF", ".tiff": "TIFF", ".webp": "WEBP"}
+IMAGE_FORMATS = {
+    ".png": "PNG",
+    ".jpg": "JPEG",
+    ".jpeg": "JPEG",
+    ".exr": "OPEN_EXR",
+    ".tif": "TIFF",
+    ".tiff": "TIFF",
+    ".webp": "WEBP",
+}
 #: Formats written as floats (linear); the others as 8-bit display values.
 FLOAT_FORMATS = {"OPEN_EXR"}
 
@@ -46,10 +54,12 @@ def apply_format(settings, file_format: str, alpha: bool = False) -> None:
 
 # --------------------------------------------------------------------------- reading, writing
 
+
 def read_image(path: str) -> np.ndarray:
     """An image file as a float RGB array (rows top to bottom): 8-bit formats as
     byte/255, OpenEXR as stored. A transparent film is composed over black."""
     import bpy
+
     image = bpy.data.images.load(os.path.abspath(path), check_existing=False)
     try:
         w, h = image.size
@@ -72,6 +82,7 @@ def write_image(rgb: np.ndarray, path: str, file_format: str | None = None) -> N
     0–1 and rounded to bytes here, so a PNG holds exactly these bytes; OpenEXR
     gets the floats as they are."""
     import bpy
+
     file_format = file_format or image_format(path)
     if file_format is None:
         raise ValueError(f"{path}: not an image type we write ({allowed_extensions()})")
@@ -159,8 +170,10 @@ _FONT_ROWS = {
     "|": "..#..|..#..|..#..|..#..|..#..|..#..|..#..",
     "?": ".###.|#...#|....#|...#.|..#..|.....|..#..",
 }
-FONT = {ch: np.array([[c == "#" for c in row] for row in rows.split("|")], dtype=bool)
-        for ch, rows in _FONT_ROWS.items()}
+FONT = {
+    ch: np.array([[c == "#" for c in row] for row in rows.split("|")], dtype=bool)
+    for ch, rows in _FONT_ROWS.items()
+}
 GLYPH_W, GLYPH_H, GLYPH_GAP = 5, 7, 1
 
 
@@ -176,7 +189,7 @@ def text_mask(text: str, scale: int) -> np.ndarray:
     for i, ch in enumerate(text.upper()):
         glyph = FONT.get(ch, FONT["?"])
         x = i * (GLYPH_W + GLYPH_GAP)
-        mask[:, x:x + GLYPH_W] = glyph
+        mask[:, x : x + GLYPH_W] = glyph
     return np.kron(mask, np.ones((scale, scale), dtype=bool))
 
 
@@ -195,16 +208,19 @@ def _fit_label(labels: tuple[str, ...], width: int, scale: int) -> tuple[str, in
     return None
 
 
-def compose_side_by_side(left: np.ndarray, right: np.ndarray,
-                         labels=((LABEL_WITHOUT, SHORT_WITHOUT), (LABEL_WITH, SHORT_WITH)),
-                         gap: int = 4) -> np.ndarray:
+def compose_side_by_side(
+    left: np.ndarray,
+    right: np.ndarray,
+    labels=((LABEL_WITHOUT, SHORT_WITHOUT), (LABEL_WITH, SHORT_WITH)),
+    gap: int = 4,
+) -> np.ndarray:
     """One image: `left | right` (RGB float arrays, top row first, same height),
     each under a dark band with its label in white."""
     h = max(left.shape[0], right.shape[0])
     panels = []
     for image, names in zip((left, right), labels, strict=True):
         pad = np.zeros((h, image.shape[1], 3), dtype=np.float32)
-        pad[:image.shape[0]] = image
+        pad[: image.shape[0]] = image
         panels.append((pad, names))
     scale = label_scale(min(image.shape[1] for image, _ in panels))
     fits = [_fit_label(names, image.shape[1], scale) for image, names in panels]
@@ -218,7 +234,7 @@ def compose_side_by_side(left: np.ndarray, right: np.ndarray,
         if fit:
             mask = text_mask(fit[0], scale)
             x0 = max(0, (image.shape[1] - mask.shape[1]) // 2)
-            band[margin:margin + mask.shape[0], x0:x0 + mask.shape[1]][mask] = ink
+            band[margin : margin + mask.shape[0], x0 : x0 + mask.shape[1]][mask] = ink
         columns.append(np.concatenate([band, image.astype(np.float32)], axis=0))
     separator = np.full((h + band_h, gap, 3), band_color, dtype=np.float32)
     return np.concatenate([columns[0], separator, columns[1]], axis=1)
@@ -226,8 +242,7 @@ def compose_side_by_side(left: np.ndarray, right: np.ndarray,
 
 def compare_images(without_path: str, with_path: str, out_path: str) -> None:
     """`out_path` (its format by extension): the two images side by side, labelled."""
-    write_image(compose_side_by_side(read_image(without_path), read_image(with_path)),
-                out_path)
+    write_image(compose_side_by_side(read_image(without_path), read_image(with_path)), out_path)
 
 
 #: The name kept for callers of the PNG-only version.

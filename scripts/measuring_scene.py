@@ -9,6 +9,7 @@ bench/blender_light_check.py (import it with `scripts/` on `sys.path`, as
 tests/conftest.py puts it). The samplers (Cycles' bounces, samples, pixel filter,
 EEVEE's options) differ between them and stay with each caller.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,8 +20,8 @@ from typing import Any
 class MeasuringScene:
     scene: Any
     floor: Any
-    ball: Any = None           # None: no ball
-    lamp: Any = None           # None: no point light
+    ball: Any = None  # None: no ball
+    lamp: Any = None  # None: no point light
     camera: Any = None
 
 
@@ -30,6 +31,7 @@ def new_measuring_scene(engine: str, resolution: int | tuple[int, int]):
     Standard view transform, no look, exposure 0, gamma 1, an opaque film and
     no world (black: `bpy.data.worlds.new()` would bring a 0.05 grey)."""
     import bpy
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     sc.render.engine = engine
@@ -53,6 +55,7 @@ def new_material(name: str):
     """A material with its node tree (Principled BSDF → Material Output); before
     Blender 5.0 a new material has no nodes until `use_nodes` is set."""
     import bpy
+
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
@@ -62,6 +65,7 @@ def new_material(name: str):
 def add_diffuse_floor(size: float, albedo: float = 0.8, name: str = "Floor"):
     """A square plane of `size` at z = 0 with a grey Diffuse BSDF of `albedo`."""
     import bpy
+
     mat = new_material(name)
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
@@ -75,23 +79,32 @@ def add_diffuse_floor(size: float, albedo: float = 0.8, name: str = "Floor"):
     return floor
 
 
-def add_glass_ball(radius: float, location, ior: float = 1.5, segments: int = 48,
-                   rings: int = 24, name: str = "Ball", material=None,
-                   hide_from_indirect: bool = False):
+def add_glass_ball(
+    radius: float,
+    location,
+    ior: float = 1.5,
+    segments: int = 48,
+    rings: int = 24,
+    name: str = "Ball",
+    material=None,
+    hide_from_indirect: bool = False,
+):
     """A smooth-shaded UV sphere of clear glass (Principled BSDF: transmission 1,
     roughness 0, white) hidden from the camera (the floor under it shows through;
     it still casts its shadow and caustic); `hide_from_indirect` also hides it
     from diffuse and glossy rays. `material`: reuse that glass."""
     import bpy
+
     if material is None:
         material = new_material("Glass")
         bsdf = material.node_tree.nodes["Principled BSDF"]
         bsdf.inputs["Transmission Weight"].default_value = 1.0
         bsdf.inputs["IOR"].default_value = ior
         bsdf.inputs["Roughness"].default_value = 0.0
-        bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)   # clear glass
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=tuple(location),
-                                         segments=segments, ring_count=rings)
+        bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)  # clear glass
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        radius=radius, location=tuple(location), segments=segments, ring_count=rings
+    )
     ball = bpy.context.object
     ball.name = name
     ball.data.materials.append(material)
@@ -106,6 +119,7 @@ def add_glass_ball(radius: float, location, ior: float = 1.5, segments: int = 48
 def add_point_light(location, power: float, radius: float = 0.0, name: str = "Lamp"):
     """A point light of `power` W and `radius` (0: a true point)."""
     import bpy
+
     data = bpy.data.lights.new(name, "POINT")
     data.energy = power
     data.shadow_soft_size = radius
@@ -115,11 +129,18 @@ def add_point_light(location, power: float, radius: float = 0.0, name: str = "La
     return lamp
 
 
-def add_top_camera(x: float, y: float, height: float, view: float,
-                   clip_end: float | None = None, name: str = "Camera"):
+def add_top_camera(
+    x: float,
+    y: float,
+    height: float,
+    view: float,
+    clip_end: float | None = None,
+    name: str = "Camera",
+):
     """An orthographic camera at (x, y, height) looking straight down (unrotated:
     image x is world x, image y world y), `view` metres wide; the scene's camera."""
     import bpy
+
     cam = bpy.data.objects.new(name, bpy.data.cameras.new(name))
     bpy.context.scene.collection.objects.link(cam)
     cam.data.type = "ORTHO"
@@ -131,10 +152,19 @@ def add_top_camera(x: float, y: float, height: float, view: float,
     return cam
 
 
-def build_measuring_scene(engine: str, *, resolution, floor_size: float, albedo: float = 0.8,
-                          view: float, camera_xy=(0.0, 0.0), camera_height: float,
-                          clip_end: float | None = None, ball: dict | None = None,
-                          lamp: dict | None = None) -> MeasuringScene:
+def build_measuring_scene(
+    engine: str,
+    *,
+    resolution,
+    floor_size: float,
+    albedo: float = 0.8,
+    view: float,
+    camera_xy=(0.0, 0.0),
+    camera_height: float,
+    clip_end: float | None = None,
+    ball: dict | None = None,
+    lamp: dict | None = None,
+) -> MeasuringScene:
     """The whole scene: `new_measuring_scene`, the floor, then the ball
     (`ball`: keyword arguments of `add_glass_ball`, None: no ball), the point
     light (`lamp`: of `add_point_light`, None: none) and the camera, in this

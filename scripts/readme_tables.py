@@ -8,6 +8,7 @@ only the lines between the markers are replaced. ``tiers``: the energy models
 (tiers) from their registry, `addon/tiers` (label, engines, accuracy figures of
 reports/accuracy.md, what each trades).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,8 +33,10 @@ def _figure(x: float) -> str:
 
 
 def tier_table() -> str:
-    rows = ["| tier | engines | L1 mean (worst case) | what it trades |",
-            "| --- | --- | --- | --- |"]
+    rows = [
+        "| tier | engines | L1 mean (worst case) | what it trades |",
+        "| --- | --- | --- | --- |",
+    ]
     for t in TIERS.values():
         engines = ", ".join(ENGINE_NAMES[e] for e in t.engines)
         if len(t.engines) == 1:
@@ -52,8 +55,9 @@ TABLES = {"tiers": tier_table}
 def update(text: str) -> str:
     """`text` with every generated table replaced (a missing marker is an error)."""
     for name, make in TABLES.items():
-        pattern = re.compile(rf"(<!-- BEGIN {name}\b[^\n]*-->\n)(.*?)(<!-- END {name} -->)",
-                             re.DOTALL)
+        pattern = re.compile(
+            rf"(<!-- BEGIN {name}\b[^\n]*-->\n)(.*?)(<!-- END {name} -->)", re.DOTALL
+        )
         if not pattern.search(text):
             raise ValueError(f"README has no <!-- BEGIN {name} … --> … <!-- END {name} --> block")
         text = pattern.sub(lambda m, make=make: m.group(1) + make() + "\n" + m.group(3), text)
@@ -68,8 +72,7 @@ def main(argv=None) -> int:
     new = update(old)
     if args.check:
         if new != old:
-            print("README.md is out of date: run python scripts/readme_tables.py",
-                  file=sys.stderr)
+            print("README.md is out of date: run python scripts/readme_tables.py", file=sys.stderr)
             return 1
         return 0
     if new != old:

@@ -22,6 +22,7 @@ demo [--out DIR]          build the showcase scene, render it without and with l
                           lights; writes DIR/showcase.blend, showcase_without.png,
                           showcase_with.png, showcase_compare.png (default DIR: out/)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,12 +67,14 @@ def say(message: str) -> None:
 
 # --------------------------------------------------------------------------- arguments
 
+
 def resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().replace("×", "x").split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected WIDTHxHEIGHT, e.g. 640x480, got '{text}'") from None
+            f"expected WIDTHxHEIGHT, e.g. 640x480, got '{text}'"
+        ) from None
     if not (4 <= w <= 65536 and 4 <= h <= 65536):
         raise argparse.ArgumentTypeError(f"width and height must be 4–65536 pixels, got '{text}'")
     return w, h
@@ -88,43 +91,79 @@ def positive_int(text: str) -> int:
 
 
 def add_engine_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--engine", choices=("cycles", "eevee"),
-                   help="render engine (default: the .blend's own; cycles for a .bi)")
-    p.add_argument("--samples", type=positive_int, metavar="N",
-                   help=f"samples per pixel (default: the .blend's own; "
-                        f"{DEFAULT_BI_SAMPLES} for a .bi)")
-    p.add_argument("--resolution", type=resolution, metavar="WxH",
-                   help="image size in pixels (default: the scene's)")
+    p.add_argument(
+        "--engine",
+        choices=("cycles", "eevee"),
+        help="render engine (default: the .blend's own; cycles for a .bi)",
+    )
+    p.add_argument(
+        "--samples",
+        type=positive_int,
+        metavar="N",
+        help=f"samples per pixel (default: the .blend's own; {DEFAULT_BI_SAMPLES} for a .bi)",
+    )
+    p.add_argument(
+        "--resolution",
+        type=resolution,
+        metavar="WxH",
+        help="image size in pixels (default: the scene's)",
+    )
 
 
 def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a .blend or .bi scene")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.png",
-                   help=("the image to write; its extension picks the format: "
-                         f"{allowed_extensions()} (a missing folder is created)"))
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="OUT.png",
+        help=(
+            "the image to write; its extension picks the format: "
+            f"{allowed_extensions()} (a missing folder is created)"
+        ),
+    )
     add_engine_arguments(p)
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--no-lens-lights", action="store_true",
-                       help="render without lens lights (removes generated ones)")
-    group.add_argument("--compare", action="store_true",
-                       help="one image: without | with lens lights, labelled")
+    group.add_argument(
+        "--no-lens-lights",
+        action="store_true",
+        help="render without lens lights (removes generated ones)",
+    )
+    group.add_argument(
+        "--compare", action="store_true", help="one image: without | with lens lights, labelled"
+    )
 
 
 def add_demo_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default=str(DEFAULT_OUT), metavar="DIR",
-                   help=f"output directory (default: {DEFAULT_OUT})")
-    p.add_argument("--engine", choices=("cycles", "eevee"),
-                   help=f"render engine (default: {DEMO_ENGINE})")
-    p.add_argument("--samples", type=positive_int, metavar="N",
-                   help=f"samples per pixel (default: {DEMO_SAMPLES})")
-    p.add_argument("--resolution", type=resolution, metavar="WxH",
-                   help="image size in pixels (default: the showcase's 480x270)")
+    p.add_argument(
+        "--out",
+        default=str(DEFAULT_OUT),
+        metavar="DIR",
+        help=f"output directory (default: {DEFAULT_OUT})",
+    )
+    p.add_argument(
+        "--engine", choices=("cycles", "eevee"), help=f"render engine (default: {DEMO_ENGINE})"
+    )
+    p.add_argument(
+        "--samples",
+        type=positive_int,
+        metavar="N",
+        help=f"samples per pixel (default: {DEMO_SAMPLES})",
+    )
+    p.add_argument(
+        "--resolution",
+        type=resolution,
+        metavar="WxH",
+        help="image size in pixels (default: the showcase's 480x270)",
+    )
 
 
 # --------------------------------------------------------------------------- extension
 
+
 def _has_operator(module: str, name: str) -> bool:
     import bpy
+
     try:
         getattr(getattr(bpy.ops, module), name).get_rna_type()
         return True
@@ -139,6 +178,7 @@ def ensure_extension():
         return None
     sys.path.insert(0, str(ROOT / "scripts"))
     from dev_extension import load_extension
+
     module = load_extension()
     if not _has_operator("import_scene", "bi"):
         module.register()
@@ -152,7 +192,7 @@ def _run_operator(op, what: str) -> None:
     except RuntimeError as e:
         message = str(e).strip()
         if message.startswith("Error: "):
-            message = message[len("Error: "):]
+            message = message[len("Error: ") :]
         raise RenderError(f"{what}: {message}") from None
     if "FINISHED" not in result:
         raise RenderError(f"{what}: cancelled ({', '.join(sorted(result))})")
@@ -160,8 +200,10 @@ def _run_operator(op, what: str) -> None:
 
 # --------------------------------------------------------------------------- scenes
 
+
 def new_empty_file() -> None:
     import bpy
+
     # Factory startup but the user's preferences (keeps installed extensions).
     bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
 
@@ -169,8 +211,7 @@ def new_empty_file() -> None:
 def check_scene_path(path: str) -> None:
     """A scene argument that names a readable file (before anything is loaded)."""
     if os.path.isdir(path):
-        raise RenderError(f"{path}: is a directory (expected a .blend or .bi file)",
-                          EXIT_BAD_INPUT)
+        raise RenderError(f"{path}: is a directory (expected a .blend or .bi file)", EXIT_BAD_INPUT)
     if not os.path.isfile(path):
         raise RenderError(f"{path}: no such file", EXIT_BAD_INPUT)
 
@@ -181,13 +222,15 @@ def _make_folder(folder: Path, what: str) -> None:
         return
     for parent in (folder, *folder.parents):
         if parent.exists() and not parent.is_dir():
-            raise RenderError(f"{parent}: is not a directory (in the {what} {folder})",
-                              EXIT_BAD_INPUT)
+            raise RenderError(
+                f"{parent}: is not a directory (in the {what} {folder})", EXIT_BAD_INPUT
+            )
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as e:
-        raise RenderError(f"{folder}: cannot create the {what} ({e.strerror or e})",
-                          EXIT_BAD_INPUT) from None
+        raise RenderError(
+            f"{folder}: cannot create the {what} ({e.strerror or e})", EXIT_BAD_INPUT
+        ) from None
 
 
 def check_output(path: str) -> str:
@@ -196,12 +239,16 @@ def check_output(path: str) -> str:
     folder is created (a parent that is a file is an error)."""
     out = Path(os.path.abspath(path))
     if out.is_dir() or path.endswith(("/", os.sep)):
-        raise RenderError(f"{path}: is a directory (expected an image file, e.g. "
-                          f"{Path(path) / 'render.png'})", EXIT_BAD_INPUT)
+        raise RenderError(
+            f"{path}: is a directory (expected an image file, e.g. {Path(path) / 'render.png'})",
+            EXIT_BAD_INPUT,
+        )
     if image_format(out) is None:
         kind = f"'{out.suffix}'" if out.suffix else "no extension"
-        raise RenderError(f"{path}: unknown image type ({kind}); use one of "
-                          f"{allowed_extensions()}", EXIT_BAD_INPUT)
+        raise RenderError(
+            f"{path}: unknown image type ({kind}); use one of {allowed_extensions()}",
+            EXIT_BAD_INPUT,
+        )
     _make_folder(out.parent, "output folder")
     if not os.access(out.parent, os.W_OK):
         raise RenderError(f"{out.parent}: not writable", EXIT_BAD_INPUT)
@@ -212,8 +259,7 @@ def check_output_dir(path: str) -> Path:
     """`demo --out DIR`: a folder (created if missing), checked before rendering."""
     out = Path(os.path.abspath(path))
     if out.exists() and not out.is_dir():
-        raise RenderError(f"{path}: is not a directory (--out takes a folder)",
-                          EXIT_BAD_INPUT)
+        raise RenderError(f"{path}: is not a directory (--out takes a folder)", EXIT_BAD_INPUT)
     _make_folder(out, "output folder")
     if not os.access(out, os.W_OK):
         raise RenderError(f"{out}: not writable", EXIT_BAD_INPUT)
@@ -223,6 +269,7 @@ def check_output_dir(path: str) -> Path:
 def load_scene(path: str) -> bool:
     """Open a .blend or import a .bi into an empty file. Returns True for .bi."""
     import bpy
+
     check_scene_path(path)
     suffix = Path(path).suffix.lower()
     if suffix == ".blend":
@@ -236,8 +283,7 @@ def load_scene(path: str) -> bool:
         new_empty_file()
         ensure_extension()
         try:
-            _run_operator(lambda: bpy.ops.import_scene.bi(filepath=os.path.abspath(path)),
-                          "import")
+            _run_operator(lambda: bpy.ops.import_scene.bi(filepath=os.path.abspath(path)), "import")
         except RenderError as e:
             raise RenderError(str(e).removeprefix("import: "), EXIT_BAD_INPUT) from None
         return True
@@ -246,11 +292,13 @@ def load_scene(path: str) -> bool:
 
 def eevee_engine() -> str:
     import bpy
+
     return "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
 
 
-def configure(scene, engine: str | None, samples: int | None,
-              size: tuple[int, int] | None, is_bi: bool) -> None:
+def configure(
+    scene, engine: str | None, samples: int | None, size: tuple[int, int] | None, is_bi: bool
+) -> None:
     """Engine, samples and size; a .bi scene gets Cycles and 64 samples by default."""
     if engine is None and is_bi:
         engine = "cycles"
@@ -287,18 +335,19 @@ def describe(scene) -> str:
 def set_lens_lights(on: bool) -> str:
     """Generate (on) or clear (off) the scene's lens lights; a short report."""
     import bpy
+
     if not on:
         # Clear's poll refuses a scene without lens lights: nothing to remove then.
         if _has_operator("lens_lights", "clear") and bpy.ops.lens_lights.clear.poll():
             _run_operator(bpy.ops.lens_lights.clear, "removing lens lights")
         return "no lens lights"
     if not _has_operator("lens_lights", "generate"):
-        raise RenderError("the Lens Lights generator (bpy.ops.lens_lights.generate) "
-                          "is not available")
+        raise RenderError(
+            "the Lens Lights generator (bpy.ops.lens_lights.generate) is not available"
+        )
     before = {o.name for o in bpy.data.objects}
     _run_operator(bpy.ops.lens_lights.generate, "generating lens lights")
-    lights = [o for o in bpy.context.scene.objects
-              if o.type == "LIGHT" and o.name not in before]
+    lights = [o for o in bpy.context.scene.objects if o.type == "LIGHT" and o.name not in before]
     return f"{len(lights)} lens light(s)"
 
 
@@ -315,8 +364,10 @@ class _SampleProgress:
         if "Sample" not in text:
             return
         now = time.monotonic()
-        final = "Sample" in text and text.split("Sample")[-1].strip().split("/")[0] == \
-            text.split("/")[-1].strip()
+        final = (
+            "Sample" in text
+            and text.split("Sample")[-1].strip().split("/")[0] == text.split("/")[-1].strip()
+        )
         if now - self.last < self.interval and not final:
             return
         self.last = now
@@ -329,8 +380,10 @@ def render_to(scene, path: str, label: str) -> float:
     """Render the scene's camera view to `path`, in the format its extension names
     (`image_strip.IMAGE_FORMATS`); returns seconds taken."""
     import bpy
-    apply_format(scene.render.image_settings, image_format(path),
-                 alpha=scene.render.film_transparent)
+
+    apply_format(
+        scene.render.image_settings, image_format(path), alpha=scene.render.film_transparent
+    )
     scene.render.use_file_extension = False
     scene.render.filepath = os.path.abspath(path)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -353,10 +406,12 @@ def render_to(scene, path: str, label: str) -> float:
 
 # --------------------------------------------------------------------------- commands
 
+
 def cmd_render(args) -> int:
-    check_scene_path(args.scene)          # both before anything is loaded or rendered
+    check_scene_path(args.scene)  # both before anything is loaded or rendered
     out = check_output(args.output)
     import bpy
+
     say(f"loading {args.scene}")
     is_bi = load_scene(args.scene)
     scene = bpy.context.scene
@@ -405,14 +460,20 @@ def load_showcase():
 def cmd_demo(args) -> int:
     out_dir = check_output_dir(args.out)
     import bpy
+
     say(f"building the showcase scene (output: {out_dir})")
     new_empty_file()
     ensure_extension()
     build_showcase = load_showcase()
     build_showcase(bpy.context.scene)
     scene = bpy.context.scene
-    configure(scene, args.engine or DEMO_ENGINE, args.samples or DEMO_SAMPLES,
-              args.resolution, is_bi=False)
+    configure(
+        scene,
+        args.engine or DEMO_ENGINE,
+        args.samples or DEMO_SAMPLES,
+        args.resolution,
+        is_bi=False,
+    )
     if scene.render.engine == "CYCLES":
         scene.cycles.use_denoising = True
     paths = {k: str(out_dir / f"showcase_{k}.png") for k in ("without", "with", "compare")}
@@ -433,8 +494,9 @@ def cmd_demo(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="render.py", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="render.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     add_render_arguments(sub.add_parser("render", help="render a .blend or .bi scene"))
     add_demo_arguments(sub.add_parser("demo", help="render the showcase scene"))
@@ -453,7 +515,7 @@ def run(args) -> int:
 def main(argv=None) -> int:
     if argv is None:
         # Inside Blender: `blender -b --python render.py -- ARGS`.
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+        argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:]
         if argv and argv[0] not in ("render", "demo", "-h", "--help"):
             argv = ["render", *argv]
     return run(build_parser().parse_args(argv))

@@ -1,4 +1,5 @@
 """Scene builders and a datablock snapshot for the Blender tests (bpy module)."""
+
 from __future__ import annotations
 
 import hashlib
@@ -32,8 +33,9 @@ def node_material(name, kind, **inputs):
 
 
 def add_sphere(name, location, radius=0.5, material=None, segments=32, rings=16):
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=location,
-                                         segments=segments, ring_count=rings)
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        radius=radius, location=location, segments=segments, ring_count=rings
+    )
     ob = bpy.context.object
     ob.name = name
     if material is not None:
@@ -52,16 +54,26 @@ def add_point_light(name, location, energy=1000.0, radius=0.0, kind="POINT"):
 
 
 def lens_lights():
-    return sorted((o for o in bpy.data.objects if o.lens_lights.is_lens_light), key=lambda o: o.name)
+    return sorted(
+        (o for o in bpy.data.objects if o.lens_lights.is_lens_light), key=lambda o: o.name
+    )
 
 
 def generate():
     from lens_lights.operators.generate import generate as run
+
     return run(bpy.context)
 
 
-def gn_instances(name, points, radius=0.25, material=None, instance_object=None, scale=None,
-                 location=(0.0, 0.0, 0.0)):
+def gn_instances(
+    name,
+    points,
+    radius=0.25,
+    material=None,
+    instance_object=None,
+    scale=None,
+    location=(0.0, 0.0, 0.0),
+):
     """A mesh object whose geometry nodes put an instance on each of `points`
     (a list of (x, y, z) in its local space): a UV sphere geometry with `material`
     (geometry instances), or `instance_object` (object instances, Object Info "As
@@ -128,30 +140,53 @@ def grid(n, spacing=1.0, z=0.0):
 
 #: RNA properties that are bookkeeping, not content (or change by merely being
 #: looked at / evaluated).
-SKIP_PROPS = {"rna_type", "users", "session_uid", "is_evaluated", "original", "tag",
-              "is_runtime_data", "preview", "bl_rna", "id_data", "is_editmode", "bindcode",
-              "is_dirty", "has_data", "is_missing", "use_extra_user", "is_library_indirect",
-              "library_weak_reference", "depsgraph", "statistics", "frame_current_final",
-              "is_embedded_data", "name_full", "is_editable", "is_linked_packed",
-              "use_nodes",        # deprecated (always on in 5.0; warns when read)
-              "particle_edit",    # runtime state of particle edit mode (undo resets it)
-              # Blender 5.2 keeps a constant attribute as one value ('SINGLE') and expands
-              # it to an 'ARRAY' when its `data` is read: the snapshot's own reading
-              # changes it, nothing of the extension's does (tests/test_blender_generate.py
-              # pins that the snapshot is stable).
-              "storage_type",
-              "uv_sculpt",        # Blender 4.2: reading ToolSettings.uv_sculpt.brush crashes
-              "lens_lights"}      # the extension's own settings (checked separately)
+SKIP_PROPS = {
+    "rna_type",
+    "users",
+    "session_uid",
+    "is_evaluated",
+    "original",
+    "tag",
+    "is_runtime_data",
+    "preview",
+    "bl_rna",
+    "id_data",
+    "is_editmode",
+    "bindcode",
+    "is_dirty",
+    "has_data",
+    "is_missing",
+    "use_extra_user",
+    "is_library_indirect",
+    "library_weak_reference",
+    "depsgraph",
+    "statistics",
+    "frame_current_final",
+    "is_embedded_data",
+    "name_full",
+    "is_editable",
+    "is_linked_packed",
+    "use_nodes",  # deprecated (always on in 5.0; warns when read)
+    "particle_edit",  # runtime state of particle edit mode (undo resets it)
+    # Blender 5.2 keeps a constant attribute as one value ('SINGLE') and expands
+    # it to an 'ARRAY' when its `data` is read: the snapshot's own reading
+    # changes it, nothing of the extension's does (tests/test_blender_generate.py
+    # pins that the snapshot is stable).
+    "storage_type",
+    "uv_sculpt",  # Blender 4.2: reading ToolSettings.uv_sculpt.brush crashes
+    "lens_lights",
+}  # the extension's own settings (checked separately)
 MAX_ITEMS = 64
 
 
 def _ours(value) -> bool:
     """A datablock the extension created (its lights, collections, images)."""
     from lens_lights.operators.properties import COLLECTION_MARK
+
     if isinstance(value, bpy.types.Object):
         return bool(value.lens_lights.is_lens_light)
     if isinstance(value, bpy.types.ID) and value.get(COLLECTION_MARK) is not None:
-        return True                     # its collections and profile images
+        return True  # its collections and profile images
     if isinstance(value, bpy.types.LayerCollection):
         return _ours(value.collection)
     if isinstance(value, bpy.types.Light):
@@ -196,16 +231,33 @@ def _struct(s, depth):
                 out.append((pid, _struct(value, depth - 1)))
         elif prop.type == "COLLECTION":
             if depth > 0:
-                items = [x for x in list(value)[:MAX_ITEMS * 4] if not _ours(x)][:MAX_ITEMS]
-                out.append((pid, tuple("ID " + x.name_full if isinstance(x, bpy.types.ID)
-                                       else _struct(x, depth - 1) for x in items)))
+                items = [x for x in list(value)[: MAX_ITEMS * 4] if not _ours(x)][:MAX_ITEMS]
+                out.append(
+                    (
+                        pid,
+                        tuple(
+                            "ID " + x.name_full
+                            if isinstance(x, bpy.types.ID)
+                            else _struct(x, depth - 1)
+                            for x in items
+                        ),
+                    )
+                )
         else:
             out.append((pid, _value(value)))
     try:
         # Before 5.0 `keys()` also lists properties registered from Python
         # (`scene.lens_lights`): only the custom ones count here.
-        out.append(("custom", tuple(sorted((k, repr(_idprop(s[k]))) for k in s.keys()
-                                           if k not in s.bl_rna.properties))))
+        out.append(
+            (
+                "custom",
+                tuple(
+                    sorted(
+                        (k, repr(_idprop(s[k]))) for k in s.keys() if k not in s.bl_rna.properties
+                    )
+                ),
+            )
+        )
     except (TypeError, AttributeError):
         pass
     return tuple(out)
@@ -213,14 +265,31 @@ def _struct(s, depth):
 
 def _mesh_digest(mesh):
     import numpy as np
+
     v = np.empty(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", v)
     return hashlib.sha1(np.round(v, 7).tobytes()).hexdigest()
 
 
-DATA = ("objects", "meshes", "materials", "lights", "collections", "worlds", "cameras",
-        "node_groups", "images", "libraries", "scenes", "textures", "curves", "actions",
-        "particles", "volumes", "pointclouds")
+DATA = (
+    "objects",
+    "meshes",
+    "materials",
+    "lights",
+    "collections",
+    "worlds",
+    "cameras",
+    "node_groups",
+    "images",
+    "libraries",
+    "scenes",
+    "textures",
+    "curves",
+    "actions",
+    "particles",
+    "volumes",
+    "pointclouds",
+)
 
 
 def snapshot(depth=3) -> dict:
@@ -253,6 +322,11 @@ def snapshot_diff(a: dict, b: dict, limit=8) -> list[str]:
         if a[k] != b[k]:
             da, db = dict(a[k]), dict(b[k])
             keys = [p for p in set(da) | set(db) if da.get(p) != db.get(p)]
-            out.append(f"{k}: " + ", ".join(f"{p}: {str(da.get(p))[:120]} → {str(db.get(p))[:120]}"
-                                            for p in sorted(keys)[:4]))
+            out.append(
+                f"{k}: "
+                + ", ".join(
+                    f"{p}: {str(da.get(p))[:120]} → {str(db.get(p))[:120]}"
+                    for p in sorted(keys)[:4]
+                )
+            )
     return out[:limit]

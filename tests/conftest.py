@@ -1,4 +1,5 @@
 """Make the repository root importable so tests can `import addon` without Blender."""
+
 import sys
 from pathlib import Path
 
@@ -9,7 +10,6 @@ if str(ROOT) not in sys.path:
 sys.path.insert(0, str(ROOT / "scripts"))
 
 import pytest  # noqa: E402
-
 from dev_extension import load_extension  # noqa: E402
 
 
@@ -17,6 +17,7 @@ from dev_extension import load_extension  # noqa: E402
 def extension():
     """The extension, registered once in the bpy module for the whole session."""
     import bpy  # noqa: F401  (the pinned environment has it; never skip)
+
     module = load_extension()
     module.register()
     yield module
@@ -27,9 +28,9 @@ def extension():
 def empty_blend(extension):
     """A fresh empty file for one test (the extension stays registered)."""
     import bpy
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return bpy.context
-
 
 
 def pytest_configure(config):

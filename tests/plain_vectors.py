@@ -2,15 +2,16 @@
 
 On purpose not numpy: the expected values must not share the code's numpy path.
 """
+
 import math
 
 
 def vsub(a, b):
-    return tuple(x - y for x, y in zip(a, b))
+    return tuple(x - y for x, y in zip(a, b, strict=False))
 
 
 def vadd(a, b):
-    return tuple(x + y for x, y in zip(a, b))
+    return tuple(x + y for x, y in zip(a, b, strict=False))
 
 
 def vscale(a, s):
@@ -18,7 +19,7 @@ def vscale(a, s):
 
 
 def vdot(a, b):
-    return sum(x * y for x, y in zip(a, b))
+    return sum(x * y for x, y in zip(a, b, strict=False))
 
 
 def vcross(a, b):

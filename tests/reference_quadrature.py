@@ -2,6 +2,7 @@
 quadratures over the cone of directions from an on-axis point light to the lens,
 built on the 1-D exact optics of :mod:`addon.exact_optics` (SPEC 6), never on the
 tracer under test."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,8 +24,10 @@ def cone_grid(D, R, n, n_iota=1500, n_phi=720, absorption=0.0):
     d_omega_dphi = k * k * np.sin(iota) * np.cos(iota) / np.cos(fan.psi) * h
     phi = (np.arange(n_phi) + 0.5) * (2.0 * np.pi / n_phi)
     psi = fan.psi[:, None]
-    dirs = np.stack(np.broadcast_arrays(np.sin(psi) * np.cos(phi), np.sin(psi) * np.sin(phi),
-                                        np.cos(psi)), axis=-1).reshape(-1, 3)
+    dirs = np.stack(
+        np.broadcast_arrays(np.sin(psi) * np.cos(phi), np.sin(psi) * np.sin(phi), np.cos(psi)),
+        axis=-1,
+    ).reshape(-1, 3)
     w = np.repeat(fan.transmission * d_omega_dphi, n_phi) * (2.0 * np.pi / n_phi)
     return dirs, w
 
@@ -41,5 +44,6 @@ def disc_mean_transmission(n, n_iota=200_000):
     parameter ``b = R sin iota`` is uniform over the disc's area)."""
     h = 0.5 * np.pi / n_iota
     iota = (np.arange(n_iota) + 0.5) * h
-    return float(np.sum(2.0 * np.sin(iota) * np.cos(iota) * xo.two_surface_transmission(iota, n))
-                 * h)
+    return float(
+        np.sum(2.0 * np.sin(iota) * np.cos(iota) * xo.two_surface_transmission(iota, n)) * h
+    )

@@ -1,4 +1,5 @@
 """The pure `.bi` ↔ Blender conversions (no bpy): camera, lights, materials."""
+
 import math
 
 import numpy as np
@@ -9,8 +10,8 @@ from hypothesis import strategies as st
 from addon import bi_conversions as conv
 from addon.scene import Camera, Surface
 
-
 # --------------------------------------------------------------------------- lights
+
 
 def test_brightness_watts_rule():
     assert conv.WATTS_PER_BRIGHTNESS == 10_000.0
@@ -18,7 +19,9 @@ def test_brightness_watts_rule():
     assert conv.watts_from_brightness(0.25) == 2_500.0
     assert conv.brightness_from_watts(10_000.0) == 1.0
     for b in (0.0, 1e-6, 0.7, 3.0, 1e6):
-        assert conv.brightness_from_watts(conv.watts_from_brightness(b)) == pytest.approx(b, rel=1e-15)
+        assert conv.brightness_from_watts(conv.watts_from_brightness(b)) == pytest.approx(
+            b, rel=1e-15
+        )
 
 
 def test_brightness_rule_exposure():
@@ -26,10 +29,11 @@ def test_brightness_rule_exposure():
     to pixel value 1 at sqrt(W)/(2π) ≈ 15.9 units (Blender: P / (4π² d²))."""
     d = math.sqrt(conv.WATTS_PER_BRIGHTNESS) / (2 * math.pi)
     assert d == pytest.approx(15.915, abs=1e-3)
-    assert conv.watts_from_brightness(1) / (4 * math.pi ** 2 * d ** 2) == pytest.approx(1.0)
+    assert conv.watts_from_brightness(1) / (4 * math.pi**2 * d**2) == pytest.approx(1.0)
 
 
 # --------------------------------------------------------------------------- camera
+
 
 def test_lens_from_fov():
     lens, sensor = conv.lens_from_fov(90.0)
@@ -49,7 +53,9 @@ def test_pixel_aspect_square_and_matching():
     assert conv.pixel_aspect_from_fov(60, v, 400, 200) == pytest.approx((1.0, 1.0))
     # a square image spanning 60° × 30°: pixels wider than high
     pax, pay = conv.pixel_aspect_from_fov(60, 30, 200, 200)
-    assert pay == 1.0 and pax == pytest.approx(math.tan(math.radians(30)) / math.tan(math.radians(15)))
+    assert pay == 1.0 and pax == pytest.approx(
+        math.tan(math.radians(30)) / math.tan(math.radians(15))
+    )
 
 
 def test_pixel_aspect_out_of_blender_range():
@@ -67,8 +73,9 @@ def test_resolution_out_of_blender_range():
 
 
 @settings(max_examples=200, deadline=None)
-@given(h=st.floats(0.5, 175), v=st.floats(0.5, 175),
-       w=st.integers(4, 4000), hh=st.integers(4, 4000))
+@given(
+    h=st.floats(0.5, 175), v=st.floats(0.5, 175), w=st.integers(4, 4000), hh=st.integers(4, 4000)
+)
 def test_fov_round_trip(h, v, w, hh):
     """Opening angles → lens, sensor, pixel aspect → Blender's own sensor-fit rule
     gives the angles back."""
@@ -106,12 +113,12 @@ def test_look_at_basis():
     assert np.allclose(rot.T @ rot, np.eye(3)) and np.linalg.det(rot) == pytest.approx(1)
     forward = np.subtract((1, 1, -1), (0, 0, 10))
     forward = forward / np.linalg.norm(forward)
-    assert np.allclose(-rot[:, 2], forward)            # looks along −Z
+    assert np.allclose(-rot[:, 2], forward)  # looks along −Z
     up = rot[:, 1]
     assert up @ (0, 1, 0) > 0
     # up lies in the plane of U and the view direction
     assert abs(np.linalg.det(np.column_stack([up, forward, (0, 1, 0)]))) < 1e-12
-    assert rot[:, 0] @ (0, 1, 0) == pytest.approx(0, abs=1e-12)   # no roll
+    assert rot[:, 0] @ (0, 1, 0) == pytest.approx(0, abs=1e-12)  # no roll
 
 
 def test_look_at_parallel_up_falls_back():
@@ -145,7 +152,7 @@ def test_camera_round_trip_same_view(values):
 
 def test_same_view_detects_changes():
     a = Camera(position=(0, 0, 10), target=(1, 1, -1), up=(0, 1, 0))
-    b = Camera(position=(0, 0, 10), target=(2, 2, -12), up=(0.7, 3.7, -7.7))   # 3U + 0.7 view: same
+    b = Camera(position=(0, 0, 10), target=(2, 2, -12), up=(0.7, 3.7, -7.7))  # 3U + 0.7 view: same
     assert conv.same_view(a, b)
     assert not conv.same_view(a, Camera(position=(0, 0, 10.01), target=(1, 1, -1)))
     assert not conv.same_view(a, Camera(position=(0, 0, 10), target=(1, 1.01, -1)))
@@ -153,6 +160,7 @@ def test_same_view_detects_changes():
 
 
 # --------------------------------------------------------------------------- materials
+
 
 def is_lens(surface):
     return surface.transmission > 0 and surface.ior > 1
@@ -172,8 +180,13 @@ THESIS_SURFACES = [
 def test_principled_mapping_table():
     glass = conv.principled_from_surface(THESIS_SURFACES[0])
     # glass refracts untinted (white Base Color); its colour is the viewport colour
-    assert glass == {"Base Color": (1.0, 1.0, 1.0, 1.0), "Metallic": 0.0,
-                     "Roughness": 0.0, "IOR": 1.5171, "Transmission Weight": 0.7}
+    assert glass == {
+        "Base Color": (1.0, 1.0, 1.0, 1.0),
+        "Metallic": 0.0,
+        "Roughness": 0.0,
+        "IOR": 1.5171,
+        "Transmission Weight": 0.7,
+    }
     assert conv.viewport_color(THESIS_SURFACES[0]) == (100 / 255, 10 / 255, 10 / 255, 1.0)
     red = conv.principled_from_surface(THESIS_SURFACES[1])
     assert red["Metallic"] == 0.0 and red["Transmission Weight"] == 0.0
@@ -181,7 +194,7 @@ def test_principled_mapping_table():
     assert red["Roughness"] == pytest.approx(math.sqrt(2 / 72))
     assert red["IOR"] == conv.OPAQUE_IOR
     mirror = conv.principled_from_surface(THESIS_SURFACES[3])
-    assert mirror["Metallic"] == 1.0                        # kd 0, ks 0.8: a metal
+    assert mirror["Metallic"] == 1.0  # kd 0, ks 0.8: a metal
     half = conv.principled_from_surface(THESIS_SURFACES[4])
     assert half["Metallic"] == 0.5
     dull = conv.principled_from_surface(Surface(diffuse=0, specular=0, exponent=0))
@@ -190,8 +203,9 @@ def test_principled_mapping_table():
 
 @pytest.mark.parametrize("surface", THESIS_SURFACES)
 def test_principled_inverse_keeps_what_phase1_uses(surface):
-    back = conv.surface_from_principled(conv.principled_from_surface(surface),
-                                        conv.viewport_color(surface))
+    back = conv.surface_from_principled(
+        conv.principled_from_surface(surface), conv.viewport_color(surface)
+    )
     assert back.transmission == surface.transmission
     assert back.color == pytest.approx(surface.color)
     if surface.transmission > 0:
@@ -211,8 +225,9 @@ def test_surface_from_foreign_principled():
     default = conv.surface_from_principled({})
     assert default.transmission == 0.0 and default.color == pytest.approx((0.8,) * 3)
     assert default.exponent == pytest.approx(2 / 0.25 - 2)
-    glass = conv.surface_from_principled({"Transmission Weight": 1.0, "IOR": 1.45,
-                                          "Roughness": 0.0, "Metallic": 0.3})
+    glass = conv.surface_from_principled(
+        {"Transmission Weight": 1.0, "IOR": 1.45, "Roughness": 0.0, "Metallic": 0.3}
+    )
     assert is_lens(glass) and glass.ior == 1.45 and glass.exponent == conv.GLASS_EXPONENT
     mirror = conv.surface_from_principled({"Roughness": 0.0, "Metallic": 1.0})
     assert mirror.exponent == conv.MAX_EXPONENT and mirror.specular == 1.0
@@ -228,14 +243,17 @@ def test_surface_from_foreign_principled():
 
 def test_principled_matches_float32():
     values = conv.principled_from_surface(THESIS_SURFACES[0])
-    f32 = {k: tuple(float(np.float32(x)) for x in v) if isinstance(v, tuple) else float(np.float32(v))
-           for k, v in values.items()}
+    f32 = {
+        k: tuple(float(np.float32(x)) for x in v) if isinstance(v, tuple) else float(np.float32(v))
+        for k, v in values.items()
+    }
     assert conv.principled_matches(values, f32)
     f32["IOR"] = 1.52
     assert not conv.principled_matches(values, f32)
 
 
 # --------------------------------------------------------------------------- stored numbers
+
 
 def test_prefer_stored():
     stored = (3.0, 3.0, 3.0)
@@ -248,12 +266,14 @@ def test_prefer_stored():
     # a component near 0 is judged against `scale`
     assert conv.prefer_stored((1e-8, 1.0, 2.0), (0.0, 1.0, 2.0), scale=1.0) == (0.0, 1.0, 2.0)
     assert conv.prefer_stored((1e-8, 1.0, 2.0), (0.0, 1.0, 2.0), scale=1e-6) == (1e-8, 1.0, 2.0)
-    assert conv.prefer_stored((1.0, 2.0), (1.0, 2.0, 3.0)) == (1.0, 2.0)   # shape mismatch
+    assert conv.prefer_stored((1.0, 2.0), (1.0, 2.0, 3.0)) == (1.0, 2.0)  # shape mismatch
 
 
 def test_header_line():
-    text = "/* a comment\n over two lines */\nV 200 200\nC 0 0 10 /* pos */\nA 1 1 -1\n" \
-           "U 0 1 0\n\n  B 45 45\nL 0\nO 0\n"
+    text = (
+        "/* a comment\n over two lines */\nV 200 200\nC 0 0 10 /* pos */\nA 1 1 -1\n"
+        "U 0 1 0\n\n  B 45 45\nL 0\nO 0\n"
+    )
     assert conv.header_line(text, "V") == 3
     assert conv.header_line(text, "B") == 8
     assert conv.header_line(text, "X") is None

@@ -1,4 +1,5 @@
 """Tests of the `.bi` reader and writer (addon/bi_format.py); no Blender needed."""
+
 import math
 import os
 import tempfile
@@ -76,23 +77,38 @@ def assert_error(text, line, *fragments):
 # --------------------------------------------------------------------------- #
 # The example files against SPEC section 8
 
+
 def test_esfera_is_the_spec_sample():
     s = example("esfera.bi")
     assert (s.width, s.height) == (200, 200)
-    assert s.camera == Camera(position=(15, 15, 15), target=(6, 6, 6), up=(0, 1, 0),
-                              fov_deg=(20, 20))
+    assert s.camera == Camera(
+        position=(15, 15, 15), target=(6, 6, 6), up=(0, 1, 0), fov_deg=(20, 20)
+    )
     assert s.color_scale == 1.0
     assert s.lights == [Light(position=(15, 15, 15), color=(1, 1, 1), brightness=1)]
-    assert s.objects == [Sphere(center=(3, 7, 1), radius=2, surface=Surface(
-        color=(1, 0, 0), ambient=0.1, diffuse=0.5, specular=0.4, transmission=0,
-        exponent=6, ior=1))]
+    assert s.objects == [
+        Sphere(
+            center=(3, 7, 1),
+            radius=2,
+            surface=Surface(
+                color=(1, 0, 0),
+                ambient=0.1,
+                diffuse=0.5,
+                specular=0.4,
+                transmission=0,
+                exponent=6,
+                ior=1,
+            ),
+        )
+    ]
 
 
 def test_fig1():
     s = example("fig1.bi")
     assert s.color_scale == 255.0 and (s.width, s.height) == (200, 200)
-    assert s.camera == Camera(position=(0, 0, 10), target=(1, 1, -1), up=(0, 1, 0),
-                              fov_deg=(45, 45))
+    assert s.camera == Camera(
+        position=(0, 0, 10), target=(1, 1, -1), up=(0, 1, 0), fov_deg=(45, 45)
+    )
     assert s.lights == [Light(position=(10, 10, 10), color=rgb255(100, 100, 100))]
     lens, red = s.objects
     assert (lens.center, lens.radius) == ((3, 3, 3), 1)
@@ -104,8 +120,9 @@ def test_fig1():
 
 def test_fig2():
     s = example("fig2.bi")
-    assert s.camera == Camera(position=(0, 0, 10), target=(-2, 2, 1), up=(0, 1, 0),
-                              fov_deg=(30, 30))
+    assert s.camera == Camera(
+        position=(0, 0, 10), target=(-2, 2, 1), up=(0, 1, 0), fov_deg=(30, 30)
+    )
     assert s.lights == [Light(position=(-12, 12, 2), color=rgb255(100, 0, 0))]
     lens, blue = s.objects
     assert (lens.center, lens.radius) == ((-4.5, 4.5, 1.5), 1)
@@ -116,8 +133,9 @@ def test_fig2():
 
 def test_fig3():
     s = example("fig3.bi")
-    assert s.camera == Camera(position=(6, 10, 4), target=(0.5, 3, 0), up=(0, 1, 0),
-                              fov_deg=(37, 37))
+    assert s.camera == Camera(
+        position=(6, 10, 4), target=(0.5, 3, 0), up=(0, 1, 0), fov_deg=(37, 37)
+    )
     assert s.lights == [Light(position=(4, 13, 4), color=rgb255(100, 0, 0), brightness=1)]
     small, glass, big = s.objects
     assert (small.center, small.radius) == ((1.5, 7, 2), 0.25)
@@ -133,6 +151,7 @@ def test_fig3():
 
 # --------------------------------------------------------------------------- #
 # Round trips
+
 
 @pytest.mark.parametrize("name", ["esfera.bi", "fig1.bi", "fig2.bi", "fig3.bi"])
 def test_examples_round_trip(name, tmp_path):
@@ -150,22 +169,46 @@ def test_fig3_writes_the_thesis_numbers():
     assert "\nR 0.25\n" in text and "\n#N 1.5\n" in text
 
 
-AWKWARD = [0.1, 1e-300, 123456789.123, -2.5e-7, 1 / 3, 5e-324, 1.7976931348623157e308,
-           2.0 ** 60, -0.0, 7.0]
+AWKWARD = [
+    0.1,
+    1e-300,
+    123456789.123,
+    -2.5e-7,
+    1 / 3,
+    5e-324,
+    1.7976931348623157e308,
+    2.0**60,
+    -0.0,
+    7.0,
+]
 
 
 def awkward_scene(scale):
     colors = [(0.1, 1 / 3, 5e-324), (1.0, 0.7, 1e-300), (2 / 255, 0.5, 0.999999999)]
     return Scene(
-        width=640, height=1,
-        camera=Camera(position=(0.1, 1e-300, 123456789.123), target=(-2.5e-7, 1 / 3, 7.0),
-                      up=(5e-324, 0.0, -0.0), fov_deg=(179.99999999999997, 1e-9)),
-        lights=[Light(position=(1.7976931348623157e308, 2.0 ** 60, -0.1), color=colors[0],
-                      brightness=1e-300),
-                Light(position=(0, 0, 0), color=colors[1], brightness=123456789.123)],
-        objects=[Sphere(center=(0.1, 0.2, 0.3), radius=1e-300, surface=Surface(
-            colors[2], 0.1, 1e-300, 123456789.123, 1 / 3, 0.0, 1.5171))],
-        color_scale=scale)
+        width=640,
+        height=1,
+        camera=Camera(
+            position=(0.1, 1e-300, 123456789.123),
+            target=(-2.5e-7, 1 / 3, 7.0),
+            up=(5e-324, 0.0, -0.0),
+            fov_deg=(179.99999999999997, 1e-9),
+        ),
+        lights=[
+            Light(
+                position=(1.7976931348623157e308, 2.0**60, -0.1), color=colors[0], brightness=1e-300
+            ),
+            Light(position=(0, 0, 0), color=colors[1], brightness=123456789.123),
+        ],
+        objects=[
+            Sphere(
+                center=(0.1, 0.2, 0.3),
+                radius=1e-300,
+                surface=Surface(colors[2], 0.1, 1e-300, 123456789.123, 1 / 3, 0.0, 1.5171),
+            )
+        ],
+        color_scale=scale,
+    )
 
 
 @pytest.mark.parametrize("scale", [1.0, 255.0])
@@ -173,8 +216,10 @@ def test_awkward_floats_round_trip_exactly(scale):
     scene = awkward_scene(scale)
     again = parse_bi(format_bi(scene))
     assert again == scene
-    for a, b in zip(again.lights[0].color + again.objects[0].surface.color,
-                    scene.lights[0].color + scene.objects[0].surface.color):
+    for a, b in zip(
+        again.lights[0].color + again.objects[0].surface.color,
+        scene.lights[0].color + scene.objects[0].surface.color, strict=False,
+    ):
         assert a.hex() == b.hex() if a else a == b
 
 
@@ -184,8 +229,10 @@ def test_empty_scene_round_trips():
 
 
 def test_names_and_light_radius_are_not_written():
-    scene = Scene(lights=[Light(position=(1, 2, 3), radius=0.5, name="key")],
-                  objects=[Sphere(center=(0, 0, 0), radius=1, name="sphere 1")])
+    scene = Scene(
+        lights=[Light(position=(1, 2, 3), radius=0.5, name="key")],
+        objects=[Sphere(center=(0, 0, 0), radius=1, name="sphere 1")],
+    )
     again = parse_bi(format_bi(scene))
     assert again.lights[0].radius == 0 and again.lights[0].name == ""
     assert again.objects[0].name == ""
@@ -201,13 +248,25 @@ color = st.tuples(st.floats(0, 1e6), st.floats(0, 1e6), st.floats(0, 1e6))
 surfaces = st.builds(Surface, color, nonneg, nonneg, nonneg, unit, nonneg, positive)
 spheres = st.builds(Sphere, vec, positive, surfaces)
 lights = st.builds(Light, vec, color, nonneg)
-cameras = st.builds(Camera, st.just((1.0, 2.0, 3.0)), vec.filter(lambda v: v != (1, 2, 3)),
-                    vec.filter(lambda v: any(v)),
-                    st.tuples(st.floats(0, 180, exclude_min=True, exclude_max=True),
-                              st.floats(0, 180, exclude_min=True, exclude_max=True)))
-scenes = st.builds(Scene, st.integers(1, 10**6), st.integers(1, 10**6), cameras,
-                   st.lists(lights, max_size=3), st.lists(spheres, max_size=3),
-                   st.sampled_from([1.0, 255.0]))
+cameras = st.builds(
+    Camera,
+    st.just((1.0, 2.0, 3.0)),
+    vec.filter(lambda v: v != (1, 2, 3)),
+    vec.filter(lambda v: any(v)),
+    st.tuples(
+        st.floats(0, 180, exclude_min=True, exclude_max=True),
+        st.floats(0, 180, exclude_min=True, exclude_max=True),
+    ),
+)
+scenes = st.builds(
+    Scene,
+    st.integers(1, 10**6),
+    st.integers(1, 10**6),
+    cameras,
+    st.lists(lights, max_size=3),
+    st.lists(spheres, max_size=3),
+    st.sampled_from([1.0, 255.0]),
+)
 
 
 @settings(max_examples=100, deadline=None)
@@ -217,8 +276,9 @@ def test_random_scenes_round_trip(scene):
     # Colours always come back; the scale only where the file can express it.
     expected_scale = again.color_scale
     assert again == Scene(**{**scene.__dict__, "color_scale": expected_scale})
-    colors = [c for l in scene.lights for c in l.color] + \
-             [c for o in scene.objects for c in o.surface.color]
+    colors = [c for l in scene.lights for c in l.color] + [
+        c for o in scene.objects for c in o.surface.color
+    ]
     if any(c > 1 for c in colors):
         assert again.color_scale == 255.0
     elif scene.color_scale == 255.0 and any(c > 1 / 255 for c in colors):
@@ -247,6 +307,7 @@ def test_writer_refuses_what_the_reader_would_refuse():
 
 # --------------------------------------------------------------------------- #
 # Comments, blanks, layout
+
 
 def test_comments_in_all_positions():
     text = """/* leading comment
@@ -307,13 +368,14 @@ def test_legal_non_lens_spheres():
 # --------------------------------------------------------------------------- #
 # The colour scale rule
 
+
 def test_colors_all_at_most_one_are_0_to_1():
     scene = parse_bi(with_line(15, "#C 1 0.5 0"))
     assert scene.color_scale == 1.0 and scene.objects[0].surface.color == (1, 0.5, 0)
 
 
 def test_one_color_above_one_makes_the_whole_file_0_to_255():
-    scene = parse_bi(with_line(15, "#C 1.5 0 0"))        # light stays "C 1 1 1"
+    scene = parse_bi(with_line(15, "#C 1.5 0 0"))  # light stays "C 1 1 1"
     assert scene.color_scale == 255.0
     assert scene.objects[0].surface.color == (1.5 / 255, 0, 0)
     assert scene.lights[0].color == (1 / 255, 1 / 255, 1 / 255)
@@ -332,15 +394,16 @@ def test_other_values_above_one_do_not_change_the_scale():
 
 def test_writer_switches_scale_when_the_file_would_read_back_differently():
     dim = Scene(lights=[Light(position=(0, 0, 0), color=(1 / 255, 0, 0))], color_scale=255.0)
-    again = parse_bi(format_bi(dim))        # all 0-255 values <= 1: written in 0-1
+    again = parse_bi(format_bi(dim))  # all 0-255 values <= 1: written in 0-1
     assert again.lights == dim.lights and again.color_scale == 1.0
     hdr = Scene(lights=[Light(position=(0, 0, 0), color=(2.0, 0, 0))], color_scale=1.0)
-    again = parse_bi(format_bi(hdr))        # a colour above 1 needs the 0-255 scale
+    again = parse_bi(format_bi(hdr))  # a colour above 1 needs the 0-255 scale
     assert again.lights == hdr.lights and again.color_scale == 255.0
 
 
 # --------------------------------------------------------------------------- #
 # Errors: one test per class, each with its exact line
+
 
 def test_empty_file():
     assert_error("", 1, "expected 'V <width> <height>'", "end of file")
@@ -400,14 +463,13 @@ def test_extra_trailing_record():
 
 
 def test_truncated_file():
-    text = "".join(GOOD.splitlines(keepends=True)[:12])       # ends after the centre
+    text = "".join(GOOD.splitlines(keepends=True)[:12])  # ends after the centre
     assert_error(text, 12, "expected 'R <radius>'", "end of file")
 
 
 def test_polyhedron_refused():
     err = assert_error(with_line(11, "T 1"), 11)
-    assert str(err) == ("x.bi:11: polyhedron objects (T 1) are not supported; "
-                        "only spheres (T 0)")
+    assert str(err) == ("x.bi:11: polyhedron objects (T 1) are not supported; only spheres (T 0)")
 
 
 def test_unknown_object_type():
@@ -487,8 +549,28 @@ def test_message_shows_unprintable_characters_escaped():
 # Fuzzing: nothing but BiFormatError may come out
 
 FIG3 = (EXAMPLES / "fig3.bi").read_text()
-PIECES = ["/*", "*/", "\n", " ", "-", ".", "e", "1e999", "nan", "0", "1", "255", "#",
-          "T 1", "L 9", "O 0", "\r", "\x00", "\u00e9", "\ud800"]
+PIECES = [
+    "/*",
+    "*/",
+    "\n",
+    " ",
+    "-",
+    ".",
+    "e",
+    "1e999",
+    "nan",
+    "0",
+    "1",
+    "255",
+    "#",
+    "T 1",
+    "L 9",
+    "O 0",
+    "\r",
+    "\x00",
+    "\u00e9",
+    "\ud800",
+]
 
 
 def parse_only_bi_errors(text):
@@ -505,20 +587,32 @@ def parse_only_bi_errors(text):
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.text(alphabet=st.sampled_from("VCAUBLPIOTRS#0123456789.-+eE /*\n\t") |
-               st.characters(), max_size=300))
+@given(
+    st.text(
+        alphabet=st.sampled_from("VCAUBLPIOTRS#0123456789.-+eE /*\n\t") | st.characters(),
+        max_size=300,
+    )
+)
 def test_random_text_raises_only_bi_format_error(text):
     parse_only_bi_errors(text)
 
 
 @settings(max_examples=150, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, len(FIG3)), st.integers(0, 6),
-                          st.sampled_from(PIECES) | st.text(max_size=4)), max_size=5))
+@given(
+    st.lists(
+        st.tuples(
+            st.integers(0, len(FIG3)),
+            st.integers(0, 6),
+            st.sampled_from(PIECES) | st.text(max_size=4),
+        ),
+        max_size=5,
+    )
+)
 def test_mutated_fig3_raises_only_bi_format_error(edits):
     text = FIG3
     for at, cut, insert in edits:
         at = min(at, len(text))
-        text = text[:at] + insert + text[at + cut:]
+        text = text[:at] + insert + text[at + cut :]
     parse_only_bi_errors(text)
 
 
@@ -556,18 +650,29 @@ def test_bad_utf8_is_reported_on_its_line_with_cr_breaks(tmp_path):
 
 def _many_spheres_text(n=100, scale255=False):
     rng = __import__("random").Random(5)
-    objects = [Sphere(center=(rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(-9, 9)),
-                      radius=rng.uniform(0.1, 2),
-                      surface=Surface(color=(rng.choice([0.2, 0.5, 1.0]), 0.7, 0.25),
-                                      transmission=rng.choice([0.0, 0.9]), ior=1.5))
-               for _ in range(n)]
-    scene = Scene(lights=[Light(position=(0.0, 20.0, 0.0))], objects=objects,
-                  color_scale=255.0 if scale255 else 1.0)
+    objects = [
+        Sphere(
+            center=(rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(-9, 9)),
+            radius=rng.uniform(0.1, 2),
+            surface=Surface(
+                color=(rng.choice([0.2, 0.5, 1.0]), 0.7, 0.25),
+                transmission=rng.choice([0.0, 0.9]),
+                ior=1.5,
+            ),
+        )
+        for _ in range(n)
+    ]
+    scene = Scene(
+        lights=[Light(position=(0.0, 20.0, 0.0))],
+        objects=objects,
+        color_scale=255.0 if scale255 else 1.0,
+    )
     return format_bi(scene)
 
 
 def _plain_parse(text, monkeypatch):
     import addon.bi_format as bf
+
     with monkeypatch.context() as m:
         m.setattr(bf, "_bulk_spheres", lambda reader, count: None)
         try:
@@ -582,22 +687,24 @@ def test_bulk_sphere_path_reads_like_the_record_reader(scale255, monkeypatch):
     assert parse_bi(text, "big.bi") == _plain_parse(text, monkeypatch)
 
 
-@pytest.mark.parametrize("edit", [
-    ("R ", "R -"),                  # out of range: record reader's message and line
-    ("#T 0.9", "#T 1.9"),
-    ("#A 0.1\n#D", "#A 0.1 #D"),     # two records on a line
-    ("C ", "C\n"),                  # a record split over two lines
-    ("#A 0.1", "#A nan"),
-    ("#E 6", "#E 1_0"),
-    ("#N 1.5\n", "#N 1.5\n#N 1.5\n"),
-    ("#A 0.1\n#D 0.5", "#D 0.5\n#A 0.1"),   # other order: legal, record reader
-])
+@pytest.mark.parametrize(
+    "edit",
+    [
+        ("R ", "R -"),  # out of range: record reader's message and line
+        ("#T 0.9", "#T 1.9"),
+        ("#A 0.1\n#D", "#A 0.1 #D"),  # two records on a line
+        ("C ", "C\n"),  # a record split over two lines
+        ("#A 0.1", "#A nan"),
+        ("#E 6", "#E 1_0"),
+        ("#N 1.5\n", "#N 1.5\n#N 1.5\n"),
+        ("#A 0.1\n#D 0.5", "#D 0.5\n#A 0.1"),  # other order: legal, record reader
+    ],
+)
 def test_bulk_sphere_path_leaves_anything_else_to_the_record_reader(edit, monkeypatch):
     text = _many_spheres_text()
     cut = text.index("object 80")
     text = text[:cut] + text[cut:].replace(*edit, 1)
-    got = parse_bi(text, "big.bi") if not isinstance(_plain_parse(text, monkeypatch), str) \
-        else None
+    got = parse_bi(text, "big.bi") if not isinstance(_plain_parse(text, monkeypatch), str) else None
     want = _plain_parse(text, monkeypatch)
     if isinstance(want, str):
         with pytest.raises(BiFormatError) as err:

@@ -1,5 +1,6 @@
 """`.bi` import/export in Blender: what the importer builds, round trips of the
 example files, bad files, and phase 1 through Blender = `lens-lights phase1`."""
+
 import math
 from pathlib import Path
 
@@ -27,6 +28,7 @@ PHASE1_REL_TOL = 1e-5
 
 def import_bi(path):
     import bpy
+
     result = bpy.ops.import_scene.bi(filepath=str(path))
     assert result == {"FINISHED"}
     return bpy.context.scene
@@ -34,6 +36,7 @@ def import_bi(path):
 
 def export_bi(path):
     import bpy
+
     result = bpy.ops.export_scene.bi(filepath=str(path))
     assert result == {"FINISHED"}
     return read_bi(path)
@@ -41,11 +44,14 @@ def export_bi(path):
 
 # --------------------------------------------------------------------------- import
 
+
 def test_operators_and_menus_registered(extension):
     import bpy
+
     assert bpy.ops.import_scene.bi.get_rna_type().name == "Import Bitracer Scene (.bi)"
     assert bpy.ops.export_scene.bi.get_rna_type().name == "Export Bitracer Scene (.bi)"
     from lens_lights.operators import bi_io
+
     assert bi_io.menu_import in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
     assert bi_io.menu_export in bpy.types.TOPBAR_MT_file_export._dyn_ui_initialize()
 
@@ -83,9 +89,10 @@ def test_import_fig1_builds_everything(empty_blend):
     assert node.inputs["Transmission Weight"].default_value == pytest.approx(0.7)
     assert node.inputs["IOR"].default_value == pytest.approx(1.5171)
     assert node.inputs["Roughness"].default_value == 0
-    assert tuple(node.inputs["Base Color"].default_value) == (1, 1, 1, 1)   # untinted
+    assert tuple(node.inputs["Base Color"].default_value) == (1, 1, 1, 1)  # untinted
     assert tuple(lens.active_material.diffuse_color)[:3] == pytest.approx(
-        (100 / 255, 10 / 255, 10 / 255))
+        (100 / 255, 10 / 255, 10 / 255)
+    )
     node = next(n for n in red.active_material.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     assert node.inputs["Transmission Weight"].default_value == 0
     assert node.inputs["Roughness"].default_value == pytest.approx(math.sqrt(2 / 72))
@@ -93,8 +100,11 @@ def test_import_fig1_builds_everything(empty_blend):
 
     world = scene.world
     bg = [n for n in world.node_tree.nodes if n.type == "BACKGROUND"]
-    assert any(tuple(n.inputs["Color"].default_value)[:3] == pytest.approx(conv.AMBIENT_COLOR)
-               and n.inputs["Strength"].default_value == 1 for n in bg)
+    assert any(
+        tuple(n.inputs["Color"].default_value)[:3] == pytest.approx(conv.AMBIENT_COLOR)
+        and n.inputs["Strength"].default_value == 1
+        for n in bg
+    )
     assert scene["lens_lights_bi_color_scale"] == 255.0
 
 
@@ -106,6 +116,7 @@ def test_imported_camera_sees_what_the_file_says(empty_blend, path):
     import bpy
     from bpy_extras.object_utils import world_to_camera_view
     from mathutils import Vector
+
     scene = import_bi(path)
     bi = read_bi(path)
     cam = bi.camera
@@ -130,16 +141,23 @@ def test_import_non_square_pixels(empty_blend, tmp_path):
     """Opening angles that do not match the image's shape: pixel aspect."""
     from bpy_extras.object_utils import world_to_camera_view
     from mathutils import Vector
-    bi = Scene(width=300, height=100, camera=Camera((0, 0, 5), (0, 0, 0), (0, 1, 0), (60, 30)),
-               lights=[Light((0, 5, 5))], objects=[Sphere((0, 0, 0), 1)])
+
+    bi = Scene(
+        width=300,
+        height=100,
+        camera=Camera((0, 0, 5), (0, 0, 0), (0, 1, 0), (60, 30)),
+        lights=[Light((0, 5, 5))],
+        objects=[Sphere((0, 0, 0), 1)],
+    )
     write_bi(bi, tmp_path / "wide.bi")
     scene = import_bi(tmp_path / "wide.bi")
     r = scene.render
     ratio = math.tan(math.radians(30)) * 100 / (math.tan(math.radians(15)) * 300)
     assert r.pixel_aspect_x == 1 and r.pixel_aspect_y == pytest.approx(1 / ratio, rel=1e-6)
     edge = math.tan(math.radians(15)) * 5
-    assert tuple(world_to_camera_view(scene, scene.camera, Vector((0, edge, 0))))[1] == \
-        pytest.approx(1.0, abs=1e-5)
+    assert tuple(world_to_camera_view(scene, scene.camera, Vector((0, edge, 0))))[
+        1
+    ] == pytest.approx(1.0, abs=1e-5)
 
 
 # --------------------------------------------------------------------------- bad files
@@ -150,8 +168,11 @@ BAD = [
     ("truncated", "V 10 10\nC 0 0 5\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\n", ":7:"),
     ("word", "V 10 10\nC 0 0 five\n", ":2:"),
     ("tiny viewport", "V 2 2\nC 0 0 5\nA 0 0 0\nU 0 1 0\nB 45 45\nL 0\nO 0\n", ":1:"),
-    ("pixel aspect", "/* wide */\nV 200 200\nC 0 0 5\nA 0 0 0\nU 0 1 0\n\nB 179 1\nL 0\nO 0\n",
-     ":7:"),
+    (
+        "pixel aspect",
+        "/* wide */\nV 200 200\nC 0 0 5\nA 0 0 0\nU 0 1 0\n\nB 179 1\nL 0\nO 0\n",
+        ":7:",
+    ),
 ]
 
 
@@ -160,6 +181,7 @@ def test_bad_file_reports_file_and_line(empty_blend, tmp_path, name, text, where
     """Errors are the operator's report ("FILE:LINE: message"; from Python,
     bpy.ops raises it as RuntimeError) and nothing is created."""
     import bpy
+
     path = tmp_path / ("bad.bi" if text is not None else name)
     if text is not None:
         path.write_text(text)
@@ -173,14 +195,17 @@ def test_bad_file_reports_file_and_line(empty_blend, tmp_path, name, text, where
 
 # --------------------------------------------------------------------------- export
 
+
 def scenes_equal(a: Scene, b: Scene):
     assert (a.width, a.height) == (b.width, b.height)
     fields = ("position", "target", "up", "fov_deg")
     assert [getattr(a.camera, f) for f in fields] == [getattr(b.camera, f) for f in fields]
-    assert [(l.position, l.color, l.brightness) for l in a.lights] == \
-        [(l.position, l.color, l.brightness) for l in b.lights]
-    assert [(s.center, s.radius, s.surface) for s in a.objects] == \
-        [(s.center, s.radius, s.surface) for s in b.objects]
+    assert [(l.position, l.color, l.brightness) for l in a.lights] == [
+        (l.position, l.color, l.brightness) for l in b.lights
+    ]
+    assert [(s.center, s.radius, s.surface) for s in a.objects] == [
+        (s.center, s.radius, s.surface) for s in b.objects
+    ]
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
@@ -194,6 +219,7 @@ def test_round_trip_is_exact(empty_blend, tmp_path, path):
     assert exported.color_scale == original.color_scale
     # and once more through Blender
     import bpy
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     import_bi(tmp_path / "out.bi")
     assert format_bi(export_bi(tmp_path / "again.bi")) == format_bi(original)
@@ -202,6 +228,7 @@ def test_round_trip_is_exact(empty_blend, tmp_path, path):
 def strip_stored_numbers():
     """Forget what the importer stored: export from Blender's own values."""
     import bpy
+
     for block in [*bpy.data.objects, *bpy.data.materials]:
         if "lens_lights_bi" in block:
             del block["lens_lights_bi"]
@@ -245,23 +272,26 @@ def test_round_trip_from_blender_values(empty_blend, tmp_path, path):
 
 def test_export_edited_scene_writes_the_edits(empty_blend, tmp_path):
     import bpy
+
     scene = import_bi(THESIS[0])
     scene.objects["Sphere 0"].location.x += 0.5
     scene.objects["Light 0"].data.energy = 5000
-    node = next(n for n in bpy.data.materials["Sphere 0"].node_tree.nodes
-                if n.type == "BSDF_PRINCIPLED")
+    node = next(
+        n for n in bpy.data.materials["Sphere 0"].node_tree.nodes if n.type == "BSDF_PRINCIPLED"
+    )
     node.inputs["IOR"].default_value = 1.33
     exported = export_bi(tmp_path / "out.bi")
     assert exported.objects[0].center == (3.5, 3, 3)
     assert exported.lights[0].brightness == 0.5
     assert exported.objects[0].surface.ior == pytest.approx(1.33, rel=1e-6)
-    assert exported.objects[1] == read_bi(THESIS[0]).objects[1]     # untouched
+    assert exported.objects[1] == read_bi(THESIS[0]).objects[1]  # untouched
 
 
 def test_export_camera_with_track_to_constraint(empty_blend, tmp_path):
     """The exporter reads the evaluated camera (constraints applied) and takes the
     focus object as the target."""
     import bpy
+
     scene = import_bi(THESIS[0])
     target = bpy.data.objects.new("Target", None)
     scene.collection.objects.link(target)
@@ -277,12 +307,13 @@ def test_export_camera_with_track_to_constraint(empty_blend, tmp_path):
     assert exported.fov_deg == pytest.approx((45, 45), rel=1e-6)
     up = np.array(exported.up)
     forward = np.subtract((2, 0, -3), (1, 2, 12))
-    assert abs(up @ forward) < 1e-5 and up[2] > 0     # Track To: local Y towards world Z
+    assert abs(up @ forward) < 1e-5 and up[2] > 0  # Track To: local Y towards world Z
 
 
 def test_export_lists_what_is_left_out(empty_blend, tmp_path):
     import bpy
     from lens_lights.operators.bi_scene_builder import read_for_export
+
     import_bi(THESIS[2])
     bpy.ops.mesh.primitive_cube_add(location=(5, 0, 0))
     cube = bpy.context.object.name
@@ -298,18 +329,24 @@ def test_export_lists_what_is_left_out(empty_blend, tmp_path):
 def test_export_without_camera_warns(empty_blend, tmp_path):
     import bpy
     from lens_lights.operators.bi_scene_builder import read_for_export
+
     import_bi(THESIS[0])
     bpy.context.scene.camera = None
     read = read_for_export(bpy.context)
     assert any("no camera" in w for w in read.warnings)
     cam, default = read.scene.camera, Camera()
-    assert (cam.position, cam.target, cam.up, cam.fov_deg) == \
-        (default.position, default.target, default.up, default.fov_deg)
+    assert (cam.position, cam.target, cam.up, cam.fov_deg) == (
+        default.position,
+        default.target,
+        default.up,
+        default.fov_deg,
+    )
     export_bi(tmp_path / "out.bi")
 
 
 def test_export_to_unwritable_path_reports(empty_blend, tmp_path):
     import bpy
+
     import_bi(THESIS[0])
     with pytest.raises(RuntimeError, match="cannot write the file"):
         bpy.ops.export_scene.bi(filepath=str(tmp_path / "no" / "such" / "dir.bi"))
@@ -317,10 +354,12 @@ def test_export_to_unwritable_path_reports(empty_blend, tmp_path):
 
 # --------------------------------------------------------------------------- phase 1 in Blender
 
+
 def compare_phase1(got, want, rel=1e-6, brightness_scale=1.0):
     """Same secondary sources (matched by light and lens index), same skipped pairs."""
-    assert sorted((s.light, s.lens) for s in got.sources) == \
-        sorted((s.light, s.lens) for s in want.sources)
+    assert sorted((s.light, s.lens) for s in got.sources) == sorted(
+        (s.light, s.lens) for s in want.sources
+    )
     by_key = {(s.light, s.lens): s for s in got.sources}
     for w in want.sources:
         g = by_key[(w.light, w.lens)]
@@ -331,8 +370,9 @@ def compare_phase1(got, want, rel=1e-6, brightness_scale=1.0):
         assert g.spread_deg == pytest.approx(w.spread_deg, rel=rel, abs=rel)
         assert g.intensity * brightness_scale == pytest.approx(w.intensity, rel=rel)
         assert g.shadow_list == w.shadow_list and g.full == w.full
-    assert sorted((k.light, k.lens) for k in got.skipped) == \
-        sorted((k.light, k.lens) for k in want.skipped)
+    assert sorted((k.light, k.lens) for k in got.skipped) == sorted(
+        (k.light, k.lens) for k in want.skipped
+    )
 
 
 @pytest.mark.parametrize("path", THESIS, ids=lambda p: p.stem)
@@ -341,6 +381,7 @@ def test_blender_scene_reader_gives_phase1_of_the_file(empty_blend, path):
     secondary sources of `lens-lights phase1` (the reader's brightness is watts)."""
     import bpy
     from lens_lights.operators.scene_reader import read_blender_scene
+
     import_bi(path)
     read = read_blender_scene(bpy.context)
     # the reader's order may differ from the file's: map by the spheres' names
@@ -352,8 +393,12 @@ def test_blender_scene_reader_gives_phase1_of_the_file(empty_blend, path):
         s.shadow_list = sorted(order[k] for k in s.shadow_list)
     for k in got.skipped:
         k.light, k.lens = lights[k.light], order[k.lens]
-    compare_phase1(got, compute_phase1(read_bi(path)), rel=PHASE1_REL_TOL,
-                   brightness_scale=1.0 / conv.WATTS_PER_BRIGHTNESS)
+    compare_phase1(
+        got,
+        compute_phase1(read_bi(path)),
+        rel=PHASE1_REL_TOL,
+        brightness_scale=1.0 / conv.WATTS_PER_BRIGHTNESS,
+    )
 
 
 @pytest.mark.parametrize("path", THESIS, ids=lambda p: p.stem)
@@ -364,6 +409,7 @@ def test_generated_lens_lights_are_phase1_of_the_file(empty_blend, path):
     (energy = brightness × WATTS_PER_BRIGHTNESS × unblocked share) and its
     shadow state (full / non-full)."""
     import bpy
+
     scene = import_bi(path)
     settings = scene.lens_lights
     settings.energy_model = "THESIS"
@@ -372,16 +418,19 @@ def test_generated_lens_lights_are_phase1_of_the_file(empty_blend, path):
     assert bpy.ops.lens_lights.generate() == {"FINISHED"}
     want = phase1_cli(path)
     lights = [o for o in scene.objects if o.type == "LIGHT" and o.lens_lights.is_lens_light]
-    got = {(int(o.lens_lights.source_light.split()[-1]),
-            int(o.lens_lights.source_lens.split()[-1])): o for o in lights}
+    got = {
+        (int(o.lens_lights.source_light.split()[-1]), int(o.lens_lights.source_lens.split()[-1])): o
+        for o in lights
+    }
     assert sorted(got) == sorted((s.light, s.lens) for s in want.sources)
     for s in want.sources:
         ob = got[(s.light, s.lens)]
         assert s.kind in ("real", "virtual") and ob.lens_lights.kind == s.kind
         m = ob.matrix_world
         scale = max(1.0, float(np.abs(s.position).max()))
-        assert np.allclose(tuple(m.translation), s.position, rtol=PHASE1_REL_TOL,
-                           atol=PHASE1_REL_TOL * scale)
+        assert np.allclose(
+            tuple(m.translation), s.position, rtol=PHASE1_REL_TOL, atol=PHASE1_REL_TOL * scale
+        )
         direction = -np.array(m.col[2][:3])
         direction /= np.linalg.norm(direction)
         assert np.allclose(direction, s.axis, atol=PHASE1_REL_TOL)
@@ -390,12 +439,10 @@ def test_generated_lens_lights_are_phase1_of_the_file(empty_blend, path):
         assert half == pytest.approx(s.spread_deg, rel=PHASE1_REL_TOL)
         brightness = ob.data.energy / conv.WATTS_PER_BRIGHTNESS / s.unblocked_fraction
         assert brightness == pytest.approx(s.intensity, rel=PHASE1_REL_TOL)
-        assert tuple(ob.data.color) == pytest.approx(read_bi(path).lights[s.light].color,
-                                                     rel=1e-6)
+        assert tuple(ob.data.color) == pytest.approx(read_bi(path).lights[s.light].color, rel=1e-6)
         assert ob.lens_lights.full == s.full
-        assert ob.lens_lights.unblocked_fraction == pytest.approx(s.unblocked_fraction,
-                                                                  rel=1e-5)
-    if path.stem == "fig3":      # thesis: the small sphere 0 partly blocks lens 1
+        assert ob.lens_lights.unblocked_fraction == pytest.approx(s.unblocked_fraction, rel=1e-5)
+    if path.stem == "fig3":  # thesis: the small sphere 0 partly blocks lens 1
         (source,) = want.sources
         assert (source.lens, source.full, source.shadow_list) == (1, False, [0])
         assert not got[(0, 1)].lens_lights.full
@@ -407,8 +454,15 @@ def phase1_cli(path):
     import subprocess
     import sys
     from types import SimpleNamespace
-    out = subprocess.run([sys.executable, str(ROOT / "scripts" / "cli.py"), "phase1",
-                          str(path), "--json"], capture_output=True, text=True, check=True)
+
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "cli.py"), "phase1", str(path), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     data = json.loads(out.stdout)
-    return SimpleNamespace(sources=[SimpleNamespace(**s) for s in data["sources"]],
-                           skipped=[SimpleNamespace(**k) for k in data["skipped"]])
+    return SimpleNamespace(
+        sources=[SimpleNamespace(**s) for s in data["sources"]],
+        skipped=[SimpleNamespace(**k) for k in data["skipped"]],
+    )

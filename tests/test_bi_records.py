@@ -1,5 +1,6 @@
 """The `.bi` importer's and exporter's pure helpers (`addon.bi_records`), without
 Blender; expected values worked out by hand."""
+
 from addon.bi_records import (
     f32,
     f32v,
@@ -26,16 +27,25 @@ def test_names_and_order():
 def test_float32_shortest_decimal_and_surface_dict():
     assert f32(0.30000001192092896) == 0.3
     assert f32v((0.1, 0.5)) == (0.1, 0.5)
-    s = Surface(color=(1.0, 0.5, 0.25), ambient=0.1, diffuse=0.2, specular=0.3,
-                transmission=0.9, exponent=80.0, ior=1.5)
+    s = Surface(
+        color=(1.0, 0.5, 0.25),
+        ambient=0.1,
+        diffuse=0.2,
+        specular=0.3,
+        transmission=0.9,
+        exponent=80.0,
+        ior=1.5,
+    )
     assert surface_dict(s)["n"] == 1.5 and surface_from_dict(surface_dict(s)) == s
 
 
 def test_scene_extent_summary_and_file_line(tmp_path):
     # camera at the origin looking at (0, 0, −3); a light 5 away; a sphere 4 + 2 away
-    scene = Scene(camera=Camera(position=(0, 0, 0), target=(0, 0, -3)),
-                  lights=[Light(position=(3, 4, 0))],
-                  objects=[Sphere(center=(0, 4, 0), radius=2.0, surface=Surface())])
+    scene = Scene(
+        camera=Camera(position=(0, 0, 0), target=(0, 0, -3)),
+        lights=[Light(position=(3, 4, 0))],
+        objects=[Sphere(center=(0, 4, 0), radius=2.0, surface=Surface())],
+    )
     assert scene_extent(scene) == 6.0
     assert summary(["a", "b", "c"], limit=2) == "a, b, … (1 more)"
     assert summary(["a"]) == "a"

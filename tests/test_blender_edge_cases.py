@@ -2,6 +2,7 @@
 as the renderer sees it, transforms, instancing, linked libraries, several scenes,
 lights inside glass, overlapping spheres, many lights, failures, undo, and that
 generate / regenerate / clear never change anything of the user's."""
+
 import math
 from types import SimpleNamespace
 
@@ -9,15 +10,26 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-bpy = pytest.importorskip("bpy")   # the pinned environment has it
+bpy = pytest.importorskip("bpy")  # the pinned environment has it
 
-from blender_scene_helpers import (add_point_light, add_sphere, collection_instance,  # noqa: E402
-                                   collection_of, generate, glass_material, gn_instances,
-                                   lens_lights, node_material, snapshot, snapshot_diff)
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,
+    collection_instance,  # noqa: E402
+    collection_of,
+    generate,
+    glass_material,
+    gn_instances,
+    lens_lights,
+    node_material,
+    snapshot,
+    snapshot_diff,
+)
 
 
 def read():
     from lens_lights.operators.scene_reader import read_blender_scene
+
     return read_blender_scene(bpy.context)
 
 
@@ -43,6 +55,7 @@ def lit_row(names, glass, z=1.0):
 
 # --------------------------------------------------------------------------- visibility
 
+
 def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
     """Render visibility, not the viewport's: objects and collections disabled in
     the viewport (monitor) or hidden (eye) count, those disabled for rendering
@@ -50,18 +63,29 @@ def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
     glass = glass_material()
     floor()
     add_point_light("Lamp", (4.0, 0.0, 6.0))
-    names = ["Plain", "Viewport off", "Eye hidden", "Render off", "In viewport-off coll",
-             "In render-off coll", "In excluded coll", "In eye-hidden coll",
-             "Cuboid in render", "Cuboid in viewport"]
-    s = {n: ob for n, ob in zip(names, lit_row(names, glass))}
+    names = [
+        "Plain",
+        "Viewport off",
+        "Eye hidden",
+        "Render off",
+        "In viewport-off coll",
+        "In render-off coll",
+        "In excluded coll",
+        "In eye-hidden coll",
+        "Cuboid in render",
+        "Cuboid in viewport",
+    ]
+    s = {n: ob for n, ob in zip(names, lit_row(names, glass), strict=False)}
     s["Viewport off"].hide_viewport = True
     s["Eye hidden"].hide_set(True)
     s["Render off"].hide_render = True
     layers = bpy.context.view_layer.layer_collection
-    for n, setup in (("In viewport-off coll", lambda c, lc: setattr(c, "hide_viewport", True)),
-                     ("In render-off coll", lambda c, lc: setattr(c, "hide_render", True)),
-                     ("In excluded coll", lambda c, lc: setattr(lc, "exclude", True)),
-                     ("In eye-hidden coll", lambda c, lc: setattr(lc, "hide_viewport", True))):
+    for n, setup in (
+        ("In viewport-off coll", lambda c, lc: setattr(c, "hide_viewport", True)),
+        ("In render-off coll", lambda c, lc: setattr(c, "hide_render", True)),
+        ("In excluded coll", lambda c, lc: setattr(lc, "exclude", True)),
+        ("In eye-hidden coll", lambda c, lc: setattr(lc, "hide_viewport", True)),
+    ):
         coll = collection_of(n, s[n])
         bpy.context.scene.collection.children.link(coll)
         setup(coll, layers.children[coll.name])
@@ -76,9 +100,16 @@ def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
 
     r = read()
     assert r.how == "render"
-    assert sorted(r.sphere_sources) == sorted(["Plain", "Viewport off", "Eye hidden",
-                                               "In viewport-off coll", "In eye-hidden coll",
-                                               "Cuboid in viewport"])
+    assert sorted(r.sphere_sources) == sorted(
+        [
+            "Plain",
+            "Viewport off",
+            "Eye hidden",
+            "In viewport-off coll",
+            "In eye-hidden coll",
+            "Cuboid in viewport",
+        ]
+    )
     assert sorted(r.light_sources) == ["Lamp", "Viewport-off lamp"]
     left = dict(r.left_out)
     assert left["Cuboid in render"].startswith("not a sphere")
@@ -86,6 +117,7 @@ def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
     # The viewport depsgraph, read directly, is what the viewport shows (minus the
     # render-disabled objects): the monitor- and eye-hidden ones are missing.
     from lens_lights.operators.scene_reader import read_blender_scene
+
     v = read_blender_scene(bpy.context.evaluated_depsgraph_get())
     assert v.how == "viewport"
     assert "Viewport off" not in v.sphere_sources and "Viewport-off lamp" not in v.light_sources
@@ -114,9 +146,10 @@ def test_instancer_visibility_in_the_render(empty_blend):
 
 def test_falls_back_to_the_viewport_and_says_so(empty_blend, monkeypatch):
     from lens_lights.operators import render_probe
+
     basic = lit_row(["Marble"], glass_material())
     add_point_light("Lamp", (0, 0, 6))
-    basic[0].hide_viewport = True            # only the render sees it
+    basic[0].hide_viewport = True  # only the render sees it
 
     def refuse(*a, **k):
         raise render_probe.ProbeUnavailable("a render is in progress")
@@ -125,7 +158,7 @@ def test_falls_back_to_the_viewport_and_says_so(empty_blend, monkeypatch):
     level, message, figures = generate()
     assert figures["how"] == "viewport (a render is in progress)"
     assert "scene read as the viewport (a render is in progress)" in message
-    assert figures["lenses"] == 0            # the viewport does not have it
+    assert figures["lenses"] == 0  # the viewport does not have it
 
 
 def test_the_probe_leaves_no_trace_and_keeps_the_last_render(empty_blend, tmp_path):
@@ -134,13 +167,17 @@ def test_the_probe_leaves_no_trace_and_keeps_the_last_render(empty_blend, tmp_pa
     lit_row(["Marble"], glass_material())
     add_point_light("Lamp", (0, 0, 6))
     scene = bpy.context.scene
-    before = {a: sorted(x.name_full for x in getattr(bpy.data, a))
-              for a in ("scenes", "objects", "cameras", "images", "collections")}
-    generate()                                        # no camera, no render result yet
+    before = {
+        a: sorted(x.name_full for x in getattr(bpy.data, a))
+        for a in ("scenes", "objects", "cameras", "images", "collections")
+    }
+    generate()  # no camera, no render result yet
     bpy.ops.lens_lights.clear()
     after = {a: sorted(x.name_full for x in getattr(bpy.data, a)) for a in before}
     assert after == before
-    engines = [e.identifier for e in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items]
+    engines = [
+        e.identifier for e in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
+    ]
     assert "LENS_LIGHTS_PROBE" not in engines
 
     add_camera()
@@ -158,8 +195,10 @@ def test_the_probe_leaves_no_trace_and_keeps_the_last_render(empty_blend, tmp_pa
 
 # --------------------------------------------------------------------------- transforms
 
+
 def test_scales_zero_sizes_and_parents(empty_blend):
     from mathutils import Matrix
+
     glass = glass_material()
     add_point_light("Lamp", (0.0, 0.0, 20.0))
     mirrored = add_sphere("Mirrored", (0, 0, 1), material=glass)
@@ -189,8 +228,10 @@ def test_scales_zero_sizes_and_parents(empty_blend):
     add_sphere("Child of stretched", (0, 0, 0), material=glass).parent = stretched_parent
 
     r = read()
-    spheres = {n: (tuple(r.arrays.center[i]), float(r.arrays.radius[i]))
-               for i, n in enumerate(r.sphere_sources)}
+    spheres = {
+        n: (tuple(r.arrays.center[i]), float(r.arrays.radius[i]))
+        for i, n in enumerate(r.sphere_sources)
+    }
     assert set(spheres) == {"Mirrored", "Negative", "Child"}
     assert spheres["Mirrored"][1] == pytest.approx(0.5, rel=1e-4)
     assert spheres["Negative"][0] == pytest.approx((3, 0, 1), abs=1e-5)
@@ -204,7 +245,7 @@ def test_scales_zero_sizes_and_parents(empty_blend):
     assert left["Flat"].startswith("zero scale on an axis")
     assert left["Collapsed mesh"].startswith("zero size")
     assert left["Child of stretched"].startswith("non-uniform scale (1, 1, 3)")
-    assert "Empty mesh" not in left                 # nothing to render, nothing to say
+    assert "Empty mesh" not in left  # nothing to render, nothing to say
     level, message, figures = generate()
     assert figures["created"] == 3 and figures["left_out"] == 5
     assert "left out 5 objects" in message
@@ -226,26 +267,40 @@ def test_nan_and_huge_transforms_do_not_break_generate(empty_blend):
 
 # --------------------------------------------------------------------------- instances
 
+
 def test_collection_and_geometry_nodes_instances(empty_blend):
     glass = glass_material()
     add_point_light("Lamp", (0.0, 0.0, 12.0))
     bead = add_sphere("Bead", (0, 0, 0), radius=0.25, material=glass)
     beads = collection_of("Beads", bead)
     # nested: a collection instance inside an instanced collection
-    inner = collection_instance("Inner", beads, location=(0.5, 0, 0), scale=(2, 2, 2),
-                                parent_coll=bpy.data.collections.new("Outer"))
+    inner = collection_instance(
+        "Inner",
+        beads,
+        location=(0.5, 0, 0),
+        scale=(2, 2, 2),
+        parent_coll=bpy.data.collections.new("Outer"),
+    )
     outer = bpy.data.collections["Outer"]
     collection_instance("Nest", outer, location=(0, 4, 1))
     collection_instance("Plain", beads, location=(0, -4, 1))
-    gn_instances("Geo", [(x, 0, 0) for x in (-3, 0, 3)], radius=0.2, material=glass,
-                 location=(0, 0, 1))
-    gn_instances("ObjInst", [(x, 0, 0) for x in (-3, 3)], instance_object=bead,
-                 location=(0, 8, 1))
-    gn_instances("Stretched", [(0, 0, 0), (2, 0, 0)], radius=0.2, material=glass,
-                 scale=(1, 1, 2), location=(0, -8, 1))
+    gn_instances(
+        "Geo", [(x, 0, 0) for x in (-3, 0, 3)], radius=0.2, material=glass, location=(0, 0, 1)
+    )
+    gn_instances("ObjInst", [(x, 0, 0) for x in (-3, 3)], instance_object=bead, location=(0, 8, 1))
+    gn_instances(
+        "Stretched",
+        [(0, 0, 0), (2, 0, 0)],
+        radius=0.2,
+        material=glass,
+        scale=(1, 1, 2),
+        location=(0, -8, 1),
+    )
     r = read()
     names = list(r.sphere_sources)
-    centers = {n: tuple(round(float(c), 5) for c in r.arrays.center[i]) for i, n in enumerate(names)}
+    centers = {
+        n: tuple(round(float(c), 5) for c in r.arrays.center[i]) for i, n in enumerate(names)
+    }
     radii = {n: float(r.arrays.radius[i]) for i, n in enumerate(names)}
     # the bead itself lives only in the (unlinked) collection: not rendered
     assert "Bead" not in names
@@ -254,21 +309,28 @@ def test_collection_and_geometry_nodes_instances(empty_blend):
     geo = sorted(v for n, v in centers.items() if n.startswith("Geo/"))
     assert geo == [(-3.0, 0.0, 1.0), (0.0, 0.0, 1.0), (3.0, 0.0, 1.0)]
     assert [n for n in names if n.startswith("Geo/")] == ["Geo/Geo", "Geo/Geo#1", "Geo/Geo#2"]
-    assert sorted(v for n, v in centers.items() if n.startswith("ObjInst/")) == \
-        [(-3.0, 8.0, 1.0), (3.0, 8.0, 1.0)]
+    assert sorted(v for n, v in centers.items() if n.startswith("ObjInst/")) == [
+        (-3.0, 8.0, 1.0),
+        (3.0, 8.0, 1.0),
+    ]
     # the instances' original objects: the bead for collection and object
     # instances, the instancer for geometry instances (linking excludes those)
     objects = {n: r.sphere_objects[i].name for i, n in enumerate(names)}
     assert objects["Nest/Bead"] == "Bead" and objects["ObjInst/Bead"] == "Bead"
     assert objects["Geo/Geo"] == "Geo"
-    assert ("Stretched/Stretched (2 instances)", ) == tuple(
-        n for n, why in r.left_out_lenses if n.startswith("Stretched"))
-    assert dict(r.left_out)["Stretched/Stretched (2 instances)"].startswith("non-uniform scale (1, 1, 2)")
-    assert "Geo" not in dict(r.left_out)              # the instancer's own (empty) mesh
+    assert ("Stretched/Stretched (2 instances)",) == tuple(
+        n for n, why in r.left_out_lenses if n.startswith("Stretched")
+    )
+    assert dict(r.left_out)["Stretched/Stretched (2 instances)"].startswith(
+        "non-uniform scale (1, 1, 2)"
+    )
+    assert "Geo" not in dict(r.left_out)  # the instancer's own (empty) mesh
     level, message, figures = generate()
     assert figures["lenses"] == 7 and figures["created"] + figures["skipped"] == 7
-    links = {ll.lens_lights.source_lens: [o.name for o in ll.light_linking.blocker_collection.objects]
-             for ll in lens_lights()}
+    links = {
+        ll.lens_lights.source_lens: [o.name for o in ll.light_linking.blocker_collection.objects]
+        for ll in lens_lights()
+    }
     assert links.get("Geo/Geo#1", ["Geo"]) == ["Geo"]
 
 
@@ -307,14 +369,16 @@ def test_linked_library_data(empty_blend, tmp_path):
     assert linked.library is not None
     collection_instance("Beads here", linked, location=(0, 0, 1))
     ball = bpy.data.objects["Library ball"]
-    bpy.context.scene.collection.objects.link(ball)      # the linked object itself, at the origin
+    bpy.context.scene.collection.objects.link(ball)  # the linked object itself, at the origin
     add_point_light("Lamp", (3.0, 0.0, 8.0))
     floor()
     before = snapshot()
     level, message, figures = generate()
     assert figures["created"] == 2, message
-    assert sorted(ll.lens_lights.source_lens for ll in lens_lights()) == ["Beads here/Library ball",
-                                                                          "Library ball"]
+    assert sorted(ll.lens_lights.source_lens for ll in lens_lights()) == [
+        "Beads here/Library ball",
+        "Library ball",
+    ]
     assert ball.library is not None and ball.is_editable is False
     assert snapshot_diff(before, snapshot()) == []
     bpy.ops.lens_lights.clear()
@@ -323,6 +387,7 @@ def test_linked_library_data(empty_blend, tmp_path):
 
 
 # --------------------------------------------------------------------------- scenes
+
 
 def test_generate_acts_on_the_context_scene_only(empty_blend):
     glass = glass_material()
@@ -347,11 +412,12 @@ def test_generate_acts_on_the_context_scene_only(empty_blend):
         level, message, figures = generate()
     assert figures["created"] == 1
     assert {o.lens_lights.source_lens for o in lens_lights()} == {"A ball", "B ball"}
-    bpy.ops.lens_lights.clear()                     # the context scene's only
+    bpy.ops.lens_lights.clear()  # the context scene's only
     assert [o.lens_lights.source_lens for o in lens_lights()] == ["B ball"]
 
 
 # --------------------------------------------------------------------------- optics cases
+
 
 def test_light_inside_glass(empty_blend):
     glass = glass_material()
@@ -370,7 +436,7 @@ def test_overlapping_and_nested_spheres(empty_blend):
     add_sphere("Outer", (0, 0, 2), radius=1.0, material=glass)
     add_sphere("Inner", (0, 0, 2), radius=0.4, material=glass)
     add_sphere("Left", (4.0, 0, 2), radius=0.6, material=glass)
-    add_sphere("Right", (4.6, 0, 2), radius=0.6, material=glass)      # overlaps Left
+    add_sphere("Right", (4.6, 0, 2), radius=0.6, material=glass)  # overlaps Left
     add_point_light("Lamp", (2, 0, 8))
     floor()
     level, message, figures = generate()
@@ -387,22 +453,28 @@ def test_hundreds_of_lights(empty_blend):
     floor()
     for k in range(300):
         a = 2 * math.pi * k / 300
-        add_point_light(f"Lamp {k:03d}", (6 * math.cos(a), 6 * math.sin(a), 8 + (k % 7)),
-                        energy=100.0 + k)
+        add_point_light(
+            f"Lamp {k:03d}", (6 * math.cos(a), 6 * math.sin(a), 8 + (k % 7)), energy=100.0 + k
+        )
     bpy.context.scene.lens_lights.max_lights = 64
     level, message, figures = generate()
     assert figures["primaries"] == 300 and figures["sources"] >= 590
     assert figures["created"] == 64
     assert figures["skipped_by_reason"]["beyond the maximum of 64 lens lights"] == 192
-    assert figures["skipped_by_reason"][f"not among the {4 * 64} strongest by flux"] == \
-        figures["sources"] - 256
+    assert (
+        figures["skipped_by_reason"][f"not among the {4 * 64} strongest by flux"]
+        == figures["sources"] - 256
+    )
     assert figures["seconds"] < 20
 
 
 # --------------------------------------------------------------------------- failures
 
+
 def test_generate_never_raises(empty_blend, monkeypatch):
-    from lens_lights.operators import generate as gen, light_builder
+    from lens_lights.operators import generate as gen
+    from lens_lights.operators import light_builder
+
     lit_row(["M0", "M1", "M2"], glass_material())
     add_point_light("Lamp", (2, 0, 6))
     bpy.ops.lens_lights.generate()
@@ -451,7 +523,10 @@ def test_generate_never_raises(empty_blend, monkeypatch):
 
 def test_operators_are_undoable_and_undo_restores_exactly(empty_blend):
     from lens_lights.operators.generate import LENS_LIGHTS_OT_clear, LENS_LIGHTS_OT_generate
-    assert "UNDO" in LENS_LIGHTS_OT_generate.bl_options and "UNDO" in LENS_LIGHTS_OT_clear.bl_options
+
+    assert (
+        "UNDO" in LENS_LIGHTS_OT_generate.bl_options and "UNDO" in LENS_LIGHTS_OT_clear.bl_options
+    )
     glass = glass_material()
     lit_row(["M0", "M1"], glass)
     add_point_light("Lamp", (1, 0, 6))
@@ -461,13 +536,13 @@ def test_operators_are_undoable_and_undo_restores_exactly(empty_blend):
     bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)
     assert len(lens_lights()) == 2
     generated = snapshot()
-    bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)          # regenerate
+    bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)  # regenerate
     bpy.ops.lens_lights.clear("EXEC_DEFAULT", True)
     assert lens_lights() == []
-    bpy.ops.ed.undo()                                            # back to the regenerated
+    bpy.ops.ed.undo()  # back to the regenerated
     assert len(lens_lights()) == 2
     bpy.ops.ed.undo()
-    bpy.ops.ed.undo()                                            # back to before any
+    bpy.ops.ed.undo()  # back to before any
     assert lens_lights() == [] and not bpy.data.collections.get("Lens Lights")
     assert snapshot_diff(empty, snapshot()) == []
     assert bpy.context.scene.lens_lights.last_run is False
@@ -489,8 +564,10 @@ def test_generate_regenerate_and_clear_touch_nothing_of_the_users(empty_blend):
     add_point_light("Lamp", (2, 0, 6))
     add_point_light("Sun", (0, 0, 20), kind="SUN")
     add_camera()
-    names = {a: sorted(x.name_full for x in getattr(bpy.data, a)) for a in ("objects", "collections",
-                                                                          "lights", "images", "scenes")}
+    names = {
+        a: sorted(x.name_full for x in getattr(bpy.data, a))
+        for a in ("objects", "collections", "lights", "images", "scenes")
+    }
     before = snapshot()
     generate()
     assert len(lens_lights()) >= 3

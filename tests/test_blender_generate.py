@@ -1,5 +1,6 @@
 """The Blender side without rendering: scene reading, generate, regenerate, clear,
 undo, skipped objects, the panel's drawing (bpy module, no images)."""
+
 import math
 from types import SimpleNamespace
 
@@ -7,16 +8,22 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-bpy = pytest.importorskip("bpy")   # the pinned environment has it
+bpy = pytest.importorskip("bpy")  # the pinned environment has it
 
 
 # --------------------------------------------------------------------------- helpers
 
 # The scene builders live in tests/blender_scene_helpers.py; these names stay
 # importable from here (tests/test_blender_tiers.py imports them).
-from blender_scene_helpers import (add_point_light, add_sphere,  # noqa: E402,F401
-                                   generate, glass_material, lens_lights, new_material,
-                                   node_material)
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,  # noqa: E402,F401
+    generate,
+    glass_material,
+    lens_lights,
+    new_material,
+    node_material,
+)
 
 
 def basic_scene():
@@ -30,16 +37,17 @@ def basic_scene():
 
 # --------------------------------------------------------------------------- generate
 
+
 def test_generate_creates_the_physical_spot_light(empty_blend):
     sphere, light = basic_scene()
-    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
     assert bpy.ops.lens_lights.generate() == {"FINISHED"}
     (ll,) = lens_lights()
     # R 0.5, n 1.5, D 2: V = 4/3 − 1/2, image 1.2 below the centre (z = 1.3);
     # m = 0.6: energy = 1000 · 0.9216 · 0.36, radius = 0.6 · 0.1; 2θ = 11.41°.
     assert ll.type == "LIGHT" and ll.data.type == "SPOT"
     assert tuple(ll.location) == pytest.approx((0.0, 0.0, 1.3), abs=1e-6)
-    down = -ll.matrix_world.to_3x3().col[2]            # a spot emits along its local −Z
+    down = -ll.matrix_world.to_3x3().col[2]  # a spot emits along its local −Z
     assert tuple(down.normalized()) == pytest.approx((0.0, 0.0, -1.0), abs=1e-6)
     assert ll.data.energy == pytest.approx(1000 * 0.9216 * 0.36, rel=1e-5)
     assert math.degrees(ll.data.spot_size) == pytest.approx(11.4104, abs=2e-3)
@@ -49,14 +57,25 @@ def test_generate_creates_the_physical_spot_light(empty_blend):
     assert tuple(ll.scale) == (1.0, 1.0, 1.0)
     assert [c.name for c in ll.users_collection] == ["Lens Lights"]
     meta = ll.lens_lights
-    assert (meta.source_light, meta.source_lens, meta.kind, meta.full) == ("Lamp", "Marble", "real", True)
+    assert (meta.source_light, meta.source_lens, meta.kind, meta.full) == (
+        "Lamp",
+        "Marble",
+        "real",
+        True,
+    )
     assert meta.energy_model == "PHYSICAL" and meta.unblocked_fraction == pytest.approx(1.0)
     # light linking and shadow linking: the lens excluded from both
     for coll in (ll.light_linking.receiver_collection, ll.light_linking.blocker_collection):
         assert [o.name for o in coll.objects] == ["Marble"]
         assert [m.light_linking.link_state for m in coll.collection_objects] == ["EXCLUDE"]
     s = bpy.context.scene.lens_lights
-    assert (s.last_created, s.last_sources, s.last_primaries, s.last_lenses, s.last_skipped) == (1, 1, 1, 1, 0)
+    assert (s.last_created, s.last_sources, s.last_primaries, s.last_lenses, s.last_skipped) == (
+        1,
+        1,
+        1,
+        1,
+        0,
+    )
     assert s.last_report.startswith("Created 1 lens light (1 point light × 1 lens)")
 
 
@@ -67,7 +86,7 @@ def test_thesis_model_and_settings(empty_blend):
     s.spot_blend = 0.5
     generate()
     (ll,) = lens_lights()
-    assert ll.data.energy == pytest.approx(1000.0)        # kt = 1: brightness factor 1
+    assert ll.data.energy == pytest.approx(1000.0)  # kt = 1: brightness factor 1
     assert ll.data.spot_blend == pytest.approx(0.5)
     assert ll.lens_lights.energy_model == "THESIS"
 
@@ -108,11 +127,13 @@ def test_clear_removes_everything_created_and_nothing_else(empty_blend):
     assert "Removed 1 lens light" in bpy.context.scene.lens_lights.last_report
     # nothing left to clear: Clear's poll says no (operators.scene_state)
     from lens_lights.operators.scene_state import has_lens_lights
+
     assert not has_lens_lights(bpy.context.scene)
 
 
 def test_there_is_something_to_clear_only_after_generate(empty_blend):
     from lens_lights.operators.scene_state import has_lens_lights
+
     basic_scene()
     assert not has_lens_lights(bpy.context.scene)
     generate()
@@ -126,7 +147,7 @@ def test_there_is_something_to_clear_only_after_generate(empty_blend):
 def test_undo_and_redo(empty_blend):
     basic_scene()
     bpy.ops.ed.undo_push(message="before")
-    bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)     # True: push an undo step
+    bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)  # True: push an undo step
     assert len(lens_lights()) == 1
     bpy.ops.ed.undo()
     assert lens_lights() == []
@@ -140,8 +161,10 @@ def test_undo_and_redo(empty_blend):
 
 # --------------------------------------------------------------------------- skipped
 
+
 def test_skipped_and_left_out_objects_are_reported(empty_blend):
     from lens_lights.operators.scene_reader import read_blender_scene
+
     glass = glass_material()
     basic_scene()
     bpy.ops.mesh.primitive_cube_add(location=(3, 3, 1))
@@ -167,7 +190,7 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     assert read.light_sources == ["Lamp"]
     assert sorted(read.sphere_sources) == ["Marble", "Red ball"]
     reasons = dict(read.left_out)
-    assert "Hidden" not in reasons and "Off" not in reasons        # disabled for rendering
+    assert "Hidden" not in reasons and "Off" not in reasons  # disabled for rendering
     assert "In a render-disabled collection" not in reasons
     assert reasons["Glass cube"].startswith("too coarse for a sphere")
     assert reasons["Egg"].startswith("non-uniform scale (1, 1, 1.3)")
@@ -179,13 +202,17 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     level, message, figures = generate()
     assert figures["created"] == 1 and figures["left_out"] == 3
     assert "left out 3 objects: " in message and "Egg: non-uniform scale" in message
-    assert "Red ball" not in message            # an opaque ball is no lens, not "skipped"
+    assert "Red ball" not in message  # an opaque ball is no lens, not "skipped"
 
 
 def test_blocked_pairs_are_skipped_by_name(empty_blend):
     basic_scene()
-    add_sphere("Blocker", (0.0, 0.0, 3.6), radius=0.45,
-               material=node_material("Grey", "ShaderNodeBsdfDiffuse"))
+    add_sphere(
+        "Blocker",
+        (0.0, 0.0, 3.6),
+        radius=0.45,
+        material=node_material("Grey", "ShaderNodeBsdfDiffuse"),
+    )
     level, message, figures = generate()
     assert figures["created"] == 0 and figures["skipped"] == 1
     assert "skipped 1 pair: Lamp × Marble: totally blocked by sphere" in message
@@ -193,7 +220,7 @@ def test_blocked_pairs_are_skipped_by_name(empty_blend):
 
 def test_lens_mode_and_ior_override(empty_blend):
     sphere, _ = basic_scene()
-    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
     sphere.lens_lights.lens_mode = "NEVER"
     assert generate()[2]["created"] == 0
     sphere.lens_lights.lens_mode = "AUTO"
@@ -212,20 +239,23 @@ def test_lens_mode_and_ior_override(empty_blend):
     assert ll.location.z == pytest.approx(1.3, abs=1e-6)
 
 
-@pytest.mark.parametrize("kind,weight", [("ShaderNodeBsdfGlass", 1.0),
-                                         ("ShaderNodeBsdfRefraction", 1.0)])
+@pytest.mark.parametrize(
+    "kind,weight", [("ShaderNodeBsdfGlass", 1.0), ("ShaderNodeBsdfRefraction", 1.0)]
+)
 def test_glass_and_refraction_bsdfs(empty_blend, kind, weight):
     from lens_lights.operators.scene_reader import read_blender_scene
+
     add_sphere("S", (0, 0, 0), material=node_material("M", kind, IOR=1.33, Color=(1, 0.5, 0.25, 1)))
     add_point_light("L", (0, 0, 3))
     read = read_blender_scene(bpy.context)
     surf = read.scene.objects[0].surface
     assert surf.ior == pytest.approx(1.33) and surf.transmission == weight
-    assert read.lens_optics[0].tint == pytest.approx((1, 0.25, 0.0625))   # Color² (two surfaces)
+    assert read.lens_optics[0].tint == pytest.approx((1, 0.25, 0.0625))  # Color² (two surfaces)
 
 
 def test_mix_shader_and_volume_absorption(empty_blend):
     from lens_lights.operators.scene_reader import read_blender_scene
+
     mat = new_material("Mixed")
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
@@ -234,7 +264,7 @@ def test_mix_shader_and_volume_absorption(empty_blend):
     glass.inputs["IOR"].default_value = 1.6
     diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
     mix = nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.25          # 0.75 glass, 0.25 diffuse
+    mix.inputs["Fac"].default_value = 0.25  # 0.75 glass, 0.25 diffuse
     nt.links.new(glass.outputs[0], mix.inputs[1])
     nt.links.new(diffuse.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
@@ -252,8 +282,10 @@ def test_mix_shader_and_volume_absorption(empty_blend):
 
 # --------------------------------------------------------------------------- reading
 
+
 def test_scene_reader_contract_world_space_and_instances(empty_blend):
     from lens_lights.operators.scene_reader import read_blender_scene
+
     glass = glass_material()
     src = add_sphere("Bead", (0, 0, 0), radius=0.25, material=glass)
     coll = bpy.data.collections.new("Beads")
@@ -269,15 +301,19 @@ def test_scene_reader_contract_world_space_and_instances(empty_blend):
         bpy.context.scene.collection.objects.link(inst)
     add_point_light("L", (0, 0, 5), energy=100.0, radius=0.2)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    read = read_blender_scene(depsgraph)                    # a depsgraph works too
+    read = read_blender_scene(depsgraph)  # a depsgraph works too
     assert sorted(read.sphere_sources) == ["Inst0/Bead", "Inst1/Bead"]
     assert len(read.scene.objects) == len(read.sphere_sources) == len(read.lens_optics)
     centers = sorted(tuple(round(c, 6) for c in s.center) for s in read.scene.objects)
     assert centers == [(-1, 0, 1), (1, 0, 1)]
-    assert all(s.radius == pytest.approx(0.5) for s in read.scene.objects)   # 0.25 × 2
+    assert all(s.radius == pytest.approx(0.5) for s in read.scene.objects)  # 0.25 × 2
     light = read.scene.lights[0]
-    assert (light.position, light.brightness, light.radius, light.name) == ((0, 0, 5), 100.0,
-                                                                             pytest.approx(0.2), "L")
+    assert (light.position, light.brightness, light.radius, light.name) == (
+        (0, 0, 5),
+        100.0,
+        pytest.approx(0.2),
+        "L",
+    )
     assert read.light_sources == ["L"] and read.sphere_objects[0].name == "Bead"
     assert read.scene_size > 2
     generate()
@@ -286,6 +322,7 @@ def test_scene_reader_contract_world_space_and_instances(empty_blend):
 
 def test_exposure_temperature_and_unnormalized_power(empty_blend):
     from lens_lights.operators.scene_reader import read_blender_scene
+
     light = add_point_light("L", (0, 0, 3), energy=10.0, radius=0.5)
     if not hasattr(light.data, "exposure"):
         # Blender 4.2 lights have no exposure, normalize or temperature (4.5 added
@@ -302,7 +339,7 @@ def test_exposure_temperature_and_unnormalized_power(empty_blend):
     light.data.temperature = 3000
     read = read_blender_scene(bpy.context)
     r, g, b = read.scene.lights[0].color
-    assert r > g > b                                  # warm
+    assert r > g > b  # warm
 
 
 @pytest.mark.skipif(bpy.app.version >= (5, 0, 0), reason="from 5.0 every material uses its nodes")
@@ -310,6 +347,7 @@ def test_a_material_with_use_nodes_off_is_no_lens(empty_blend):
     """Before 5.0 a material keeps its node tree with "Use Nodes" off and renders
     its plain colours: opaque."""
     from lens_lights.operators.scene_reader import read_blender_scene
+
     glass = glass_material()
     glass.use_nodes = False
     add_sphere("Marble", (0.0, 0.0, 1.0), material=glass)
@@ -320,7 +358,7 @@ def test_a_material_with_use_nodes_off_is_no_lens(empty_blend):
 
 
 def test_collimated_source_becomes_a_narrow_far_spot(empty_blend):
-    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
     # Light at the front focal point (D = nR/(2(n−1)) = 0.75 for R 0.5, n 1.5).
     add_sphere("Marble", (0.0, 0.0, 2.5), material=glass_material())
     add_point_light("Lamp", (0.0, 0.0, 3.25), energy=100.0)
@@ -334,6 +372,7 @@ def test_collimated_source_becomes_a_narrow_far_spot(empty_blend):
     # Footprint at the back vertex (z = 2) equals R_C: tan(0.5°) · k · (z_light − 2).
     from lens_lights.addon.phase1 import compute_phase1
     from lens_lights.operators.scene_reader import read_blender_scene
+
     src = compute_phase1(read_blender_scene(bpy.context).scene).sources[0]
     footprint = math.tan(math.radians(0.5)) * ll.scale.x * (ll.location.z - 2.0)
     assert footprint == pytest.approx(src.cylinder_radius, rel=1e-4)
@@ -349,9 +388,9 @@ def test_blender_clamps_spot_size_to_1_to_180_degrees(empty_blend):
 
 
 def test_max_lights_and_brightness_cut_off(empty_blend):
-    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
     glass = glass_material()
-    bpy.ops.mesh.primitive_plane_add(size=20, location=(3, 0, -2))   # images above it: cones
+    bpy.ops.mesh.primitive_plane_add(size=20, location=(3, 0, -2))  # images above it: cones
     for k in range(4):
         add_sphere(f"M{k}", (2.0 * k, 0.0, 1.0), radius=0.2 + 0.1 * k, material=glass)
     add_point_light("Lamp", (3.0, 0.0, 6.0))
@@ -361,7 +400,7 @@ def test_max_lights_and_brightness_cut_off(empty_blend):
     assert figures["created"] == 2 and figures["skipped"] == 2
     assert "beyond the maximum of 2 lens lights" in message
     s.max_lights = 64
-    s.min_brightness = 0.95          # PHYSICAL: T(0) = 0.92 < 0.95
+    s.min_brightness = 0.95  # PHYSICAL: T(0) = 0.92 < 0.95
     assert generate()[2]["created"] == 0
     assert "dimmer than the cut-off" in bpy.context.scene.lens_lights.last_report
 
@@ -374,6 +413,7 @@ def test_no_lights_and_no_lenses_warn(empty_blend):
 
 
 # --------------------------------------------------------------------------- panel
+
 
 class FakeLayout:
     """Records what a panel draws; checks that every property drawn exists."""
@@ -415,6 +455,7 @@ def draw_panel(cls, context):
 
 def test_panel_draws_buttons_settings_and_figures(empty_blend):
     from lens_lights.operators.panel import VIEW3D_PT_lens_lights, VIEW3D_PT_lens_lights_object
+
     assert VIEW3D_PT_lens_lights.bl_category == "Lens Lights"
     assert VIEW3D_PT_lens_lights.bl_region_type == "UI"
     sphere, _ = basic_scene()
@@ -438,7 +479,7 @@ def test_panel_draws_buttons_settings_and_figures(empty_blend):
 
 
 def test_marble_on_a_table_under_a_high_lamp_and_a_ceiling(empty_blend):
-    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"   # (the default is AUTO)
+    bpy.context.scene.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
     # The image (1.2 below the centre) lies under the table the marble rests on:
     # the receiver (the table, R below the centre) cuts the converging beam, so the
     # cone is pulled in to the lens centre (issue 12), never under the table; a

@@ -39,6 +39,7 @@ the whole view, as ratios to the exact optics:
   `FITTED_RATIO`, view ratio within `FITTED_VIEW_RATIO` (measured 0.332 and
   0.662, centroid 0.010 off; the pure spot model of the same light gives 0.333).
 """
+
 import math
 
 import numpy as np
@@ -48,14 +49,19 @@ pytestmark = pytest.mark.blender
 
 bpy = pytest.importorskip("bpy")
 
-from addon import exact_optics                      # noqa: E402
+from measuring_scene import (
+    add_top_camera,
+    build_measuring_scene,  # noqa: E402 (scripts/)
+    new_material,
+    new_measuring_scene,
+)
+
+from addon import exact_optics  # noqa: E402
 from addon.tiers import head_on_transmission  # noqa: E402
-from measuring_scene import (add_top_camera, build_measuring_scene,  # noqa: E402 (scripts/)
-                             new_material, new_measuring_scene)
 
 R, N, D, HEIGHT, TILT_DEG, POWER, ALBEDO = 0.5, 1.5, 2.0, 2.5, 20.0, 1000.0, 0.8
-D_FOCAL = N * R / (2 * (N - 1))                     # 0.75: front focal distance
-PX, VIEW = 48, 1.0                                  # 48 × 48 px over 1 m: ~2 cm a pixel
+D_FOCAL = N * R / (2 * (N - 1))  # 0.75: front focal distance
+PX, VIEW = 48, 1.0  # 48 × 48 px over 1 m: ~2 cm a pixel
 PATCH_PX = 2.0
 POSITION_TOL = 0.02
 BRIGHTNESS_TOL = 0.10
@@ -84,11 +90,18 @@ def build_scene(engine, tmp, light_distance=D):
     center = np.array([0.0, 0.0, HEIGHT])
     hit, _ = axis_hit()
     built = build_measuring_scene(
-        engine, resolution=PX, floor_size=6.0, albedo=ALBEDO, view=VIEW,
-        camera_xy=(hit[0], hit[1]), camera_height=5.0,
-        ball=dict(radius=R, location=(0.0, 0.0, HEIGHT), ior=N, segments=48, rings=24,
-                  name="Marble"),
-        lamp=dict(location=center - light_distance * axis_dir(), power=POWER))
+        engine,
+        resolution=PX,
+        floor_size=6.0,
+        albedo=ALBEDO,
+        view=VIEW,
+        camera_xy=(hit[0], hit[1]),
+        camera_height=5.0,
+        ball=dict(
+            radius=R, location=(0.0, 0.0, HEIGHT), ior=N, segments=48, rings=24, name="Marble"
+        ),
+        lamp=dict(location=center - light_distance * axis_dir(), power=POWER),
+    )
     sc = built.scene
     if engine == "CYCLES":
         sc.cycles.samples = 64
@@ -108,7 +121,7 @@ def render(sc, path):
     img = bpy.data.images.load(str(path))
     px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
     bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2)                 # grey floor: channels agree
+    return px[..., :3].mean(axis=2)  # grey floor: channels agree
 
 
 def pixel_xy():
@@ -131,8 +144,9 @@ def exact_floor_irradiance(light_distance, z_along_axis, patch_radius):
     """Exact optics (SPEC §6): irradiance on the floor at the axis point, averaged
     over a disc of `patch_radius` on the perpendicular plane, × cos(tilt)."""
     i0 = POWER / (4 * math.pi)
-    e = exact_optics.irradiance_on_plane(i0, light_distance, R, N, z_along_axis,
-                                         [0.0, patch_radius], n_psi=100_000)[0]
+    e = exact_optics.irradiance_on_plane(
+        i0, light_distance, R, N, z_along_axis, [0.0, patch_radius], n_psi=100_000
+    )[0]
     return float(e) * math.cos(math.radians(TILT_DEG))
 
 
@@ -145,6 +159,7 @@ def renders(extension, tmp_path_factory):
     """All renders, once: per engine, the basic scene without and with lens lights,
     and the collimated scene with lens lights only (primary hidden)."""
     from lens_lights.operators.generate import generate
+
     tmp = tmp_path_factory.mktemp("renders")
     out = {}
     for engine in ENGINES:
@@ -153,25 +168,32 @@ def renders(extension, tmp_path_factory):
         sc.lens_lights.energy_model = "PHYSICAL"
         generate(bpy.context)
         (ll,) = [o for o in bpy.data.objects if o.lens_lights.is_lens_light]
-        out[engine, "light"] = dict(energy=ll.data.energy, location=tuple(ll.location),
-                                    spot_size=math.degrees(ll.data.spot_size))
+        out[engine, "light"] = dict(
+            energy=ll.data.energy,
+            location=tuple(ll.location),
+            spot_size=math.degrees(ll.data.spot_size),
+        )
         out[engine, "with"] = render(sc, tmp / f"{engine}_with.exr")
         sc.lens_lights.energy_model = "AUTO"
         generate(bpy.context)
         (ll,) = [o for o in bpy.data.objects if o.lens_lights.is_lens_light]
         out[engine, "tier"] = ll.lens_lights.energy_model
-        out[engine, "tier_light"] = dict(energy=ll.data.energy, location=tuple(ll.location),
-                                         spot_size=math.degrees(ll.data.spot_size),
-                                         blend=ll.data.spot_blend)
+        out[engine, "tier_light"] = dict(
+            energy=ll.data.energy,
+            location=tuple(ll.location),
+            spot_size=math.degrees(ll.data.spot_size),
+            blend=ll.data.spot_blend,
+        )
         out[engine, "tier_render"] = render(sc, tmp / f"{engine}_tier.exr")
 
         sc, lamp = build_scene(engine, tmp, light_distance=D_FOCAL)
-        sc.lens_lights.energy_model = "PHYSICAL"         # (the default is AUTO)
+        sc.lens_lights.energy_model = "PHYSICAL"  # (the default is AUTO)
         generate(bpy.context)
         (ll,) = [o for o in bpy.data.objects if o.lens_lights.is_lens_light]
         assert ll.lens_lights.kind == "collimated"
-        out[engine, "beam"] = dict(energy=ll.data.energy, location=tuple(ll.location),
-                                   scale=ll.scale.x)
+        out[engine, "beam"] = dict(
+            energy=ll.data.energy, location=tuple(ll.location), scale=ll.scale.x
+        )
         lamp.hide_render = True
         out[engine, "collimated"] = render(sc, tmp / f"{engine}_collimated.exr")
     return out
@@ -187,8 +209,10 @@ def test_caustic_is_where_the_axis_meets_the_floor(renders, engine):
     hit, _ = axis_hit()
     error = math.hypot(cx - hit[0], cy - hit[1])
     FIGURES[engine, "position_error"] = error
-    print(f"\n{engine}: caustic centre ({cx:.4f}, {cy:.4f}), axis meets the floor at "
-          f"({hit[0]:.4f}, {hit[1]:.4f}): error {error:.4f} (pixel {VIEW / PX:.4f})")
+    print(
+        f"\n{engine}: caustic centre ({cx:.4f}, {cy:.4f}), axis meets the floor at "
+        f"({hit[0]:.4f}, {hit[1]:.4f}): error {error:.4f} (pixel {VIEW / PX:.4f})"
+    )
     assert error <= POSITION_TOL
 
 
@@ -205,10 +229,12 @@ def test_caustic_brightness_matches_exact_optics(renders, engine):
     v = 2 * (N - 1) / (N * R) - 1 / D
     thesis_ratio = ratio / (head_on_transmission(N) * (1 / (v * D)) ** 2)
     FIGURES[engine, "ratio"] = ratio
-    print(f"\n{engine}: caustic {measured:.4f} vs exact optics {expected:.4f}: "
-          f"PHYSICAL ratio {ratio:.4f} (THESIS would give {thesis_ratio:.3f}); "
-          f"without lens lights {without:.4f}")
-    assert without < 0.05 * expected           # no caustic without lens lights
+    print(
+        f"\n{engine}: caustic {measured:.4f} vs exact optics {expected:.4f}: "
+        f"PHYSICAL ratio {ratio:.4f} (THESIS would give {thesis_ratio:.3f}); "
+        f"without lens lights {without:.4f}"
+    )
+    assert without < 0.05 * expected  # no caustic without lens lights
     assert abs(ratio - 1) <= BRIGHTNESS_TOL
 
 
@@ -228,22 +254,37 @@ def exact_floor_image(light_distance=D, n_iota=2000, n_phi=2048, seed=1):
     fan = exact_optics.trace_rays_iota(iota, light_distance, R, N)
     k = R / light_distance
     # flux per ray: I0 T(ι) dΩ, dΩ = k² sin ι cos ι / cos ψ dι dφ
-    flux = (POWER / (4 * math.pi)) * fan.transmission * k * k * np.sin(iota) * np.cos(iota) \
-        / np.cos(fan.psi) * d_iota * d_phi
+    flux = (
+        (POWER / (4 * math.pi))
+        * fan.transmission
+        * k
+        * k
+        * np.sin(iota)
+        * np.cos(iota)
+        / np.cos(fan.psi)
+        * d_iota
+        * d_phi
+    )
     phi = (np.arange(n_phi)[None, :] + rng.random((n_iota, n_phi))) * d_phi
     cos_t = np.cos(fan.theta_exit)[:, None]
-    a, b = fan.b[:, None] / cos_t, np.tan(fan.theta_exit)[:, None]   # h(Z) = a − b Z (meridional)
+    a, b = fan.b[:, None] / cos_t, np.tan(fan.theta_exit)[:, None]  # h(Z) = a − b Z (meridional)
     sz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
-    Z = -(c[2] + a * sz) / (u[2] - b * sz)                            # along the axis, to z = 0
+    Z = -(c[2] + a * sz) / (u[2] - b * sz)  # along the axis, to z = 0
     h = a - Z * b
     x = c[0] + h * (np.cos(phi) * e1[0] + np.sin(phi) * e2[0]) + Z * u[0]
     y = c[1] + h * (np.cos(phi) * e1[1] + np.sin(phi) * e2[1]) + Z * u[1]
-    ok = (cos_t > 0) & (Z >= (-R * np.cos(fan.exit_polar))[:, None]) & np.isfinite(x) & np.isfinite(y)
+    ok = (
+        (cos_t > 0)
+        & (Z >= (-R * np.cos(fan.exit_polar))[:, None])
+        & np.isfinite(x)
+        & np.isfinite(y)
+    )
     hit, _ = axis_hit()
     ex = hit[0] + (np.arange(PX + 1) / PX - 0.5) * VIEW
     ey = hit[1] + (np.arange(PX + 1) / PX - 0.5) * VIEW
-    E, _, _ = np.histogram2d(y[ok], x[ok], bins=[ey, ex],
-                             weights=np.broadcast_to(flux[:, None], x.shape)[ok])
+    E, _, _ = np.histogram2d(
+        y[ok], x[ok], bins=[ey, ex], weights=np.broadcast_to(flux[:, None], x.shape)[ok]
+    )
     return to_radiance(E / (VIEW / PX) ** 2)
 
 
@@ -263,6 +304,7 @@ def test_auto_tier_caustic_against_exact_optics(renders, engine):
 
     def centroid(img):
         return float((img * x).sum() / img.sum()), float((img * y).sum() / img.sum())
+
     (cx, cy), (ex, ey) = centroid(diff), centroid(exact)
     error = math.hypot(cx - ex, cy - ey)
     _, patch = patch_mean(diff, hit)
@@ -271,10 +313,12 @@ def test_auto_tier_caustic_against_exact_optics(renders, engine):
     # The perpendicular-plane estimate of the PHYSICAL test, for comparison.
     approx = to_radiance(exact_floor_irradiance(D, t_hit, PATCH_PX * VIEW / PX))
     FIGURES[engine, "tier_ratio"] = ratio
-    print(f"\n{engine} {tier}: centroid ({cx:.4f}, {cy:.4f}) vs exact ({ex:.4f}, {ey:.4f}): "
-          f"error {error:.4f}; axis patch {diff[patch].mean():.4f} vs exact {exact[patch].mean():.4f} "
-          f"(perpendicular-plane estimate {approx:.4f}): ratio {ratio:.4f}; light in the view "
-          f"{view_ratio:.4f} of the exact; light {renders[engine, 'tier_light']}")
+    print(
+        f"\n{engine} {tier}: centroid ({cx:.4f}, {cy:.4f}) vs exact ({ex:.4f}, {ey:.4f}): "
+        f"error {error:.4f}; axis patch {diff[patch].mean():.4f} vs exact {exact[patch].mean():.4f} "
+        f"(perpendicular-plane estimate {approx:.4f}): ratio {ratio:.4f}; light in the view "
+        f"{view_ratio:.4f} of the exact; light {renders[engine, 'tier_light']}"
+    )
     assert error <= POSITION_TOL
     if tier == "EXACT_PROFILE":
         assert abs(ratio - 1) <= BRIGHTNESS_TOL
@@ -303,14 +347,14 @@ def test_collimated_beam_renders_as_modelled(renders, engine):
     # irradiance energy/(4π)/(s + L)² across the beam, × cos tilt on the floor.
     model = beam["energy"] / (4 * math.pi) / (s + t_hit - R) ** 2
     expected = to_radiance(model * math.cos(math.radians(TILT_DEG)))
-    paraxial = i0 * head_on_transmission(N) / D_FOCAL ** 2     # PHYSICAL's beam, any L
+    paraxial = i0 * head_on_transmission(N) / D_FOCAL**2  # PHYSICAL's beam, any L
     exact = to_radiance(exact_floor_irradiance(D_FOCAL, t_hit, radius))
     ratio = measured / expected
     FIGURES[engine, "beam_ratio"] = ratio
     # Width across the beam (y is perpendicular to the tilt): the profile's
     # equivalent width ∫ profile / peak along the two columns through the axis point.
-    profile = img[:, PX // 2 - 1:PX // 2 + 1].mean(axis=1)
-    width = float(profile.sum() / profile[PX // 2 - 2:PX // 2 + 2].mean()) * VIEW / PX
+    profile = img[:, PX // 2 - 1 : PX // 2 + 1].mean(axis=1)
+    width = float(profile.sum() / profile[PX // 2 - 2 : PX // 2 + 2].mean()) * VIEW / PX
     # R_C of the beam at the focal point: R sin(2δ + α − 90°), α = asin(R/D_f),
     # widened by the far spot's (1 + L/s) at the floor; the spot blend b fades the
     # edge over the outer share b of 1 − cos ψ ∝ ψ² (a smoothstep, half-way at
@@ -318,10 +362,12 @@ def test_collimated_beam_renders_as_modelled(renders, engine):
     delta, alpha = math.asin(1 / N), math.asin(R / D_FOCAL)
     rc = R * math.sin(2 * delta + alpha - math.pi / 2) * (1 + (t_hit - R) / s)
     blend = math.sqrt(1 - 0.15 / 2)
-    print(f"\n{engine}: collimated beam {measured:.4f} vs the far spot {expected:.4f}: "
-          f"ratio {ratio:.4f} (the spot is {model / paraxial:.3f} × I0 T(0)/D² at the floor); width {width:.3f} vs 2 R_C {2 * rc:.3f} (× blend "
-          f"{2 * rc * blend:.3f}); exact optics near "
-          f"the axis {exact:.1f} ({exact / measured:.1f} × the beam: axial caustic)")
+    print(
+        f"\n{engine}: collimated beam {measured:.4f} vs the far spot {expected:.4f}: "
+        f"ratio {ratio:.4f} (the spot is {model / paraxial:.3f} × I0 T(0)/D² at the floor); width {width:.3f} vs 2 R_C {2 * rc:.3f} (× blend "
+        f"{2 * rc * blend:.3f}); exact optics near "
+        f"the axis {exact:.1f} ({exact / measured:.1f} × the beam: axial caustic)"
+    )
     assert abs(ratio - 1) <= BRIGHTNESS_TOL
     assert width == pytest.approx(2 * rc * blend, rel=0.03)
 
@@ -330,7 +376,7 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
     """What PHYSICAL assumes of Cycles' glass, measured through a sphere seen
     against an emitter (strength 1) along the axis: T(0) = 0.9216 for n = 1.5, the
     Principled BSDF tints a path once by Base Color, the Glass BSDF at each surface."""
-    sc = new_measuring_scene("CYCLES", 8)          # linear EXR, Standard, no world
+    sc = new_measuring_scene("CYCLES", 8)  # linear EXR, Standard, no world
     sc.cycles.samples = 8
     sc.cycles.use_denoising = False
     bpy.ops.mesh.primitive_plane_add(size=20, location=(0, 0, -5))
@@ -366,9 +412,11 @@ def test_cycles_glass_path_transmittance(extension, tmp_path):
 
     t0 = head_on_transmission(1.5)
     clear = through("principled", 1.0)
-    print(f"\nCycles through a sphere (n 1.5): {clear:.4f} (T(0) = {t0:.4f}); "
-          f"Principled base 0.5: {through('principled', 0.5) / clear:.3f} of it, "
-          f"Glass colour 0.5: {through('glass', 0.5) / clear:.3f}")
-    assert clear == pytest.approx(t0, rel=0.01)     # (+0.4 %: internal reflections)
+    print(
+        f"\nCycles through a sphere (n 1.5): {clear:.4f} (T(0) = {t0:.4f}); "
+        f"Principled base 0.5: {through('principled', 0.5) / clear:.3f} of it, "
+        f"Glass colour 0.5: {through('glass', 0.5) / clear:.3f}"
+    )
+    assert clear == pytest.approx(t0, rel=0.01)  # (+0.4 %: internal reflections)
     assert through("principled", 0.5) / clear == pytest.approx(0.5, rel=0.01)
     assert through("glass", 0.5) / clear == pytest.approx(0.25, rel=0.01)

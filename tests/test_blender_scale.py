@@ -2,6 +2,7 @@
 fitted once per instanced mesh, phase 1's sources are pre-selected by flux before
 any Python object is made for them, merging, and what the report says was left out
 (the 10 000 / 100 000 figures: `./lens-lights bench operator_scale`)."""
+
 import math
 from types import SimpleNamespace
 
@@ -10,11 +11,19 @@ import pytest
 
 pytestmark = pytest.mark.blender
 
-bpy = pytest.importorskip("bpy")   # the pinned environment has it
+bpy = pytest.importorskip("bpy")  # the pinned environment has it
 
-from blender_scene_helpers import (add_point_light, add_sphere, collection_instance,  # noqa: E402
-                                   collection_of, generate, glass_material, gn_instances,
-                                   grid, lens_lights)
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,
+    collection_instance,  # noqa: E402
+    collection_of,
+    generate,
+    glass_material,
+    gn_instances,
+    grid,
+    lens_lights,
+)
 
 
 def floor(size=60):
@@ -37,6 +46,7 @@ def count_calls(monkeypatch, module, name):
 @pytest.mark.parametrize("kind", ["geometry", "object", "collection"])
 def test_200_instances_are_fitted_once(empty_blend, monkeypatch, kind):
     from lens_lights.operators import scene_reader
+
     glass = glass_material()
     points = grid(200, spacing=1.0)
     bead = add_sphere("Bead", (0, 0, -50), radius=0.2, material=glass)
@@ -55,7 +65,7 @@ def test_200_instances_are_fitted_once(empty_blend, monkeypatch, kind):
     fits = count_calls(monkeypatch, scene_reader, "fit_sphere")
     materials = count_calls(monkeypatch, scene_reader, "material_optics")
     r = scene_reader.read_blender_scene(bpy.context)
-    n = 200 if kind == "collection" else 201        # the bead itself is in the scene too
+    n = 200 if kind == "collection" else 201  # the bead itself is in the scene too
     assert len(r.sphere_sources) == n == len(r.arrays.radius) == len(r.lens_optics)
     # one fit per distinct mesh (geometry instances: the node tree's UV sphere and
     # the bead), one material evaluation per material
@@ -72,6 +82,7 @@ def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
     by reason and gives the flux without a light."""
     from lens_lights.addon.phase1 import SourceTable
     from lens_lights.operators import generate as gen
+
     glass = glass_material()
     floor()
     gn_instances("Beads", grid(200, spacing=1.2), radius=0.2, material=glass, location=(-8, -8, 1))
@@ -85,19 +96,26 @@ def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
     level, message, figures = generate()
     (work,) = works
     assert figures["sources"] == 400 and figures["created"] == 8 == len(lens_lights())
-    assert len(made) == 32 and work.result._sources is None       # never all 400
+    assert len(made) == 32 and work.result._sources is None  # never all 400
     by = figures["skipped_by_reason"]
     assert by["not among the 32 strongest by flux"] == 368
     assert by["beyond the maximum of 8 lens lights"] == 24
     assert figures["skipped"] == 392
-    assert "by reason: 368 not among the 32 strongest by flux, 24 beyond the maximum of 8" in message
+    assert (
+        "by reason: 368 not among the 32 strongest by flux, 24 beyond the maximum of 8" in message
+    )
     # flux without a light = 1 − (flux of the 8 built) / (flux of all 400)
     from lens_lights.addon.budget import source_flux
+
     flux = source_flux(work.result.table, work.read.arrays.light_brightness)
     built = {(ll.lens_lights.source_light, ll.lens_lights.source_lens) for ll in lens_lights()}
     t = work.result.table
-    mask = np.array([(work.read.light_sources[j], work.read.sphere_sources[i]) in built
-                     for j, i in zip(t.light, t.lens)])
+    mask = np.array(
+        [
+            (work.read.light_sources[j], work.read.sphere_sources[i]) in built
+            for j, i in zip(t.light, t.lens, strict=False)
+        ]
+    )
     want = 1.0 - flux[mask].sum() / flux.sum()
     assert figures["flux_left_out"] == pytest.approx(want, rel=1e-9)
     assert f"{100 * want:.3g}% of the lenses' flux has no lens light" in message
@@ -118,6 +136,7 @@ def test_preselection_keeps_the_strongest_by_flux(empty_blend):
     s = bpy.context.scene.lens_lights
     s.max_lights = 1
     from lens_lights.operators import generate as gen
+
     gen.PRESELECT_FACTOR, old = 1, gen.PRESELECT_FACTOR
     try:
         level, message, figures = generate()
@@ -131,7 +150,7 @@ def test_preselection_keeps_the_strongest_by_flux(empty_blend):
 def test_merging_nearby_sources(empty_blend):
     glass = glass_material()
     floor()
-    for k in range(4):       # tiny droplets side by side: their images nearly coincide
+    for k in range(4):  # tiny droplets side by side: their images nearly coincide
         add_sphere(f"Drop {k}", (0.3 + 0.12 * k, 0.5, 2.5), radius=0.05, material=glass)
     add_point_light("Lamp", (0.45, 0.5, 9.0))
     s = bpy.context.scene.lens_lights
@@ -147,8 +166,9 @@ def test_merging_nearby_sources(empty_blend):
     assert "merged: energy ×" in ll.lens_lights.note
     assert figures["flux_left_out"] == pytest.approx(0.0, abs=1e-12)
     # the merge distance is a scene setting, drawn in the panel
-    from test_blender_generate import draw_panel
     from lens_lights.operators.panel import VIEW3D_PT_lens_lights
+    from test_blender_generate import draw_panel
+
     log = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
     assert ("prop", "use_merge") in log and ("prop", "merge_distance") in log
 
@@ -156,16 +176,24 @@ def test_merging_nearby_sources(empty_blend):
 def test_select_sources_without_a_cap_keeps_everything(empty_blend):
     from lens_lights.addon.phase1 import SceneArrays, compute_phase1
     from lens_lights.addon.planning import select_sources
+
     d = np.array([3.0, 6.0, 12.0])
     ang = np.radians(25.0) * np.arange(3)
     centers = np.stack([d * np.cos(ang), d * np.sin(ang), np.zeros(3)], 1)
-    a = SceneArrays(np.zeros((1, 3)), np.ones(1), np.ones((1, 3)), centers, np.full(3, 0.5),
-                    np.full(3, 1.5), np.full(3, 1.0))
+    a = SceneArrays(
+        np.zeros((1, 3)),
+        np.ones(1),
+        np.ones((1, 3)),
+        centers,
+        np.full(3, 0.5),
+        np.full(3, 1.5),
+        np.full(3, 1.0),
+    )
     result = compute_phase1(a)
     sel = select_sources(result, [100.0], max_lights=None)
     assert len(sel.sources) == 3 and sel.budget.over_cap == 0 and sel.preselect is None
     np.testing.assert_allclose(sel.flux_kept.sum(), sel.flux_total, rtol=1e-12)
-    sel = select_sources(result, [100.0], max_lights=0)           # at least one light
+    sel = select_sources(result, [100.0], max_lights=0)  # at least one light
     assert len(sel.sources) == 3 and sel.preselect == 4
 
 
@@ -174,7 +202,9 @@ def test_many_instances_stay_fast(empty_blend):
     two (the per-instance Python work is a key lookup and a matrix copy)."""
     glass = glass_material()
     floor(100)
-    gn_instances("Beads", grid(2000, spacing=1.0), radius=0.3, material=glass, location=(-22, -22, 1))
+    gn_instances(
+        "Beads", grid(2000, spacing=1.0), radius=0.3, material=glass, location=(-22, -22, 1)
+    )
     add_point_light("Lamp A", (5.0, 5.0, 12.0))
     add_point_light("Lamp B", (-5.0, 0.0, 9.0))
     level, message, figures = generate()
@@ -187,8 +217,9 @@ def test_occluders_match_brute_force_and_blender():
     """Rays against 2 000 random spheres: the same first hits as a plain loop; a
     rotated, scaled plane (box test, then BVH) as `Scene.ray_cast` sees it."""
     from lens_lights.operators.occluders import MeshSource, Occluders
+
     rng = np.random.default_rng(3)
-    C = rng.uniform(-20, 20, (2000, 3)) + 1e5            # far from the world origin
+    C = rng.uniform(-20, 20, (2000, 3)) + 1e5  # far from the world origin
     R = rng.uniform(0.05, 1.0, 2000)
     occ = Occluders(C, R, np.zeros((0, 4, 4)), np.zeros((0, 3)), np.zeros((0, 3)), [], [])
     for _ in range(20):
@@ -200,25 +231,39 @@ def test_occluders_match_brute_force_and_blender():
         for o in origins:
             oc = C - o
             b = oc @ d
-            disc = b * b - ((oc * oc).sum(1) - R ** 2)
+            disc = b * b - ((oc * oc).sum(1) - R**2)
             with np.errstate(invalid="ignore"):
-                t = np.where(b - np.sqrt(disc) > 0, b - np.sqrt(disc),
-                             np.where(b + np.sqrt(disc) > 0, b + np.sqrt(disc), np.inf))
+                t = np.where(
+                    b - np.sqrt(disc) > 0,
+                    b - np.sqrt(disc),
+                    np.where(b + np.sqrt(disc) > 0, b + np.sqrt(disc), np.inf),
+                )
             want.append(np.where(disc >= 0, t, np.inf).min())
         got = occ.first_hit(origins, d, 1e9)
         np.testing.assert_allclose(got, np.where(np.array(want) <= 1e9, want, np.inf), rtol=1e-9)
     # A 2 × 2 plane turned 30° about x, scaled 3, centred at (0, 0, 5).
     from mathutils import Matrix
-    m = np.array(Matrix.Translation((0, 0, 5)) @ Matrix.Rotation(math.radians(30), 4, "X")
-                 @ Matrix.Scale(3, 4))
+
+    m = np.array(
+        Matrix.Translation((0, 0, 5))
+        @ Matrix.Rotation(math.radians(30), 4, "X")
+        @ Matrix.Scale(3, 4)
+    )
     verts = np.array([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], float)
     tris = np.array([(0, 1, 2), (0, 2, 3)])
     w = verts @ m[:3, :3].T + m[:3, 3]
-    occ = Occluders(np.zeros((0, 3)), np.zeros(0), m[None], w.min(0)[None], w.max(0)[None],
-                    [0], [MeshSource(arrays=(verts, tris))])
+    occ = Occluders(
+        np.zeros((0, 3)),
+        np.zeros(0),
+        m[None],
+        w.min(0)[None],
+        w.max(0)[None],
+        [0],
+        [MeshSource(arrays=(verts, tris))],
+    )
     hits = occ.first_hit([(0, 0, 0), (0.5, 0.2, 0), (10, 0, 0)], (0, 0, 1), 100.0)
     # the plane z' = 0 in world: z = 5 + y·tan 30°
-    assert hits[0] == pytest.approx(5.0, rel=1e-6)          # the BVH is single precision
+    assert hits[0] == pytest.approx(5.0, rel=1e-6)  # the BVH is single precision
     assert hits[1] == pytest.approx(5.0 + 0.2 * math.tan(math.radians(30)), rel=1e-6)
     assert hits[2] == math.inf
-    assert occ.first_hit([(0, 0, 0)], (0, 0, 1), 4.0)[0] == math.inf     # beyond the limit
+    assert occ.first_hit([(0, 0, 0)], (0, 0, 1), 4.0)[0] == math.inf  # beyond the limit

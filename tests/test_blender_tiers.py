@@ -4,6 +4,7 @@ behind), EXACT_PROFILE asked for in EEVEE, the tier on each light, the panel's
 tier line. Renders of FITTED (EEVEE) and EXACT_PROFILE (Cycles): see
 tests/test_blender_render.py.
 """
+
 import math
 
 import numpy as np
@@ -13,8 +14,15 @@ pytestmark = pytest.mark.blender
 
 bpy = pytest.importorskip("bpy")
 
-from test_blender_generate import (add_point_light, add_sphere, basic_scene,  # noqa: E402
-                                   draw_panel, generate, glass_material, lens_lights)
+from test_blender_generate import (
+    add_point_light,
+    add_sphere,
+    basic_scene,  # noqa: E402
+    draw_panel,
+    generate,
+    glass_material,
+    lens_lights,
+)
 
 PROFILE_MARK = "lens_lights_created"
 
@@ -25,13 +33,22 @@ def our_images():
 
 def expected_lights(model="EXACT_PROFILE"):
     """The lights lens_tiers makes for the scene as the generator reads it."""
-    from lens_lights.addon.tiers import make_blender_light
     from lens_lights.addon.phase1 import compute_phase1
+    from lens_lights.addon.tiers import make_blender_light
     from lens_lights.operators.scene_reader import read_blender_scene
+
     read = read_blender_scene(bpy.context)
     result = compute_phase1(read.scene)
-    return [make_blender_light(s, read.primaries[s.light], model, optics=read.lens_optics[s.lens],
-                               scene_size=read.scene_size) for s in result.sources]
+    return [
+        make_blender_light(
+            s,
+            read.primaries[s.light],
+            model,
+            optics=read.lens_optics[s.lens],
+            scene_size=read.scene_size,
+        )
+        for s in result.sources
+    ]
 
 
 def set_engine(engine):
@@ -42,6 +59,7 @@ def set_engine(engine):
 
 
 # --------------------------------------------------------------------------- AUTO
+
 
 @pytest.mark.parametrize("engine, tier", [("CYCLES", "EXACT_PROFILE"), ("BLENDER_EEVEE", "FITTED")])
 def test_auto_is_the_default_and_builds_the_best_tier_for_the_engine(empty_blend, engine, tier):
@@ -59,7 +77,9 @@ def test_auto_is_the_default_and_builds_the_best_tier_for_the_engine(empty_blend
         assert math.degrees(ll.data.spot_size) == pytest.approx(want.spot_size_deg, rel=1e-5)
         assert ll.data.spot_blend == pytest.approx(want.spot_blend, abs=1e-6)
         assert tuple(ll.location) == pytest.approx(want.location, abs=1e-5)
-        assert not ll.data.node_tree or not any(n.type == "TEX_IMAGE" for n in ll.data.node_tree.nodes)
+        assert not ll.data.node_tree or not any(
+            n.type == "TEX_IMAGE" for n in ll.data.node_tree.nodes
+        )
         assert our_images() == []
 
 
@@ -90,6 +110,7 @@ def test_every_tier_is_recorded_on_its_light(empty_blend, model):
 
 # --------------------------------------------------------------------------- EXACT_PROFILE
 
+
 def profile_parts(ll):
     nt = ll.data.node_tree
     (tex,) = [n for n in nt.nodes if n.type == "TEX_IMAGE"]
@@ -111,8 +132,16 @@ def test_exact_profile_light_node_tree_and_image(empty_blend, tmp_path):
     down = -ll.matrix_world.to_3x3().col[2]
     assert tuple(down.normalized()) == pytest.approx(want.direction, abs=1e-6)
     nt, tex, img = profile_parts(ll)
-    assert {n.type for n in nt.nodes} >= {"TEX_COORD", "SEPXYZ", "LIGHT_PATH", "MATH",
-                                          "COMBXYZ", "TEX_IMAGE", "EMISSION", "OUTPUT_LIGHT"}
+    assert {n.type for n in nt.nodes} >= {
+        "TEX_COORD",
+        "SEPXYZ",
+        "LIGHT_PATH",
+        "MATH",
+        "COMBXYZ",
+        "TEX_IMAGE",
+        "EMISSION",
+        "OUTPUT_LIGHT",
+    }
     (out,) = [n for n in nt.nodes if n.type == "OUTPUT_LIGHT"]
     assert out.inputs["Surface"].links[0].from_node.type == "EMISSION"
     assert (tex.interpolation, tex.extension) == ("Linear", "EXTEND")
@@ -127,8 +156,11 @@ def test_exact_profile_light_node_tree_and_image(empty_blend, tmp_path):
     assert np.array_equal(px[..., 0], p["pixels"]) and float(p["pixels"].max()) > 1e3
     # what the node tree divides by: h_min, ln(h_max/h_min), γ_max
     consts = {round(n.inputs[1].default_value, 6) for n in nt.nodes if n.type == "MATH"}
-    assert {round(p["h_min"], 6), round(math.log(p["h_max"] / p["h_min"]), 6),
-            round(math.radians(p["gamma_max_deg"]), 6)} <= consts
+    assert {
+        round(p["h_min"], 6),
+        round(math.log(p["h_max"] / p["h_min"]), 6),
+        round(math.radians(p["gamma_max_deg"]), 6),
+    } <= consts
     # saved and opened again: the pixels survive (packed as OpenEXR, full float)
     path = tmp_path / "profile.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
@@ -161,8 +193,8 @@ def test_profile_images_are_shared_per_key_and_never_leak(empty_blend):
     for ll in lights:
         _, _, img = profile_parts(ll)
         keys.setdefault(img.get("lens_lights_profile_key"), set()).add(img.name)
-    assert all(len(names) == 1 for names in keys.values())      # one image per key
-    assert len(our_images()) == len(keys) < len(lights)        # A and B under their lamps share one
+    assert all(len(names) == 1 for names in keys.values())  # one image per key
+    assert len(our_images()) == len(keys) < len(lights)  # A and B under their lamps share one
     # regenerate: the same number of images (old ones removed, none left over)
     generate()
     assert len(our_images()) == len(keys)
@@ -200,6 +232,7 @@ def test_clear_keeps_a_profile_image_still_in_use(empty_blend):
 
 def test_failed_build_leaves_no_profile_image(empty_blend, monkeypatch):
     from lens_lights.operators import light_builder
+
     basic_scene()
     set_engine("CYCLES")
     bpy.context.scene.lens_lights.energy_model = "EXACT_PROFILE"
@@ -208,6 +241,7 @@ def test_failed_build_leaves_no_profile_image(empty_blend, monkeypatch):
     def broken(data, profile, image):
         real(data, profile, image)
         raise RuntimeError("boom")
+
     monkeypatch.setattr(light_builder, "build_profile_nodes", broken)
     level, message, figures = generate()
     assert level == "ERROR" and "boom" in message
@@ -216,25 +250,32 @@ def test_failed_build_leaves_no_profile_image(empty_blend, monkeypatch):
 
 # --------------------------------------------------------------------------- panel
 
-@pytest.mark.parametrize("model, engine, shown, warned", [
-    ("AUTO", "CYCLES", "Exact profile (Cycles)", False),
-    ("AUTO", "BLENDER_EEVEE", "Fitted", False),
-    ("EXACT_PROFILE", "BLENDER_EEVEE", "Fitted", True),
-    ("PHYSICAL", "CYCLES", "Physical", False),
-])
+
+@pytest.mark.parametrize(
+    "model, engine, shown, warned",
+    [
+        ("AUTO", "CYCLES", "Exact profile (Cycles)", False),
+        ("AUTO", "BLENDER_EEVEE", "Fitted", False),
+        ("EXACT_PROFILE", "BLENDER_EEVEE", "Fitted", True),
+        ("PHYSICAL", "CYCLES", "Physical", False),
+    ],
+)
 def test_panel_shows_the_tier_and_what_it_trades(empty_blend, model, engine, shown, warned):
     from types import SimpleNamespace
 
     from lens_lights.addon.tiers import TIER_LINES
     from lens_lights.addon.ui_text import wrap as _wrap
     from lens_lights.operators.panel import VIEW3D_PT_lens_lights
+
     basic_scene()
     set_engine(engine)
     bpy.context.scene.lens_lights.energy_model = model
     log = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
     labels = [text for kind, text in log if kind == "label"]
     assert f"Builds: {shown}" in labels
-    tier = {"Exact profile (Cycles)": "EXACT_PROFILE", "Fitted": "FITTED", "Physical": "PHYSICAL"}[shown]
+    tier = {"Exact profile (Cycles)": "EXACT_PROFILE", "Fitted": "FITTED", "Physical": "PHYSICAL"}[
+        shown
+    ]
     assert all(line in labels for line in _wrap(TIER_LINES[tier]))
     assert any("needs Cycles" in t for t in labels) == warned
 
@@ -246,14 +287,16 @@ def test_panel_explains_the_power_of_an_exact_profile_light(empty_blend):
 
     from lens_lights.addon.ui_text import wrap
     from lens_lights.operators.panel import EXACT_POWER_NOTE, VIEW3D_PT_lens_lights_object
+
     basic_scene()
     set_engine("CYCLES")
     for model, shown in (("EXACT_PROFILE", True), ("FITTED", False)):
         bpy.context.scene.lens_lights.energy_model = model
         generate()
         (ll,) = lens_lights()
-        log = draw_panel(VIEW3D_PT_lens_lights_object, SimpleNamespace(scene=bpy.context.scene,
-                                                                      object=ll))
+        log = draw_panel(
+            VIEW3D_PT_lens_lights_object, SimpleNamespace(scene=bpy.context.scene, object=ll)
+        )
         labels = [text for kind, text in log if kind == "label"]
         assert ("sampling weight" in " ".join(labels)) == shown, model
         assert all(line in labels for line in wrap(EXACT_POWER_NOTE)) == shown, model
@@ -261,10 +304,15 @@ def test_panel_explains_the_power_of_an_exact_profile_light(empty_blend):
     bpy.context.scene.lens_lights.energy_model = "EXACT_PROFILE"
     generate()
     (ll,) = lens_lights()
-    wide = SimpleNamespace(scene=bpy.context.scene, object=ll,
-                           region=SimpleNamespace(width=800), preferences=bpy.context.preferences)
-    labels = [text for kind, text in draw_panel(VIEW3D_PT_lens_lights_object, wide)
-              if kind == "label"]
+    wide = SimpleNamespace(
+        scene=bpy.context.scene,
+        object=ll,
+        region=SimpleNamespace(width=800),
+        preferences=bpy.context.preferences,
+    )
+    labels = [
+        text for kind, text in draw_panel(VIEW3D_PT_lens_lights_object, wide) if kind == "label"
+    ]
     assert EXACT_POWER_NOTE in labels
 
 

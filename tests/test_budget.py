@@ -1,4 +1,5 @@
 """Budgets: cut-off, cap, merging, with expectations worked out by hand."""
+
 import math
 
 import numpy as np
@@ -20,8 +21,15 @@ def _row_scene(distances, radius=0.5):
     d = np.asarray(distances, float)
     ang = np.radians(25.0) * np.arange(d.size)
     centers = np.stack([d * np.cos(ang), d * np.sin(ang), np.zeros(d.size)], 1)
-    return SceneArrays(np.zeros((1, 3)), np.ones(1), np.ones((1, 3)), centers,
-                       np.full(d.size, radius), np.full(d.size, 1.5), np.full(d.size, 1.0))
+    return SceneArrays(
+        np.zeros((1, 3)),
+        np.ones(1),
+        np.ones((1, 3)),
+        centers,
+        np.full(d.size, radius),
+        np.full(d.size, 1.5),
+        np.full(d.size, 1.0),
+    )
 
 
 def test_cutoff_and_cap_keep_the_strongest():
@@ -33,7 +41,7 @@ def test_cutoff_and_cap_keep_the_strongest():
     D = np.array([3.0, 6.0, 12.0, 24.0])
     expected = 100.0 * np.array([caught_fraction(0.5, d) for d in D])
     np.testing.assert_allclose(flux, expected, rtol=1e-12)
-    cut = expected[1] / 100.0          # keeps sources 0 and 1 (flux decreases with D)
+    cut = expected[1] / 100.0  # keeps sources 0 and 1 (flux decreases with D)
     kept, scale, report = apply_budget(table, power, min_flux_fraction=cut * 0.999)
     assert kept.lens.tolist() == [0, 1] and report.below_cutoff == 2
     assert math.isclose(report.flux_dropped, expected[2:].sum(), rel_tol=1e-12)
@@ -46,8 +54,15 @@ def test_merging_nearly_coincident_sources_keeps_their_flux():
     # Two equal lenses side by side, 0.01 apart in the middle of a merge cell:
     # their images nearly coincide; merged, the energy scale doubles.
     centers = np.array([[10.0, 0.505, 0.505], [10.0, 0.5, 0.5]])
-    a = SceneArrays(np.array([[0.0, 0.5, 0.5]]), np.ones(1), np.ones((1, 3)), centers,
-                    np.full(2, 0.001), np.full(2, 1.5), np.full(2, 1.0))
+    a = SceneArrays(
+        np.array([[0.0, 0.5, 0.5]]),
+        np.ones(1),
+        np.ones((1, 3)),
+        centers,
+        np.full(2, 0.001),
+        np.full(2, 1.5),
+        np.full(2, 1.0),
+    )
     table = compute_phase1(a).table
     assert len(table) == 2
     kept, scale, report = apply_budget(table, [1.0], merge_distance=1.0)

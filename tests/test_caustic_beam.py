@@ -2,15 +2,16 @@
 
 Expected values come from addon.exact_optics (the meridional closed forms of SPEC §6)
 and from one-dimensional quadratures written here, not from the grid code."""
+
 import math
 
 import numpy as np
 import pytest
 
 from addon import exact_optics as eo
+from addon.blender_spot import spot_mask
 from addon.caustic_sheet.beam_trace import trace_beam
 from addon.caustic_sheet.emitters import AreaLight, Lens, PointLight, SpotLight, SunLight
-from addon.blender_spot import spot_mask
 
 R, N_IOR = 1.0, 1.5
 
@@ -30,8 +31,7 @@ def _iota_quadrature(f, n=200_001):
 def test_point_beam_carries_the_lens_flux(D, absorption):
     lens = Lens(np.zeros(3), R, N_IOR, absorption)
     beam = trace_beam(PointLight(np.array([0.0, 0.0, -D]), 4.0 * math.pi), lens, 32, 128)
-    assert beam.total_flux == pytest.approx(eo.lens_flux(1.0, D, R, N_IOR, absorption),
-                                            rel=1e-5)
+    assert beam.total_flux == pytest.approx(eo.lens_flux(1.0, D, R, N_IOR, absorption), rel=1e-5)
 
 
 def test_exit_rays_are_the_exact_trace_anywhere_in_any_orientation():
@@ -42,12 +42,13 @@ def test_exit_rays_are_the_exact_trace_anywhere_in_any_orientation():
     beam = trace_beam(PointLight(light, 1.0), Lens(center, R, N_IOR), nr, 32)
     fan = eo.trace_rays_iota(0.5 * np.pi * np.arange(nr + 1) / nr, D, R, N_IOR)
     axis = rot @ np.array([0.0, 0.0, 1.0])
-    d = beam.exit_dirs[0]                                 # (Nr+1, Na, 3)
+    d = beam.exit_dirs[0]  # (Nr+1, Na, 3)
     p = beam.exit_points[0] - center
     # angle of the exit ray to the axis, and the exit point's polar angle from the back
     ang = np.arctan2(np.linalg.norm(np.cross(d, axis), axis=-1), d @ axis)
-    np.testing.assert_allclose(ang, np.broadcast_to(np.abs(fan.theta_exit)[:, None], ang.shape),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        ang, np.broadcast_to(np.abs(fan.theta_exit)[:, None], ang.shape), atol=1e-9
+    )
     polar = np.arctan2(np.linalg.norm(np.cross(p, axis), axis=-1), p @ axis)
     want = np.broadcast_to(np.abs(fan.exit_polar - np.pi)[:, None], polar.shape)
     np.testing.assert_allclose(polar[:-1], want[:-1], atol=1e-9)
@@ -58,25 +59,41 @@ def test_exit_rays_are_the_exact_trace_anywhere_in_any_orientation():
 
 def test_sun_flux_is_strength_times_disc_times_mean_transmission():
     S = 1000.0
-    expected = S * 2.0 * np.pi * R * R * _iota_quadrature(
-        lambda i: eo.two_surface_transmission(i, N_IOR) * np.sin(i) * np.cos(i))
+    expected = (
+        S
+        * 2.0
+        * np.pi
+        * R
+        * R
+        * _iota_quadrature(lambda i: eo.two_surface_transmission(i, N_IOR) * np.sin(i) * np.cos(i))
+    )
     for angle, k in ((0.0, 1), (math.radians(0.53), 16)):
-        beam = trace_beam(SunLight(np.array([0.3, -0.2, -1.0]), S, angle),
-                          Lens(np.array([1.0, 2.0, 3.0]), R, N_IOR), 32, 128, k)
+        beam = trace_beam(
+            SunLight(np.array([0.3, -0.2, -1.0]), S, angle),
+            Lens(np.array([1.0, 2.0, 3.0]), R, N_IOR),
+            32,
+            128,
+            k,
+        )
         assert beam.total_flux == pytest.approx(expected, rel=1e-5)
         assert beam.shape == (k, 32, 128)
 
 
 def test_spot_mask_cuts_the_flux_like_the_exact_integral():
     D, P = 8.0, 100.0
-    half, blend = math.radians(4.0), 0.4           # the cone edge crosses the lens
-    beam = trace_beam(SpotLight(np.array([0.0, 0.0, -D]), np.array([0.0, 0.0, 1.0]), P,
-                                2.0 * half, blend), Lens(np.zeros(3), R, N_IOR), 48, 192)
+    half, blend = math.radians(4.0), 0.4  # the cone edge crosses the lens
+    beam = trace_beam(
+        SpotLight(np.array([0.0, 0.0, -D]), np.array([0.0, 0.0, 1.0]), P, 2.0 * half, blend),
+        Lens(np.zeros(3), R, N_IOR),
+        48,
+        192,
+    )
 
     def integrand(iota):
         fan = eo.trace_rays_iota(iota, D, R, N_IOR)
         domega = 2 * np.pi * (R / D) ** 2 * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
         return spot_mask(np.cos(fan.psi), half, blend) * fan.transmission * domega
+
     expected = P / (4 * math.pi) * _iota_quadrature(integrand)
     assert beam.total_flux == pytest.approx(expected, rel=2e-3)
     assert beam.total_flux < eo.lens_flux(P / (4 * math.pi), D, R, N_IOR)
@@ -85,27 +102,31 @@ def test_spot_mask_cuts_the_flux_like_the_exact_integral():
 def test_small_area_light_is_a_lambertian_point():
     D, P = 30.0, 50.0
     lens = Lens(np.zeros(3), R, N_IOR)
-    area = AreaLight(np.array([0.0, 0.0, -D]), np.array([0.0, 0.0, 1.0]),
-                     np.array([1.0, 0.0, 0.0]), P, 0.2, 0.1)
+    area = AreaLight(
+        np.array([0.0, 0.0, -D]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), P, 0.2, 0.1
+    )
     beam = trace_beam(area, lens, 32, 128, n_source=9)
     # intensity (P/π) cos θ; over the lens' tiny cone cos θ ≈ 1 - θ²/2
     assert beam.total_flux == pytest.approx(eo.lens_flux(P / math.pi, D, R, N_IOR), rel=2e-3)
-    tilted = AreaLight(area.position, np.array([math.sin(0.5), 0.0, math.cos(0.5)]),
-                       area.axis_x, P, 0.2, 0.1)
+    tilted = AreaLight(
+        area.position, np.array([math.sin(0.5), 0.0, math.cos(0.5)]), area.axis_x, P, 0.2, 0.1
+    )
     assert trace_beam(tilted, lens, 32, 128, 9).total_flux == pytest.approx(
-        math.cos(0.5) * beam.total_flux, rel=2e-3)
+        math.cos(0.5) * beam.total_flux, rel=2e-3
+    )
 
 
 def test_sphere_light_keeps_flux_and_topology_and_samples_its_disc():
     D = 6.0
     lens = Lens(np.zeros(3), R, N_IOR)
     point = trace_beam(PointLight(np.array([0.0, 0.0, -D]), 10.0), lens, 24, 96)
-    sphere = trace_beam(PointLight(np.array([0.0, 0.0, -D]), 10.0, radius=0.3), lens, 24, 96,
-                        n_source=12)
+    sphere = trace_beam(
+        PointLight(np.array([0.0, 0.0, -D]), 10.0, radius=0.3), lens, 24, 96, n_source=12
+    )
     assert sphere.shape == (12, 24, 96)
     # each disc sample sees the lens from a slightly different distance
     assert sphere.total_flux == pytest.approx(point.total_flux, rel=5e-3)
-    spread = np.ptp(sphere.exit_dirs[:, 0, 0], axis=0)      # axial rays differ per sample
+    spread = np.ptp(sphere.exit_dirs[:, 0, 0], axis=0)  # axial rays differ per sample
     assert spread.max() > 1e-3
 
 

@@ -3,6 +3,7 @@
 References: addon.exact_optics' one-dimensional integrals (irradiance_on_plane,
 flux_within_radius, lens_flux, trace_rays), independent quadratures written here, and a
 brute-force ray/triangle loop for the BVH."""
+
 import math
 
 import numpy as np
@@ -21,7 +22,7 @@ from addon.caustic_sheet.receiver_index import build_index
 from addon.caustic_sheet.receiver_index import intersect as index_intersect
 
 R, N_IOR, D = 1.0, 1.5, 10.0
-I0 = 1.0                                   # W/sr: power 4π
+I0 = 1.0  # W/sr: power 4π
 
 
 def _rotation(seed):
@@ -42,20 +43,21 @@ def _only(layer):
     return layer.patches[0]
 
 
-@pytest.mark.parametrize("Z", [5.0, 1.5])        # 1.5 R: between marginal and paraxial focus
+@pytest.mark.parametrize("Z", [5.0, 1.5])  # 1.5 R: between marginal and paraxial focus
 def test_floating_ball_rings_match_the_exact_integral(Z):
-    rot, shift = _rotation(7), np.array([3.0, -1.0, 2.0])      # anywhere, any orientation
+    rot, shift = _rotation(7), np.array([3.0, -1.0, 2.0])  # anywhere, any orientation
     lens = Lens(shift, R, N_IOR)
     floor = rectangle(shift + rot @ [0, 0, Z], rot @ [0, 0, 1], 200.0, 200.0, 4, 4)
     layer = _layer(_point(shift + rot @ [0, 0, -D]), lens, floor)
     edges = np.linspace(0.0, eo.lens_shadow_radius(D, R, Z), 25)
     got = ring_irradiance(_only(layer), shift + rot @ [0, 0, Z], edges)
     exact = eo.irradiance_on_plane(I0, D, R, N_IOR, Z, edges)
-    assert relative_l1(got, exact, np.diff(edges ** 2)) <= 0.05
+    assert relative_l1(got, exact, np.diff(edges**2)) <= 0.05
     flux = eo.lens_flux(I0, D, R, N_IOR)
     assert layer.flux_in_rasters == pytest.approx(flux, rel=0.01)
     assert layer.flux_in_rasters + layer.flux_outside + layer.flux_lost == pytest.approx(
-        layer.flux_emitted, rel=1e-9)
+        layer.flux_emitted, rel=1e-9
+    )
 
 
 def test_folds_add_past_the_focus():
@@ -63,8 +65,10 @@ def test_folds_add_past_the_focus():
     lens = Lens(np.zeros(3), R, N_IOR)
     beam = trace_beam(_point([0, 0, -D]), lens, 32, 128)
     layer = build_layer([beam], build_index(rectangle([0, 0, 1.5], [0, 0, 1], 50, 50)))
-    landed = beam.exit_points + beam.exit_dirs * (
-        (1.5 - beam.exit_points[..., 2]) / beam.exit_dirs[..., 2])[..., None]
+    landed = (
+        beam.exit_points
+        + beam.exit_dirs * ((1.5 - beam.exit_points[..., 2]) / beam.exit_dirs[..., 2])[..., None]
+    )
     c = landed.reshape(-1, 3)[cell_corners(beam.shape)]
     # signed area of each landed quad (shoelace): both signs = overlapping, folded quads
     x, y = c[..., 0], c[..., 1]
@@ -99,13 +103,13 @@ def test_tilted_plane_keeps_the_flux():
 
 
 def test_resting_marble_concentrates_all_its_flux_in_a_small_disc():
-    lens = Lens(np.array([0.0, 0.0, R]), R, N_IOR)          # resting on the table z = 0
+    lens = Lens(np.array([0.0, 0.0, R]), R, N_IOR)  # resting on the table z = 0
     table = rectangle([0, 0, 0], [0, 0, 1], 100.0, 100.0, 8, 8)
     layer = _layer(_point([0, 0, R + D]), lens, table)
     p = _only(layer)
     flux = eo.lens_flux(I0, D, R, N_IOR)
     assert layer.flux_in_rasters == pytest.approx(flux, rel=0.01)
-    assert np.allclose(p.normal, [0, 0, 1])                   # lit from above
+    assert np.allclose(p.normal, [0, 0, 1])  # lit from above
     # reference: exact landing heights on the tangent plane (z = R behind the centre),
     # weighted median of |h| by each ray's flux, uniform in ι
     iota = np.linspace(0.0, 0.5 * np.pi, 400_001)
@@ -116,7 +120,7 @@ def test_resting_marble_concentrates_all_its_flux_in_a_small_disc():
     o = np.argsort(h[ok])
     cw = np.cumsum(w[ok][o])
     r50 = np.interp(0.5 * cw[-1], cw, h[ok][o])
-    assert r50 < 0.25 * R                                     # a small bright disc
+    assert r50 < 0.25 * R  # a small bright disc
     assert radius_containing(p, [0, 0, 0], 0.5) == pytest.approx(r50, rel=0.03)
 
 
@@ -127,8 +131,9 @@ def test_two_receivers_split_the_beam_as_the_axis_crossings_say():
     z1, z2 = 1.5, 4.0
     lens = Lens(np.zeros(3), R, N_IOR)
     floor = rectangle([0, 0, z2], [0, 0, 1], 200.0, 200.0, 2, 2, object_id=1)
-    wall = rectangle([0, 0, 0.5 * (z1 + z2)], [1, 0, 0], z2 - z1, 200.0, 2, 2,
-                     axis_u=[0, 0, 1], object_id=2)
+    wall = rectangle(
+        [0, 0, 0.5 * (z1 + z2)], [1, 0, 0], z2 - z1, 200.0, 2, 2, axis_u=[0, 0, 1], object_id=2
+    )
     layer = _layer(_point([0, 0, -D]), lens, merge(floor, wall), nr=96, na=384, res=64)
     by_obj = {p.object_id: p.flux + p.flux_outside for p in layer.patches}
     iota = np.linspace(0.0, 0.5 * np.pi, 400_001)
@@ -137,7 +142,7 @@ def test_two_receivers_split_the_beam_as_the_axis_crossings_say():
     on_wall = (fan.crossing > z1) & (fan.crossing < z2) & (np.cos(fan.theta_exit) > 0)
     expected_wall = np.trapezoid(np.where(on_wall, w, 0.0), iota) / np.trapezoid(w, iota)
     total = layer.flux_emitted
-    assert 0.2 < expected_wall < 0.8                          # a real split
+    assert 0.2 < expected_wall < 0.8  # a real split
     assert by_obj[2] / total == pytest.approx(expected_wall, abs=0.01)
     assert (by_obj[1] + by_obj[2] + layer.flux_lost) / total == pytest.approx(1.0, abs=1e-9)
 
@@ -165,8 +170,10 @@ def test_the_lens_own_mesh_is_not_its_receiver():
     index = build_index(merge(table, ball))
     beam = trace_beam(_point([0, 0, -D]), lens, 16, 64)
     blind = build_layer([beam], index, resolution=32)
-    assert sum(p.flux + p.flux_outside for p in blind.patches if p.object_id == 7) \
+    assert (
+        sum(p.flux + p.flux_outside for p in blind.patches if p.object_id == 7)
         > 0.99 * blind.flux_emitted
+    )
     seeing = build_layer([beam], index, resolution=32, own_objects=[7])
     assert [p.object_id for p in seeing.patches] == [1]
     assert seeing.flux_in_rasters == pytest.approx(eo.lens_flux(I0, D, R, N_IOR), rel=0.01)
@@ -179,6 +186,7 @@ def test_marbles_far_apart_get_disjoint_rasters_and_close_ones_share_one():
     def marble(x, y):
         lens = Lens(np.array([x, y, R]), R, N_IOR)
         return trace_beam(_point([x, y, R + D]), lens, 16, 64)
+
     apart = build_layer([marble(0.0, 0.0), marble(20.0, 5.0)], bvh, resolution=48)
     assert len(apart.patches) == 2
     boxes = [(p.edges_u[[0, -1]], p.edges_v[[0, -1]]) for p in apart.patches]
@@ -197,8 +205,9 @@ def test_sun_flux_and_core_at_the_back_focus():
     lens = Lens(np.zeros(3), R, N_IOR)
     sun = SunLight(np.array([0.0, 0.0, 1.0]), S)
     iota = np.linspace(0.0, 0.5 * np.pi, 200_001)
-    mean_t = 2.0 * np.trapezoid(eo.two_surface_transmission(iota, N_IOR) * np.sin(iota)
-                                * np.cos(iota), iota)
+    mean_t = 2.0 * np.trapezoid(
+        eo.two_surface_transmission(iota, N_IOR) * np.sin(iota) * np.cos(iota), iota
+    )
     core = {}
     for Z in (1.2, 1.4, 1.5, 2.0, 3.0):
         layer = _layer(sun, lens, rectangle([0, 0, Z], [0, 0, 1], 100.0, 100.0), res=96)
@@ -213,7 +222,7 @@ def test_sun_flux_and_core_at_the_back_focus():
     edges = np.linspace(0.0, 1.0, 21)
     exact = eo.irradiance_on_plane(S * far * far, far, R, N_IOR, 1.5, edges)
     got = ring_irradiance(_only(layer), [0, 0, 1.5], edges)
-    assert relative_l1(got, exact, np.diff(edges ** 2)) <= 0.05
+    assert relative_l1(got, exact, np.diff(edges**2)) <= 0.05
 
 
 def test_moved_light_moves_the_caustic_along_its_axis_and_a_sphere_light_blurs_it():
@@ -223,6 +232,7 @@ def test_moved_light_moves_the_caustic_along_its_axis_and_a_sphere_light_blurs_i
 
     def layer_of(light, k=1):
         return _only(build_layer([trace_beam(light, lens, 32, 128, k)], index, resolution=96))
+
     shifted = layer_of(_point([delta, 0, -D]))
     # the axial caustic (the brightest texel) lies on the beam's axis, light → lens
     # centre, which meets the plane at x = −δ Z / D
@@ -243,17 +253,17 @@ def test_moved_light_moves_the_caustic_along_its_axis_and_a_sphere_light_blurs_i
 
 def test_layer_mesh_is_lifted_toward_the_light_with_the_receivers_uvs():
     lens = Lens(np.zeros(3), R, N_IOR)
-    floor = rectangle([0, 0, 3.0], [0, 0, -1], 40.0, 40.0, 3, 3)   # winding faces away
+    floor = rectangle([0, 0, 3.0], [0, 0, -1], 40.0, 40.0, 3, 3)  # winding faces away
     p = _only(_layer(_point([0, 0, -D]), lens, floor, nr=12, na=48, res=32))
-    assert np.allclose(p.normal, [0, 0, -1])                        # toward the light
+    assert np.allclose(p.normal, [0, 0, -1])  # toward the light
     lift = 3.0 - p.vertices[:, 2]
     texel = min(np.diff(p.edges_u).min(), np.diff(p.edges_v).min())
-    assert np.allclose(lift, 0.1 * texel)                          # no z-fighting
-    v = p.vertices[p.faces]                                         # (F, 4, 3)
+    assert np.allclose(lift, 0.1 * texel)  # no z-fighting
+    v = p.vertices[p.faces]  # (F, 4, 3)
     n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    assert np.all(n @ p.normal > 0)                                 # faces face the light
+    assert np.all(n @ p.normal > 0)  # faces face the light
     # rectangle's UV is affine in the plane: u = x/40 + 1/2 up to the frame's orientation
-    assert p.uv_inside is None                                      # affine: exact everywhere
+    assert p.uv_inside is None  # affine: exact everywhere
     uv_expected = np.column_stack([p.vertices[:, 0], p.vertices[:, 1]]) / 40.0 + 0.5
     err = np.minimum(np.abs(p.uvs - uv_expected), np.abs(p.uvs - uv_expected[:, ::-1]))
     assert err.max() < 1e-9
@@ -268,9 +278,9 @@ def test_non_affine_uvs_are_interpolated_on_the_triangle_under_each_vertex():
     inside = p.uv_inside
     assert inside is not None and inside.sum() > 0.5 * len(inside)
     # reference: brute-force point-in-triangle on the 8 triangles, barycentric UVs
-    v = mesh.vertices[mesh.triangles][:, :, :2]                      # (8, 3, 2)
-    q = p.vertices[inside][:, None, :2]                               # (n, 1, 2)
-    m = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]], axis=-1)     # (8, 2, 2)
+    v = mesh.vertices[mesh.triangles][:, :, :2]  # (8, 3, 2)
+    q = p.vertices[inside][:, None, :2]  # (n, 1, 2)
+    m = np.stack([v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]], axis=-1)  # (8, 2, 2)
     bc = np.einsum("tij,ntj->nti", np.linalg.inv(m), q - v[None, :, 0])
     ok = (bc >= -1e-9).all(-1) & (bc.sum(-1) <= 1 + 1e-9)
     t = np.argmax(ok, axis=1)
@@ -282,13 +292,14 @@ def test_non_affine_uvs_are_interpolated_on_the_triangle_under_each_vertex():
 
 def test_rays_that_miss_every_receiver_are_reported_lost():
     lens = Lens(np.zeros(3), R, N_IOR)
-    small = rectangle([0.0, 0.0, 4.0], [0, 0, 1], 0.5, 0.5)        # catches the core only
+    small = rectangle([0.0, 0.0, 4.0], [0, 0, 1], 0.5, 0.5)  # catches the core only
     layer = _layer(_point([0, 0, -D]), lens, small, nr=24, na=96, res=32)
-    edge = eo.flux_within_radius(I0, D, R, N_IOR, 4.0, [0.25])[0]   # the square's inscribed disc
+    edge = eo.flux_within_radius(I0, D, R, N_IOR, 4.0, [0.25])[0]  # the square's inscribed disc
     assert layer.flux_lost > 0.1 * layer.flux_emitted
     assert layer.flux_in_rasters + layer.flux_outside >= 0.97 * edge
     assert layer.flux_in_rasters + layer.flux_outside + layer.flux_lost == pytest.approx(
-        layer.flux_emitted, rel=1e-9)
+        layer.flux_emitted, rel=1e-9
+    )
 
 
 def test_nothing_to_land_on_and_nothing_to_land():
@@ -310,12 +321,16 @@ def test_bvh_nearest_hit_equals_brute_force():
     d = rng.normal(size=(400, 3))
     hits = intersect(build_bvh(mesh, leaf_size=3), o, d, chunk=128)
     v0, e1, e2 = verts[0::3], verts[1::3] - verts[0::3], verts[2::3] - verts[0::3]
-    for i in range(len(o)):                   # brute force reference: one ray at a time
-        t, _, _, ok = _moller_trumbore(np.repeat(o[i:i + 1], 300, 0),
-                                       np.repeat(d[i:i + 1], 300, 0), v0, e1, e2)
+    for i in range(len(o)):  # brute force reference: one ray at a time
+        t, _, _, ok = _moller_trumbore(
+            np.repeat(o[i : i + 1], 300, 0), np.repeat(d[i : i + 1], 300, 0), v0, e1, e2
+        )
         best = np.where(ok & (t > 0), t, np.inf)
-        assert hits.t[i] == pytest.approx(best.min()) if np.isfinite(best.min()) \
+        assert (
+            hits.t[i] == pytest.approx(best.min())
+            if np.isfinite(best.min())
             else hits.triangle[i] == -1
+        )
         if np.isfinite(best.min()):
             assert hits.triangle[i] == np.argmin(best)
 
@@ -325,9 +340,12 @@ def test_planar_index_lands_like_the_bvh():
     table = rectangle([0, 0, 0], [0.1, 0.0, 1.0], 4.0, 3.0, 30, 20, object_id=1)
     wall = rectangle([0, 2, 1], [0, -1, 0], 6.0, 2.0, 5, 5, object_id=2)
     cen = rng.uniform(-1, 1, (200, 3))
-    junk = ReceiverMesh(np.repeat(cen, 3, 0) + rng.normal(0, 0.2, (600, 3)),
-                        np.arange(600).reshape(200, 3), np.zeros((600, 2)),
-                        np.full(200, 3))
+    junk = ReceiverMesh(
+        np.repeat(cen, 3, 0) + rng.normal(0, 0.2, (600, 3)),
+        np.arange(600).reshape(200, 3),
+        np.zeros((600, 2)),
+        np.full(200, 3),
+    )
     mesh = merge(table, wall, junk)
     index = build_index(mesh)
     assert index.planes is not None and len(index.planes.patch) == 2
@@ -344,8 +362,10 @@ def test_bake_budgets_traces_and_layers_several_sources():
     table = rectangle([0, 0, 0], [0, 0, 1], 100.0, 100.0, 4, 4, object_id=1)
     near = Lens(np.array([0.0, 0.0, R]), R, N_IOR)
     far = Lens(np.array([30.0, 0.0, R]), R, N_IOR)
-    sources = [SheetSource(_point([0, 0, R + D]), near),
-               SheetSource(_point([30.0, 0, R + 4 * D]), far)]      # 16× dimmer
+    sources = [
+        SheetSource(_point([0, 0, R + D]), near),
+        SheetSource(_point([30.0, 0, R + 4 * D]), far),
+    ]  # 16× dimmer
     cam = Camera(np.array([0.0, -40.0, 30.0]), math.radians(40.0), 640)
     out = bake(sources, table, cam, rays_per_pixel=4.0, max_rays=8192)
     assert out.budgets[1].n_rays < out.budgets[0].n_rays

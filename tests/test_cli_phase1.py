@@ -1,6 +1,7 @@
 """`./lens-lights phase1` as a user runs it (a subprocess through the launcher):
 the JSON's keys and each source's Blender light, the README's example, `--model`,
 and bad input (exit 2, `FILE:LINE: message`, no traceback)."""
+
 import json
 import math
 import subprocess
@@ -16,17 +17,37 @@ LAUNCHER = ROOT / "lens-lights"
 FIG1 = ROOT / "examples" / "fig1.bi"
 FIG3 = ROOT / "examples" / "fig3.bi"
 MODELS = ("thesis", "physical", "fitted", "exact_profile")
-SOURCE_KEYS = {"light", "lens", "kind", "position", "axis", "spread_deg", "cylinder_radius",
-               "intensity", "color", "full", "shadow_list", "image_distance", "magnification",
-               "brightness_factor", "unblocked_fraction", "blender_light"}
+SOURCE_KEYS = {
+    "light",
+    "lens",
+    "kind",
+    "position",
+    "axis",
+    "spread_deg",
+    "cylinder_radius",
+    "intensity",
+    "color",
+    "full",
+    "shadow_list",
+    "image_distance",
+    "magnification",
+    "brightness_factor",
+    "unblocked_fraction",
+    "blender_light",
+}
 LIGHT_KEYS = {"type", "energy_w", "spot_size_deg", "spot_blend", "radius"}
 #: The import rule (README, addon/bi_conversions.py): brightness 1 = 10 000 W.
 WATTS_PER_BRIGHTNESS = 10_000.0
 
 
 def phase1(*args, timeout=300):
-    return subprocess.run([str(LAUNCHER), "phase1", *map(str, args)], cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [str(LAUNCHER), "phase1", *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def phase1_json(*args):
@@ -38,21 +59,29 @@ def phase1_json(*args):
 def test_json_keys_and_the_readme_example():
     out = phase1_json(FIG3)
     assert set(out) == {"model", "sources", "skipped"}
-    assert out["model"] == "FITTED"                      # the documented default
+    assert out["model"] == "FITTED"  # the documented default
     # README: one source (light 0 through sphere 1, real, blocked by sphere 0),
     # two opaque spheres skipped
     (src,) = out["sources"]
     assert set(src) == SOURCE_KEYS
-    assert (src["light"], src["lens"], src["kind"], src["full"], src["shadow_list"]) == (0, 1, "real", False, [0])
+    assert (src["light"], src["lens"], src["kind"], src["full"], src["shadow_list"]) == (
+        0,
+        1,
+        "real",
+        False,
+        [0],
+    )
     assert src["position"] == pytest.approx([0.294, 4.353, 1.529], abs=5e-4)
     assert src["spread_deg"] == pytest.approx(1.075, abs=5e-4)
     assert src["intensity"] == pytest.approx(0.4975, abs=5e-5)
     assert [(k["light"], k["lens"], k["reason"]) for k in out["skipped"]] == [
-        (0, 0, "opaque (kt = 0)"), (0, 2, "opaque (kt = 0)")]
+        (0, 0, "opaque (kt = 0)"),
+        (0, 2, "opaque (kt = 0)"),
+    ]
     bl = src["blender_light"]
     assert set(bl) == LIGHT_KEYS
     assert bl["type"] == "SPOT" and bl["energy_w"] > 0 and 0 < bl["spot_size_deg"] <= 180
-    assert 0 <= bl["spot_blend"] <= 1 and bl["radius"] == 0.0     # .bi lights have no radius
+    assert 0 <= bl["spot_blend"] <= 1 and bl["radius"] == 0.0  # .bi lights have no radius
 
 
 def test_table_has_the_energy_of_the_chosen_tier():
@@ -62,7 +91,9 @@ def test_table_has_the_energy_of_the_chosen_tier():
     assert lines[0] == "1 secondary light source(s), 2 light × sphere pair(s) skipped"
     assert lines[1] == "energy: Blender light power (W) with the physical tier"
     header = next(line for line in lines if line.lstrip().startswith("light lens"))
-    assert "energy W" in header and header.index("intensity") < header.index("energy W") < header.index("shadow")
+    assert "energy W" in header and header.index("intensity") < header.index(
+        "energy W"
+    ) < header.index("shadow")
     row = lines[lines.index(header) + 2]
     energy = phase1_json(FIG3, "--model", "physical")["sources"][0]["blender_light"]["energy_w"]
     assert f"{energy:.4g}" in row.split()
@@ -82,7 +113,7 @@ def test_every_model_is_accepted(model):
         assert (bl["profile"]["width"], bl["profile"]["height"]) == (256, 256)
     else:
         assert set(bl) == LIGHT_KEYS
-    assert phase1(FIG1, "--model", model.upper()).returncode == 0     # any case
+    assert phase1(FIG1, "--model", model.upper()).returncode == 0  # any case
 
 
 def test_primary_power_follows_the_import_rule():
@@ -95,16 +126,19 @@ def test_primary_power_follows_the_import_rule():
     thesis = phase1_json(FIG1, "--model", "thesis")["sources"][0]
     assert thesis["kind"] == "real" and thesis["full"]
     assert thesis["blender_light"]["energy_w"] == pytest.approx(
-        WATTS_PER_BRIGHTNESS * thesis["intensity"], rel=1e-9)
+        WATTS_PER_BRIGHTNESS * thesis["intensity"], rel=1e-9
+    )
     assert thesis["intensity"] == pytest.approx(b * thesis["brightness_factor"], rel=1e-12)
     physical = phase1_json(FIG1, "--model", "physical")["sources"][0]
     m = physical["magnification"]
     assert physical["blender_light"]["energy_w"] == pytest.approx(
-        WATTS_PER_BRIGHTNESS * b * head_on_transmission(n) * m * m * kt * kt, rel=1e-9)
+        WATTS_PER_BRIGHTNESS * b * head_on_transmission(n) * m * m * kt * kt, rel=1e-9
+    )
     # and the non-full source of fig3 is scaled by its unblocked share
     src = phase1_json(FIG3, "--model", "thesis")["sources"][0]
     assert src["blender_light"]["energy_w"] == pytest.approx(
-        WATTS_PER_BRIGHTNESS * src["intensity"] * src["unblocked_fraction"], rel=1e-9)
+        WATTS_PER_BRIGHTNESS * src["intensity"] * src["unblocked_fraction"], rel=1e-9
+    )
 
 
 def test_default_model_is_fitted_and_documented():
@@ -113,14 +147,21 @@ def test_default_model_is_fitted_and_documented():
     assert "--model" in help_text and "fitted" in help_text and "EEVEE and Cycles" in help_text
 
 
-@pytest.mark.parametrize("content,expect", [
-    (None, ": cannot read the file"),            # no line to name
-    ("garbage\n", ":1: expected 'V <width> <height>'"),
-    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\nP 1 2\n", ":8: "),
-    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 0 0\n", ":4: "),
-], ids=["missing", "garbage", "short record", "zero up"])
-@pytest.mark.parametrize("flags", [(), ("--json",), ("--json", "--model", "exact_profile")],
-                         ids=["table", "json", "json-exact"])
+@pytest.mark.parametrize(
+    "content,expect",
+    [
+        (None, ": cannot read the file"),  # no line to name
+        ("garbage\n", ":1: expected 'V <width> <height>'"),
+        ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\nP 1 2\n", ":8: "),
+        ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 0 0\n", ":4: "),
+    ],
+    ids=["missing", "garbage", "short record", "zero up"],
+)
+@pytest.mark.parametrize(
+    "flags",
+    [(), ("--json",), ("--json", "--model", "exact_profile")],
+    ids=["table", "json", "json-exact"],
+)
 def test_bad_file_exits_2_with_file_and_line(tmp_path, content, expect, flags):
     path = tmp_path / "bad.bi"
     if content is not None:
@@ -142,6 +183,7 @@ def test_exact_profile_energy_is_twice_the_beams_flux():
     """A 180° spot emits half its energy: the exact-profile light's power is twice
     the flux the exact optics put through the lens (exact_optics.lens_flux)."""
     from addon import exact_optics
+
     scene = read_bi(FIG1)
     light, lens = scene.lights[0], scene.objects[0]
     out = phase1_json(FIG1, "--model", "exact_profile")["sources"][0]
@@ -171,10 +213,12 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
     import sys
 
     from addon.phase1 import compute_phase1
+
     sys.path.insert(0, str(ROOT / "scripts"))
     import cli
+
     scene = read_bi(FIG1)
-    scene.lights = scene.lights * 5                  # 5 sources and 5 skipped pairs
+    scene.lights = scene.lights * 5  # 5 sources and 5 skipped pairs
     result = compute_phase1(scene)
     lights = cli.phase1_light_table(scene, result, "fitted")
     sources, skipped = cli.phase1_json_rows(result, lights)
@@ -186,8 +230,9 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
     seps = (",", ":") if indent is None else None
     assert out.getvalue() == json.dumps(whole, indent=indent, separators=seps) + "\n"
     # and the rows are what the per-source objects say (SecondarySource.to_json)
-    for row, src, bl in zip(sources, result.sources,
-                                 cli.blender_lights(scene, result, "fitted"), strict=True):
+    for row, src, bl in zip(
+        sources, result.sources, cli.blender_lights(scene, result, "fitted"), strict=True
+    ):
         assert {k: v for k, v in row.items() if k != "blender_light"} == src.to_json()
         want = bl.to_json()
         assert row["blender_light"].pop("type") == want.pop("type")
@@ -201,14 +246,16 @@ def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, mon
     """The fast compact writer (a `%` template per row) writes exactly the text
     `json.dumps` makes of the rows, for every kind of source and skip reason."""
     import sys
+
     sys.path.insert(0, str(ROOT / "scripts"))
     sys.path.insert(0, str(ROOT / "tests"))
     import cli
     from test_tier_tables import random_scene
 
     from addon.phase1 import compute_phase1
+
     scene = random_scene(seed)
-    scene.objects[0].radius = -1.0                   # a skip reason that names a number
+    scene.objects[0].radius = -1.0  # a skip reason that names a number
     result = compute_phase1(scene)
     lights = cli.phase1_light_table(scene, result, model)
     sources, skipped = cli.phase1_json_rows(result, lights)
@@ -216,7 +263,7 @@ def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, mon
     chunks = cli.phase1_compact_json(result, lights, model.upper())
     whole = {"model": model.upper(), "sources": sources, "skipped": skipped}
     if model == "exact_profile":
-        assert chunks is None                        # its profile goes through json.dumps
+        assert chunks is None  # its profile goes through json.dumps
         return
     assert {s["kind"] for s in sources} == {"real", "virtual", "collimated"}
     assert "".join(chunks) == json.dumps(whole, separators=(",", ":")) + "\n"

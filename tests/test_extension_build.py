@@ -3,6 +3,7 @@ blender_ext.py), validate it, install it the way "Install from Disk" does
 (`bpy.ops.extensions.package_install_files`) into a throw-away user folder, enable
 it and run the operator — in a fresh Python process, so the installed package
 (`bl_ext.user_default.lens_lights`) is the only copy loaded."""
+
 import json
 import os
 import subprocess
@@ -34,16 +35,31 @@ def test_zip_holds_the_extension_only(built_zip):
     m = build_extension.manifest()
     assert built_zip.name == f"{m['id']}-{m['version']}.zip"
     names = zipfile.ZipFile(built_zip).namelist()
-    for required in ("blender_manifest.toml", "__init__.py", "operators/__init__.py",
-                     "operators/generate.py", "operators/properties.py", "operators/panel.py",
-                     "operators/scene_reader.py", "operators/light_builder.py",
-                     "addon/phase1.py", "addon/tiers/__init__.py", "addon/sphere_fit.py",
-                     "addon/material_model.py", "addon/scene.py",
-                     "addon/planning.py", "addon/report.py", "addon/skip_reasons.py",
-                     # the tiers (the panel imports them) and what they need
-                     "addon/tiers/fitted.py", "addon/tiers/fitted_table.json",
-                     "addon/tiers/exact_profile.py", "addon/beam_error.py",
-                     "addon/exact_optics.py", "addon/blender_spot.py"):
+    for required in (
+        "blender_manifest.toml",
+        "__init__.py",
+        "operators/__init__.py",
+        "operators/generate.py",
+        "operators/properties.py",
+        "operators/panel.py",
+        "operators/scene_reader.py",
+        "operators/light_builder.py",
+        "addon/phase1.py",
+        "addon/tiers/__init__.py",
+        "addon/sphere_fit.py",
+        "addon/material_model.py",
+        "addon/scene.py",
+        "addon/planning.py",
+        "addon/report.py",
+        "addon/skip_reasons.py",
+        # the tiers (the panel imports them) and what they need
+        "addon/tiers/fitted.py",
+        "addon/tiers/fitted_table.json",
+        "addon/tiers/exact_profile.py",
+        "addon/beam_error.py",
+        "addon/exact_optics.py",
+        "addon/blender_spot.py",
+    ):
         assert required in names, required
     for name in names:
         top = name.split("/")[0]
@@ -107,19 +123,31 @@ def test_install_from_disk_enable_and_run(built_zip, tmp_path):
     script = tmp_path / "install_and_run.py"
     script.write_text(INSTALL_AND_RUN)
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender-user"))
-    res = subprocess.run([sys.executable, str(script), str(built_zip)], env=env,
-                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    res = subprocess.run(
+        [sys.executable, str(script), str(built_zip)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     lines = [l for l in res.stdout.splitlines() if l.startswith("RESULT ")]
     assert res.returncode == 0 and lines, res.stdout[-3000:] + res.stderr[-3000:]
-    out = json.loads(lines[-1][len("RESULT "):])
+    out = json.loads(lines[-1][len("RESULT ") :])
     assert out["install"] == ["FINISHED"] and out["loaded"] and out["enabled"]
     assert out["generate"] == ["FINISHED"] and out["clear"] == ["FINISHED"]
     # R 0.5, n 1.5, D 2: image 1.2 below the centre at z = 1
     assert out["made"] == [["SPOT", pytest.approx(-0.2, abs=1e-5)]]
     assert out["left"] == 0 and out["disabled"]
-    assert out["modules"] == ["bl_ext.user_default.lens_lights"]     # not this checkout
-    assert (tmp_path / "blender-user" / "extensions" / "user_default" / "lens_lights"
-            / "blender_manifest.toml").exists()
+    assert out["modules"] == ["bl_ext.user_default.lens_lights"]  # not this checkout
+    assert (
+        tmp_path
+        / "blender-user"
+        / "extensions"
+        / "user_default"
+        / "lens_lights"
+        / "blender_manifest.toml"
+    ).exists()
 
 
 def test_zip_ships_the_license_and_declares_file_access(built_zip):

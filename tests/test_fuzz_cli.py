@@ -1,5 +1,6 @@
 """`lens-lights fuzz` as a user meets it: its help lists its options, bad counts
 are refused, and a run prints nothing per correctly refused input, only a summary."""
+
 import re
 import subprocess
 import sys
@@ -7,15 +8,20 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.blender     # every 200th input goes through Blender's importer
+pytestmark = pytest.mark.blender  # every 200th input goes through Blender's importer
 
 ROOT = Path(__file__).resolve().parent.parent
 CLI = ROOT / "scripts" / "cli.py"
 
 
 def run_cli(*args, timeout=300):
-    return subprocess.run([sys.executable, str(CLI), *map(str, args)], cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, str(CLI), *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def test_fuzz_help_lists_its_options():
@@ -41,8 +47,11 @@ def test_fuzz_run_prints_only_a_summary():
     assert "Error" not in result.stdout + result.stderr
     lines = result.stdout.strip().splitlines()
     assert len(lines) == 1, lines
-    m = re.fullmatch(r"fuzz: 401 inputs in [\d.]+ s: (\d+) parsed, (\d+) refused as expected "
-                     r"\(an error with a line number\), 0 failure\(s\)", lines[0])
+    m = re.fullmatch(
+        r"fuzz: 401 inputs in [\d.]+ s: (\d+) parsed, (\d+) refused as expected "
+        r"\(an error with a line number\), 0 failure\(s\)",
+        lines[0],
+    )
     assert m, lines[0]
     parsed, refused = int(m[1]), int(m[2])
     assert parsed + refused == 401 and refused > 300

@@ -2,6 +2,7 @@
 which Python it picks for a release, the one line it prints when there is none, and
 no environment built for a benchmark that does not exist. Each run gets its own
 `LENS_LIGHTS_HOME` and a fake pyenv, so nothing here touches the real environments."""
+
 import os
 import shutil
 import subprocess
@@ -18,7 +19,8 @@ def fake_python(path: Path, version: str) -> Path:
     path.write_text(
         "#!/bin/sh\n"
         f"""case "$2" in *"'{version}'"*) exit 0 ;; *"import sys"*) exit 1 ;; esac\n"""
-        "exit 3\n")
+        "exit 3\n"
+    )
     path.chmod(0o755)
     return path
 
@@ -33,11 +35,19 @@ def staged(tmp_path: Path, pins: str) -> Path:
 
 
 def run_env(root: Path, tmp_path: Path, *args, **env):
-    base = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path / "home"),
-            "LENS_LIGHTS_HOME": str(tmp_path / "envs"),
-            "PYENV_ROOT": str(tmp_path / "pyenv")}
-    return subprocess.run(["bash", str(root / "scripts" / "ensure_env.sh"), *args],
-                          capture_output=True, text=True, env={**base, **env}, timeout=60)
+    base = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": str(tmp_path / "home"),
+        "LENS_LIGHTS_HOME": str(tmp_path / "envs"),
+        "PYENV_ROOT": str(tmp_path / "pyenv"),
+    }
+    return subprocess.run(
+        ["bash", str(root / "scripts" / "ensure_env.sh"), *args],
+        capture_output=True,
+        text=True,
+        env={**base, **env},
+        timeout=60,
+    )
 
 
 def test_unknown_release_names_the_known_ones(tmp_path):
@@ -61,11 +71,12 @@ def test_no_python_of_that_version_says_how_to_get_one(tmp_path):
 
 def test_finds_pyenvs_python_and_prefers_lens_lights_python(tmp_path):
     root = staged(tmp_path, "# python 3.99\nbpy==9.9.0\n")
-    in_pyenv = fake_python(tmp_path / "pyenv" / "versions" / "3.99.1" / "bin" / "python3.99",
-                           "3.99")
+    in_pyenv = fake_python(
+        tmp_path / "pyenv" / "versions" / "3.99.1" / "bin" / "python3.99", "3.99"
+    )
     res = run_env(root, tmp_path, "--blender", "9.9")
     assert f"with {in_pyenv} " in res.stderr, res.stderr
-    assert res.returncode != 0          # the fake cannot make a venv: stops after choosing
+    assert res.returncode != 0  # the fake cannot make a venv: stops after choosing
 
     chosen = fake_python(tmp_path / "elsewhere" / "python", "3.99")
     res = run_env(root, tmp_path, "--blender", "9.9", LENS_LIGHTS_PYTHON=str(chosen))
@@ -73,13 +84,18 @@ def test_finds_pyenvs_python_and_prefers_lens_lights_python(tmp_path):
 
     wrong = fake_python(tmp_path / "wrong" / "python", "3.98")
     res = run_env(root, tmp_path, "--blender", "9.9", LENS_LIGHTS_PYTHON=str(wrong))
-    assert f"with {in_pyenv} " in res.stderr, res.stderr     # a wrong version is passed over
+    assert f"with {in_pyenv} " in res.stderr, res.stderr  # a wrong version is passed over
 
 
 def test_bench_that_does_not_exist_builds_nothing(tmp_path):
     env = {**os.environ, "LENS_LIGHTS_HOME": str(tmp_path / "envs")}
-    res = subprocess.run([str(ROOT / "lens-lights"), "bench", "nosuch"], capture_output=True,
-                         text=True, env=env, timeout=60)
+    res = subprocess.run(
+        [str(ROOT / "lens-lights"), "bench", "nosuch"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
     assert res.returncode == 2
     assert "no benchmark 'nosuch'; there are:" in res.stderr and "scale" in res.stderr
     assert not (tmp_path / "envs").exists()

@@ -1,6 +1,7 @@
 """The structure issue 11 asks for: one registry of tiers, the README's tier table
 generated from it, skip reasons as codes, no import cycles in `addon/`, and the
 operator holding only what needs Blender. Pure, no Blender."""
+
 import ast
 import re
 from pathlib import Path
@@ -25,17 +26,23 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # --------------------------------------------------------------------------- registry
 
+
 def test_each_tier_has_one_home_and_one_entry():
     from addon.tiers import exact_profile, fitted, physical, thesis
-    modules = {"THESIS": thesis, "PHYSICAL": physical, "FITTED": fitted,
-               "EXACT_PROFILE": exact_profile}
+
+    modules = {
+        "THESIS": thesis,
+        "PHYSICAL": physical,
+        "FITTED": fitted,
+        "EXACT_PROFILE": exact_profile,
+    }
     assert list(TIERS) == list(modules)
     for name, module in modules.items():
         tier = TIERS[name]
         assert tier is module.TIER and isinstance(tier, Tier) and tier.name == module.NAME
         assert tier.label and tier.description and tier.trades and tier.engines
         assert callable(tier.make) and tier.accuracy.l1_mean > 0
-        assert TIER_LINES[name] == tier.trades                  # the panel's line
+        assert TIER_LINES[name] == tier.trades  # the panel's line
     items = {i[0]: i for i in energy_model_items(include_auto=True)}
     assert {k: v[3] for k, v in items.items()} == ENUM_NUMBERS
     assert items["FITTED"][2] == TIERS["FITTED"].description
@@ -54,6 +61,7 @@ def test_auto_resolves_per_engine_from_the_table():
 def test_readme_tier_table_is_generated_and_up_to_date():
     """Fails when the registry changed and `python scripts/readme_tables.py` was not run."""
     import readme_tables
+
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "<!-- BEGIN tiers" in text and "<!-- END tiers -->" in text
     assert readme_tables.update(text) == text, "run: python scripts/readme_tables.py"
@@ -63,28 +71,44 @@ def test_readme_tier_table_is_generated_and_up_to_date():
 
 # --------------------------------------------------------------------------- skip reasons
 
+
 def test_phase1_codes_are_the_skip_reasons():
-    names = ["INVALID_LIGHT", "INVALID_SPHERE_NONFINITE", "INVALID_SPHERE_RADIUS", "OPAQUE",
-             "INVALID_KT", "NOT_CONVERGING", "LIGHT_INSIDE", "LIGHT_ON_SURFACE",
-             "LIGHT_INSIDE_OTHER", "LIGHT_ON_OTHER", "TOTALLY_BLOCKED", "OUT_OF_RANGE"]
+    names = [
+        "INVALID_LIGHT",
+        "INVALID_SPHERE_NONFINITE",
+        "INVALID_SPHERE_RADIUS",
+        "OPAQUE",
+        "INVALID_KT",
+        "NOT_CONVERGING",
+        "LIGHT_INSIDE",
+        "LIGHT_ON_SURFACE",
+        "LIGHT_INSIDE_OTHER",
+        "LIGHT_ON_OTHER",
+        "TOTALLY_BLOCKED",
+        "OUT_OF_RANGE",
+    ]
     for name in names:
         assert getattr(phase1, name) == Reason[name]
-    assert phase1.reason_text(Reason.TOTALLY_BLOCKED, 1.0, 1.5, 1.0, 4) == \
-        "totally blocked by sphere 4"
+    assert (
+        phase1.reason_text(Reason.TOTALLY_BLOCKED, 1.0, 1.5, 1.0, 4)
+        == "totally blocked by sphere 4"
+    )
 
 
 def test_skipped_pairs_carry_code_and_details():
     p = SkippedPair("Lamp", "Ball", Reason.DIMMER_THAN_CUTOFF, dict(relative=0.23, cutoff=0.5))
     assert p == ("Lamp", "Ball", "dimmer than the cut-off (0.23 < 0.5)")
     assert p.code is Reason.DIMMER_THAN_CUTOFF and p.kind == "dimmer than the cut-off"
-    assert reason_kind(Reason.BEYOND_MAXIMUM, dict(limit=8)) == \
-        "beyond the maximum of 8 lens lights"
+    assert (
+        reason_kind(Reason.BEYOND_MAXIMUM, dict(limit=8)) == "beyond the maximum of 8 lens lights"
+    )
     assert reason_text(Reason.OPAQUE) == "opaque (kt = 0)"
     light, lens, why = p
     assert (light, lens) == ("Lamp", "Ball")
 
 
 # --------------------------------------------------------------------------- imports
+
 
 def _imports(path: Path, package: str) -> set[str]:
     """Modules of `addon` that `path` (module `package`.stem) imports."""
@@ -94,7 +118,7 @@ def _imports(path: Path, package: str) -> set[str]:
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
-            parts = base[:len(base) - (node.level - 1)] if node.level else []
+            parts = base[: len(base) - (node.level - 1)] if node.level else []
             mod = ".".join(parts + ([node.module] if node.module else []))
             if not node.level and not mod.startswith("addon"):
                 continue
@@ -119,7 +143,7 @@ _MODULES = {_module_name(p) for p in _FILES}
 
 def test_no_import_cycles_in_addon():
     graph = {_module_name(p): _imports(p, _module_name(p)) for p in _FILES}
-    assert "addon.tiers.base" in graph["addon.tiers.fitted"]       # the walker sees imports
+    assert "addon.tiers.base" in graph["addon.tiers.fitted"]  # the walker sees imports
     state: dict[str, int] = {}
 
     def visit(m, stack):
@@ -151,7 +175,9 @@ def test_addon_never_imports_bpy_and_nothing_imports_the_old_modules():
                     continue
                 used = set(module.split(".")) | (
                     {n.split(" as ")[0].strip() for n in names.split(",")}
-                    if module.split(".")[-1] in ("addon", "") else set())
+                    if module.split(".")[-1] in ("addon", "")
+                    else set()
+                )
                 assert not used & gone, (p, module, names)
     for folder in ("addon", "operators"):
         for p in (ROOT / folder).rglob("*.py"):

@@ -1,8 +1,18 @@
 """Material → lens optics rules (addon/material_model.py); pure, no Blender."""
+
 import pytest
 
-from addon.material_model import (GLASS, OTHER, PRINCIPLED, REFRACTION, Absorption, Add, Bsdf,
-                                  Mix, evaluate_material)
+from addon.material_model import (
+    GLASS,
+    OTHER,
+    PRINCIPLED,
+    REFRACTION,
+    Absorption,
+    Add,
+    Bsdf,
+    Mix,
+    evaluate_material,
+)
 
 
 def principled(t=1.0, ior=1.5, color=(1, 1, 1), metallic=0.0, alpha=1.0):
@@ -43,10 +53,11 @@ def test_mix_weights_first_by_one_minus_factor():
 
 
 def test_mixed_iors_and_tints_are_averaged_with_a_note():
-    o = evaluate_material(Mix(0.5, Bsdf(GLASS, ior=1.4, color=(1, 0, 0)),
-                              Bsdf(REFRACTION, ior=1.6, color=(0, 0, 1))))
+    o = evaluate_material(
+        Mix(0.5, Bsdf(GLASS, ior=1.4, color=(1, 0, 0)), Bsdf(REFRACTION, ior=1.6, color=(0, 0, 1)))
+    )
     assert o.transmission == pytest.approx(1.0)
-    assert o.ior == pytest.approx(1.5) and o.tint == pytest.approx((0.5, 0.0, 0.5))   # 1² and 1²
+    assert o.ior == pytest.approx(1.5) and o.tint == pytest.approx((0.5, 0.0, 0.5))  # 1² and 1²
     assert any("averaged" in n for n in o.notes)
 
 

@@ -12,6 +12,7 @@ lens's flux is the obstacle's share of the lens's cap of directions (an
 isotropic light's flux is uniform in solid angle), and a cap of angular radius
 a has the solid angle 2π(1 − cos a) = 4π sin²(a/2).
 """
+
 from __future__ import annotations
 
 import json
@@ -20,10 +21,10 @@ import math
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from plain_vectors import vadd, vcross, vscale, vunit
 
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
-from plain_vectors import vadd, vcross, vscale, vunit
 
 EXAMPLES = 120
 REL = 1e-9
@@ -50,10 +51,15 @@ class Frame:
 
     def sphere(self, distance, radial, gamma=0.0, glass=False):
         """A sphere seen under `radial` from the light, its centre `gamma` off w."""
-        direction = (self.w if gamma == 0.0 else
-                     vadd(vscale(self.w, math.cos(gamma)), vscale(self.e, math.sin(gamma))))
+        direction = (
+            self.w
+            if gamma == 0.0
+            else vadd(vscale(self.w, math.cos(gamma)), vscale(self.e, math.sin(gamma)))
+        )
         center = vadd(self.light, vscale(direction, distance))
-        surface = Surface(transmission=1.0, ior=1.5) if glass else Surface(transmission=0.0, ior=1.0)
+        surface = (
+            Surface(transmission=1.0, ior=1.5) if glass else Surface(transmission=0.0, ior=1.0)
+        )
         return Sphere(center=center, radius=distance * math.sin(radial), surface=surface)
 
     def scene(self, lens_distance, alpha, obstacle):
@@ -64,7 +70,10 @@ class Frame:
 frames = st.builds(
     Frame,
     light=st.tuples(*[st.floats(-20.0, 20.0)] * 3),
-    az=st.floats(0.0, 2 * math.pi), cz=st.floats(-1.0, 1.0), twist=st.floats(0.0, 2 * math.pi))
+    az=st.floats(0.0, 2 * math.pi),
+    cz=st.floats(-1.0, 1.0),
+    twist=st.floats(0.0, 2 * math.pi),
+)
 lens_distances = st.floats(5.0, 50.0)
 glass = st.booleans()
 
@@ -96,11 +105,18 @@ def lens_skip(result):
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(0.01, 0.6),
-       beta_frac=st.floats(0.05, 0.9), gamma_frac=st.floats(0.0, 0.95),
-       d_frac=st.floats(0.1, 0.9), is_glass=glass)
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(0.01, 0.6),
+    beta_frac=st.floats(0.05, 0.9),
+    gamma_frac=st.floats(0.0, 0.95),
+    d_frac=st.floats(0.1, 0.9),
+    is_glass=glass,
+)
 def test_obstacle_inside_the_lens_disc_is_partial_by_the_cap_ratio(
-        frame, Dl, alpha, beta_frac, gamma_frac, d_frac, is_glass):
+    frame, Dl, alpha, beta_frac, gamma_frac, d_frac, is_glass
+):
     """Nearer, its disc wholly inside the lens's (γ + β < α): a non-full source with
     the obstacle in its shadow list, blocking exactly its own cap's share."""
     beta = alpha * beta_frac
@@ -113,17 +129,24 @@ def test_obstacle_inside_the_lens_disc_is_partial_by_the_cap_ratio(
     expected = 1.0 - cap_area(beta) / cap_area(alpha)
     assert 0.0 < src.unblocked_fraction < 1.0
     assert src.unblocked_fraction == pytest.approx(expected, rel=REL)
-    if is_glass:                       # the glass obstacle is a lens too, and nothing blocks it
+    if is_glass:  # the glass obstacle is a lens too, and nothing blocks it
         other = [s for s in result.sources if s.lens == 1]
         assert len(other) == 1 and other[0].full
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(0.01, 0.5),
-       beta_extra=st.floats(0.01, 0.9), gamma_frac=st.one_of(st.just(0.0), st.floats(0.0, 0.95)),
-       d_frac=st.floats(0.1, 0.9), is_glass=glass)
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(0.01, 0.5),
+    beta_extra=st.floats(0.01, 0.9),
+    gamma_frac=st.one_of(st.just(0.0), st.floats(0.0, 0.95)),
+    d_frac=st.floats(0.1, 0.9),
+    is_glass=glass,
+)
 def test_bigger_nearer_obstacle_on_the_axis_blocks_totally(
-        frame, Dl, alpha, beta_extra, gamma_frac, d_frac, is_glass):
+    frame, Dl, alpha, beta_extra, gamma_frac, d_frac, is_glass
+):
     """Nearer, its disc covering the lens's (β ≥ γ + α, γ = 0 included): no source,
     the pair reported as totally blocked by that sphere."""
     beta = min(alpha + beta_extra, 1.4)
@@ -135,9 +158,15 @@ def test_bigger_nearer_obstacle_on_the_axis_blocks_totally(
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(0.01, 0.5),
-       beta=st.floats(0.01, 1.2), gamma_frac=st.floats(0.0, 1.5),
-       d_frac=st.floats(1.05, 5.0), is_glass=glass)
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(0.01, 0.5),
+    beta=st.floats(0.01, 1.2),
+    gamma_frac=st.floats(0.0, 1.5),
+    d_frac=st.floats(1.05, 5.0),
+    is_glass=glass,
+)
 def test_obstacle_behind_the_lens_is_ignored(frame, Dl, alpha, beta, gamma_frac, d_frac, is_glass):
     """Farther tangent length: never blocks, however big its disc (γ from 0 to well
     past α + β): a full source with nothing blocked."""
@@ -150,9 +179,18 @@ def test_obstacle_behind_the_lens_is_ignored(frame, Dl, alpha, beta, gamma_frac,
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(0.01, 0.5), beta=st.floats(0.01, 0.5),
-       t1=st.floats(0.001, 0.999), t2=st.floats(0.001, 0.999), d_frac=st.floats(0.1, 0.9))
-def test_rim_crossing_obstacle_blocks_less_the_farther_off_axis(frame, Dl, alpha, beta, t1, t2, d_frac):
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(0.01, 0.5),
+    beta=st.floats(0.01, 0.5),
+    t1=st.floats(0.001, 0.999),
+    t2=st.floats(0.001, 0.999),
+    d_frac=st.floats(0.1, 0.9),
+)
+def test_rim_crossing_obstacle_blocks_less_the_farther_off_axis(
+    frame, Dl, alpha, beta, t1, t2, d_frac
+):
     """Disc crossing the lens's rim (|α − β| < γ < α + β, no total cover): partial,
     0 < unblocked < 1, the blocked share at most the obstacle's cap ratio, and it
     shrinks as the obstacle moves off the axis."""
@@ -173,8 +211,14 @@ def test_rim_crossing_obstacle_blocks_less_the_farther_off_axis(frame, Dl, alpha
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(0.01, 0.5), beta=st.floats(0.01, 0.5),
-       t=st.floats(0.001, 0.999), d_frac=st.floats(0.1, 0.9))
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(0.01, 0.5),
+    beta=st.floats(0.01, 0.5),
+    t=st.floats(0.001, 0.999),
+    d_frac=st.floats(0.1, 0.9),
+)
 def test_overlap_is_the_same_seen_from_either_disc(frame, Dl, alpha, beta, t, d_frac):
     """The overlap of two caps is symmetric: swapping the lens's and the obstacle's
     apparent sizes (same γ) blocks the same solid angle,
@@ -194,9 +238,18 @@ def test_overlap_is_the_same_seen_from_either_disc(frame, Dl, alpha, beta, t, d_
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(1e-3, 0.5), beta=st.floats(1e-3, 0.5),
-       d_frac=st.floats(0.2, 0.9), side=st.sampled_from([-1, +1]), is_glass=glass)
-def test_discs_touching_alpha_plus_beta_equals_gamma(frame, Dl, alpha, beta, d_frac, side, is_glass):
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(1e-3, 0.5),
+    beta=st.floats(1e-3, 0.5),
+    d_frac=st.floats(0.2, 0.9),
+    side=st.sampled_from([-1, +1]),
+    is_glass=glass,
+)
+def test_discs_touching_alpha_plus_beta_equals_gamma(
+    frame, Dl, alpha, beta, d_frac, side, is_glass
+):
     """γ = (α + β)(1 ∓ 1e-9): a sliver of overlap → partial (blocked < 1e-6);
     a sliver of gap → not blocked at all."""
     gamma = (alpha + beta) * (1.0 + side * REL)
@@ -211,9 +264,18 @@ def test_discs_touching_alpha_plus_beta_equals_gamma(frame, Dl, alpha, beta, d_f
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(frame=frames, Dl=lens_distances, alpha=st.floats(1e-3, 0.5), gamma=st.floats(1e-3, 0.5),
-       d_frac=st.floats(0.2, 0.9), side=st.sampled_from([-1, +1]), is_glass=glass)
-def test_disc_just_covering_beta_equals_gamma_plus_alpha(frame, Dl, alpha, gamma, d_frac, side, is_glass):
+@given(
+    frame=frames,
+    Dl=lens_distances,
+    alpha=st.floats(1e-3, 0.5),
+    gamma=st.floats(1e-3, 0.5),
+    d_frac=st.floats(0.2, 0.9),
+    side=st.sampled_from([-1, +1]),
+    is_glass=glass,
+)
+def test_disc_just_covering_beta_equals_gamma_plus_alpha(
+    frame, Dl, alpha, gamma, d_frac, side, is_glass
+):
     """β = (γ + α)(1 ± 1e-9): just covering → totally blocked (no source); just
     short of it → partial with almost nothing left (unblocked < 1e-6)."""
     beta = (gamma + alpha) * (1.0 + side * REL)
@@ -240,9 +302,11 @@ def planar_overlap_fraction(a, b, g):
     if g <= abs(a - b):
         return min(1.0, (b / a) ** 2)
     s = 0.5 * (a + b + g)
-    half_a = 2.0 * math.atan2(math.sqrt((s - a) * (s - g)), math.sqrt(s * (s - b)))   # at a's centre
-    half_b = 2.0 * math.atan2(math.sqrt((s - b) * (s - g)), math.sqrt(s * (s - a)))   # at b's centre
-    seg = a * a * (half_a - 0.5 * math.sin(2 * half_a)) + b * b * (half_b - 0.5 * math.sin(2 * half_b))
+    half_a = 2.0 * math.atan2(math.sqrt((s - a) * (s - g)), math.sqrt(s * (s - b)))  # at a's centre
+    half_b = 2.0 * math.atan2(math.sqrt((s - b) * (s - g)), math.sqrt(s * (s - a)))  # at b's centre
+    seg = a * a * (half_a - 0.5 * math.sin(2 * half_a)) + b * b * (
+        half_b - 0.5 * math.sin(2 * half_b)
+    )
     return seg / (math.pi * a * a)
 
 
@@ -251,35 +315,49 @@ def test_planar_overlap_reference_is_sound():
     assert planar_overlap_fraction(a, 0.5, 0.2) == pytest.approx(0.25, rel=1e-15)
     assert planar_overlap_fraction(a, 1.0, 2.0) == 0.0
     # two equal discs at distance a: 2/3 − √3/(2π) of either (the lens shape)
-    assert planar_overlap_fraction(a, 1.0, 1.0) == pytest.approx(2 / 3 - math.sqrt(3) / (2 * math.pi), rel=1e-13)
+    assert planar_overlap_fraction(a, 1.0, 1.0) == pytest.approx(
+        2 / 3 - math.sqrt(3) / (2 * math.pi), rel=1e-13
+    )
     # half-plane limit: a huge disc whose rim passes through the small one's centre
     assert planar_overlap_fraction(a, 1e6, 1e6) == pytest.approx(0.5, rel=1e-5)
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
 @example(frame=Frame((0.0, 0.0, 0.0), 0.0, 0.0, 0.0), log_D=8.0, beta_ratio=2.0, t=0.5, d_frac=0.5)
-@given(frame=frames, log_D=st.floats(3.0, 9.0), beta_ratio=st.floats(0.1, 3.0),
-       t=st.floats(0.02, 0.98), d_frac=st.floats(0.2, 0.9))
+@given(
+    frame=frames,
+    log_D=st.floats(3.0, 9.0),
+    beta_ratio=st.floats(0.1, 3.0),
+    t=st.floats(0.02, 0.98),
+    d_frac=st.floats(0.2, 0.9),
+)
 def test_far_lens_partly_blocked_keeps_its_blocked_share(frame, log_D, beta_ratio, t, d_frac):
     """A lens of radius 1 at 1e3 … 1e9 from the light (α = 1e-3 … 1e-9 rad) and an
     obstacle crossing its rim: the blocked share depends only on the discs' shape
     (α : β : γ), not on how far away they are, and equals the planar overlap to a
     relative 1e-6. (SPEC §5: "lights very far away".)"""
-    Dl = 10.0 ** log_D
+    Dl = 10.0**log_D
     alpha = math.asin(1.0 / Dl)
     beta = alpha * beta_ratio
     lo, hi = abs(alpha - beta), alpha + beta
     gamma = lo + (hi - lo) * t
-    sc = Scene(lights=[Light(position=frame.light)],
-               objects=[frame.sphere(Dl, alpha, glass=True),
-                        frame.sphere(nearer(Dl, alpha, beta, d_frac), beta, gamma)])
+    sc = Scene(
+        lights=[Light(position=frame.light)],
+        objects=[
+            frame.sphere(Dl, alpha, glass=True),
+            frame.sphere(nearer(Dl, alpha, beta, d_frac), beta, gamma),
+        ],
+    )
     src = lens_source(run(sc))
     assert src is not None and src.shadow_list == [1] and src.full is False
     expected = planar_overlap_fraction(alpha, beta, gamma)
     # floats place the directions only to ~1e-16 rad: allow the share's change over that
     step = 1e-3 * (hi - lo) * min(t, 1 - t)
-    slope = abs(planar_overlap_fraction(alpha, beta, gamma + step)
-                - planar_overlap_fraction(alpha, beta, gamma - step)) / (2 * step)
+    slope = abs(
+        planar_overlap_fraction(alpha, beta, gamma + step)
+        - planar_overlap_fraction(alpha, beta, gamma - step)
+    ) / (2 * step)
     assert 1.0 - src.unblocked_fraction == pytest.approx(expected, rel=1e-6, abs=slope * 1e-15), (
         f"α = {alpha:.3g} rad (lens {Dl:.3g} radii away): blocked "
-        f"{1.0 - src.unblocked_fraction!r}, the discs' overlap is {expected!r}")
+        f"{1.0 - src.unblocked_fraction!r}, the discs' overlap is {expected!r}"
+    )

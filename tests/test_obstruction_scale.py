@@ -3,6 +3,7 @@
 The reference here is the thesis' algorithm 5.7.1 written out plainly: every lens
 against every other sphere, with `math` only.
 """
+
 import math
 
 import numpy as np
@@ -17,7 +18,7 @@ def thesis_obstruction(a: SceneArrays, j: int):
     S = len(a.radius)
     dist = [math.dist(a.center[k], light) for k in range(S)]
     if any(dist[k] <= a.radius[k] for k in range(S)):
-        return None                                   # light inside a sphere: not compared
+        return None  # light inside a sphere: not compared
     tangent = [math.sqrt(dist[k] ** 2 - a.radius[k] ** 2) for k in range(S)]
     radial = [math.asin(a.radius[k] / dist[k]) for k in range(S)]
     unit = [(a.center[k] - light) / dist[k] for k in range(S)]
@@ -43,12 +44,19 @@ def thesis_obstruction(a: SceneArrays, j: int):
 def random_scene(rng, n_spheres, n_lights, outliers=False):
     c = rng.uniform(-10, 10, (n_spheres, 3))
     r = rng.uniform(0.1, 0.8, n_spheres)
-    if outliers:              # a few spheres far bigger than the rest
+    if outliers:  # a few spheres far bigger than the rest
         big = rng.choice(n_spheres, size=max(1, n_spheres // 50), replace=False)
         r[big] *= rng.uniform(5, 12, big.size)
     lights = rng.uniform(-25, 25, (n_lights, 3))
-    return SceneArrays(lights, np.ones(n_lights), np.ones((n_lights, 3)), c, r,
-                       rng.choice([1.0, 1.5], n_spheres), rng.choice([0.0, 0.6, 1.0], n_spheres))
+    return SceneArrays(
+        lights,
+        np.ones(n_lights),
+        np.ones((n_lights, 3)),
+        c,
+        r,
+        rng.choice([1.0, 1.5], n_spheres),
+        rng.choice([0.0, 0.6, 1.0], n_spheres),
+    )
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -62,9 +70,13 @@ def test_culled_obstruction_equals_thesis_loop(seed):
         if ref is None:
             continue
         got = {s.lens: ("partial", s.shadow_list) for s in result.sources if s.light == j}
-        got.update({k.lens: ("total", int(k.reason.rsplit(" ", 1)[1]))
-                    for k in result.skipped
-                    if k.light == j and k.reason.startswith("totally blocked")})
+        got.update(
+            {
+                k.lens: ("total", int(k.reason.rsplit(" ", 1)[1]))
+                for k in result.skipped
+                if k.light == j and k.reason.startswith("totally blocked")
+            }
+        )
         assert got == ref
         compared += len(ref)
     assert compared > 0
@@ -76,10 +88,17 @@ def test_dense_row_of_lenses_along_a_line_of_sight():
     direction, the worst case for a spatial search)."""
     n = 10
     dist = 3.0 * (np.arange(n) + 1)
-    radii = dist * np.sin(0.1 + 0.01 * np.arange(n))      # radial angle grows
+    radii = dist * np.sin(0.1 + 0.01 * np.arange(n))  # radial angle grows
     centers = np.stack([np.zeros(n), np.zeros(n), dist], axis=1)
-    a = SceneArrays(np.zeros((1, 3)), np.ones(1), np.ones((1, 3)), centers, radii,
-                    np.full(n, 1.5), np.full(n, 1.0))
+    a = SceneArrays(
+        np.zeros((1, 3)),
+        np.ones(1),
+        np.ones((1, 3)),
+        centers,
+        radii,
+        np.full(n, 1.5),
+        np.full(n, 1.0),
+    )
     result = compute_phase1(a)
     assert [s.lens for s in result.sources] == list(range(n))
     assert [s.shadow_list for s in result.sources] == [list(range(i)) for i in range(n)]
@@ -88,12 +107,18 @@ def test_dense_row_of_lenses_along_a_line_of_sight():
 
 
 def dense_grid(nx, ny, nz, light, radius=0.3):
-    g = np.meshgrid(np.arange(float(nx)), np.arange(float(ny)), np.arange(float(nz)),
-                    indexing="ij")
+    g = np.meshgrid(np.arange(float(nx)), np.arange(float(ny)), np.arange(float(nz)), indexing="ij")
     c = np.column_stack([x.ravel() for x in g])
     n = len(c)
-    return SceneArrays(np.array([light], dtype=float), np.ones(1), np.ones((1, 3)), c,
-                       np.full(n, radius), np.full(n, 1.5), np.full(n, 0.9))
+    return SceneArrays(
+        np.array([light], dtype=float),
+        np.ones(1),
+        np.ones((1, 3)),
+        c,
+        np.full(n, radius),
+        np.full(n, 1.5),
+        np.full(n, 0.9),
+    )
 
 
 @pytest.mark.parametrize("light", [(4.7, 4.3, 3.0), (0.5, -1.0, 0.4), (4.5, 4.5, 1.5)])
@@ -105,8 +130,13 @@ def test_dense_grid_with_a_close_light_equals_thesis_loop(light):
     result = compute_phase1(a)
     ref = thesis_obstruction(a, 0)
     got = {s.lens: ("partial", s.shadow_list) for s in result.sources}
-    got.update({k.lens: ("total", int(k.reason.rsplit(" ", 1)[1]))
-                for k in result.skipped if k.reason.startswith("totally blocked")})
+    got.update(
+        {
+            k.lens: ("total", int(k.reason.rsplit(" ", 1)[1]))
+            for k in result.skipped
+            if k.reason.startswith("totally blocked")
+        }
+    )
     assert got == ref
     assert sum(v[0] == "total" for v in ref.values()) > 10
     assert sum(len(v[1]) for v in ref.values() if v[0] == "partial") > 100
@@ -116,6 +146,7 @@ def test_dense_grid_with_a_close_light_equals_thesis_loop(light):
 def test_candidate_pairs_are_each_overlapping_pair_once(seed):
     from addon.geometry import angle_between, radial_angle
     from addon.obstruction import _candidate_pairs
+
     rng = np.random.default_rng(seed)
     a = random_scene(rng, 300, 1, outliers=seed % 2 == 1)
     v = a.center - a.light_position[0]
@@ -124,7 +155,7 @@ def test_candidate_pairs_are_each_overlapping_pair_once(seed):
     w, rho = v / d[:, None], np.where(keep, radial_angle(d, a.radius), 0.0)
     p, q = _candidate_pairs(w, rho, keep, np.zeros(len(d), dtype=bool))
     pairs = list(zip(np.minimum(p, q).tolist(), np.maximum(p, q).tolist(), strict=True))
-    assert len(pairs) == len(set(pairs))                                  # each once
+    assert len(pairs) == len(set(pairs))  # each once
     i, k = np.triu_indices(len(d), 1)
     both = keep[i] & keep[k]
     i, k = i[both], k[both]
@@ -135,10 +166,11 @@ def test_candidate_pairs_are_each_overlapping_pair_once(seed):
 def test_angle_from_columns_is_geometry_angle_between_bit_for_bit():
     from addon.geometry import angle_between
     from addon.obstruction import _angle_between_rows
+
     rng = np.random.default_rng(3)
     v = rng.normal(size=(5000, 3)) * 10.0 ** rng.integers(-8, 8, (5000, 1))
     w = v / np.linalg.norm(v, axis=1)[:, None]
-    w[:50] = w[50:100] * (1 + 1e-15)                    # nearly parallel pairs
+    w[:50] = w[50:100] * (1 + 1e-15)  # nearly parallel pairs
     i, k = rng.integers(0, 5000, 20000), rng.integers(0, 5000, 20000)
     i[:50], k[:50] = np.arange(50), np.arange(50, 100)
     assert np.array_equal(_angle_between_rows(w, i, k), angle_between(w[i], w[k]))

@@ -15,6 +15,7 @@ Every expected value here is computed independently of the code under test:
 No helper of addon/phase1.py is used to compute an expectation; the ones that are
 public API (``cap_overlap_fraction``) are only *tested* here.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,10 +24,10 @@ import re
 
 import numpy as np
 import pytest
-
-from addon.phase1 import compute_phase1, cap_overlap_fraction
-from addon.scene import Light, Scene, Sphere, Surface
 from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit
+
+from addon.phase1 import cap_overlap_fraction, compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
 
 # --------------------------------------------------------------------------- vectors
 # (plain Python on purpose: the expectations must not share the code's numpy path)
@@ -119,7 +120,7 @@ def expected_source(light_pos, center, R, n, kt, brightness=1.0):
         "axis": u,
         "spread_deg": math.degrees(math.acos(cos_t)),
         "intensity": thesis_brightness(brightness, R, n, kt),
-        "image_distance": i + R,            # from the centre
+        "image_distance": i + R,  # from the centre
         "distance": D,
         "alpha": alpha,
     }
@@ -140,7 +141,7 @@ def trace_axis_crossing(D, R, n, impact=1e-5):
     """Meridional ray from a point on the axis at distance D from the centre, with
     impact parameter `impact`·R, through the sphere by Snell's law; returns where
     its exit line crosses the axis (signed, from the centre, + away from the light)."""
-    o = (-D, 0.0)                                   # (z along the axis, y height)
+    o = (-D, 0.0)  # (z along the axis, y height)
     sin_psi = impact * R / D
     d = (math.sqrt(1.0 - sin_psi * sin_psi), sin_psi)
     # entry: near root of |o + t d| = R (robust form: perpendicular distance)
@@ -164,49 +165,78 @@ def rgb255(r, g, b):
 
 
 def lens(center, radius, n=1.5, kt=1.0, name=""):
-    return Sphere(center=tuple(float(c) for c in center), radius=float(radius),
-                  surface=Surface(transmission=kt, ior=n), name=name)
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=float(radius),
+        surface=Surface(transmission=kt, ior=n),
+        name=name,
+    )
 
 
 def opaque(center, radius, name=""):
-    return Sphere(center=tuple(float(c) for c in center), radius=float(radius),
-                  surface=Surface(transmission=0.0, ior=1.0), name=name)
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=float(radius),
+        surface=Surface(transmission=0.0, ior=1.0),
+        name=name,
+    )
 
 
 def sphere(center, radius, color, ka, kd, ks, kt, E, n):
-    return Sphere(center=center, radius=radius,
-                  surface=Surface(color=rgb255(*color), ambient=ka, diffuse=kd,
-                                  specular=ks, transmission=kt, exponent=E, ior=n))
+    return Sphere(
+        center=center,
+        radius=radius,
+        surface=Surface(
+            color=rgb255(*color),
+            ambient=ka,
+            diffuse=kd,
+            specular=ks,
+            transmission=kt,
+            exponent=E,
+            ior=n,
+        ),
+    )
 
 
 def fig1():
-    return Scene(lights=[Light(position=(10.0, 10.0, 10.0), color=rgb255(100, 100, 100),
-                               brightness=1.0)],
-                 objects=[sphere((3.0, 3.0, 3.0), 1.0, (100, 10, 10), 0.1, 0.2, 0, 0.7, 80, 1.5171),
-                          sphere((1.0, 1.0, -1.0), 2.0, (250, 0, 0), 0.1, 0.9, 0, 0, 70, 1.0)],
-                 color_scale=255.0)
+    return Scene(
+        lights=[Light(position=(10.0, 10.0, 10.0), color=rgb255(100, 100, 100), brightness=1.0)],
+        objects=[
+            sphere((3.0, 3.0, 3.0), 1.0, (100, 10, 10), 0.1, 0.2, 0, 0.7, 80, 1.5171),
+            sphere((1.0, 1.0, -1.0), 2.0, (250, 0, 0), 0.1, 0.9, 0, 0, 70, 1.0),
+        ],
+        color_scale=255.0,
+    )
 
 
 def fig2():
-    return Scene(lights=[Light(position=(-12.0, 12.0, 2.0), color=rgb255(100, 0, 0),
-                               brightness=1.0)],
-                 objects=[sphere((-4.5, 4.5, 1.5), 1.0, (10, 0, 100), 0.03, 0.02, 0.35, 0.6, 80, 1.5),
-                          sphere((0.0, 0.0, 0.0), 2.0, (0, 0, 100), 0.2, 0, 0.8, 0, 70, 1.0)],
-                 color_scale=255.0)
+    return Scene(
+        lights=[Light(position=(-12.0, 12.0, 2.0), color=rgb255(100, 0, 0), brightness=1.0)],
+        objects=[
+            sphere((-4.5, 4.5, 1.5), 1.0, (10, 0, 100), 0.03, 0.02, 0.35, 0.6, 80, 1.5),
+            sphere((0.0, 0.0, 0.0), 2.0, (0, 0, 100), 0.2, 0, 0.8, 0, 70, 1.0),
+        ],
+        color_scale=255.0,
+    )
 
 
 def fig3():
-    return Scene(lights=[Light(position=(4.0, 13.0, 4.0), color=rgb255(100, 0, 0),
-                               brightness=1.0)],
-                 objects=[sphere((1.5, 7.0, 2.0), 0.25, (0, 0, 0), 0.2, 0.4, 0.4, 0, 80, 1.0),
-                          sphere((1.0, 6.0, 2.0), 1.0, (100, 100, 100), 0.1, 0, 0.4, 0.6, 80, 1.5),
-                          sphere((-1.0, 0.0, 0.0), 2.0, (100, 100, 100), 0.2, 0, 0.8, 0, 70, 1.0)],
-                 color_scale=255.0)
+    return Scene(
+        lights=[Light(position=(4.0, 13.0, 4.0), color=rgb255(100, 0, 0), brightness=1.0)],
+        objects=[
+            sphere((1.5, 7.0, 2.0), 0.25, (0, 0, 0), 0.2, 0.4, 0.4, 0, 80, 1.0),
+            sphere((1.0, 6.0, 2.0), 1.0, (100, 100, 100), 0.1, 0, 0.4, 0.6, 80, 1.5),
+            sphere((-1.0, 0.0, 0.0), 2.0, (100, 100, 100), 0.2, 0, 0.8, 0, 70, 1.0),
+        ],
+        color_scale=255.0,
+    )
 
 
 def one_lens_scene(light_pos, center, R, n, kt=1.0, brightness=1.0, color=(1.0, 1.0, 1.0)):
-    return Scene(lights=[Light(position=tuple(light_pos), color=color, brightness=brightness)],
-                 objects=[lens(center, R, n, kt)])
+    return Scene(
+        lights=[Light(position=tuple(light_pos), color=color, brightness=brightness)],
+        objects=[lens(center, R, n, kt)],
+    )
 
 
 # --------------------------------------------------------------------------- checks
@@ -229,7 +259,7 @@ def all_numbers(obj):
 
 def assert_finite_json(result):
     data = result.to_json()
-    json.dumps(data, allow_nan=False)           # raises on NaN / inf
+    json.dumps(data, allow_nan=False)  # raises on NaN / inf
     assert all(math.isfinite(x) for x in all_numbers(data))
     return data
 
@@ -237,7 +267,7 @@ def assert_finite_json(result):
 def assert_close_vec(actual, expected, rel=1e-9, abs_=1e-12):
     assert len(actual) == 3
     scale = max(1.0, max(abs(x) for x in expected))
-    for a, e in zip(actual, expected):
+    for a, e in zip(actual, expected, strict=False):
         assert float(a) == pytest.approx(e, rel=rel, abs=abs_ * scale), (actual, expected)
 
 
@@ -323,8 +353,19 @@ def test_fig3_json_shape():
     assert set(data) >= {"sources", "skipped"}
     assert len(data["sources"]) == 1
     s = data["sources"][0]
-    required = {"light", "lens", "kind", "position", "axis", "spread_deg", "cylinder_radius",
-                "intensity", "color", "full", "shadow_list"}
+    required = {
+        "light",
+        "lens",
+        "kind",
+        "position",
+        "axis",
+        "spread_deg",
+        "cylinder_radius",
+        "intensity",
+        "color",
+        "full",
+        "shadow_list",
+    }
     assert required <= set(s), required - set(s)
     assert s["light"] == 0 and type(s["light"]) is int
     assert s["lens"] == 1 and type(s["lens"]) is int
@@ -348,7 +389,7 @@ def test_fig3_json_shape():
 
 
 SWEEP_N = [1.2, 1.5, 1.5171, 1.9, 2.5]
-SWEEP_P = [0.05, 0.2, 0.4, 0.7, 1.3, 2.5, 10.0, 100.0]   # p / R; none at p·a = R or p = f
+SWEEP_P = [0.05, 0.2, 0.4, 0.7, 1.3, 2.5, 10.0, 100.0]  # p / R; none at p·a = R or p = f
 
 
 @pytest.mark.parametrize("n", SWEEP_N)
@@ -369,8 +410,9 @@ def test_single_lens_matches_thesis_formulas(n, p):
     C = (0.3, -1.2, 2.0)
     u = vunit((2.0, -1.0, 2.0))
     L = vsub(C, vscale(u, p * R + R))
-    result = compute_phase1(one_lens_scene(L, C, R, n, kt=0.75, brightness=2.5,
-                                           color=(0.2, 0.4, 0.6)))
+    result = compute_phase1(
+        one_lens_scene(L, C, R, n, kt=0.75, brightness=2.5, color=(0.2, 0.4, 0.6))
+    )
     assert_finite_json(result)
     assert result.skipped == []
     src = only_source(result)
@@ -392,17 +434,17 @@ def test_virtual_image_checked_against_eq_5_21():
     # by hand: p1 = 0.45/(0.15 − 1) − 2, i = p1/(0.5 p1 + 1.5)
     p1 = 0.45 / (0.15 - 1.0) - 2.0
     i = p1 / (0.5 * p1 + 1.5)
-    assert i < -R                                  # virtual, on the light's side
+    assert i < -R  # virtual, on the light's side
     assert src.kind == "virtual"
     assert_close_vec(src.position, (R + i, 0.0, 0.0))
     assert src.position[0] == pytest.approx(vergence_image_from_center(1.3, R, n), rel=1e-12)
-    alpha = math.acos(math.sqrt(1.3 ** 2 - 1.0) / 1.3)
+    alpha = math.acos(math.sqrt(1.3**2 - 1.0) / 1.3)
     delta = math.asin(1 / 1.5)
     sigma = math.radians(270.0) - alpha - 2 * delta
     cos_t = 1.0 / math.sqrt(1.0 + (R * math.sin(sigma) / (abs(i) - R - R * math.cos(sigma))) ** 2)
     assert src.spread_deg == pytest.approx(math.degrees(math.acos(cos_t)), rel=1e-10)
-    assert 3.7 < src.spread_deg < 3.9                # ≈ 3.79°, hand arithmetic
-    assert src.magnification > 0                     # virtual: upright
+    assert 3.7 < src.spread_deg < 3.9  # ≈ 3.79°, hand arithmetic
+    assert src.magnification > 0  # virtual: upright
 
 
 def test_real_and_virtual_spread_formulas_are_the_cone_through_the_exit_circle():
@@ -413,24 +455,25 @@ def test_real_and_virtual_spread_formulas_are_the_cone_through_the_exit_circle()
         src = only_source(compute_phase1(one_lens_scene(L, C, R, n)))
         alpha = math.asin(R / D)
         phi = 2 * math.asin(1 / n) + alpha - math.pi / 2
-        exit_z, exit_h = R * math.cos(phi), R * math.sin(phi)   # exit circle
+        exit_z, exit_h = R * math.cos(phi), R * math.sin(phi)  # exit circle
         apex_z = src.position[2]
-        assert math.degrees(math.atan2(abs(exit_h), abs(apex_z - exit_z))) == \
-            pytest.approx(src.spread_deg, rel=1e-9)
+        assert math.degrees(math.atan2(abs(exit_h), abs(apex_z - exit_z))) == pytest.approx(
+            src.spread_deg, rel=1e-9
+        )
 
 
 # =========================================================================== paraxial limit
 
 
 PARAXIAL_CASES = [
-    (1.5171, 1.0, 12.124355652982141),    # fig1's lens and distance
-    (1.5, 1.0, math.sqrt(62.0)),          # fig3's
-    (1.5, 1.0, 3.0),                      # p·a = R
-    (1.5, 1.0, 1.3),                      # virtual
-    (1.5, 1.0, 1.05),                     # virtual, light close to the surface
+    (1.5171, 1.0, 12.124355652982141),  # fig1's lens and distance
+    (1.5, 1.0, math.sqrt(62.0)),  # fig3's
+    (1.5, 1.0, 3.0),  # p·a = R
+    (1.5, 1.0, 1.3),  # virtual
+    (1.5, 1.0, 1.05),  # virtual, light close to the surface
     (1.3, 2.0, 25.0),
     (1.8, 0.5, 0.9),
-    (2.5, 1.0, 4.0),                      # n > 2: image inside the sphere
+    (2.5, 1.0, 4.0),  # n > 2: image inside the sphere
 ]
 
 
@@ -474,8 +517,10 @@ def placed(distance, radial, gamma=0.0, kind="opaque", n=1.5):
 
 
 def obstruction_scene(*obstacles, lens_distance=10.0, alpha=0.1):
-    return Scene(lights=[Light(position=LIGHT)],
-                 objects=[placed(lens_distance, alpha, kind="lens"), *obstacles])
+    return Scene(
+        lights=[Light(position=LIGHT)],
+        objects=[placed(lens_distance, alpha, kind="lens"), *obstacles],
+    )
 
 
 def test_partial_obstruction_puts_the_obstacle_in_the_shadow_list():
@@ -490,8 +535,10 @@ def test_total_obstruction_skips_the_source():
     result = compute_phase1(obstruction_scene(placed(3.0, 0.2, gamma=0.05)))
     assert_finite_json(result)
     assert result.sources == []
-    assert skipped_pairs(result) == {(0, 0): "totally blocked by sphere 1",
-                                     (0, 1): "opaque (kt = 0)"}
+    assert skipped_pairs(result) == {
+        (0, 0): "totally blocked by sphere 1",
+        (0, 1): "opaque (kt = 0)",
+    }
 
 
 def test_obstacle_behind_the_lens_is_ignored():
@@ -521,7 +568,7 @@ def test_boundary_alpha_plus_beta_equals_gamma(side):
     src = only_source(result)
     if side < 0:
         assert src.full is False and src.shadow_list == [1]
-        assert 0.0 <= 1.0 - src.unblocked_fraction < 1e-6     # a sliver
+        assert 0.0 <= 1.0 - src.unblocked_fraction < 1e-6  # a sliver
     else:
         assert src.full is True and src.shadow_list == []
         assert src.unblocked_fraction == 1.0
@@ -541,7 +588,7 @@ def test_boundary_beta_equals_gamma_plus_alpha(side):
     else:
         src = only_source(result)
         assert src.full is False and src.shadow_list == [1]
-        assert 0.0 <= src.unblocked_fraction < 1e-6           # almost all blocked
+        assert 0.0 <= src.unblocked_fraction < 1e-6  # almost all blocked
 
 
 @pytest.mark.parametrize("side", [-1, +1])
@@ -551,8 +598,9 @@ def test_boundary_of_the_distance_test(side):
     RT_lens = Di * math.cos(alpha)
     RT_obst = RT_lens * (1.0 + side * REL)
     Dk = RT_obst / math.cos(beta)
-    result = compute_phase1(obstruction_scene(placed(Dk, beta, gamma=gamma),
-                                              lens_distance=Di, alpha=alpha))
+    result = compute_phase1(
+        obstruction_scene(placed(Dk, beta, gamma=gamma), lens_distance=Di, alpha=alpha)
+    )
     src = only_source(result)
     if side < 0:
         assert src.shadow_list == [1] and src.full is False
@@ -563,15 +611,15 @@ def test_boundary_of_the_distance_test(side):
 def test_nearest_total_blocker_is_reported():
     # indices: 0 lens (D 10), 1 total blocker at D 6, 2 total blocker at D 3 (nearest),
     # 3 a partial one; 2 must be named
-    result = compute_phase1(obstruction_scene(placed(6.0, 0.3),
-                                              placed(3.0, 0.25),
-                                              placed(8.0, 0.02, gamma=0.1)))
+    result = compute_phase1(
+        obstruction_scene(placed(6.0, 0.3), placed(3.0, 0.25), placed(8.0, 0.02, gamma=0.1))
+    )
     assert result.sources == []
     assert skipped_pairs(result)[(0, 0)] == "totally blocked by sphere 2"
     # and with the order of the two blockers swapped, still the nearest
-    result = compute_phase1(obstruction_scene(placed(3.0, 0.25),
-                                              placed(6.0, 0.3),
-                                              placed(8.0, 0.02, gamma=0.1)))
+    result = compute_phase1(
+        obstruction_scene(placed(3.0, 0.25), placed(6.0, 0.3), placed(8.0, 0.02, gamma=0.1))
+    )
     assert skipped_pairs(result)[(0, 0)] == "totally blocked by sphere 1"
 
 
@@ -579,7 +627,7 @@ def test_nearest_total_blocker_is_reported():
 def test_small_obstacle_inside_the_lens_disc_is_partial_not_total(gamma):
     """SPEC §7: the prototype's |β − α| ≥ γ fires here; the text's β ≥ γ + α does not."""
     alpha, beta = 0.1, 0.03
-    assert abs(beta - alpha) >= gamma                 # the prototype would drop it
+    assert abs(beta - alpha) >= gamma  # the prototype would drop it
     result = compute_phase1(obstruction_scene(placed(4.0, beta, gamma=gamma), alpha=alpha))
     src = only_source(result)
     assert src.full is False and src.shadow_list == [1]
@@ -613,7 +661,11 @@ def test_grazing_pairs_in_every_direction_and_size(side):
         Dl, Do = float(rng.uniform(20, 60)), float(rng.uniform(3, 15))
         wl = (math.cos(az), math.sin(az), 0.0)
         sign = 1.0 if m % 2 else -1.0
-        wo = (math.cos(az) * math.cos(gamma), math.sin(az) * math.cos(gamma), sign * math.sin(gamma))
+        wo = (
+            math.cos(az) * math.cos(gamma),
+            math.sin(az) * math.cos(gamma),
+            sign * math.sin(gamma),
+        )
         objects.append(lens(vscale(wl, Dl), Dl * math.sin(alpha)))
         objects.append(opaque(vscale(wo, Do), Do * math.sin(beta)))
         pairs.append((2 * m, 2 * m + 1))
@@ -647,8 +699,11 @@ def plain_obstruction(light, spheres):
             if k == i:
                 continue
             gamma = angle(wi, wk)
-            near_edge = (abs(tk - ti) <= 1e-9 * ti or abs(alpha + beta - gamma) <= 1e-9
-                         or abs(beta - gamma - alpha) <= 1e-9)
+            near_edge = (
+                abs(tk - ti) <= 1e-9 * ti
+                or abs(alpha + beta - gamma) <= 1e-9
+                or abs(beta - gamma - alpha) <= 1e-9
+            )
             doubtful |= near_edge
             if tk < ti and alpha + beta >= gamma:
                 (totals if beta >= gamma + alpha else shadow).append((tk, k))
@@ -671,16 +726,19 @@ def test_obstruction_matches_a_plain_loop_on_a_random_scene(seed):
     for _ in range(150):
         c = tuple(float(x) for x in rng.uniform(-30, 30, 3))
         spheres.append((c, float(rng.uniform(0.05, 1.5)), bool(rng.random() < 0.5)))
-    for _ in range(4):                               # big spheres
+    for _ in range(4):  # big spheres
         c = tuple(float(x) for x in rng.uniform(-20, 20, 3))
         spheres.append((c, float(rng.uniform(3.0, 6.0)), bool(rng.random() < 0.5)))
     lights = [tuple(float(x) for x in rng.uniform(-25, 25, 3)) for _ in range(5)]
     # a light close to a big sphere sees it under a huge angle
     c, r, _ = spheres[-1]
     lights.append(vadd(c, (r * 1.05, 0.0, 0.0)))
-    sc = Scene(lights=[Light(position=p) for p in lights],
-               objects=[lens(c, r, n=1.5, kt=0.9) if is_lens else opaque(c, r)
-                        for c, r, is_lens in spheres])
+    sc = Scene(
+        lights=[Light(position=p) for p in lights],
+        objects=[
+            lens(c, r, n=1.5, kt=0.9) if is_lens else opaque(c, r) for c, r, is_lens in spheres
+        ],
+    )
     result = compute_phase1(sc)
     assert_finite_json(result)
     compared = 0
@@ -726,7 +784,7 @@ def cap_overlap_quadrature(alpha, beta, gamma, m=200_000):
 
 def cap_overlap_monte_carlo(alpha, beta, gamma, n=400_000, seed=20240607):
     rng = np.random.default_rng(seed)
-    cos_t = 1.0 - rng.random(n) * 2.0 * math.sin(alpha / 2) ** 2   # uniform in solid angle
+    cos_t = 1.0 - rng.random(n) * 2.0 * math.sin(alpha / 2) ** 2  # uniform in solid angle
     sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
     phi = rng.random(n) * 2 * np.pi
     dots = sin_t * np.cos(phi) * math.sin(gamma) + cos_t * math.cos(gamma)
@@ -734,17 +792,17 @@ def cap_overlap_monte_carlo(alpha, beta, gamma, n=400_000, seed=20240607):
 
 
 CAP_CASES = [
-    (0.3, 0.2, 0.4),      # partial
-    (0.3, 0.1, 0.1),      # obstacle inside the lens's disc
-    (0.2, 0.5, 0.25),     # lens covered
-    (0.2, 0.1, 0.35),     # disjoint
-    (0.5, 0.3, 0.4),      # obstacle centre inside, disc sticking out
-    (0.3, 0.8, 0.6),      # big obstacle, most of the lens covered
-    (0.5, 0.5, 0.9),      # equal radii
-    (1.2, 0.9, 1.6),      # large caps (spherical, not planar, geometry)
-    (1.0, 1.4, 0.5),      # near-hemispherical obstacle
-    (0.01, 0.008, 0.012), # tiny caps
-    (0.1, 0.03, 0.0),     # concentric, contained
+    (0.3, 0.2, 0.4),  # partial
+    (0.3, 0.1, 0.1),  # obstacle inside the lens's disc
+    (0.2, 0.5, 0.25),  # lens covered
+    (0.2, 0.1, 0.35),  # disjoint
+    (0.5, 0.3, 0.4),  # obstacle centre inside, disc sticking out
+    (0.3, 0.8, 0.6),  # big obstacle, most of the lens covered
+    (0.5, 0.5, 0.9),  # equal radii
+    (1.2, 0.9, 1.6),  # large caps (spherical, not planar, geometry)
+    (1.0, 1.4, 0.5),  # near-hemispherical obstacle
+    (0.01, 0.008, 0.012),  # tiny caps
+    (0.1, 0.03, 0.0),  # concentric, contained
 ]
 
 
@@ -770,8 +828,9 @@ def test_cap_overlap_fraction_broadcasts():
 
 def test_unblocked_fraction_of_a_partly_blocked_source():
     alpha, beta, gamma = 0.1, 0.05, 0.12
-    src = only_source(compute_phase1(obstruction_scene(placed(4.0, beta, gamma=gamma),
-                                                       alpha=alpha)))
+    src = only_source(
+        compute_phase1(obstruction_scene(placed(4.0, beta, gamma=gamma), alpha=alpha))
+    )
     expected = 1.0 - cap_overlap_quadrature(alpha, beta, gamma)
     assert src.unblocked_fraction == pytest.approx(expected, abs=2e-6)
 
@@ -780,29 +839,35 @@ def test_unblocked_fraction_of_a_partly_blocked_source():
 
 
 def rich_scene():
-    lights = [Light(position=(0.0, 0.0, 0.0), color=(1.0, 0.9, 0.8), brightness=1.0),
-              Light(position=(0.0, 20.0, 0.0), color=(0.5, 0.5, 1.0), brightness=3.0),
-              Light(position=(-6.0, -6.0, 1.0), brightness=0.5)]
+    lights = [
+        Light(position=(0.0, 0.0, 0.0), color=(1.0, 0.9, 0.8), brightness=1.0),
+        Light(position=(0.0, 20.0, 0.0), color=(0.5, 0.5, 1.0), brightness=3.0),
+        Light(position=(-6.0, -6.0, 1.0), brightness=0.5),
+    ]
     objects = [
-        lens((10, 0, 0), 1.0, n=1.5, kt=0.9),           # 0
-        opaque((4, 0.3, 0), 0.2),                       # 1: partial for 0
-        lens((20, 0, 0), 1.5, n=1.6, kt=0.8),           # 2: behind 0 (total)
-        lens((0, 10, 5), 1.0, n=1.5171, kt=0.7),        # 3
-        opaque((-5, -5, 0), 2.0),                       # 4: light 2 sits inside
-        lens((10, 3, 0), 1.0, n=1.4, kt=0.5),           # 5
-        lens((2.5, 1.0, 0), 1.0, n=1.2, kt=1.0),        # 6: near the light
-        lens((6, 0.2, 0.1), 0.4, n=1.5, kt=0.95),       # 7: partial for 0
-        opaque((0, 15, 2.5), 0.5),                      # 8: between light 1 and lens 3
-        lens((0, 30, 0), 1.0, n=1.5, kt=0.6),           # 9
-        Sphere(center=(50.0, 50.0, 50.0), radius=-1.0, surface=Surface(transmission=0.5, ior=1.5)),  # 10
-        lens((0, 0, 1.5), 1.0, n=1.5, kt=1.0),          # 11: collimated for light 0
+        lens((10, 0, 0), 1.0, n=1.5, kt=0.9),  # 0
+        opaque((4, 0.3, 0), 0.2),  # 1: partial for 0
+        lens((20, 0, 0), 1.5, n=1.6, kt=0.8),  # 2: behind 0 (total)
+        lens((0, 10, 5), 1.0, n=1.5171, kt=0.7),  # 3
+        opaque((-5, -5, 0), 2.0),  # 4: light 2 sits inside
+        lens((10, 3, 0), 1.0, n=1.4, kt=0.5),  # 5
+        lens((2.5, 1.0, 0), 1.0, n=1.2, kt=1.0),  # 6: near the light
+        lens((6, 0.2, 0.1), 0.4, n=1.5, kt=0.95),  # 7: partial for 0
+        opaque((0, 15, 2.5), 0.5),  # 8: between light 1 and lens 3
+        lens((0, 30, 0), 1.0, n=1.5, kt=0.6),  # 9
+        Sphere(
+            center=(50.0, 50.0, 50.0), radius=-1.0, surface=Surface(transmission=0.5, ior=1.5)
+        ),  # 10
+        lens((0, 0, 1.5), 1.0, n=1.5, kt=1.0),  # 11: collimated for light 0
     ]
     rng = np.random.default_rng(7)
     for _ in range(14):
         c = tuple(float(x) for x in rng.uniform(-25, 25, 3))
         r = float(rng.uniform(0.2, 2.0))
         if rng.random() < 0.6:
-            objects.append(lens(c, r, n=float(rng.uniform(1.1, 2.4)), kt=float(rng.uniform(0.3, 1))))
+            objects.append(
+                lens(c, r, n=float(rng.uniform(1.1, 2.4)), kt=float(rng.uniform(0.3, 1)))
+            )
         else:
             objects.append(opaque(c, r))
     return Scene(lights=lights, objects=objects)
@@ -810,8 +875,10 @@ def rich_scene():
 
 def _canonical(result, to_original):
     """Sources and skips keyed by original sphere indices."""
+
     def remap_reason(reason):
         return re.sub(r"sphere (\d+)$", lambda m: f"sphere {to_original[int(m.group(1))]}", reason)
+
     sources = {}
     for s in result.sources:
         sources[(s.light, to_original[s.lens])] = s
@@ -855,6 +922,10 @@ def test_every_pair_is_either_a_source_or_skipped():
     scene = rich_scene()
     result = compute_phase1(scene)
     assert_finite_json(result)
-    pairs = [(s.light, s.lens) for s in result.sources] + [(k.light, k.lens) for k in result.skipped]
+    pairs = [(s.light, s.lens) for s in result.sources] + [
+        (k.light, k.lens) for k in result.skipped
+    ]
     assert len(pairs) == len(set(pairs))
-    assert set(pairs) == {(j, i) for j in range(len(scene.lights)) for i in range(len(scene.objects))}
+    assert set(pairs) == {
+        (j, i) for j in range(len(scene.lights)) for i in range(len(scene.objects))
+    }

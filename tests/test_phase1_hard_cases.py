@@ -5,16 +5,17 @@ Expected values are computed independently of addon/phase1.py: the thesis' formu
 (SPEC §3) and the vergence form (SPEC §4.1) written out with `math`, a plain Snell's
 law ray trace, and hand arithmetic.
 """
+
 from __future__ import annotations
 
 import json
 import math
 
 import pytest
+from plain_vectors import vadd, vdot, vnorm, vscale, vsub, vunit
 
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
-from plain_vectors import vadd, vdot, vnorm, vscale, vsub, vunit
 
 # --------------------------------------------------------------------------- plain-Python references
 
@@ -82,18 +83,26 @@ def trace_axis_crossing(D, R, n, impact=1e-5):
 
 
 def lens(center, radius, n=1.5, kt=1.0):
-    return Sphere(center=tuple(float(c) for c in center), radius=radius,
-                  surface=Surface(transmission=kt, ior=n))
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=radius,
+        surface=Surface(transmission=kt, ior=n),
+    )
 
 
 def opaque(center, radius):
-    return Sphere(center=tuple(float(c) for c in center), radius=radius,
-                  surface=Surface(transmission=0.0, ior=1.0))
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=radius,
+        surface=Surface(transmission=0.0, ior=1.0),
+    )
 
 
 def scene(lights, objects):
-    return Scene(lights=[l if isinstance(l, Light) else Light(position=tuple(l)) for l in lights],
-                 objects=list(objects))
+    return Scene(
+        lights=[l if isinstance(l, Light) else Light(position=tuple(l)) for l in lights],
+        objects=list(objects),
+    )
 
 
 def run(sc, **kw):
@@ -102,9 +111,18 @@ def run(sc, **kw):
     data = result.to_json()
     # allow_nan=False refuses NaN and ±inf anywhere, and non-JSON types raise too
     json.dumps(data, allow_nan=False)
-    for s in result.sources:                     # the extra fields, too
-        for name in ("spread_deg", "intensity", "brightness_factor", "distance",
-                     "lens_radius", "ior", "vergence", "alpha_deg", "unblocked_fraction"):
+    for s in result.sources:  # the extra fields, too
+        for name in (
+            "spread_deg",
+            "intensity",
+            "brightness_factor",
+            "distance",
+            "lens_radius",
+            "ior",
+            "vergence",
+            "alpha_deg",
+            "unblocked_fraction",
+        ):
             assert math.isfinite(getattr(s, name)), (name, s)
         for name in ("image_distance", "magnification", "cylinder_radius"):
             v = getattr(s, name)
@@ -115,7 +133,9 @@ def run(sc, **kw):
         assert vnorm(tuple(s.axis)) == pytest.approx(1.0, rel=1e-12)
     for k in result.skipped:
         assert isinstance(k.reason, str) and k.reason
-    pairs = [(s.light, s.lens) for s in result.sources] + [(k.light, k.lens) for k in result.skipped]
+    pairs = [(s.light, s.lens) for s in result.sources] + [
+        (k.light, k.lens) for k in result.skipped
+    ]
     assert len(pairs) == len(set(pairs)), "a pair reported twice"
     assert set(pairs) == {(j, i) for j in range(len(sc.lights)) for i in range(len(sc.objects))}
     return result
@@ -132,7 +152,7 @@ def reasons(result):
 
 
 def close_vec(actual, expected, tol):
-    assert all(abs(float(a) - e) <= tol for a, e in zip(actual, expected)), (list(actual), expected)
+    assert all(abs(float(a) - e) <= tol for a, e in zip(actual, expected, strict=False)), (list(actual), expected)
 
 
 # =========================================================================== the focal point
@@ -143,7 +163,7 @@ FC = (0.3, -0.2, 0.7)
 FU = vunit((1.0, 2.0, 2.0))
 FR, FN, FKT = 1.0, 1.5, 0.8
 D0 = FN * FR / (2 * (FN - 1))
-EPSILONS = [s * 10.0 ** -k for k in range(1, 13) for s in (+1, -1)]
+EPSILONS = [s * 10.0**-k for k in range(1, 13) for s in (+1, -1)]
 
 
 def focal_scene(eps):
@@ -151,7 +171,7 @@ def focal_scene(eps):
 
 
 def test_focal_point_of_eq_2_13_is_where_the_vergence_vanishes():
-    assert thesis_focal(FR, FN) == pytest.approx(D0 - FR, rel=1e-15)     # p = f
+    assert thesis_focal(FR, FN) == pytest.approx(D0 - FR, rel=1e-15)  # p = f
 
 
 def test_light_exactly_at_the_focal_point_gives_a_collimated_beam():
@@ -159,10 +179,10 @@ def test_light_exactly_at_the_focal_point_gives_a_collimated_beam():
     s = source(run(sc))
     assert s.kind == "collimated"
     assert s.spread_deg == 0.0
-    close_vec(s.position, vadd(FC, vscale(FU, FR)), 1e-12)             # back vertex V2
+    close_vec(s.position, vadd(FC, vscale(FU, FR)), 1e-12)  # back vertex V2
     close_vec(s.axis, FU, 1e-12)
     # eq. 5.10: R_C = |d| = R |sin φ|, α at D = D0
-    alpha = math.acos(math.sqrt(D0 ** 2 - FR ** 2) / D0)
+    alpha = math.acos(math.sqrt(D0**2 - FR**2) / D0)
     assert s.cylinder_radius == pytest.approx(abs(FR * math.sin(thesis_phi(alpha, FN))), rel=1e-9)
     assert s.intensity == pytest.approx(thesis_brightness(1.0, FR, FN, FKT), rel=1e-12)
     assert s.image_distance is None and s.magnification is None
@@ -173,18 +193,20 @@ def test_near_the_focal_point(eps):
     sc = focal_scene(eps)
     s = source(run(sc))
     L = sc.lights[0].position
-    D = vnorm(vsub(FC, L))                      # the distance as actually placed
+    D = vnorm(vsub(FC, L))  # the distance as actually placed
     p = D - FR
     alpha = math.asin(FR / D)
     kind = "real" if eps > 0 else "virtual"
     if abs(eps) >= 1e-3:
-        assert s.kind == kind                   # no premature switch
+        assert s.kind == kind  # no premature switch
     if abs(eps) <= 1e-9:
-        assert s.kind == "collimated"           # the image is ≥ 1e9 R away
+        assert s.kind == "collimated"  # the image is ≥ 1e9 R away
     if s.kind == "collimated":
         assert s.spread_deg == 0.0
         close_vec(s.position, vadd(FC, vscale(FU, FR)), 1e-12)
-        assert s.cylinder_radius == pytest.approx(FR * abs(math.sin(thesis_phi(alpha, FN))), rel=1e-9)
+        assert s.cylinder_radius == pytest.approx(
+            FR * abs(math.sin(thesis_phi(alpha, FN))), rel=1e-9
+        )
     else:
         assert s.kind == kind
         i = thesis_image_distance(p, FR, FN)
@@ -200,10 +222,10 @@ def test_near_the_focal_point(eps):
 
 @pytest.mark.parametrize("side", [+1, -1])
 def test_spread_goes_to_zero_continuously_at_the_focal_point(side):
-    spreads = [source(run(focal_scene(side * 10.0 ** -k))).spread_deg for k in range(1, 13)]
-    kinds = [source(run(focal_scene(side * 10.0 ** -k))).kind for k in range(1, 13)]
+    spreads = [source(run(focal_scene(side * 10.0**-k))).spread_deg for k in range(1, 13)]
+    kinds = [source(run(focal_scene(side * 10.0**-k))).kind for k in range(1, 13)]
     # never increases as the light approaches the focal point
-    assert all(b <= a for a, b in zip(spreads, spreads[1:])), spreads
+    assert all(b <= a for a, b in zip(spreads, spreads[1:], strict=False)), spreads
     # once collimated, stays collimated (a single switch)
     first = kinds.index("collimated")
     assert all(k == "collimated" for k in kinds[first:])
@@ -219,7 +241,7 @@ def test_cylinder_radius_continues_the_cone_at_the_switch():
     """The last cone's radius at the exit circle equals the first cylinder's R_C
     (up to the change of α between the two light positions, ~1e-4 relative)."""
     for side in (+1, -1):
-        srcs = [source(run(focal_scene(side * 10.0 ** -k))) for k in range(1, 13)]
+        srcs = [source(run(focal_scene(side * 10.0**-k))) for k in range(1, 13)]
         first = [s.kind for s in srcs].index("collimated")
         cone, cyl = srcs[first - 1], srcs[first]
         alpha = math.asin(FR / cone.distance)
@@ -244,9 +266,9 @@ def test_p_times_a_equals_R_gives_the_finite_image(n, R):
     s = source(run(scene([L], [lens(C, R, n)])))
     Dact = vnorm(vsub(C, L))
     assert s.kind == "real"
-    assert s.image_distance == pytest.approx(R + R / a, rel=1e-9)          # limit of the thesis
+    assert s.image_distance == pytest.approx(R + R / a, rel=1e-9)  # limit of the thesis
     assert s.image_distance == pytest.approx(vergence_image_from_center(Dact, R, n), rel=1e-12)
-    assert s.image_distance == pytest.approx(D, rel=1e-9)                  # the mirror point
+    assert s.image_distance == pytest.approx(D, rel=1e-9)  # the mirror point
     assert s.image_distance == pytest.approx(trace_axis_crossing(Dact, R, n), rel=1e-7)
     close_vec(s.position, vadd(C, vscale(u, D)), 1e-9 * D)
     assert s.magnification == pytest.approx(-1.0, rel=1e-9)
@@ -263,13 +285,16 @@ LC, LR = (2.0, -1.0, 0.5), 1.3
 LU = vunit((0.2, -1.0, 0.7))
 
 
-@pytest.mark.parametrize("D_over_R,reason", [
-    (1.0, "light on the sphere's surface"),
-    (1.0 + 1e-12, "light on the sphere's surface"),
-    (1.0 - 1e-12, "light on the sphere's surface"),
-    (0.5, "light inside the sphere"),
-    (0.0, "light inside the sphere"),           # at the centre
-])
+@pytest.mark.parametrize(
+    "D_over_R,reason",
+    [
+        (1.0, "light on the sphere's surface"),
+        (1.0 + 1e-12, "light on the sphere's surface"),
+        (1.0 - 1e-12, "light on the sphere's surface"),
+        (0.5, "light inside the sphere"),
+        (0.0, "light inside the sphere"),  # at the centre
+    ],
+)
 def test_light_on_or_inside_the_sphere_is_skipped(D_over_R, reason):
     L = vsub(LC, vscale(LU, D_over_R * LR)) if D_over_R else LC
     result = run(scene([L], [lens(LC, LR)]))
@@ -284,7 +309,9 @@ def test_light_just_outside_the_surface_is_a_virtual_source():
     Dact = vnorm(vsub(LC, L))
     assert s.kind == "virtual"
     assert s.image_distance == pytest.approx(vergence_image_from_center(Dact, LR, 1.5), rel=1e-8)
-    assert s.image_distance == pytest.approx(thesis_image_distance(Dact - LR, LR, 1.5) + LR, rel=1e-8)
+    assert s.image_distance == pytest.approx(
+        thesis_image_distance(Dact - LR, LR, 1.5) + LR, rel=1e-8
+    )
 
 
 def test_light_inside_another_sphere_skips_the_lens_with_that_sphere_named():
@@ -352,8 +379,12 @@ def test_kt_zero_is_opaque():
 
 @pytest.mark.parametrize("n", [1.0001, 1.5, 3.0, 1e6])
 def test_kt_one_has_no_absorption(n):
-    result = run(Scene(lights=[Light(position=(0, 0, 0), brightness=2.75, color=(0.1, 0.2, 0.3))],
-                       objects=[lens((50, 0, 0), 3.0, n=n, kt=1.0)]))
+    result = run(
+        Scene(
+            lights=[Light(position=(0, 0, 0), brightness=2.75, color=(0.1, 0.2, 0.3))],
+            objects=[lens((50, 0, 0), 3.0, n=n, kt=1.0)],
+        )
+    )
     s = source(result)
     assert s.brightness_factor == 1.0
     assert s.intensity == 2.75
@@ -372,10 +403,12 @@ def test_kt_above_one_is_reported():
 def scaled_scene(s):
     """Light at the origin; lens 0 collimated (light at its focal point), lens 1 real
     and partly blocked by opaque sphere 3, lens 2 virtual. kt = 1 everywhere."""
-    objects = [lens((0, 1.5 * s, 0), 1.0 * s),
-               lens((10 * s, 0, 0), 1.0 * s, n=1.5171),
-               lens((0, -1.2 * s, 0), 1.0 * s),
-               opaque((5 * s, 0.35 * s, 0), 0.1 * s)]
+    objects = [
+        lens((0, 1.5 * s, 0), 1.0 * s),
+        lens((10 * s, 0, 0), 1.0 * s, n=1.5171),
+        lens((0, -1.2 * s, 0), 1.0 * s),
+        opaque((5 * s, 0.35 * s, 0), 0.1 * s),
+    ]
     return Scene(lights=[Light(position=(0.0, 0.0, 0.0), brightness=1.5)], objects=objects)
 
 
@@ -411,7 +444,9 @@ def test_scene_scaled_by_radius_1e_minus_4_to_1e4(s):
     i = thesis_image_distance(9.0, 1.0, 1.5171)
     assert real.image_distance == pytest.approx(1.0 + i, rel=1e-10)
     virt = source(ref, 0, 2)
-    assert virt.image_distance == pytest.approx(thesis_image_distance(0.2, 1.0, 1.5) + 1.0, rel=1e-10)
+    assert virt.image_distance == pytest.approx(
+        thesis_image_distance(0.2, 1.0, 1.5) + 1.0, rel=1e-10
+    )
 
 
 # =========================================================================== very far lights
@@ -425,7 +460,7 @@ def test_very_far_light_images_at_the_back_focal_point(n, R):
     D = 1e8 * R
     L = vsub(C, vscale(u, D))
     s = source(run(scene([L], [lens(C, R, n, kt=1.0)])))
-    f = R * (2 - n) / (2 * (n - 1))            # from the back vertex
+    f = R * (2 - n) / (2 * (n - 1))  # from the back vertex
     assert s.kind == "real"
     # the true image is EFL²/D = (nR/(2(n−1)))²/D beyond the focal point: ~1e-8 R
     close_vec(s.position, vadd(C, vscale(u, R + f)), 1e-6 * R)
@@ -460,7 +495,8 @@ def test_obstacle_on_the_axis_smaller_than_the_lens_disc_is_partial():
     assert s.shadow_list == [1] and not s.full
     alpha, beta = math.asin(0.1), math.asin(0.05)
     assert s.unblocked_fraction == pytest.approx(
-        1 - (1 - math.cos(beta)) / (1 - math.cos(alpha)), rel=1e-10)
+        1 - (1 - math.cos(beta)) / (1 - math.cos(alpha)), rel=1e-10
+    )
 
 
 def test_overlapping_lenses():
@@ -471,7 +507,9 @@ def test_overlapping_lenses():
     assert far.shadow_list == [1] and 0 < far.unblocked_fraction < 1
     for s, C in ((near, (5, 0, 0)), (far, (6.5, 0.8, 0))):
         D = vnorm(C)
-        assert s.image_distance == pytest.approx(thesis_image_distance(D - 1, 1.0, 1.5) + 1, rel=1e-10)
+        assert s.image_distance == pytest.approx(
+            thesis_image_distance(D - 1, 1.0, 1.5) + 1, rel=1e-10
+        )
 
 
 def test_light_inside_the_overlap_of_two_spheres():
@@ -505,7 +543,7 @@ def test_two_lenses_blocking_each_other():
 def test_many_lenses_in_a_row_along_the_light():
     # equal lenses on one line through the light: the nearest hides all the others
     objects = [lens((3.0 * (k + 2), 0, 0), 1.0) for k in range(12)]
-    order = [7, 3, 11, 0, 5, 9, 1, 10, 2, 8, 6, 4]          # nearest is index 3
+    order = [7, 3, 11, 0, 5, 9, 1, 10, 2, 8, 6, 4]  # nearest is index 3
     objects = [objects[k] for k in order]
     result = run(scene([(0, 0, 0)], objects))
     assert len(result.sources) == 1
@@ -519,7 +557,7 @@ def test_many_lenses_in_a_row_growing():
     # inside its disc, so it is partly shaded by all the nearer ones; only the nearest is full
     objects = []
     for k in range(10):
-        D = 10.0 * 2.0 ** k
+        D = 10.0 * 2.0**k
         objects.append(lens((D, 0.0, 0.0), D * math.sin(0.05 * (1 + 0.1 * k))))
     result = run(scene([(0, 0, 0)], objects))
     assert result.skipped == []
@@ -535,28 +573,51 @@ def test_many_lenses_in_a_row_growing():
 NAN, INF = float("nan"), float("inf")
 
 
-@pytest.mark.parametrize("bad,reason", [
-    (Sphere(center=(5.0, 0.0, 0.0), radius=0.0, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (radius 0 ≤ 0)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=-1.0, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (radius -1 ≤ 0)"),
-    (Sphere(center=(NAN, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, INF, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=INF, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=NAN, surface=Surface(transmission=0.9, ior=1.5)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=NAN)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=INF)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=NAN, ior=1.5)),
-     "invalid sphere (non-finite number)"),
-    (Sphere(center=(5.0, 0.0, 0.0), radius=0.0, surface=Surface(transmission=0.0, ior=1.0)),
-     "invalid sphere (radius 0 ≤ 0)"),
-])
+@pytest.mark.parametrize(
+    "bad,reason",
+    [
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=0.0, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (radius 0 ≤ 0)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=-1.0, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (radius -1 ≤ 0)",
+        ),
+        (
+            Sphere(center=(NAN, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, INF, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=INF, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=NAN, surface=Surface(transmission=0.9, ior=1.5)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=NAN)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=0.9, ior=INF)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=NAN, ior=1.5)),
+            "invalid sphere (non-finite number)",
+        ),
+        (
+            Sphere(center=(5.0, 0.0, 0.0), radius=0.0, surface=Surface(transmission=0.0, ior=1.0)),
+            "invalid sphere (radius 0 ≤ 0)",
+        ),
+    ],
+)
 def test_invalid_sphere_is_reported_and_harmless(bad, reason):
     good = lens((20, 0, 0), 1.0, kt=0.9)
     alone = run(scene([(0, 0, 0)], [good]))
@@ -569,20 +630,23 @@ def test_invalid_sphere_is_reported_and_harmless(bad, reason):
     assert s.kind == ref.kind and s.intensity == ref.intensity
 
 
-@pytest.mark.parametrize("light", [
-    Light(position=(NAN, 0.0, 0.0)),
-    Light(position=(0.0, INF, 0.0)),
-    Light(position=(0.0, 0.0, -INF)),
-    Light(position=(0.0, 0.0, 0.0), brightness=NAN),
-    Light(position=(0.0, 0.0, 0.0), brightness=INF),
-    Light(position=(0.0, 0.0, 0.0), color=(1.0, NAN, 0.0)),
-])
+@pytest.mark.parametrize(
+    "light",
+    [
+        Light(position=(NAN, 0.0, 0.0)),
+        Light(position=(0.0, INF, 0.0)),
+        Light(position=(0.0, 0.0, -INF)),
+        Light(position=(0.0, 0.0, 0.0), brightness=NAN),
+        Light(position=(0.0, 0.0, 0.0), brightness=INF),
+        Light(position=(0.0, 0.0, 0.0), color=(1.0, NAN, 0.0)),
+    ],
+)
 def test_invalid_light_is_reported_per_sphere(light):
     objects = [lens((5, 0, 0), 1.0), opaque((0, 5, 0), 1.0)]
     result = run(Scene(lights=[light, Light(position=(-5.0, 0.0, 0.0))], objects=objects))
     r = reasons(result)
     assert r[(0, 0)] == r[(0, 1)] == "invalid light (non-finite number)"
-    assert source(result, 1, 0).full          # the valid light is unaffected
+    assert source(result, 1, 0).full  # the valid light is unaffected
 
 
 def test_no_lights():
@@ -602,11 +666,17 @@ def test_empty_scene():
 
 
 def test_only_invalid_things():
-    objects = [Sphere(center=(NAN, NAN, NAN), radius=NAN),
-               Sphere(center=(0.0, 0.0, 0.0), radius=-3.0),
-               opaque((4, 0, 0), 1.0)]
-    result = run(Scene(lights=[Light(position=(INF, 0.0, 0.0)), Light(position=(0.0, 0.0, 0.0))],
-                       objects=objects))
+    objects = [
+        Sphere(center=(NAN, NAN, NAN), radius=NAN),
+        Sphere(center=(0.0, 0.0, 0.0), radius=-3.0),
+        opaque((4, 0, 0), 1.0),
+    ]
+    result = run(
+        Scene(
+            lights=[Light(position=(INF, 0.0, 0.0)), Light(position=(0.0, 0.0, 0.0))],
+            objects=objects,
+        )
+    )
     assert result.sources == []
     r = reasons(result)
     assert all(r[(0, k)] == "invalid light (non-finite number)" for k in range(3))

@@ -4,6 +4,7 @@ exact integral of SPEC 6 (addon/exact_optics), hand geometry and conservation la
 Monte-Carlo results are compared within a few standard errors (the tracer's own
 estimate of them); every case uses a fixed seed, so the tests are deterministic.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,7 +24,7 @@ from addon.reference import (
 
 R, N = 1.0, 1.5
 LENS = GlassSphere((0.0, 0.0, 0.0), R, N)
-I0 = 1.0                                    # W/sr: power 4 pi
+I0 = 1.0  # W/sr: power 4 pi
 POWER = 4.0 * math.pi * I0
 
 
@@ -36,19 +37,26 @@ def _behind(Z):
 def test_point_on_axis_rings_match_the_exact_integral(D, Z, absorption):
     lens = GlassSphere((0.0, 0.0, 0.0), R, N, absorption)
     edges = np.linspace(0.0, xo.lens_shadow_radius(D, R, Z), 13)
-    res = trace_irradiance(PointLight((0.0, 0.0, -D), POWER), lens, _behind(Z), 300_000,
-                           seed=1, rings=((0.0, 0.0), edges))
+    res = trace_irradiance(
+        PointLight((0.0, 0.0, -D), POWER),
+        lens,
+        _behind(Z),
+        300_000,
+        seed=1,
+        rings=((0.0, 0.0), edges),
+    )
     exact = xo.irradiance_on_plane(I0, D, R, N, Z, edges, absorption)
     lit = res.ring_se > 0.0
-    assert np.all(exact[~lit] < 1e-9 * exact.max())     # rings the beam does not reach
+    assert np.all(exact[~lit] < 1e-9 * exact.max())  # rings the beam does not reach
     z = (res.ring_irradiance - exact)[lit] / res.ring_se[lit]
     assert np.all(np.abs(z) < 4.5), z
-    assert np.sqrt(np.mean(z * z)) < 1.6      # the standard errors are honest, not inflated
+    assert np.sqrt(np.mean(z * z)) < 1.6  # the standard errors are honest, not inflated
     flux = xo.lens_flux(I0, D, R, N, absorption)
     assert abs(res.flux_on_plane - flux) < 4.0 * res.flux_on_plane_se
     # every sample carries the same flux into the lens: the cone's, exactly (SPEC 4.2)
-    assert res.flux_into_lens == pytest.approx(2 * math.pi * I0 * xo.cone_one_minus_cos(D, R),
-                                               rel=1e-12)
+    assert res.flux_into_lens == pytest.approx(
+        2 * math.pi * I0 * xo.cone_one_minus_cos(D, R), rel=1e-12
+    )
 
 
 def test_deterministic_given_the_seed():
@@ -68,10 +76,11 @@ def test_resting_marble_lands_near_the_contact_point():
     D = 10.0
     plane = ReceiverPlane((0.0, 0.0, -R), (0.0, 0.0, 1.0))
     edges = np.array([0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.5, 100.0])
-    res = trace_irradiance(PointLight((0.0, 0.0, D), POWER), LENS, plane, 300_000, seed=2,
-                           rings=((0.0, 0.0), edges))
+    res = trace_irradiance(
+        PointLight((0.0, 0.0, D), POWER), LENS, plane, 300_000, seed=2, rings=((0.0, 0.0), edges)
+    )
     exact = np.diff(xo.flux_within_radius(I0, D, R, N, R, edges))
-    se = res.ring_se * np.pi * np.diff(edges ** 2)
+    se = res.ring_se * np.pi * np.diff(edges**2)
     got = res.ring_flux()
     assert np.all(np.abs(got - exact) < 4.5 * se + 1e-9 * exact.sum()), (got, exact)
     total = xo.lens_flux(I0, D, R, N)
@@ -87,10 +96,17 @@ def test_plane_cutting_the_sphere_gets_the_light_inside_the_glass():
     light lands (nothing can go back up through the table)."""
     D = 10.0
     light = PointLight((0.0, 0.0, D), POWER)
-    half = trace_irradiance(light, LENS, ReceiverPlane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-                            100_000, seed=3, rings=((0.0, 0.0), np.array([0.0, R, 10.0])))
-    tangent = trace_irradiance(light, LENS, ReceiverPlane((0.0, 0.0, -R), (0.0, 0.0, 1.0)),
-                               100_000, seed=3)
+    half = trace_irradiance(
+        light,
+        LENS,
+        ReceiverPlane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+        100_000,
+        seed=3,
+        rings=((0.0, 0.0), np.array([0.0, R, 10.0])),
+    )
+    tangent = trace_irradiance(
+        light, LENS, ReceiverPlane((0.0, 0.0, -R), (0.0, 0.0, 1.0)), 100_000, seed=3
+    )
     # a single surface passes more than two: more flux, all of it under the sphere
     assert half.flux_on_plane > tangent.flux_on_plane
     assert half.ring_flux()[1] < 1e-12 * half.flux_on_plane
@@ -107,8 +123,14 @@ def test_tilted_plane_catches_the_same_flux():
     b = math.radians(12.0)
     tilted = ReceiverPlane((0.0, 0.0, Z), (0.0, math.sin(b), -math.cos(b)))
     a = trace_irradiance(light, LENS, _behind(Z), 200_000, seed=4)
-    t = trace_irradiance(light, LENS, tilted, 200_000, seed=4,
-                         grid=(np.linspace(-40, 40, 81), np.linspace(-40, 40, 81)))
+    t = trace_irradiance(
+        light,
+        LENS,
+        tilted,
+        200_000,
+        seed=4,
+        grid=(np.linspace(-40, 40, 81), np.linspace(-40, 40, 81)),
+    )
     assert t.flux_on_plane == pytest.approx(a.flux_on_plane, rel=2e-4)
     assert abs(t.flux_on_plane - xo.lens_flux(I0, D, R, N)) < 4.0 * t.flux_on_plane_se
     assert t.cell_flux().sum() == pytest.approx(t.flux_on_plane, rel=1e-3)
@@ -119,18 +141,18 @@ def test_sphere_light_sends_what_a_point_light_sends():
     (exactly where the whole emitter stays above each lens point's horizon; here the
     difference is of order (r/D)^2) and blurs the caustic."""
     D, r, Z = 5.0, 0.1, 3.0
-    point = trace_irradiance(PointLight((0.0, 0.0, -D), POWER), LENS, _behind(Z), 100_000,
-                             seed=7)
-    ball = trace_irradiance(PointLight((0.0, 0.0, -D), POWER, r), LENS, _behind(Z), 200_000,
-                            seed=7)
-    assert abs(ball.flux_into_lens - point.flux_into_lens) < 4.0 * ball.flux_into_lens_se + \
-        2e-3 * point.flux_into_lens
+    point = trace_irradiance(PointLight((0.0, 0.0, -D), POWER), LENS, _behind(Z), 100_000, seed=7)
+    ball = trace_irradiance(PointLight((0.0, 0.0, -D), POWER, r), LENS, _behind(Z), 200_000, seed=7)
+    assert (
+        abs(ball.flux_into_lens - point.flux_into_lens)
+        < 4.0 * ball.flux_into_lens_se + 2e-3 * point.flux_into_lens
+    )
     flux = xo.lens_flux(I0, D, R, N)
     assert abs(ball.flux_on_plane - flux) < 4.0 * ball.flux_on_plane_se + 2e-3 * flux
 
 
 def test_light_behind_the_plane_sends_nothing():
-    plane = ReceiverPlane((0.0, 0.0, -2.0), (0.0, 0.0, 1.0))       # floor under the lens
+    plane = ReceiverPlane((0.0, 0.0, -2.0), (0.0, 0.0, 1.0))  # floor under the lens
     res = trace_irradiance(PointLight((0.0, 0.0, -4.0), POWER), LENS, plane, 10_000, seed=1)
     assert res.flux_on_plane == 0.0 and res.flux_into_lens == 0.0
 
@@ -152,6 +174,12 @@ def test_lens_shadow_is_the_tangent_cone_disc():
     assert np.array_equal(point, [1.0, 1.0, 1.0, 0.0, 0.0])
     sun = lens_shadow(SunLight((0.0, 0.0, 1.0), 1.0), LENS, _behind(Z), u * R / rs, v)
     assert np.array_equal(sun, [1.0, 1.0, 1.0, 0.0, 0.0])
-    ball = lens_shadow(PointLight((0.0, 0.0, -D), POWER, 0.3), LENS, _behind(Z),
-                       np.array([0.0, rs, 3.0 * rs]), np.zeros(3), n_samples=400)
+    ball = lens_shadow(
+        PointLight((0.0, 0.0, -D), POWER, 0.3),
+        LENS,
+        _behind(Z),
+        np.array([0.0, rs, 3.0 * rs]),
+        np.zeros(3),
+        n_samples=400,
+    )
     assert ball[0] == 1.0 and 0.2 < ball[1] < 0.8 and ball[2] == 0.0

@@ -1,6 +1,7 @@
 """`lens-lights render` and `lens-lights demo` on tiny images, and their checks of
 the command line (scene and output paths, image formats). The labelled
 side-by-side composition: tests/test_image_strip.py."""
+
 import struct
 import subprocess
 import sys
@@ -55,11 +56,14 @@ S
 """
 
 
-
-
 def run_cli(*args, timeout=600):
-    return subprocess.run([sys.executable, str(CLI), *map(str, args)], cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, str(CLI), *map(str, args)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def png_size(path) -> tuple[int, int]:
@@ -75,6 +79,7 @@ def png_pixels(path) -> np.ndarray:
 
 # --------------------------------------------------------------------------- render
 
+
 def test_render_bi_without_lens_lights(tmp_path):
     out = tmp_path / "fig3.png"
     result = run_cli("render", FIG3, "-o", out, *TINY, "--no-lens-lights")
@@ -82,7 +87,7 @@ def test_render_bi_without_lens_lights(tmp_path):
     assert png_size(out) == (48, 48)
     assert result.stdout.strip().splitlines()[-1] == str(out)
     assert "rendering without lens lights (Cycles, 48×48, 2 samples)" in result.stderr
-    assert png_pixels(out).max() > 0.1          # something is lit
+    assert png_pixels(out).max() > 0.1  # something is lit
 
 
 def test_render_bi_with_lens_lights_and_compare(tmp_path):
@@ -100,8 +105,8 @@ def test_render_bi_with_lens_lights_and_compare(tmp_path):
     w, h = png_size(cmp_png)
     assert w == 48 + 4 + 48 and h > 36
     image = png_pixels(cmp_png)
-    without, with_ = image[h - 36:, :48], image[h - 36:, 52:]
-    assert np.array_equal(with_, png_pixels(with_png))       # same scene, same seed
+    without, with_ = image[h - 36 :, :48], image[h - 36 :, 52:]
+    assert np.array_equal(with_, png_pixels(with_png))  # same scene, same seed
     gain = with_ - without
     assert gain.max() > 0.05 and gain.sum() > 5.0 and gain.min() > -0.05
 
@@ -109,29 +114,37 @@ def test_render_bi_with_lens_lights_and_compare(tmp_path):
 def test_render_blend_with_eevee(tmp_path):
     """A .blend (saved from an import) through EEVEE, at its own resolution."""
     blend = tmp_path / "fig3.blend"
-    script = (f"import bpy; bpy.ops.wm.read_factory_settings(use_empty=True); "
-              f"import sys; sys.path.insert(0, {str(ROOT / 'scripts')!r}); "
-              f"import render; render.ensure_extension(); "
-              f"bpy.ops.import_scene.bi(filepath={str(FIG3)!r}); "
-              f"s = bpy.context.scene; s.render.resolution_x = 40; s.render.resolution_y = 32; "
-              f"bpy.ops.wm.save_as_mainfile(filepath={str(blend)!r})")
-    made = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=600)
+    script = (
+        f"import bpy; bpy.ops.wm.read_factory_settings(use_empty=True); "
+        f"import sys; sys.path.insert(0, {str(ROOT / 'scripts')!r}); "
+        f"import render; render.ensure_extension(); "
+        f"bpy.ops.import_scene.bi(filepath={str(FIG3)!r}); "
+        f"s = bpy.context.scene; s.render.resolution_x = 40; s.render.resolution_y = 32; "
+        f"bpy.ops.wm.save_as_mainfile(filepath={str(blend)!r})"
+    )
+    made = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
+    )
     assert made.returncode == 0, made.stderr
     out = tmp_path / "eevee.png"
-    result = run_cli("render", blend, "-o", out, "--engine", "eevee", "--samples", "1",
-                     "--no-lens-lights")
+    result = run_cli(
+        "render", blend, "-o", out, "--engine", "eevee", "--samples", "1", "--no-lens-lights"
+    )
     assert result.returncode == 0, result.stderr
     assert "EEVEE, 40×32, 1 samples" in result.stderr
     assert png_size(out) == (40, 32)
 
 
-@pytest.mark.parametrize("content,expect", [
-    (None, ": no such file"),
-    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\nP 1 2\n", ":8: "),
-    ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 0 0\n", ":4: "),
-    ("V 2 2\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 0\nO 0\n", ":1: viewport"),
-], ids=["missing", "short record", "zero up", "tiny viewport"])
+@pytest.mark.parametrize(
+    "content,expect",
+    [
+        (None, ": no such file"),
+        ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 1\nC 1 1 1\nP 1 2\n", ":8: "),
+        ("V 200 200\nC 0 0 10\nA 0 0 0\nU 0 0 0\n", ":4: "),
+        ("V 2 2\nC 0 0 10\nA 0 0 0\nU 0 1 0\nB 45 45\nL 0\nO 0\n", ":1: viewport"),
+    ],
+    ids=["missing", "short record", "zero up", "tiny viewport"],
+)
 def test_render_bad_file(tmp_path, content, expect):
     path = tmp_path / "bad.bi"
     if content is not None:
@@ -148,14 +161,20 @@ def test_render_bad_arguments(tmp_path):
     txt.write_text("")
     result = run_cli("render", txt, "-o", tmp_path / "x.png")
     assert result.returncode == 2 and "expected a .blend or .bi file" in result.stderr
-    for bad in (["--resolution", "48"], ["--resolution", "2x2"], ["--samples", "0"],
-                ["--engine", "povray"], ["--compare", "--no-lens-lights"]):
+    for bad in (
+        ["--resolution", "48"],
+        ["--resolution", "2x2"],
+        ["--samples", "0"],
+        ["--engine", "povray"],
+        ["--compare", "--no-lens-lights"],
+    ):
         result = run_cli("render", FIG1, "-o", tmp_path / "x.png", *bad)
         assert result.returncode == 2, bad
         assert "Traceback" not in result.stderr
 
 
 # --------------------------------------------------------------------------- paths, formats
+
 
 def assert_refused_before_rendering(result, message):
     assert result.returncode == 2, result.stderr
@@ -222,12 +241,17 @@ def test_demo_out_is_not_a_directory(tmp_path):
 
 # --------------------------------------------------------------------------- demo
 
+
 def test_demo_tiny(tmp_path):
     out = tmp_path / "demo"
     result = run_cli("demo", "--out", out, "--resolution", "48x36", "--samples", "2")
     assert result.returncode == 0, result.stderr
-    for name in ("showcase_without.png", "showcase_with.png", "showcase_compare.png",
-                 "showcase.blend"):
+    for name in (
+        "showcase_without.png",
+        "showcase_with.png",
+        "showcase_compare.png",
+        "showcase.blend",
+    ):
         assert (out / name).is_file(), name
         assert str(out / name) in result.stdout
     assert png_size(out / "showcase_with.png") == (48, 36)

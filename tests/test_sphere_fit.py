@@ -1,11 +1,19 @@
 """Sphere detection and fit (addon/sphere_fit.py); pure numpy, no Blender."""
+
 import math
 
 import numpy as np
 import pytest
 
-from addon.sphere_fit import (CLOSURE_TOLERANCE, FACE_TOLERANCE, VERTEX_TOLERANCE,
-                              fit_sphere, least_squares_sphere, to_world, uniform_scale)
+from addon.sphere_fit import (
+    CLOSURE_TOLERANCE,
+    FACE_TOLERANCE,
+    VERTEX_TOLERANCE,
+    fit_sphere,
+    least_squares_sphere,
+    to_world,
+    uniform_scale,
+)
 
 
 def uv_sphere(segments=32, rings=16, center=(0.0, 0.0, 0.0), radius=1.0, drop_top_rings=0):
@@ -13,12 +21,18 @@ def uv_sphere(segments=32, rings=16, center=(0.0, 0.0, 0.0), radius=1.0, drop_to
     unit normal and area (triangulated fan). `drop_top_rings` removes faces of the
     top rings (an open surface)."""
     c = np.asarray(center, dtype=float)
-    lat = np.pi * np.arange(1, rings) / rings                    # ring polar angles
+    lat = np.pi * np.arange(1, rings) / rings  # ring polar angles
     lon = 2 * np.pi * np.arange(segments) / segments
-    ring = np.stack([np.outer(np.sin(lat), np.cos(lon)), np.outer(np.sin(lat), np.sin(lon)),
-                     np.repeat(np.cos(lat)[:, None], segments, axis=1)], axis=-1)
+    ring = np.stack(
+        [
+            np.outer(np.sin(lat), np.cos(lon)),
+            np.outer(np.sin(lat), np.sin(lon)),
+            np.repeat(np.cos(lat)[:, None], segments, axis=1),
+        ],
+        axis=-1,
+    )
     verts = np.concatenate([[[0, 0, 1]], ring.reshape(-1, 3), [[0, 0, -1]]]) * radius + c
-    idx = lambda i, j: 1 + i * segments + (j % segments)         # noqa: E731
+    idx = lambda i, j: 1 + i * segments + (j % segments)  # noqa: E731
     faces = []
     for j in range(segments):
         faces.append([0, idx(0, j), idx(0, j + 1)])
@@ -27,9 +41,16 @@ def uv_sphere(segments=32, rings=16, center=(0.0, 0.0, 0.0), radius=1.0, drop_to
         for j in range(segments):
             faces.append([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)])
     if drop_top_rings:
-        faces = faces[2 * segments:] if drop_top_rings == 1 else \
-            [f for f in faces if min(verts[k][2] for k in f) - c[2] < radius * math.cos(
-                np.pi * drop_top_rings / rings) - 1e-9]
+        faces = (
+            faces[2 * segments :]
+            if drop_top_rings == 1
+            else [
+                f
+                for f in faces
+                if min(verts[k][2] for k in f) - c[2]
+                < radius * math.cos(np.pi * drop_top_rings / rings) - 1e-9
+            ]
+        )
     return verts, *face_data(verts, faces)
 
 
@@ -41,7 +62,7 @@ def face_data(verts, faces):
         cross = sum(np.cross(p[0] - p[k], p[0] - p[k + 1]) for k in range(1, len(p) - 1))
         area = np.linalg.norm(cross) / 2
         n = cross / (2 * area)
-        if n @ (p.mean(axis=0) - verts.mean(axis=0)) < 0:       # outward
+        if n @ (p.mean(axis=0) - verts.mean(axis=0)) < 0:  # outward
             n = -n
         normals.append(n)
         areas.append(area)
@@ -54,11 +75,12 @@ def test_uv_sphere_is_fitted_exactly():
     assert fit.center == pytest.approx([1.0, -2.0, 3.0], abs=1e-12)
     assert fit.radius == pytest.approx(0.5, rel=1e-12)
     assert fit.vertex_deviation < 1e-12
-    assert 0.009 < fit.face_depth < 0.011          # 32 × 16: faces 1 % inside
+    assert 0.009 < fit.face_depth < 0.011  # 32 × 16: faces 1 % inside
 
 
-@pytest.mark.parametrize("center,radius", [((1e4, -1e4, 5e3), 1e-2), ((0, 0, 0), 1e-4),
-                                           ((3e6, 0, 0), 1e4)])
+@pytest.mark.parametrize(
+    "center,radius", [((1e4, -1e4, 5e3), 1e-2), ((0, 0, 0), 1e-4), ((3e6, 0, 0), 1e4)]
+)
 def test_fit_is_well_conditioned_far_from_origin_and_at_any_size(center, radius):
     verts = uv_sphere(center=center, radius=radius)[0]
     fit = fit_sphere(verts)
@@ -94,8 +116,8 @@ def test_cube_corners_lie_on_a_sphere_but_its_faces_do_not():
 
 
 def test_coarse_and_fine_uv_spheres():
-    assert not fit_sphere(*uv_sphere(8, 4)).ok               # faces 19 % inside
-    assert fit_sphere(*uv_sphere(16, 8)).ok                  # 3.7 %
+    assert not fit_sphere(*uv_sphere(8, 4)).ok  # faces 19 % inside
+    assert fit_sphere(*uv_sphere(16, 8)).ok  # 3.7 %
     assert fit_sphere(*uv_sphere(12, 6)).face_depth < FACE_TOLERANCE
 
 
@@ -107,7 +129,7 @@ def test_open_surfaces_are_rejected():
     assert "bounding box" in fit_sphere(verts[half]).reason
     fit = fit_sphere(*uv_sphere(drop_top_rings=2))
     assert not fit.ok and "not closed" in fit.reason
-    assert fit.face_depth < FACE_TOLERANCE      # it failed on closure only
+    assert fit.face_depth < FACE_TOLERANCE  # it failed on closure only
     assert CLOSURE_TOLERANCE == 0.01
 
 
@@ -116,13 +138,14 @@ def test_flat_and_degenerate_meshes():
     assert "bounding box" in fit_sphere(plane).reason
     assert "only 4 vertices" in fit_sphere(plane[:4]).reason
     assert "non-finite" in fit_sphere(np.full((8, 3), np.nan)).reason
-    assert least_squares_sphere(plane) is None                # coplanar
-    assert least_squares_sphere(np.outer(np.arange(10), [1, 2, 3])) is None   # a line
+    assert least_squares_sphere(plane) is None  # coplanar
+    assert least_squares_sphere(np.outer(np.arange(10), [1, 2, 3])) is None  # a line
     assert least_squares_sphere(np.zeros((10, 3))) is None
 
 
 def test_a_million_vertices_is_fast():
     import time
+
     rng = np.random.default_rng(0)
     v = rng.normal(size=(1_000_000, 3))
     v = 2.0 * v / np.linalg.norm(v, axis=1)[:, None] + [5, 6, 7]
@@ -149,7 +172,7 @@ def test_to_world_with_rotation_uniform_scale_and_translation():
     c, r = to_world([0.1, 0.2, 0.3], 0.4, m)
     assert c == pytest.approx(m[:3, :3] @ [0.1, 0.2, 0.3] + [1, 2, 3])
     assert r == pytest.approx(1.0)
-    mirror = affine(np.diag([-1.0, 1.0, 1.0]) * 3, [0, 0, 0])   # reflections are similarities
+    mirror = affine(np.diag([-1.0, 1.0, 1.0]) * 3, [0, 0, 0])  # reflections are similarities
     assert to_world([0, 0, 0], 1.0, mirror)[1] == pytest.approx(3.0)
 
 

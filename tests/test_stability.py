@@ -47,6 +47,7 @@ between the lens and the apex. The beam-geometry checks below use the physical
 beam (both nappes, behind the lens); the Blender-spot check uses the light that
 ``light_models.make_blender_light`` makes, as Blender would evaluate it.
 """
+
 from __future__ import annotations
 
 import ast
@@ -57,11 +58,11 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, assume, event, example, given, settings
 from hypothesis import strategies as st
+from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit
 
-from addon.tiers import PrimaryLight, make_blender_light
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
-from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit
+from addon.tiers import PrimaryLight, make_blender_light
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -114,11 +115,11 @@ def box_size(points, spheres):
     lo = [math.inf] * 3
     hi = [-math.inf] * 3
     for p in points:
-        lo = [min(a, b) for a, b in zip(lo, p)]
-        hi = [max(a, b) for a, b in zip(hi, p)]
+        lo = [min(a, b) for a, b in zip(lo, p, strict=False)]
+        hi = [max(a, b) for a, b in zip(hi, p, strict=False)]
     for c, r in spheres:
-        lo = [min(a, b - r) for a, b in zip(lo, c)]
-        hi = [max(a, b + r) for a, b in zip(hi, c)]
+        lo = [min(a, b - r) for a, b in zip(lo, c, strict=False)]
+        hi = [max(a, b + r) for a, b in zip(hi, c, strict=False)]
     return vnorm(vsub(hi, lo))
 
 
@@ -144,10 +145,10 @@ def representation_irradiance(src, x, fresnel):
     behind = vdot(vsub(x, tuple(float(c) for c in src.lens_center)), axis) > src.lens_radius
     if src.kind == "collimated":
         inside = behind and a >= 0.0 and rho <= src.cylinder_radius
-        return src.intensity * fresnel / src.distance ** 2, inside
+        return src.intensity * fresnel / src.distance**2, inside
     inside = behind and rho <= abs(a) * math.tan(math.radians(src.spread_deg))
     r2 = a * a + rho * rho
-    intensity = src.intensity * fresnel * src.magnification ** 2
+    intensity = src.intensity * fresnel * src.magnification**2
     return intensity * abs(a) / (r2 * math.sqrt(r2)), inside
 
 
@@ -155,13 +156,19 @@ def representation_irradiance(src, x, fresnel):
 
 
 def lens(center, radius, n=1.5, kt=1.0):
-    return Sphere(center=tuple(float(c) for c in center), radius=float(radius),
-                  surface=Surface(transmission=kt, ior=n))
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=float(radius),
+        surface=Surface(transmission=kt, ior=n),
+    )
 
 
 def opaque(center, radius):
-    return Sphere(center=tuple(float(c) for c in center), radius=float(radius),
-                  surface=Surface(transmission=0.0, ior=1.0))
+    return Sphere(
+        center=tuple(float(c) for c in center),
+        radius=float(radius),
+        surface=Surface(transmission=0.0, ior=1.0),
+    )
 
 
 def run(sc, **kw):
@@ -170,8 +177,14 @@ def run(sc, **kw):
     # allow_nan=False refuses NaN and ±inf anywhere, and non-JSON types raise too
     json.dumps(data, allow_nan=False)
     for s in result.sources:
-        for name in ("spread_deg", "intensity", "distance", "vergence", "alpha_deg",
-                     "unblocked_fraction"):
+        for name in (
+            "spread_deg",
+            "intensity",
+            "distance",
+            "vergence",
+            "alpha_deg",
+            "unblocked_fraction",
+        ):
             assert math.isfinite(getattr(s, name)), (name, s)
         for name in ("image_distance", "magnification", "cylinder_radius"):
             v = getattr(s, name)
@@ -192,15 +205,17 @@ FC = (-2.0, 1.0, 3.0)
 FU = vunit((2.0, -1.0, 0.5))
 FE = perpendicular(FU)
 FR, FN, FKT, FI0 = 0.7, 1.5171, 0.8, 2.0
-D0 = thesis_focal(FR, FN) + FR                    # p = f: the light at D0 from the centre
+D0 = thesis_focal(FR, FN) + FR  # p = f: the light at D0 from the centre
 FRESNEL = fresnel_head_on(FN)
 I0T = FI0 * FRESNEL * absorption_factor(FR, FN, FKT)
-Z = 3.0 * FR                                       # receivers' plane, from the centre
-H = 0.25 * abs(exit_height(D0, FR, FN)[0])         # off-axis receiver: a quarter of R_C
-RECEIVERS = {"on axis": vadd(FC, vscale(FU, Z)),
-             "off axis": vadd(vadd(FC, vscale(FU, Z)), vscale(FE, H))}
+Z = 3.0 * FR  # receivers' plane, from the centre
+H = 0.25 * abs(exit_height(D0, FR, FN)[0])  # off-axis receiver: a quarter of R_C
+RECEIVERS = {
+    "on axis": vadd(FC, vscale(FU, Z)),
+    "off axis": vadd(vadd(FC, vscale(FU, Z)), vscale(FE, H)),
+}
 KS = range(1, 15)
-SWEEP = [-(10.0 ** -k) for k in KS] + [0.0] + [10.0 ** -k for k in reversed(KS)]   # ascending
+SWEEP = [-(10.0**-k) for k in KS] + [0.0] + [10.0**-k for k in reversed(KS)]  # ascending
 
 
 def focal_scene(eps):
@@ -245,14 +260,18 @@ def test_focal_sweep_irradiance_matches_flux_conservation(eps):
         assert math.isfinite(got) and got > 0.0
         assert inside, (name, src)
         if src.kind == "collimated":
-            assert abs(got / truth - 1.0) <= switch_error(abs(z * V)) * 1.001 + 1e-12, (name, got, truth)
+            assert abs(got / truth - 1.0) <= switch_error(abs(z * V)) * 1.001 + 1e-12, (
+                name,
+                got,
+                truth,
+            )
             assert abs(z * V) <= z / far * (1 + 1e-6)
         else:
             apex = tuple(src.position)
             w = vsub(x, apex)
             cos_psi = abs(vdot(w, FU)) / vnorm(w)
-            assert got == pytest.approx(truth * cos_psi ** 3, rel=1e-9), (name, src.kind)
-            assert 1.0 - cos_psi ** 3 <= 1.5 * math.tan(math.radians(src.spread_deg)) ** 2 + 1e-15
+            assert got == pytest.approx(truth * cos_psi**3, rel=1e-9), (name, src.kind)
+            assert 1.0 - cos_psi**3 <= 1.5 * math.tan(math.radians(src.spread_deg)) ** 2 + 1e-15
 
 
 def test_focal_sweep_irradiance_is_continuous():
@@ -265,21 +284,26 @@ def test_focal_sweep_irradiance_is_continuous():
         values = {}
         for name, x in RECEIVERS.items():
             z = vdot(vsub(x, FC), FU)
-            values[name] = (representation_irradiance(src, x, FRESNEL)[0],
-                            flux_conservation_irradiance(I0T, D, V, z), z / (1e4 * size))
+            values[name] = (
+                representation_irradiance(src, x, FRESNEL)[0],
+                flux_conservation_irradiance(I0T, D, V, z),
+                z / (1e4 * size),
+            )
         rows.append((eps, src.kind, values))
-    for (e1, k1, v1), (e2, k2, v2) in zip(rows, rows[1:]):
+    for (e1, k1, v1), (e2, k2, v2) in zip(rows, rows[1:], strict=False):
         for name in RECEIVERS:
             got1, true1, sw1 = v1[name]
             got2, true2, sw2 = v2[name]
-            allowed = abs(true1 - true2) + (switch_error(max(sw1, sw2)) * 1.001 + 1e-9) * max(true1, true2)
+            allowed = abs(true1 - true2) + (switch_error(max(sw1, sw2)) * 1.001 + 1e-9) * max(
+                true1, true2
+            )
             assert abs(got1 - got2) <= allowed, (name, e1, k1, got1, e2, k2, got2)
     # the limits from both sides: the first and last rows are ±1e-14 R from ε = 0
     mid = len(SWEEP) // 2
     for name in RECEIVERS:
         left, zero, right = (rows[mid + d][2][name][0] for d in (-1, 0, 1))
         assert left == pytest.approx(zero, rel=1e-12) and right == pytest.approx(zero, rel=1e-12)
-        assert zero == pytest.approx(I0T / D0 ** 2, rel=1e-12)
+        assert zero == pytest.approx(I0T / D0**2, rel=1e-12)
 
 
 @pytest.mark.parametrize("side", [+1, -1], ids=["real side", "virtual side"])
@@ -288,27 +312,27 @@ def test_focal_sweep_position_and_spread_are_monotone(side):
     (distance from the centre grows, same sign), θ never grows, once collimated it
     stays so (back vertex, θ = 0), and R_C settles to its value at the focal point
     as fast as α does (linearly in ε)."""
-    srcs = [focal_case(side * 10.0 ** -k)[0] for k in KS]
+    srcs = [focal_case(side * 10.0**-k)[0] for k in KS]
     kinds = [s.kind for s in srcs]
     first = kinds.index("collimated")
     assert first >= 3 and all(k == "collimated" for k in kinds[first:])
     assert all(k == ("real" if side > 0 else "virtual") for k in kinds[:first])
     along = [vdot(vsub(tuple(s.position), FC), FU) for s in srcs[:first]]
     assert all(side * a > 0 for a in along)
-    assert all(abs(b) > abs(a) for a, b in zip(along, along[1:])), along
+    assert all(abs(b) > abs(a) for a, b in zip(along, along[1:], strict=False)), along
     # every decade of ε moves the image by about a decade (1/V ∝ 1/ε)
-    for a, b in zip(along, along[1:]):
+    for a, b in zip(along, along[1:], strict=False):
         assert abs(b / a) == pytest.approx(10.0, rel=0.1)
     spreads = [s.spread_deg for s in srcs]
-    assert all(b <= a for a, b in zip(spreads, spreads[1:])), spreads
+    assert all(b <= a for a, b in zip(spreads, spreads[1:], strict=False)), spreads
     assert all(s > 0 for s in spreads[:first]) and all(s == 0.0 for s in spreads[first:])
     back = vadd(FC, vscale(FU, FR))
     for s in srcs[first:]:
         assert vnorm(vsub(tuple(s.position), back)) <= 1e-12
     rc0 = abs(exit_height(D0, FR, FN)[0])
-    for k, s in zip(list(KS)[first:], srcs[first:]):
+    for k, s in zip(list(KS)[first:], srcs[first:], strict=False):
         # dR_C/dD = R cos φ · dα/dD, |dα/dD| = R/(D·R_T): bounded by R²/(D·R_T) per unit D
-        bound = FR * FR / (D0 * math.sqrt(D0 * D0 - FR * FR)) * 10.0 ** -k * FR * 1.01
+        bound = FR * FR / (D0 * math.sqrt(D0 * D0 - FR * FR)) * 10.0**-k * FR * 1.01
         assert abs(s.cylinder_radius - rc0) <= bound + 1e-15, (k, s.cylinder_radius, rc0)
 
 
@@ -323,7 +347,7 @@ def _straddle(n, R, direction, eps, ratio_scale):
     Dt = vnorm(vsub(C, L))
     V = power(R, n) - 1.0 / Dt
     size = box_size([L], [(C, R)])
-    switch = 1.0 / (abs(V) * size)                 # ratio at which |1/V| = ratio × size
+    switch = 1.0 / (abs(V) * size)  # ratio at which |1/V| = ratio × size
     # V = P − 1/D cancels: its relative rounding is ~1e-16/(|V|·D); stay clear of it
     ratio_scale = max(ratio_scale, 1e-14 / (abs(V) * Dt))
     cone = only(run(sc, collimation_ratio=switch * (1 + ratio_scale)))
@@ -332,17 +356,23 @@ def _straddle(n, R, direction, eps, ratio_scale):
 
 
 @settings(max_examples=60, deadline=None)
-@given(n=st.floats(1.2, 1.9), R=st.floats(1e-3, 1e3),
-       az=st.floats(0, 2 * math.pi), el=st.floats(-1.5, 1.5),
-       log_eps=st.floats(-9.0, -1.5), side=st.sampled_from([+1, -1]),
-       z_over_R=st.floats(1.5, 6.0), h_frac=st.floats(0.0, 0.9))
+@given(
+    n=st.floats(1.2, 1.9),
+    R=st.floats(1e-3, 1e3),
+    az=st.floats(0, 2 * math.pi),
+    el=st.floats(-1.5, 1.5),
+    log_eps=st.floats(-9.0, -1.5),
+    side=st.sampled_from([+1, -1]),
+    z_over_R=st.floats(1.5, 6.0),
+    h_frac=st.floats(0.0, 0.9),
+)
 def test_cone_and_cylinder_agree_across_the_switch(n, R, az, el, log_eps, side, z_over_R, h_frac):
     """One light position, two collimation ratios straddling the switch (±1e-6): the
     cone and the cylinder give the same irradiance at receivers in the beam to
     ≈ 2z/(ratio × size), and the cone's footprint on the receivers' plane is R_C to
     (z + R)/(ratio × size)."""
     u = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
-    cone, cyl, D, V, size, C, ratio = _straddle(n, R, u, side * 10.0 ** log_eps, 1e-6)
+    cone, cyl, D, V, size, C, ratio = _straddle(n, R, u, side * 10.0**log_eps, 1e-6)
     assert cone.kind == ("real" if side > 0 else "virtual") and cyl.kind == "collimated"
     assert cyl.cylinder_radius > 0
     z = z_over_R * R
@@ -350,7 +380,7 @@ def test_cone_and_cylinder_agree_across_the_switch(n, R, az, el, log_eps, side, 
     e_cone, in_cone = representation_irradiance(cone, x, 1.0)
     e_cyl, in_cyl = representation_irradiance(cyl, x, 1.0)
     assert in_cone and in_cyl
-    x_sw = z / (ratio * size)                      # = |zV| (≈ 1/ratio for z ≈ size)
+    x_sw = z / (ratio * size)  # = |zV| (≈ 1/ratio for z ≈ size)
     assert abs(e_cone / e_cyl - 1.0) <= switch_error(x_sw) * 1.001 + 1e-12, (e_cone, e_cyl, x_sw)
     # the cone's radius on the plane z (from the code's apex and θ) against R_C:
     # |1/V − z| / |1/V − R cos φ| − 1, at most (z + R)|V| / (1 − R|V|)
@@ -361,18 +391,25 @@ def test_cone_and_cylinder_agree_across_the_switch(n, R, az, el, log_eps, side, 
 
 
 @settings(max_examples=80, deadline=None)
-@given(n=st.floats(1.2, 1.8), R=st.floats(1e-3, 1e3),       # n ≤ 1.8: focal point ≥ 1.125 R
-       az=st.floats(0, 2 * math.pi), el=st.floats(-1.5, 1.5),
-       log_eps=st.floats(-14.0, -1.0), side=st.sampled_from([+1, -1]),
-       z_over_R=st.floats(1.5, 6.0), h_frac=st.floats(0.0, 0.5))
+@given(
+    n=st.floats(1.2, 1.8),
+    R=st.floats(1e-3, 1e3),  # n ≤ 1.8: focal point ≥ 1.125 R
+    az=st.floats(0, 2 * math.pi),
+    el=st.floats(-1.5, 1.5),
+    log_eps=st.floats(-14.0, -1.0),
+    side=st.sampled_from([+1, -1]),
+    z_over_R=st.floats(1.5, 6.0),
+    h_frac=st.floats(0.0, 0.5),
+)
 def test_random_lens_near_its_focal_point_gives_the_flux_conservation_irradiance(
-        n, R, az, el, log_eps, side, z_over_R, h_frac):
+    n, R, az, el, log_eps, side, z_over_R, h_frac
+):
     """The sweep above for random lenses, sizes and axes at the default ratio:
     finite, the receiver inside the beam, the irradiance the flux-conservation value
     (1e-9 for a cone, times cos³ψ off the axis; ≈ 2|zV| for a cylinder)."""
     u = (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
     C = (0.5 * R, -1.5 * R, 2.0 * R)
-    L = vsub(C, vscale(u, n * R / (2 * (n - 1)) + side * 10.0 ** log_eps * R))
+    L = vsub(C, vscale(u, n * R / (2 * (n - 1)) + side * 10.0**log_eps * R))
     src = only(run(Scene(lights=[Light(position=L)], objects=[lens(C, R, n, 1.0)])))
     D = vnorm(vsub(C, L))
     V = power(R, n) - 1.0 / D
@@ -390,7 +427,7 @@ def test_random_lens_near_its_focal_point_gives_the_flux_conservation_irradiance
         assert abs(V) * far >= 1.0 - 1e-6
         w = vsub(x, tuple(src.position))
         cos_psi = abs(vdot(w, u)) / vnorm(w)
-        assert got == pytest.approx(truth * cos_psi ** 3, rel=1e-9)
+        assert got == pytest.approx(truth * cos_psi**3, rel=1e-9)
 
 
 def _spot_irradiance(bl, x, normal):
@@ -401,14 +438,15 @@ def _spot_irradiance(bl, x, normal):
     r = vnorm(w)
     cos_psi = vdot(w, bl.direction) / r
     half = math.radians(bl.cone_half_angle_deg)
-    one_minus_cos = 2.0 * math.sin(0.5 * math.atan2(vnorm(vcross(w, bl.direction)),
-                                                    vdot(w, bl.direction))) ** 2
+    one_minus_cos = (
+        2.0 * math.sin(0.5 * math.atan2(vnorm(vcross(w, bl.direction)), vdot(w, bl.direction))) ** 2
+    )
     core = (1.0 - bl.spot_blend) * 2.0 * math.sin(0.5 * half) ** 2
     if cos_psi <= 0.0 or one_minus_cos > 2.0 * math.sin(0.5 * half) ** 2:
         return 0.0
     assert one_minus_cos <= core, "receiver in the blend zone: choose another"
     intensity = bl.energy_w / (4.0 * math.pi)
-    return intensity * abs(vdot(w, normal)) / r ** 3
+    return intensity * abs(vdot(w, normal)) / r**3
 
 
 @pytest.mark.parametrize("side", [+1, -1], ids=["real side", "virtual side"])
@@ -425,8 +463,8 @@ def test_blender_spot_irradiance_is_continuous_across_the_switch(side):
     n, R = 1.5, 1.0
     u = vunit((1.0, 2.0, -2.0))
     cone, cyl, D, V, size, C, ratio = _straddle(n, R, u, side * 1e-4, 1e-6)
-    assert 1e3 < ratio < 1e5                         # the default's neighbourhood
-    primary = PrimaryLight(power_w=4.0 * math.pi)    # I0 = 1 W/sr
+    assert 1e3 < ratio < 1e5  # the default's neighbourhood
+    primary = PrimaryLight(power_w=4.0 * math.pi)  # I0 = 1 W/sr
     fresnel = fresnel_head_on(n)
     results = {}
     for name, src in (("cone", cone), ("cylinder", cyl)):
@@ -436,10 +474,12 @@ def test_blender_spot_irradiance_is_continuous_across_the_switch(side):
             x = vadd(vadd(C, vscale(u, z)), vscale(perpendicular(u), h * cyl.cylinder_radius))
             truth = flux_conservation_irradiance(fresnel, D, V, z)
             results[(name, h)] = (_spot_irradiance(bl, x, u), truth)
-    bad = {k: (got, truth) for k, (got, truth) in results.items()
-           if not abs(got / truth - 1.0) <= 0.06}
-    assert not bad, (f"kind {cone.kind}: irradiance (got, flux conservation) off by > 6 %: "
-                     f"{bad}; all: {results}")
+    bad = {
+        k: (got, truth) for k, (got, truth) in results.items() if not abs(got / truth - 1.0) <= 0.06
+    }
+    assert not bad, (
+        f"kind {cone.kind}: irradiance (got, flux conservation) off by > 6 %: {bad}; all: {results}"
+    )
 
 
 # =========================================================================== random scenes
@@ -476,8 +516,11 @@ def random_scene(draw):
         i = draw(st.integers(0, len(spheres) - 1))
         s = spheres[i]
         direction = _unit(draw(st.floats(0, 2 * math.pi)), draw(st.floats(-1, 1)))
-        focal = (s.surface.ior * s.radius / (2 * (s.surface.ior - 1))
-                 if 1.0 < s.surface.ior < 1.95 else None)
+        focal = (
+            s.surface.ior * s.radius / (2 * (s.surface.ior - 1))
+            if 1.0 < s.surface.ior < 1.95
+            else None
+        )
         if how == "focal" and focal:
             pos = vsub(s.center, vscale(direction, focal))
         elif how == "near" and focal:
@@ -492,8 +535,9 @@ def random_scene(draw):
             pos = vadd(s.center, vscale(d, far)) if vnorm(d) > 0 else (draw(coord),) * 3
         else:
             pos = (draw(coord), draw(coord), draw(coord))
-        lights.append(Light(position=tuple(float(p) for p in pos),
-                            brightness=draw(st.floats(0.1, 10.0))))
+        lights.append(
+            Light(position=tuple(float(p) for p in pos), brightness=draw(st.floats(0.1, 10.0)))
+        )
     return Scene(lights=lights, objects=spheres)
 
 
@@ -501,8 +545,7 @@ def decisions_are_robust(sc, ratio=1e4, margin=1e-6):
     """False when some decision of phase 1 (inside/on/outside, tangent-length order,
     α + β vs γ, β vs γ + α, collimation, nearest total blocker) is within `margin`
     of its boundary: then a relative change of 1e-16 may flip it legitimately."""
-    size = box_size([l.position for l in sc.lights],
-                    [(s.center, s.radius) for s in sc.objects])
+    size = box_size([l.position for l in sc.lights], [(s.center, s.radius) for s in sc.objects])
     for light in sc.lights:
         geo = []
         for s in sc.objects:
@@ -512,7 +555,7 @@ def decisions_are_robust(sc, ratio=1e4, margin=1e-6):
                 return False
             geo.append((w, D, s.radius, D > s.radius))
         if not all(out for *_, out in geo):
-            continue                            # light inside a sphere: every lens skipped
+            continue  # light inside a sphere: every lens skipped
         for i, (wi, Di, Ri, _) in enumerate(geo):
             surf = sc.objects[i].surface
             if not (surf.transmission > 0 and surf.ior > 1):
@@ -527,8 +570,11 @@ def decisions_are_robust(sc, ratio=1e4, margin=1e-6):
                     continue
                 beta, tk = math.asin(Rk / Dk), math.sqrt(Dk * Dk - Rk * Rk)
                 gamma = math.atan2(vnorm(vcross(wi, wk)), vdot(wi, wk))
-                if (abs(tk - ti) <= margin * ti or abs(alpha + beta - gamma) <= margin
-                        or abs(beta - gamma - alpha) <= margin):
+                if (
+                    abs(tk - ti) <= margin * ti
+                    or abs(alpha + beta - gamma) <= margin
+                    or abs(beta - gamma - alpha) <= margin
+                ):
                     return False
                 if tk < ti and beta >= gamma + alpha:
                     totals.append(tk)
@@ -555,8 +601,9 @@ def assert_same_result(ref, got, point, direction, length, size, input_error):
         event(f"source: {s.kind}{'' if s.full else ', non-full'}")
     for k in ref.skipped:
         event(f"skipped: {k.reason.split(' sphere')[0].split(' (')[0]}")
-    assert {(k.light, k.lens): k.reason for k in got.skipped} == \
-        {(k.light, k.lens): k.reason for k in ref.skipped}
+    assert {(k.light, k.lens): k.reason for k in got.skipped} == {
+        (k.light, k.lens): k.reason for k in ref.skipped
+    }
     ref_src = {(s.light, s.lens): s for s in ref.sources}
     got_src = {(s.light, s.lens): s for s in got.sources}
     assert got_src.keys() == ref_src.keys()
@@ -586,19 +633,25 @@ def assert_same_result(ref, got, point, direction, length, size, input_error):
 def transformed(sc, point, length=1.0):
     return Scene(
         lights=[Light(position=point(l.position), brightness=l.brightness) for l in sc.lights],
-        objects=[Sphere(center=point(s.center), radius=s.radius * length, surface=s.surface)
-                 for s in sc.objects])
+        objects=[
+            Sphere(center=point(s.center), radius=s.radius * length, surface=s.surface)
+            for s in sc.objects
+        ],
+    )
 
 
 # =========================================================================== (b) scale
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.filter_too_much,
-                                                                 HealthCheck.too_slow])
+@settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
+)
 @given(sc=random_scene(), log_s=st.floats(-4.0, 4.0))
 def test_scaling_the_scene_scales_the_sources(sc, log_s):
     assume(decisions_are_robust(sc))
-    s = 10.0 ** log_s
+    s = 10.0**log_s
     ref = run(sc)
     got = run(transformed(sc, lambda p: vscale(p, s), s))
     size = box_size([l.position for l in sc.lights], [(o.center, o.radius) for o in sc.objects])
@@ -610,9 +663,11 @@ def test_scaling_the_scene_scales_the_sources(sc, log_s):
 
 def rotation(q):
     w, x, y, z = vunit(q)
-    return ((1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
-            (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
-            (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)))
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
 
 
 #: Found by this test: lens 3 is almost covered by sphere 2 (u ≈ 0.0034) as seen
@@ -624,16 +679,26 @@ def rotation(q):
 #: test_obstruction_properties.py::test_far_lens_partly_blocked_keeps_its_blocked_share.
 ALMOST_COVERED = Scene(
     lights=[Light(position=(5.4375, 60.375, -33.8125)), Light(position=(0.0, 0.0, 0.0))],
-    objects=[opaque((0.0, 0.0, 0.0), 1.0), lens((0.0, -1.125, 5.0), 1.0, n=2.0),
-             opaque((0.90625, 9.125, -1.46875), 1.078125), lens((0.0, 6.0, 0.0), 0.375, n=2.0)])
+    objects=[
+        opaque((0.0, 0.0, 0.0), 1.0),
+        lens((0.0, -1.125, 5.0), 1.0, n=2.0),
+        opaque((0.90625, 9.125, -1.46875), 1.078125),
+        lens((0.0, 6.0, 0.0), 0.375, n=2.0),
+    ],
+)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.filter_too_much,
-                                                                 HealthCheck.too_slow])
+@settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
+)
 @example(sc=ALMOST_COVERED, q=(0.0, 0.0, 1.0, 1.0), t=(0.0, 0.0, 0.0))
-@given(sc=random_scene(),
-       q=st.tuples(*[st.floats(-1.0, 1.0)] * 4),
-       t=st.tuples(*[st.floats(-100.0, 100.0)] * 3))
+@given(
+    sc=random_scene(),
+    q=st.tuples(*[st.floats(-1.0, 1.0)] * 4),
+    t=st.tuples(*[st.floats(-100.0, 100.0)] * 3),
+)
 def test_rotating_and_moving_the_scene_rotates_the_sources(sc, q, t):
     assume(vnorm(q) > 0.1)
     assume(decisions_are_robust(sc))
@@ -646,8 +711,15 @@ def test_rotating_and_moving_the_scene_rotates_the_sources(sc, q, t):
     # coordinates of the moved scene are rounded relative to |t| + |p|, not to D
     extent = max(vnorm(p) for p in [l.position for l in sc.lights] + [o.center for o in sc.objects])
     rel = 4e-16 * (vnorm(t) + extent + size) / max(size, 1e-300)
-    assert_same_result(ref, got, lambda p: vadd(matvec(M, p), t), lambda d: matvec(M, d),
-                       1.0, size, max(rel, 1.2e-16))
+    assert_same_result(
+        ref,
+        got,
+        lambda p: vadd(matvec(M, p), t),
+        lambda d: matvec(M, d),
+        1.0,
+        size,
+        max(rel, 1.2e-16),
+    )
 
 
 # =========================================================================== (d) static checks
@@ -657,17 +729,26 @@ ADDON_FILES = sorted((ROOT / "addon").glob("*.py"))
 #: Every asin/arcsin call in addon/*.py, by (file, enclosing function, argument as
 #: written), and why its argument stays away from 1 or why reaching 1 is allowed.
 ALLOWED_ARCSIN = {
-    ("exact_optics.py", "_trace", "np.where(np.abs(sin_r) <= 1.0, sin_r, np.nan)"):
-        "Snell's refraction angle r = asin(sin ι / n): |argument| ≤ 1/n < 1 for a "
-        "lens (n > 1); it reaches 1 only for n ≤ 1 at total internal reflection, "
-        "masked to NaN (transmission 0). Not an angle between directions.",
-    ("exact_optics.py", "trace_rays", "s"):
-        "ι = asin((D/R) sin ψ): reaches 1 at the grazing ray ψ = α by definition "
-        "(allowed: the exact trace parameterised by ψ; trace_rays_iota is the "
-        "precise parameterisation near grazing, and its docstring says so).",
-    ("exact_optics.py", "trace_rays_iota", "R / D * s"):
-        "ψ = asin((R/D) sin ι): |argument| ≤ R/D < 1 for a light outside the "
-        "sphere (_check_lens: D > R); near 1 only for a light next to the surface.",
+    (
+        "exact_optics.py",
+        "_trace",
+        "np.where(np.abs(sin_r) <= 1.0, sin_r, np.nan)",
+    ): "Snell's refraction angle r = asin(sin ι / n): |argument| ≤ 1/n < 1 for a "
+    "lens (n > 1); it reaches 1 only for n ≤ 1 at total internal reflection, "
+    "masked to NaN (transmission 0). Not an angle between directions.",
+    (
+        "exact_optics.py",
+        "trace_rays",
+        "s",
+    ): "ι = asin((D/R) sin ψ): reaches 1 at the grazing ray ψ = α by definition "
+    "(allowed: the exact trace parameterised by ψ; trace_rays_iota is the "
+    "precise parameterisation near grazing, and its docstring says so).",
+    (
+        "exact_optics.py",
+        "trace_rays_iota",
+        "R / D * s",
+    ): "ψ = asin((R/D) sin ι): |argument| ≤ R/D < 1 for a light outside the "
+    "sphere (_check_lens: D > R); near 1 only for a light next to the surface.",
 }
 
 
@@ -677,10 +758,13 @@ def _calls(tree):
 
     def visit(node, func):
         for child in ast.iter_child_nodes(node):
-            name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else func
+            name = (
+                child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else func
+            )
             if isinstance(child, ast.Call):
                 out.append((func, child))
             visit(child, name)
+
     visit(tree, "<module>")
     return out
 
@@ -696,9 +780,11 @@ def _callee(node):
 
 def test_static_scan_finds_what_it_looks_for():
     """The scanner itself: it sees calls (not docstrings or comments) by any spelling."""
-    src = ('"""acos(x) in a docstring"""\n# math.acos(x) in a comment\n'
-           "import math, numpy as np, numpy\nfrom math import acos as _a\n"
-           "def f(x):\n    return math.acos(x) + np.arccos(x) + numpy.arccos(x) + _a(x)\n")
+    src = (
+        '"""acos(x) in a docstring"""\n# math.acos(x) in a comment\n'
+        "import math, numpy as np, numpy\nfrom math import acos as _a\n"
+        "def f(x):\n    return math.acos(x) + np.arccos(x) + numpy.arccos(x) + _a(x)\n"
+    )
     tree = ast.parse(src)
     names = [_callee(c) for _, c in _calls(tree)]
     assert names.count("acos") == 1 and names.count("arccos") == 2
@@ -750,6 +836,7 @@ def test_the_allowed_arcsin_arguments_are_bounded_as_documented():
     import numpy as np
 
     from addon.exact_optics import trace_rays, trace_rays_iota
+
     for n in (1.05, 1.5, 2.4):
         for D_over_R in (1.001, 2.0, 1e6):
             iota = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 2001)

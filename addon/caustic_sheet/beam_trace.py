@@ -17,6 +17,7 @@ the robust intersection of SPEC §4.3 and the vector form of Snell's law. The to
 (K source samples × (Nr + 1) × Na rays, K × Nr × Na cells) depends only on the
 parameters, never on the geometry, so an animation bake can key it.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,12 +42,13 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 class BeamGrid:
     """The traced beam of one (light, lens) pair. Shapes: K samples, Nr + 1 rings of
     nodes, Na azimuths. Positions and directions in world coordinates."""
-    exit_points: np.ndarray     # (K, Nr+1, Na, 3) where each node ray leaves the sphere
-    exit_dirs: np.ndarray       # (K, Nr+1, Na, 3) unit direction after the exit
-    node_density: np.ndarray    # (K, Nr+1, Na) flux per unit (ι, φ) at the nodes (W/rad²)
-    cell_flux: np.ndarray       # (K, Nr, Na) flux (W) of each grid cell
-    valid: np.ndarray           # (K,) False: sample inside the sphere (no beam, zero flux)
-    color: np.ndarray           # (3,) light colour × lens tint
+
+    exit_points: np.ndarray  # (K, Nr+1, Na, 3) where each node ray leaves the sphere
+    exit_dirs: np.ndarray  # (K, Nr+1, Na, 3) unit direction after the exit
+    node_density: np.ndarray  # (K, Nr+1, Na) flux per unit (ι, φ) at the nodes (W/rad²)
+    cell_flux: np.ndarray  # (K, Nr, Na) flux (W) of each grid cell
+    valid: np.ndarray  # (K,) False: sample inside the sphere (no beam, zero flux)
+    color: np.ndarray  # (3,) light colour × lens tint
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -118,12 +120,14 @@ def _incoming(samples: SourceSamples, lens: Lens, iota, phi):
     c = np.asarray(lens.center, dtype=float)
     R = lens.radius
     k = len(samples.weights)
-    axes = samples.directions                       # (K, 3) from the sample to the lens
-    frames = np.array([perpendicular_frame(a) for a in axes])   # (K, 2, 3)
+    axes = samples.directions  # (K, 3) from the sample to the lens
+    frames = np.array([perpendicular_frame(a) for a in axes])  # (K, 2, 3)
     iota = np.broadcast_to(np.asarray(iota, dtype=float), (k, np.shape(iota)[-1]))
     sin_i, cos_i = np.sin(iota), np.cos(iota)
-    radial = np.cos(phi)[None, None, :, None] * frames[:, None, None, 0, :] \
-        + np.sin(phi)[None, None, :, None] * frames[:, None, None, 1, :]   # (K, 1, P, 3)
+    radial = (
+        np.cos(phi)[None, None, :, None] * frames[:, None, None, 0, :]
+        + np.sin(phi)[None, None, :, None] * frames[:, None, None, 1, :]
+    )  # (K, 1, P, 3)
     u = axes[:, None, None, :]
     if samples.parallel:
         b = (R * sin_i)[:, :, None, None]
@@ -131,15 +135,14 @@ def _incoming(samples: SourceSamples, lens: Lens, iota, phi):
         dirs = np.broadcast_to(u, origins.shape)
         jac = R * R * sin_i * cos_i
         return origins, dirs, jac[:, :, None]
-    dist = np.linalg.norm(c - samples.points, axis=1)             # (K,)
+    dist = np.linalg.norm(c - samples.points, axis=1)  # (K,)
     s = (R / np.maximum(dist, R))[:, None]
     sin_psi = s * sin_i
     cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
     dirs = cos_psi[:, :, None, None] * u + sin_psi[:, :, None, None] * radial
     origins = np.broadcast_to(samples.points[:, None, None, :], dirs.shape)
     # cos ψ = 0 only for a light on the sphere (an invalid sample, zeroed by the caller)
-    jac = np.divide(s * s * sin_i * cos_i, cos_psi, out=np.zeros_like(cos_psi),
-                    where=cos_psi > 0.0)
+    jac = np.divide(s * s * sin_i * cos_i, cos_psi, out=np.zeros_like(cos_psi), where=cos_psi > 0.0)
     return origins, dirs, jac[:, :, None]
 
 
@@ -152,8 +155,9 @@ def _density(samples, lens, iota, phi):
     return np.broadcast_to(dens, (len(samples.weights), np.shape(iota)[-1], len(phi)))
 
 
-def trace_beam(emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256,
-               n_source: int = 1) -> BeamGrid:
+def trace_beam(
+    emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1
+) -> BeamGrid:
     """Trace the beam of ``emitter`` (a :mod:`.emitters` light) through ``lens``.
 
     ``n_radial`` × ``n_azimuth`` cells per source sample, ``n_source`` samples of an
@@ -173,10 +177,10 @@ def trace_beam(emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256,
 
     # 3 × 3 Gauss–Legendre points per cell.
     di, dp = iota[1] - iota[0], phi[1] - phi[0]
-    qi = (iota[:-1, None] + 0.5 * di * (1.0 + _GL_X)).reshape(-1)        # (Nr·3,)
+    qi = (iota[:-1, None] + 0.5 * di * (1.0 + _GL_X)).reshape(-1)  # (Nr·3,)
     qp = (phi[:, None] - 0.5 * dp + 0.5 * dp * (1.0 + _GL_X)).reshape(-1)  # (Na·3,)
-    if samples.parallel or is_isotropic(samples.emitter):   # separable: 1-D in ι
-        radial = _density(samples, lens, qi, np.zeros(1))[:, :, 0]        # (K, Nr·3)
+    if samples.parallel or is_isotropic(samples.emitter):  # separable: 1-D in ι
+        radial = _density(samples, lens, qi, np.zeros(1))[:, :, 0]  # (K, Nr·3)
         radial = (radial.reshape(len(valid), nr, 3) * _GL_W).sum(-1) * 0.5 * di
         cell = radial[:, :, None] * np.full(na, dp)
     else:
@@ -184,7 +188,14 @@ def trace_beam(emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256,
         cell = np.einsum("kijab,j,b->kia", q, _GL_W, _GL_W) * 0.25 * di * dp
     cell = np.where(valid[:, None, None], cell, 0.0)
     dens = np.where(valid[:, None, None], dens, 0.0)
-    color = np.asarray(getattr(emitter, "color", (1.0, 1.0, 1.0)), dtype=float) \
-        * np.asarray(lens.tint, dtype=float)
-    return BeamGrid(exit_points=exit_p, exit_dirs=exit_d, node_density=dens,
-                    cell_flux=cell, valid=valid, color=color)
+    color = np.asarray(getattr(emitter, "color", (1.0, 1.0, 1.0)), dtype=float) * np.asarray(
+        lens.tint, dtype=float
+    )
+    return BeamGrid(
+        exit_points=exit_p,
+        exit_dirs=exit_d,
+        node_density=dens,
+        cell_flux=cell,
+        valid=valid,
+        color=color,
+    )

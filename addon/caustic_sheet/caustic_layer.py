@@ -27,6 +27,7 @@ emissive mesh: a grid of vertices lifted by ``offset`` along the normal toward t
 (no z-fighting), quad faces, the irradiance per face (W/m², RGB = flux × light colour ×
 lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo / π).
 """
+
 from __future__ import annotations
 
 import time
@@ -43,22 +44,23 @@ from .receiver_patches import ReceiverPatch
 @dataclass
 class PatchLayer:
     """The caustic on one planar receiver patch (texel (iy, ix) = face iy·res + ix)."""
-    patch: int                  # index into the patch list
-    sources: np.ndarray         # indices of the beams whose caustic this raster holds
+
+    patch: int  # index into the patch list
+    sources: np.ndarray  # indices of the beams whose caustic this raster holds
     object_id: int
-    normal: np.ndarray          # (3,) unit, toward the side the light arrives from
-    axis_u: np.ndarray          # (3,) in-plane; axis_u × axis_v = normal
+    normal: np.ndarray  # (3,) unit, toward the side the light arrives from
+    axis_u: np.ndarray  # (3,) in-plane; axis_u × axis_v = normal
     axis_v: np.ndarray
-    origin: np.ndarray          # (3,) the plane's point at (u, v) = (0, 0)
-    edges_u: np.ndarray         # (res+1,) texel lines: world = origin + u·axis_u + v·axis_v
-    edges_v: np.ndarray         # (res+1,)
+    origin: np.ndarray  # (3,) the plane's point at (u, v) = (0, 0)
+    edges_u: np.ndarray  # (res+1,) texel lines: world = origin + u·axis_u + v·axis_v
+    edges_v: np.ndarray  # (res+1,)
     resolution: int
-    irradiance: np.ndarray      # (res, res, 3) W/length² per texel (rows: v, columns: u)
-    flux: float                 # W (uncoloured) deposited in the raster
-    flux_outside: float         # W landed on the patch beyond the raster
-    vertices: np.ndarray        # ((res+1)², 3) lifted by the offset along ``normal``
-    faces: np.ndarray           # (res², 4) vertex indices, counter-clockwise about normal
-    uvs: np.ndarray | None      # ((res+1)², 2) the receiver's UV at each vertex
+    irradiance: np.ndarray  # (res, res, 3) W/length² per texel (rows: v, columns: u)
+    flux: float  # W (uncoloured) deposited in the raster
+    flux_outside: float  # W landed on the patch beyond the raster
+    vertices: np.ndarray  # ((res+1)², 3) lifted by the offset along ``normal``
+    faces: np.ndarray  # (res², 4) vertex indices, counter-clockwise about normal
+    uvs: np.ndarray | None  # ((res+1)², 2) the receiver's UV at each vertex
     uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
     #                               None: the patch's UV is affine, valid everywhere
 
@@ -74,8 +76,7 @@ class PatchLayer:
         """World positions (res, res, 3) of the texel centres, on the plane."""
         cu = 0.5 * (self.edges_u[1:] + self.edges_u[:-1])
         cv = 0.5 * (self.edges_v[1:] + self.edges_v[:-1])
-        return (self.origin + cu[None, :, None] * self.axis_u
-                + cv[:, None, None] * self.axis_v)
+        return self.origin + cu[None, :, None] * self.axis_u + cv[:, None, None] * self.axis_v
 
     def texel_flux(self) -> np.ndarray:
         """(res, res, 3) flux (W) of each texel."""
@@ -85,10 +86,10 @@ class PatchLayer:
 @dataclass
 class CausticLayer:
     patches: list[PatchLayer]
-    flux_emitted: float         # W leaving the lenses (all beams)
+    flux_emitted: float  # W leaving the lenses (all beams)
     flux_in_rasters: float
-    flux_outside: float         # landed on a patch, beyond its raster
-    flux_lost: float            # missed every receiver
+    flux_outside: float  # landed on a patch, beyond its raster
+    flux_lost: float  # missed every receiver
     n_rays: int
     n_cells: int
     n_subcells: int
@@ -98,10 +99,10 @@ class CausticLayer:
 @dataclass
 class _Landed:
     beam: BeamGrid
-    patch: np.ndarray           # (N,) patch of each node ray, −1 = miss
-    point: np.ndarray           # (N, 3)
-    dirs: np.ndarray            # (N, 3)
-    node_flux: np.ndarray       # (N,) a quarter of each adjacent cell's flux
+    patch: np.ndarray  # (N,) patch of each node ray, −1 = miss
+    point: np.ndarray  # (N, 3)
+    dirs: np.ndarray  # (N, 3)
+    node_flux: np.ndarray  # (N,) a quarter of each adjacent cell's flux
 
 
 def cell_corners(shape) -> np.ndarray:
@@ -113,6 +114,7 @@ def cell_corners(shape) -> np.ndarray:
 
     def flat(i, j):
         return ((kk * (nr + 1) + i) * na + j).reshape(-1)
+
     return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
 
 
@@ -122,8 +124,9 @@ def _weighted_quantile(x, w, q):
     return float(np.interp(q * cw[-1], cw, x[o]))
 
 
-def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
-               t_min_rel: float = 1e-7) -> list[_Landed]:
+def land_beams(
+    beams: list[BeamGrid], index: ReceiverIndex, own_objects=None, t_min_rel: float = 1e-7
+) -> list[_Landed]:
     """Land every node ray of every beam (all beams in one vectorised cast): nearest hit
     with t > −t_min_rel × the exit points' spread, so a receiver touching the sphere (a
     resting marble) still counts. ``own_objects``: per beam the object id of its lens'
@@ -132,14 +135,16 @@ def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
     o = np.concatenate([b.exit_points.reshape(-1, 3) for b in beams])
     d = np.concatenate([b.exit_dirs.reshape(-1, 3) for b in beams])
     sizes = [b.n_rays for b in beams]
-    scale = np.repeat([max(float(np.ptp(b.exit_points.reshape(-1, 3), axis=0).max()), 1e-300)
-                       for b in beams], sizes)
+    scale = np.repeat(
+        [max(float(np.ptp(b.exit_points.reshape(-1, 3), axis=0).max()), 1e-300) for b in beams],
+        sizes,
+    )
     h = intersect(index, o, d, t_min=-t_min_rel * scale)
     tri, point = h.triangle, h.point
     if own_objects is not None:
         own = np.repeat(np.asarray(own_objects, dtype=np.int64), sizes)
         ids = index.mesh.ids
-        for _ in range(4):                     # a convex lens mesh: at most a few hits
+        for _ in range(4):  # a convex lens mesh: at most a few hits
             again = np.nonzero((tri >= 0) & (ids[np.maximum(tri, 0)] == own))[0]
             if not len(again):
                 break
@@ -160,12 +165,20 @@ def land_beams(beams: list[BeamGrid], index: ReceiverIndex, own_objects=None,
     return out
 
 
-def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 128,
-                clip_fraction: float = 1e-3, warp: bool = True,
-                subcells_per_texel: float = 2.0, max_subdivision: int = 16,
-                max_subcells: int = 8_000_000, flux_subcells_per_texel: float = 8.0,
-                offset: float | None = None,
-                merge_footprints: bool = True, own_objects=None) -> CausticLayer:
+def build_layer(
+    beams: list[BeamGrid],
+    index: ReceiverIndex,
+    resolution: int = 128,
+    clip_fraction: float = 1e-3,
+    warp: bool = True,
+    subcells_per_texel: float = 2.0,
+    max_subdivision: int = 16,
+    max_subcells: int = 8_000_000,
+    flux_subcells_per_texel: float = 8.0,
+    offset: float | None = None,
+    merge_footprints: bool = True,
+    own_objects=None,
+) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
     lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
@@ -193,8 +206,8 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
     on = np.nonzero(pid >= 0)[0]
     on = on[np.lexsort((bid[on], pid[on]))]
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
-    for k, start in enumerate(p_starts):       # loop over patches, not rays
-        idx = on[start:p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
+    for k, start in enumerate(p_starts):  # loop over patches, not rays
+        idx = on[start : p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
         p = int(pid[idx[0]])
         n = plist[p].normal
         side = -np.sign(np.sum(wts[idx] * (dirs[idx] @ n))) or 1.0
@@ -204,10 +217,16 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
         b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
         b_ends = np.append(b_starts[1:], len(idx))
         w_here = wts[idx]
-        boxes = np.array([[_weighted_quantile(c[a:e], w_here[a:e], q)
-                           for c in (x, y) for q in (0.5 * clip_fraction,
-                                                     1.0 - 0.5 * clip_fraction)]
-                          for a, e in zip(b_starts, b_ends, strict=True)])
+        boxes = np.array(
+            [
+                [
+                    _weighted_quantile(c[a:e], w_here[a:e], q)
+                    for c in (x, y)
+                    for q in (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+                ]
+                for a, e in zip(b_starts, b_ends, strict=True)
+            ]
+        )
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
@@ -216,8 +235,10 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
             axes = [_warp_axis(c[sel], w_here[sel], clip_fraction, res, warp) for c in (x, y)]
             frames.append((p, n_out, au, av, axes[0], axes[1]))
             members.append(beams_here)
-    fr = {"au": np.array([f[2] for f in frames]).reshape(-1, 3),
-          "av": np.array([f[3] for f in frames]).reshape(-1, 3)}
+    fr = {
+        "au": np.array([f[2] for f in frames]).reshape(-1, 3),
+        "av": np.array([f[3] for f in frames]).reshape(-1, 3),
+    }
     for key, k in (("u", 4), ("v", 5)):
         for j, name in enumerate(("c", "s", "xi0", "dxi")):
             fr[key + name] = np.array([f[k][j] for f in frames])
@@ -231,15 +252,20 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
     # One vectorised pass per light colour (beams of one colour share the arithmetic).
     colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
     uniq, group = np.unique(colors, axis=0, return_inverse=True)
-    for gi, color in enumerate(uniq):          # loop over colours, usually one or two
+    for gi, color in enumerate(uniq):  # loop over colours, usually one or two
         members_g = [landed[i] for i in np.nonzero(group.reshape(-1) == gi)[0]]
         ids = [i for i in np.nonzero(group.reshape(-1) == gi)[0]]
         base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
         point = np.concatenate([lb.point for lb in members_g])
-        slot = np.concatenate([np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
-                               for i, lb in zip(ids, members_g, strict=True)])
-        corners = np.concatenate([cell_corners(lb.beam.shape) + base[k]
-                                  for k, lb in enumerate(members_g)])
+        slot = np.concatenate(
+            [
+                np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
+                for i, lb in zip(ids, members_g, strict=True)
+            ]
+        )
+        corners = np.concatenate(
+            [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
+        )
         cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
@@ -259,10 +285,20 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
-            n_sub += _splat_cells(acc, out_acc, point[corners[cidx]], cs[cidx, 0],
-                                  dens[cidx], cflux[cidx], fr, res,
-                                  subcells_per_texel, max_subdivision, max_subcells,
-                                  flux_subcells_per_texel)
+            n_sub += _splat_cells(
+                acc,
+                out_acc,
+                point[corners[cidx]],
+                cs[cidx, 0],
+                dens[cidx],
+                cflux[cidx],
+                fr,
+                res,
+                subcells_per_texel,
+                max_subdivision,
+                max_subcells,
+                flux_subcells_per_texel,
+            )
         flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
         rgb += acc[:, None] * color
@@ -275,26 +311,46 @@ def build_layer(beams: list[BeamGrid], index: ReceiverIndex, resolution: int = 1
         area = np.diff(ev)[:, None] * np.diff(eu)[None, :]
         off = 0.1 * min(np.diff(eu).min(), np.diff(ev).min()) if offset is None else offset
         origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
-        irr = rgb[s * res * res:(s + 1) * res * res].reshape(res, res, 3) / area[..., None]
+        irr = rgb[s * res * res : (s + 1) * res * res].reshape(res, res, 3) / area[..., None]
         verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape(-1, 3)
-        if p not in uv_fits:                   # one fit per patch, shared by its rasters
+        if p not in uv_fits:  # one fit per patch, shared by its rasters
             uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
         uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
         a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
         faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
-        layers.append(PatchLayer(
-            patch=int(p), sources=members[s], object_id=plist[p].object_id, normal=n_out,
-            axis_u=au, axis_v=av,
-            origin=origin, edges_u=eu, edges_v=ev, resolution=res, irradiance=irr,
-            flux=float(flux_in[s]), flux_outside=float(flux_out[s]),
-            vertices=verts + off * n_out, faces=faces, uvs=uvs, uv_inside=inside))
+        layers.append(
+            PatchLayer(
+                patch=int(p),
+                sources=members[s],
+                object_id=plist[p].object_id,
+                normal=n_out,
+                axis_u=au,
+                axis_v=av,
+                origin=origin,
+                edges_u=eu,
+                edges_v=ev,
+                resolution=res,
+                irradiance=irr,
+                flux=float(flux_in[s]),
+                flux_outside=float(flux_out[s]),
+                vertices=verts + off * n_out,
+                faces=faces,
+                uvs=uvs,
+                uv_inside=inside,
+            )
+        )
     t3 = time.perf_counter()
     return CausticLayer(
-        patches=layers, flux_emitted=float(sum(b.total_flux for b in beams)),
-        flux_in_rasters=float(flux_in.sum()), flux_outside=float(flux_out.sum()),
-        flux_lost=lost, n_rays=sum(b.n_rays for b in beams),
-        n_cells=sum(b.n_cells for b in beams), n_subcells=n_sub,
-        timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0})
+        patches=layers,
+        flux_emitted=float(sum(b.total_flux for b in beams)),
+        flux_in_rasters=float(flux_in.sum()),
+        flux_outside=float(flux_out.sum()),
+        flux_lost=lost,
+        n_rays=sum(b.n_rays for b in beams),
+        n_cells=sum(b.n_cells for b in beams),
+        n_subcells=n_sub,
+        timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0},
+    )
 
 
 def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
@@ -304,10 +360,14 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
     groups = [np.array([i]) for i in range(len(boxes))]
     cur = boxes.copy()
     while True:
-        over = ((cur[:, None, 0] <= cur[None, :, 1]) & (cur[None, :, 0] <= cur[:, None, 1])
-                & (cur[:, None, 2] <= cur[None, :, 3]) & (cur[None, :, 2] <= cur[:, None, 3]))
+        over = (
+            (cur[:, None, 0] <= cur[None, :, 1])
+            & (cur[None, :, 0] <= cur[:, None, 1])
+            & (cur[:, None, 2] <= cur[None, :, 3])
+            & (cur[None, :, 2] <= cur[:, None, 3])
+        )
         label = np.arange(len(cur))
-        while True:                            # label propagation to the smallest index
+        while True:  # label propagation to the smallest index
             new = np.where(over, label[None, :], len(cur)).min(axis=1)
             if np.array_equal(new, label):
                 break
@@ -316,8 +376,17 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
             return groups
         keys = np.unique(label)
         groups = [np.concatenate([groups[i] for i in np.nonzero(label == k)[0]]) for k in keys]
-        cur = np.array([[cur[label == k, 0].min(), cur[label == k, 1].max(),
-                         cur[label == k, 2].min(), cur[label == k, 3].max()] for k in keys])
+        cur = np.array(
+            [
+                [
+                    cur[label == k, 0].min(),
+                    cur[label == k, 1].max(),
+                    cur[label == k, 2].min(),
+                    cur[label == k, 3].max(),
+                ]
+                for k in keys
+            ]
+        )
 
 
 def _warp_axis(x, w, clip_fraction, res, warp):
@@ -325,7 +394,7 @@ def _warp_axis(x, w, clip_fraction, res, warp):
     lo = _weighted_quantile(x, w, 0.5 * clip_fraction)
     hi = _weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
     span = max(hi - lo, 1e-12 * (1.0 + abs(lo) + abs(hi)))
-    lo, hi = lo - span / res, hi + span / res            # a texel of margin
+    lo, hi = lo - span / res, hi + span / res  # a texel of margin
     c = _weighted_quantile(x, w, 0.5)
     s = max(_weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
     xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
@@ -365,10 +434,23 @@ def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
     out_acc += np.bincount(slots[~inside], weights=flux[~inside], minlength=len(out_acc))
 
 
-def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel, m_max,
-                 max_subcells, flux_subcells_per_texel, m_free=8):
+def _splat_cells(
+    acc,
+    out_acc,
+    corner_pts,
+    slots,
+    dens,
+    flux,
+    fr,
+    res,
+    per_texel,
+    m_max,
+    max_subcells,
+    flux_subcells_per_texel,
+    m_free=8,
+):
     """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
-    x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])                # (C, 4)
+    x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])  # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
     # sub-cells per side: the quad's extent in local texels at its centre
     tx = _local_texel(x.mean(1), fr, "u", slots)
@@ -382,17 +464,17 @@ def _splat_cells(acc, out_acc, corner_pts, slots, dens, flux, fr, res, per_texel
     m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300))).astype(np.int64)
     m = np.where(m <= m_free, m, np.maximum(m_free, np.minimum(m, m_flux)))
     total = int(np.sum(m * m))
-    if total > max_subcells:                   # keep memory bounded: coarser sub-cells
+    if total > max_subcells:  # keep memory bounded: coarser sub-cells
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
     dsum = dens.sum(axis=1)
     dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
     n_sub = 0
-    for mm in np.unique(m):                    # loop over subdivision levels
+    for mm in np.unique(m):  # loop over subdivision levels
         sel = np.nonzero(m == mm)[0]
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
-        px = x[sel] @ bw.T                                                   # (c, q)
+        px = x[sel] @ bw.T  # (c, q)
         py = y[sel] @ bw.T
         w = dens[sel] @ bw.T
         w *= (flux[sel] / w.sum(axis=1))[:, None]
@@ -433,8 +515,9 @@ def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
     mesh = index.mesh
     uv = np.asarray(mesh.uvs, dtype=float)
     h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
-    hits = intersect(index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape),
-                     t_min=0.0, t_max=2.0 * h)
+    hits = intersect(
+        index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape), t_min=0.0, t_max=2.0 * h
+    )
     tri = hits.triangle
     inside = (tri >= 0) & (index.patch_of[np.maximum(tri, 0)] == p)
     tv = np.asarray(mesh.triangles)[np.maximum(tri, 0)]

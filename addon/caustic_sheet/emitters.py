@@ -8,6 +8,7 @@ because the shift of the caustic is not the same everywhere (near-field and tilt
 receivers), and an accumulation raster adds the samples for free. The sample patterns
 are deterministic (Vogel spiral, stratified grid), so an animation does not flicker.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,6 +34,7 @@ def _unit(v) -> np.ndarray:
 class Lens:
     """A glass sphere: centre, radius, relative index, Beer–Lambert absorption per
     unit length (SPEC §3.4: ``1 − kt``) and a transmission tint (RGB multiplier)."""
+
     center: np.ndarray
     radius: float
     ior: float
@@ -43,6 +45,7 @@ class Lens:
 @dataclass(frozen=True)
 class PointLight:
     """Blender point light: power P (W), radius r (a uniform sphere; 0 = a point)."""
+
     position: np.ndarray
     power: float
     radius: float = 0.0
@@ -53,6 +56,7 @@ class PointLight:
 class SpotLight:
     """Blender spot: a point light of power P times the spot mask around ``direction``
     (the emission axis, Blender's local −Z); ``spot_size`` the full cone angle (rad)."""
+
     position: np.ndarray
     direction: np.ndarray
     power: float
@@ -66,6 +70,7 @@ class SpotLight:
 class SunLight:
     """Blender sun: ``direction`` the light travels in, strength S (W/m²), ``angle`` the
     full angular diameter (rad)."""
+
     direction: np.ndarray
     strength: float
     angle: float = 0.0
@@ -77,6 +82,7 @@ class AreaLight:
     """Blender area light: Lambertian on the side of ``normal`` (local −Z), radiance
     P/(π A). ``axis_x`` is the local X axis; shape 'SQUARE'/'RECTANGLE' (size_x ×
     size_y) or 'DISK'/'ELLIPSE' (diameters size_x, size_y)."""
+
     position: np.ndarray
     normal: np.ndarray
     axis_x: np.ndarray
@@ -93,10 +99,11 @@ class SourceSamples:
     travelling along ``directions[k]`` with irradiance ``weights[k]`` (W/m²); otherwise
     a point at ``points[k]`` with radiant intensity ``weights[k]`` (W/sr) times
     :func:`angular_factor` toward each direction."""
+
     parallel: bool
-    points: np.ndarray          # (K, 3)
-    directions: np.ndarray      # (K, 3) unit
-    weights: np.ndarray         # (K,)
+    points: np.ndarray  # (K, 3)
+    directions: np.ndarray  # (K, 3) unit
+    weights: np.ndarray  # (K,)
     emitter: object = field(repr=False, default=None)
 
 
@@ -153,8 +160,11 @@ def source_samples(emitter, lens: Lens, k: int = 1) -> SourceSamples:
             m = max(1, int(round(math.sqrt(k))))
             g = (np.arange(m) + 0.5) / m - 0.5
             uv = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
-        pts = _vec(emitter.position) + uv[:, :1] * emitter.size_x * ax \
+        pts = (
+            _vec(emitter.position)
+            + uv[:, :1] * emitter.size_x * ax
             + uv[:, 1:] * emitter.size_y * ay
+        )
         # radiance P/(πA) × (A/K) per sample: intensity P/(πK) × cos θ (angular_factor)
         w = np.full(len(pts), emitter.power / (math.pi * len(pts)))
         return SourceSamples(False, pts, _dirs_to(pts, c), w, emitter)

@@ -4,6 +4,7 @@ The layer is piecewise constant per texel, so its average over a ring is compute
 supersampling each texel uniformly (s × s points sharing the texel's flux): the value
 the layer itself shows, not a binning artefact of texels straddling a ring's edge.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,10 +15,10 @@ from .caustic_layer import PatchLayer
 def _subpoints(layer: PatchLayer, s: int):
     g = (np.arange(s) + 0.5) / s
     du, dv = np.diff(layer.edges_u), np.diff(layer.edges_v)
-    pu = (layer.edges_u[:-1, None] + du[:, None] * g).reshape(-1)           # (res·s,)
+    pu = (layer.edges_u[:-1, None] + du[:, None] * g).reshape(-1)  # (res·s,)
     pv = (layer.edges_v[:-1, None] + dv[:, None] * g).reshape(-1)
     flux = np.repeat(np.repeat(layer.texel_flux()[..., 0], s, 0), s, 1) / (s * s)
-    return pu, pv, flux                                                      # flux (v, u)
+    return pu, pv, flux  # flux (v, u)
 
 
 def radial_flux(layer: PatchLayer, center, radii, supersample: int = 8) -> np.ndarray:
@@ -35,7 +36,7 @@ def radial_flux(layer: PatchLayer, center, radii, supersample: int = 8) -> np.nd
 def ring_irradiance(layer: PatchLayer, center, edges, supersample: int = 8) -> np.ndarray:
     """Average irradiance of the layer over the rings between consecutive ``edges``."""
     edges = np.asarray(edges, dtype=float)
-    return np.diff(radial_flux(layer, center, edges, supersample)) / (np.pi * np.diff(edges ** 2))
+    return np.diff(radial_flux(layer, center, edges, supersample)) / (np.pi * np.diff(edges**2))
 
 
 def relative_l1(values, reference, weights) -> float:

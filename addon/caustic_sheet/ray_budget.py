@@ -7,6 +7,7 @@ of the irradiance: to keep the absolute error even across sources the count scal
 the source's flux relative to the brightest one. The count is capped per source and in
 total; the grid is Nr × Na cells with Na = 4 Nr (square cells in (ι, φ) at the rim).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,8 +34,14 @@ def pixel_size(camera_position, target, fov: float, width_px: int) -> float:
     return 2.0 * dist * math.tan(0.5 * fov) / max(1, int(width_px))
 
 
-def ray_budget(flux_share: float, extent: float, pixel: float, rays_per_pixel: float = 1.0,
-               min_rays: int = 1024, max_rays: int = 65536) -> RayBudget:
+def ray_budget(
+    flux_share: float,
+    extent: float,
+    pixel: float,
+    rays_per_pixel: float = 1.0,
+    min_rays: int = 1024,
+    max_rays: int = 65536,
+) -> RayBudget:
     """Grid for one source. ``flux_share``: its flux over the brightest source's (0..1];
     ``extent``: the caustic's size on the receiver (e.g. the lens' diameter, or the last
     layer's core); ``pixel``: :func:`pixel_size` there."""
@@ -50,13 +57,13 @@ def allocate(fluxes, extents, pixels, total_rays: int = 1_000_000, **kwargs) -> 
     (keeping each source's ``min_rays``) if the sum exceeds ``total_rays``."""
     fluxes = np.asarray(fluxes, dtype=float)
     top = fluxes.max() if len(fluxes) and fluxes.max() > 0 else 1.0
-    out = [ray_budget(f / top, e, p, **kwargs) for f, e, p in zip(fluxes, extents, pixels,
-                                                                   strict=True)]
+    out = [
+        ray_budget(f / top, e, p, **kwargs) for f, e, p in zip(fluxes, extents, pixels, strict=True)
+    ]
     total = sum(b.n_rays for b in out)
     if total > total_rays:
         k = math.sqrt(total_rays / total)
-        out = [RayBudget(max(2, int(b.n_radial * k)), 4 * max(2, int(b.n_radial * k)))
-               for b in out]
+        out = [RayBudget(max(2, int(b.n_radial * k)), 4 * max(2, int(b.n_radial * k))) for b in out]
     return out
 
 

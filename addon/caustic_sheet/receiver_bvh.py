@@ -9,6 +9,7 @@ pair's box is slab-tested at once and the survivors expand into their two childr
 the leaves the pairs become (ray, triangle) Möller–Trumbore tests and the nearest hit
 beyond ``t_min`` wins. Rays are processed in chunks to bound memory.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ class ReceiverMesh:
     """Triangles that receive caustics: ``vertices`` (V, 3), ``triangles`` (T, 3) vertex
     indices, optional ``uvs`` (V, 2) per vertex, optional ``object_ids`` (T,) telling
     which object each triangle belongs to (the lens' own sphere must not be in it)."""
+
     vertices: np.ndarray
     triangles: np.ndarray
     uvs: np.ndarray | None = None
@@ -37,13 +39,13 @@ class ReceiverMesh:
 class TriangleBvh:
     mesh: ReceiverMesh
     leaf_size: int
-    tri_index: np.ndarray       # (n_leaves · leaf_size,) triangle of each slot, −1 = padding
-    v0: np.ndarray              # (slots, 3) first vertex of each slot's triangle
-    e1: np.ndarray              # (slots, 3) edge v1 − v0
-    e2: np.ndarray              # (slots, 3) edge v2 − v0
-    lo: list[np.ndarray]        # per level (2^ℓ, 3) box minima (NaN: empty)
-    hi: list[np.ndarray]        # per level (2^ℓ, 3) box maxima (NaN: empty)
-    lo_t: list[np.ndarray]      # the same, transposed (3, 2^ℓ) for the traversal
+    tri_index: np.ndarray  # (n_leaves · leaf_size,) triangle of each slot, −1 = padding
+    v0: np.ndarray  # (slots, 3) first vertex of each slot's triangle
+    e1: np.ndarray  # (slots, 3) edge v1 − v0
+    e2: np.ndarray  # (slots, 3) edge v2 − v0
+    lo: list[np.ndarray]  # per level (2^ℓ, 3) box minima (NaN: empty)
+    hi: list[np.ndarray]  # per level (2^ℓ, 3) box maxima (NaN: empty)
+    lo_t: list[np.ndarray]  # the same, transposed (3, 2^ℓ) for the traversal
     hi_t: list[np.ndarray]
 
 
@@ -51,6 +53,7 @@ class TriangleBvh:
 class Hits:
     """Nearest hit of each ray: ``triangle`` (−1 = miss), distance ``t`` (inf on a miss),
     barycentrics ``u``, ``v`` (point = v0 + u e1 + v e2) and the hit ``point``."""
+
     triangle: np.ndarray
     t: np.ndarray
     u: np.ndarray
@@ -60,12 +63,14 @@ class Hits:
 
 def _morton(cells: np.ndarray) -> np.ndarray:
     """Interleave three 10-bit integer coordinates into a 30-bit Morton code."""
+
     def spread(x):
         x = x.astype(np.uint64) & 0x3FF
         x = (x | (x << 16)) & 0x030000FF
         x = (x | (x << 8)) & 0x0300F00F
         x = (x | (x << 4)) & 0x030C30C3
         return (x | (x << 2)) & 0x09249249
+
     return (spread(cells[:, 0]) << 2) | (spread(cells[:, 1]) << 1) | spread(cells[:, 2])
 
 
@@ -73,7 +78,7 @@ def build_bvh(mesh: ReceiverMesh, leaf_size: int = 4) -> TriangleBvh:
     """Linear BVH of ``mesh`` (see the module docstring)."""
     v = np.asarray(mesh.vertices, dtype=float)
     tris = np.asarray(mesh.triangles, dtype=np.int64)
-    corners = v[tris]                                        # (T, 3, 3)
+    corners = v[tris]  # (T, 3, 3)
     cen = corners.mean(axis=1)
     lo_c, hi_c = cen.min(axis=0), cen.max(axis=0)
     cells = ((cen - lo_c) / np.maximum(hi_c - lo_c, 1e-300) * 1023.0).astype(np.int64)
@@ -82,9 +87,9 @@ def build_bvh(mesh: ReceiverMesh, leaf_size: int = 4) -> TriangleBvh:
     depth = int(np.ceil(np.log2(n_leaves))) if n_leaves > 1 else 0
     slots = (1 << depth) * leaf_size
     tri_index = np.full(slots, -1, dtype=np.int64)
-    tri_index[:len(order)] = order
+    tri_index[: len(order)] = order
     c = np.zeros((slots, 3, 3))
-    c[:len(order)] = corners[order]
+    c[: len(order)] = corners[order]
     pad = tri_index < 0
     # Empty boxes are NaN: every slab comparison with them is false (±inf would let
     # every ray through), and fmin/fmax skip them in the reductions.
@@ -96,14 +101,21 @@ def build_bvh(mesh: ReceiverMesh, leaf_size: int = 4) -> TriangleBvh:
         while len(lo[0]) > 1:
             lo.insert(0, np.fmin(lo[0][0::2], lo[0][1::2]))
             hi.insert(0, np.fmax(hi[0][0::2], hi[0][1::2]))
-    return TriangleBvh(mesh=mesh, leaf_size=leaf_size, tri_index=tri_index, v0=c[:, 0],
-                       e1=c[:, 1] - c[:, 0], e2=c[:, 2] - c[:, 0], lo=lo, hi=hi,
-                       lo_t=[np.ascontiguousarray(x.T) for x in lo],
-                       hi_t=[np.ascontiguousarray(x.T) for x in hi])
+    return TriangleBvh(
+        mesh=mesh,
+        leaf_size=leaf_size,
+        tri_index=tri_index,
+        v0=c[:, 0],
+        e1=c[:, 1] - c[:, 0],
+        e2=c[:, 2] - c[:, 0],
+        lo=lo,
+        hi=hi,
+        lo_t=[np.ascontiguousarray(x.T) for x in lo],
+        hi_t=[np.ascontiguousarray(x.T) for x in hi],
+    )
 
 
-def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf,
-              chunk: int = 16384) -> Hits:
+def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf, chunk: int = 16384) -> Hits:
     """Nearest hit with ``t_min < t ≤ t_max`` (per ray or scalar) of the rays
     ``origins + t · dirs`` ((N, 3) each; ``dirs`` need not be unit, ``t`` is in its
     units). Triangles are two-sided."""
@@ -118,8 +130,7 @@ def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf,
     vv = np.zeros(n)
     for s in range(0, n, chunk):
         sl = slice(s, min(n, s + chunk))
-        tri[sl], tt[sl], uu[sl], vv[sl] = _intersect_chunk(bvh, o[sl], d[sl], t_min[sl],
-                                                           t_max[sl])
+        tri[sl], tt[sl], uu[sl], vv[sl] = _intersect_chunk(bvh, o[sl], d[sl], t_min[sl], t_max[sl])
     point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
     return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)
 
@@ -128,7 +139,7 @@ def _intersect_chunk(bvh, o, d, t_min, t_max):
     n = len(o)
     # 1/d with zero components replaced by a tiny signed number: slabs stay finite.
     safe = np.where(np.abs(d) < 1e-300, np.where(d < 0.0, -1e-300, 1e-300), d)
-    inv = np.ascontiguousarray((1.0 / safe).T)          # (3, n): rows gather fastest
+    inv = np.ascontiguousarray((1.0 / safe).T)  # (3, n): rows gather fastest
     oinv = np.ascontiguousarray((o / safe).T)
     ray = np.arange(n)
     node = np.zeros(n, dtype=np.int64)
@@ -170,8 +181,7 @@ def _moller_trumbore(o, d, v0, e1, e2):
     """Two-sided Möller–Trumbore; returns (t, u, v, hit mask)."""
     p = np.cross(d, e2)
     det = np.einsum("ij,ij->i", e1, p)
-    scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1) \
-        * np.linalg.norm(d, axis=1)
+    scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1) * np.linalg.norm(d, axis=1)
     ok = np.abs(det) > 1e-14 * scale
     inv = 1.0 / np.where(ok, det, 1.0)
     s = o - v0

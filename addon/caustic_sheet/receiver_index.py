@@ -8,6 +8,7 @@ whose bounding box touches it): a handful of 2-D barycentric tests per ray, what
 triangle count. Triangles of small or curved patches (one patch per facet) go to the
 numpy BVH of :mod:`.receiver_bvh`. The nearest of both hits wins.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -23,33 +24,38 @@ from .receiver_patches import ReceiverPatch, find_patches
 @dataclass(frozen=True)
 class PlaneGrids:
     """The planar fast path: P planes, their grids in one CSR table."""
-    patch: np.ndarray           # (P,) patch index of each plane
-    normal: np.ndarray          # (P, 3)
-    offset: np.ndarray          # (P,)
-    au: np.ndarray              # (P, 3) in-plane axes
+
+    patch: np.ndarray  # (P,) patch index of each plane
+    normal: np.ndarray  # (P, 3)
+    offset: np.ndarray  # (P,)
+    au: np.ndarray  # (P, 3) in-plane axes
     av: np.ndarray
-    lo: np.ndarray              # (P, 2) grid origin in (au, av) coordinates
-    cell: np.ndarray            # (P, 2) cell size
-    dims: np.ndarray            # (P, 2) cells along u, v
-    base: np.ndarray            # (P,) first cell of each plane in the CSR table
-    cell_start: np.ndarray      # (cells + 1,)
-    cell_tris: np.ndarray       # (entries,) triangle indices
-    tri_a: np.ndarray           # (T, 2) first vertex in its plane's coordinates
-    tri_inv: np.ndarray         # (T, 2, 2) inverse of [e1 e2] in the plane: (u, v) barycentrics
+    lo: np.ndarray  # (P, 2) grid origin in (au, av) coordinates
+    cell: np.ndarray  # (P, 2) cell size
+    dims: np.ndarray  # (P, 2) cells along u, v
+    base: np.ndarray  # (P,) first cell of each plane in the CSR table
+    cell_start: np.ndarray  # (cells + 1,)
+    cell_tris: np.ndarray  # (entries,) triangle indices
+    tri_a: np.ndarray  # (T, 2) first vertex in its plane's coordinates
+    tri_inv: np.ndarray  # (T, 2, 2) inverse of [e1 e2] in the plane: (u, v) barycentrics
 
 
 @dataclass(frozen=True)
 class ReceiverIndex:
     mesh: ReceiverMesh
-    patch_of: np.ndarray        # (T,) patch of each triangle (−1 degenerate)
+    patch_of: np.ndarray  # (T,) patch of each triangle (−1 degenerate)
     patches: list[ReceiverPatch]
     planes: PlaneGrids | None
-    bvh: TriangleBvh | None     # over the other triangles
-    bvh_tris: np.ndarray        # (T_bvh,) their indices in the mesh
+    bvh: TriangleBvh | None  # over the other triangles
+    bvh_tris: np.ndarray  # (T_bvh,) their indices in the mesh
 
 
-def build_index(mesh: ReceiverMesh, min_plane_triangles: int = 2, max_planes: int = 64,
-                cells_per_triangle: float = 1.0) -> ReceiverIndex:
+def build_index(
+    mesh: ReceiverMesh,
+    min_plane_triangles: int = 2,
+    max_planes: int = 64,
+    cells_per_triangle: float = 1.0,
+) -> ReceiverIndex:
     """Index ``mesh`` for landing rays: the up to ``max_planes`` patches with at least
     ``min_plane_triangles`` triangles take the planar fast path, the rest a BVH."""
     patch_of, patches = find_patches(mesh)
@@ -76,19 +82,19 @@ def _plane_grids(mesh, patches, big, cells_per_triangle) -> PlaneGrids:
     normal, offset, au_l, av_l, lo_l, cell_l, dims_l, base_l = ([] for _ in range(8))
     entries_cell, entries_tri = [], []
     base = 0
-    for p in big:                              # loop over planes, not triangles
+    for p in big:  # loop over planes, not triangles
         pt = patches[p]
         au, av = perpendicular_frame(pt.normal)
-        c = v[tris[pt.triangles]]                                      # (m, 3, 3)
-        xy = np.stack([c @ au, c @ av], axis=-1)                       # (m, 3, 2)
+        c = v[tris[pt.triangles]]  # (m, 3, 3)
+        xy = np.stack([c @ au, c @ av], axis=-1)  # (m, 3, 2)
         a = xy[:, 0]
-        m2 = np.stack([xy[:, 1] - a, xy[:, 2] - a], axis=-1)           # columns e1, e2
+        m2 = np.stack([xy[:, 1] - a, xy[:, 2] - a], axis=-1)  # columns e1, e2
         tri_a[pt.triangles] = a
         tri_inv[pt.triangles] = np.linalg.inv(m2)
         lo, hi = xy.reshape(-1, 2).min(axis=0), xy.reshape(-1, 2).max(axis=0)
         span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo).max()))
         n_cells = max(1.0, cells_per_triangle * len(pt.triangles))
-        g = np.sqrt(n_cells * span / span[::-1])                       # square-ish cells
+        g = np.sqrt(n_cells * span / span[::-1])  # square-ish cells
         dims = np.clip(np.ceil(g), 1, 4096).astype(np.int64)
         cell = span / dims * (1.0 + 1e-9)
         i0 = np.clip(((xy.min(axis=1) - lo) / cell).astype(np.int64), 0, dims - 1)
@@ -113,9 +119,21 @@ def _plane_grids(mesh, patches, big, cells_per_triangle) -> PlaneGrids:
     ec, et = np.concatenate(entries_cell), np.concatenate(entries_tri)
     o = np.argsort(ec, kind="stable")
     start = np.searchsorted(ec[o], np.arange(base + 1))
-    return PlaneGrids(np.asarray(big), np.array(normal), np.array(offset), np.array(au_l),
-                      np.array(av_l), np.array(lo_l), np.array(cell_l), np.array(dims_l),
-                      np.array(base_l), start, et[o], tri_a, tri_inv)
+    return PlaneGrids(
+        np.asarray(big),
+        np.array(normal),
+        np.array(offset),
+        np.array(au_l),
+        np.array(av_l),
+        np.array(lo_l),
+        np.array(cell_l),
+        np.array(dims_l),
+        np.array(base_l),
+        start,
+        et[o],
+        tri_a,
+        tri_inv,
+    )
 
 
 def intersect(index: ReceiverIndex, origins, dirs, t_min=0.0, t_max=np.inf) -> Hits:
@@ -145,7 +163,7 @@ def intersect(index: ReceiverIndex, origins, dirs, t_min=0.0, t_max=np.inf) -> H
 
 def _intersect_planes(g: PlaneGrids, o, d, t_min, t_max):
     n = len(o)
-    nd = d @ g.normal.T                                                # (N, P)
+    nd = d @ g.normal.T  # (N, P)
     gap = g.offset[None, :] - o @ g.normal.T
     with np.errstate(divide="ignore", invalid="ignore"):
         t = gap / nd

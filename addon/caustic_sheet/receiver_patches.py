@@ -6,6 +6,7 @@ rounded to ``angle_tol`` and the plane's offset rounded to ``dist_tol``. A table
 floor or a wall is one patch however finely it is meshed; a curved object falls apart into
 one patch per facet.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -19,14 +20,16 @@ from .receiver_bvh import ReceiverMesh
 class ReceiverPatch:
     """One planar patch: its ``object_id``, canonical unit ``normal``, plane offset
     ``offset`` (normal · x for x on the plane) and its ``triangles`` (indices)."""
+
     object_id: int
     normal: np.ndarray
     offset: float
     triangles: np.ndarray
 
 
-def find_patches(mesh: ReceiverMesh, angle_tol: float = 1e-4,
-                 dist_tol: float | None = None) -> tuple[np.ndarray, list[ReceiverPatch]]:
+def find_patches(
+    mesh: ReceiverMesh, angle_tol: float = 1e-4, dist_tol: float | None = None
+) -> tuple[np.ndarray, list[ReceiverPatch]]:
     """Group ``mesh``'s triangles into planar patches.
 
     Returns ``patch_of_triangle`` ((T,) int, −1 for a degenerate triangle) and the
@@ -43,8 +46,13 @@ def find_patches(mesh: ReceiverMesh, angle_tol: float = 1e-4,
     off = np.einsum("ij,ij->i", nrm, c.mean(axis=1))
     if dist_tol is None:
         dist_tol = 1e-6 * max(float(np.linalg.norm(np.ptp(v, axis=0))), 1e-300)
-    keys = np.column_stack([mesh.ids, np.round(nrm / angle_tol).astype(np.int64),
-                            np.round(off / dist_tol).astype(np.int64)])
+    keys = np.column_stack(
+        [
+            mesh.ids,
+            np.round(nrm / angle_tol).astype(np.int64),
+            np.round(off / dist_tol).astype(np.int64),
+        ]
+    )
     patch_of = np.full(len(t), -1, dtype=np.int64)
     if not ok.any():
         return patch_of, []
@@ -54,8 +62,8 @@ def find_patches(mesh: ReceiverMesh, angle_tol: float = 1e-4,
     starts = np.searchsorted(patch_of[order], np.arange(len(uniq)))
     ends = np.searchsorted(patch_of[order], np.arange(len(uniq)), side="right")
     patches = []
-    for p in range(len(uniq)):            # loop over patches, not triangles
-        tri = order[starts[p]:ends[p]]
+    for p in range(len(uniq)):  # loop over patches, not triangles
+        tri = order[starts[p] : ends[p]]
         n = nrm[tri].mean(axis=0)
         n /= np.linalg.norm(n)
         patches.append(ReceiverPatch(int(uniq[p, 0]), n, float(np.mean(off[tri])), tri))

@@ -12,6 +12,7 @@ the conventions of SPEC sections 4, 6, 9 and 10).
 - :mod:`.tracer`: :func:`trace_irradiance`, the irradiance on the plane with
   per-cell standard errors; :func:`lens_shadow`, the lens's shadow on the plane
 """
+
 from __future__ import annotations
 
 from .emitters import AreaLight, PointLight, RayBatch, SpotLight, SunLight, spot_mask

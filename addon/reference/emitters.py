@@ -23,6 +23,7 @@ Radiometry (W, m, sr; any length unit works):
   ``(P / pi) cos(theta) Omega(x)``.  Cycles' ``spread`` is not modelled (the default,
   180 degrees, is the Lambertian emitter).
 """
+
 from __future__ import annotations
 
 import math
@@ -32,8 +33,15 @@ import numpy as np
 
 from .vectors import cone_one_minus_cos, dot, frame, sample_cone, unit
 
-__all__ = ["RayBatch", "PointLight", "SpotLight", "SunLight", "AreaLight", "spot_mask",
-           "smoothstep"]
+__all__ = [
+    "RayBatch",
+    "PointLight",
+    "SpotLight",
+    "SunLight",
+    "AreaLight",
+    "spot_mask",
+    "smoothstep",
+]
 
 
 @dataclass(frozen=True)
@@ -135,7 +143,8 @@ class SpotLight:
 
     def sample(self, center, lens_radius, m, rng) -> RayBatch:
         rays = PointLight(self.position, self.power, self.radius).sample(
-            center, lens_radius, m, rng)
+            center, lens_radius, m, rng
+        )
         mask = spot_mask(rays.direction @ unit(self.direction), self.spot_size, self.blend)
         return RayBatch(rays.origin, rays.direction, rays.flux * mask)
 
@@ -154,14 +163,14 @@ class SunLight:
         half = 0.5 * self.angle
         omc = 2.0 * math.sin(0.5 * half) ** 2
         w = np.tile(unit(self.direction), (m, 1))
-        u1, u2 = rng.random(m), rng.random(m)     # drawn even for angle 0 (same stream)
+        u1, u2 = rng.random(m), rng.random(m)  # drawn even for angle 0 (same stream)
         d = sample_cone(w, omc, u1, u2) if omc > 0.0 else w
         rho = lens_radius * np.sqrt(rng.random(m))
         phi = 2.0 * np.pi * rng.random(m)
         s, t = frame(d)
         disc = (rho * np.cos(phi))[:, None] * s + (rho * np.sin(phi))[:, None] * t
         origin = np.asarray(center, float) + disc - 2.0 * lens_radius * d
-        flux = self.strength * np.pi * lens_radius ** 2 * 2.0 / (1.0 + math.cos(half))
+        flux = self.strength * np.pi * lens_radius**2 * 2.0 / (1.0 + math.cos(half))
         return RayBatch(origin, d, np.full(m, flux), t_min=-np.inf)
 
 
@@ -213,6 +222,5 @@ class AreaLight:
         reach = np.linalg.norm(pts - center, axis=1) - lens_radius
         if np.any(reach <= 0.0):
             raise ValueError("the area light must lie outside the lens")
-        d, flux = _toward_sphere(pts, np.tile(nrm, (m, 1)), center, lens_radius, rng,
-                                 self.power)
+        d, flux = _toward_sphere(pts, np.tile(nrm, (m, 1)), center, lens_radius, rng, self.power)
         return RayBatch(pts, d, flux)

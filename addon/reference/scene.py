@@ -1,4 +1,5 @@
 """The lens, the blockers and the receiving plane of the reference tracer."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -11,8 +12,9 @@ __all__ = ["GlassSphere", "Blocker", "ReceiverPlane"]
 
 
 def _check_sphere(center, radius):
-    if not (np.all(np.isfinite(np.asarray(center, float))) and np.isfinite(radius)
-            and radius > 0.0):
+    if not (
+        np.all(np.isfinite(np.asarray(center, float))) and np.isfinite(radius) and radius > 0.0
+    ):
         raise ValueError(f"a sphere needs a finite centre and radius > 0, got {radius!r}")
 
 

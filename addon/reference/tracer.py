@@ -5,6 +5,7 @@ The direct beam only (as SPEC 6): internally reflected light is dropped, and so 
 the light reflected off the sphere's outside.  The emitter's direct light on the
 plane is not included either; :func:`lens_shadow` gives the region the lens shades.
 """
+
 from __future__ import annotations
 
 import math
@@ -64,7 +65,7 @@ class PlaneIrradiance:
 
     def ring_flux(self):
         """Flux (W) landing in each ring."""
-        return self.ring_irradiance * np.pi * np.diff(self.ring_edges ** 2)
+        return self.ring_irradiance * np.pi * np.diff(self.ring_edges**2)
 
     def cell_flux(self):
         """Flux (W) landing in each cell of the grid."""
@@ -121,8 +122,18 @@ def _check(lens, plane, blockers):
         raise ValueError("the lens lies behind the receiving plane")
 
 
-def trace_irradiance(emitter, lens, plane, n_rays, seed=0, blockers=(), grid=None, rings=None,
-                     fresnel="tracked", chunk=200_000) -> PlaneIrradiance:
+def trace_irradiance(
+    emitter,
+    lens,
+    plane,
+    n_rays,
+    seed=0,
+    blockers=(),
+    grid=None,
+    rings=None,
+    fresnel="tracked",
+    chunk=200_000,
+) -> PlaneIrradiance:
     """Trace ``n_rays`` rays from ``emitter`` (a light of :mod:`.emitters`) through the
     ``blockers`` and the ``lens`` onto ``plane`` and bin where they land.
 
@@ -153,10 +164,10 @@ def trace_irradiance(emitter, lens, plane, n_rays, seed=0, blockers=(), grid=Non
         r_center, r_edges = tuple(map(float, rings[0])), np.asarray(rings[1], float)
         r_sum = np.zeros(r_edges.size - 1)
         r_sq = np.zeros_like(r_sum)
-    tot = np.zeros(6)       # sums of g and g^2 into the lens, on the plane; g u, g v
+    tot = np.zeros(6)  # sums of g and g^2 into the lens, on the plane; g u, g v
     t0 = time.perf_counter()
     done = 0
-    while done < n_rays:    # chunks of rays keep the memory bounded
+    while done < n_rays:  # chunks of rays keep the memory bounded
         m = min(chunk, n_rays - done)
         done += m
         rays = emitter.sample(c, R, m, rng)
@@ -181,7 +192,7 @@ def trace_irradiance(emitter, lens, plane, n_rays, seed=0, blockers=(), grid=Non
         n1 = (p1 - c) / R
         d2, ci1, ct1, tir1 = refract(d, n1, 1.0 / n)
         ts1, tp1 = fresnel_sp(ci1, ct1, 1.0, n)
-        chord = 2.0 * R * ct1                     # isosceles chord, no re-intersection
+        chord = 2.0 * R * ct1  # isosceles chord, no re-intersection
         p2 = p1 + chord[:, None] * d2
         n2 = (p2 - c) / R
         d3, ci2, ct2, tir2 = refract(d2, -n2, n)
@@ -224,19 +235,27 @@ def trace_irradiance(emitter, lens, plane, n_rays, seed=0, blockers=(), grid=Non
     f_in, f_in_se = mean_se(tot[0], tot[1])
     f_pl, f_pl_se = mean_se(tot[2], tot[3])
     centroid = (tot[4] / tot[2], tot[5] / tot[2]) if tot[2] > 0.0 else (math.nan, math.nan)
-    out = dict(n_rays=n_rays, seconds=seconds, flux_into_lens=float(f_in),
-               flux_into_lens_se=float(f_in_se), flux_on_plane=float(f_pl),
-               flux_on_plane_se=float(f_pl_se), centroid=centroid)
+    out = dict(
+        n_rays=n_rays,
+        seconds=seconds,
+        flux_into_lens=float(f_in),
+        flux_into_lens_se=float(f_in_se),
+        flux_on_plane=float(f_pl),
+        flux_on_plane_se=float(f_pl_se),
+        centroid=centroid,
+    )
     if grid is not None:
         area = np.outer(np.diff(u_edges), np.diff(v_edges))
         mean, se = mean_se(g_sum, g_sq)
-        out.update(u_edges=u_edges, v_edges=v_edges, irradiance=mean / area,
-                   irradiance_se=se / area)
+        out.update(
+            u_edges=u_edges, v_edges=v_edges, irradiance=mean / area, irradiance_se=se / area
+        )
     if rings is not None:
-        area = np.pi * np.diff(r_edges ** 2)
+        area = np.pi * np.diff(r_edges**2)
         mean, se = mean_se(r_sum, r_sq)
-        out.update(ring_center=r_center, ring_edges=r_edges, ring_irradiance=mean / area,
-                   ring_se=se / area)
+        out.update(
+            ring_center=r_center, ring_edges=r_edges, ring_irradiance=mean / area, ring_se=se / area
+        )
     return PlaneIrradiance(**out)
 
 
@@ -262,11 +281,13 @@ def lens_shadow(emitter, lens, plane, u, v, n_samples=64, seed=0):
             r = emitter.radius
             rho, phi = np.sqrt(rng.random(k)), 2.0 * np.pi * rng.random(k)
             to_l = unit(pos[None] - q)
-            a = unit(np.cross(to_l, np.where(np.abs(to_l[:, :1]) < 0.9, [[1.0, 0, 0]],
-                                             [[0, 1.0, 0]])))
+            a = unit(
+                np.cross(to_l, np.where(np.abs(to_l[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+            )
             b = np.cross(to_l, a)
-            off = (r * rho * np.cos(phi))[None, :, None] * a[:, None] + \
-                  (r * rho * np.sin(phi))[None, :, None] * b[:, None]
+            off = (r * rho * np.cos(phi))[None, :, None] * a[:, None] + (r * rho * np.sin(phi))[
+                None, :, None
+            ] * b[:, None]
             pts = pos + off
         else:
             pts = np.broadcast_to(emitter.sample(c, R, k, rng).origin[None], (q.shape[0], k, 3))
@@ -274,9 +295,8 @@ def lens_shadow(emitter, lens, plane, u, v, n_samples=64, seed=0):
         t_end = np.linalg.norm(vec, axis=2)
         dirs = vec / t_end[..., None]
         starts = np.broadcast_to(q[:, None], dirs.shape)
-    tn, tf, hit = sphere_hits(starts.reshape(-1, 3), np.ascontiguousarray(dirs).reshape(-1, 3),
-                              c, R)
+    tn, tf, hit = sphere_hits(
+        starts.reshape(-1, 3), np.ascontiguousarray(dirs).reshape(-1, 3), c, R
+    )
     blocked = hit & (tf > 0.0) & (tn < t_end.reshape(-1))
     return blocked.reshape(q.shape[0], k).mean(axis=1).reshape(np.shape(u))
-
-

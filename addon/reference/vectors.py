@@ -1,4 +1,5 @@
 """Vector helpers of the reference tracer (rows of ``(m, 3)`` arrays are rays)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -45,8 +46,11 @@ def sample_cone(w, one_minus_cos_max, u1, u2):
     sin_p = np.sqrt(v * (2.0 - v))
     phi = 2.0 * np.pi * u2
     s, t = frame(w)
-    return ((sin_p * np.cos(phi))[:, None] * s + (sin_p * np.sin(phi))[:, None] * t
-            + (1.0 - v)[:, None] * w)
+    return (
+        (sin_p * np.cos(phi))[:, None] * s
+        + (sin_p * np.sin(phi))[:, None] * t
+        + (1.0 - v)[:, None] * w
+    )
 
 
 def sphere_hits(origin, direction, center, radius):

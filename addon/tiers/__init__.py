@@ -17,6 +17,7 @@ into the most accurate tier the render engine can show (``AUTO_RESOLUTION``) —
 ``EXACT_PROFILE`` in Cycles, ``FITTED`` otherwise — as measured in
 reports/accuracy.md (each tier's ``accuracy``).
 """
+
 from __future__ import annotations
 
 import math
@@ -38,17 +39,36 @@ from .base import (
 )
 
 __all__ = [
-    "TIERS", "TIER_LINES", "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE", "AUTO",
-    "AUTO_LABEL", "AUTO_DESCRIPTION", "AUTO_RESOLUTION", "DEFAULT_ENERGY_MODEL",
-    "ENUM_NUMBERS", "energy_model_items", "resolve_energy_model", "make_blender_light",
-    "BlenderLight", "LensOptics", "PrimaryLight", "Tier", "cone_shape",
-    "head_on_transmission", "COLLIMATED_DISTANCE_FACTOR", "CUTOFF_FACTOR",
+    "TIERS",
+    "TIER_LINES",
+    "THESIS",
+    "PHYSICAL",
+    "FITTED",
+    "EXACT_PROFILE",
+    "AUTO",
+    "AUTO_LABEL",
+    "AUTO_DESCRIPTION",
+    "AUTO_RESOLUTION",
+    "DEFAULT_ENERGY_MODEL",
+    "ENUM_NUMBERS",
+    "energy_model_items",
+    "resolve_energy_model",
+    "make_blender_light",
+    "BlenderLight",
+    "LensOptics",
+    "PrimaryLight",
+    "Tier",
+    "cone_shape",
+    "head_on_transmission",
+    "COLLIMATED_DISTANCE_FACTOR",
+    "CUTOFF_FACTOR",
     "DEFAULT_SPOT_BLEND",
 ]
 
 #: Every tier, in the order the setting lists them.
-TIERS: dict[str, Tier] = {t.name: t for t in (thesis.TIER, physical.TIER, fitted.TIER,
-                                              exact_profile.TIER)}
+TIERS: dict[str, Tier] = {
+    t.name: t for t in (thesis.TIER, physical.TIER, fitted.TIER, exact_profile.TIER)
+}
 THESIS, PHYSICAL, FITTED, EXACT_PROFILE = TIERS
 #: One line per tier on what it trades (the panel).
 TIER_LINES = {name: t.trades for name, t in TIERS.items()}
@@ -56,8 +76,10 @@ TIER_LINES = {name: t.trades for name, t in TIERS.items()}
 #: Not a tier: the most accurate tier for the render engine (`resolve_energy_model`).
 AUTO = "AUTO"
 AUTO_LABEL = "Auto — most accurate for the engine"
-AUTO_DESCRIPTION = ("Exact profile in Cycles, Fitted in EEVEE (and any other engine): "
-                    "the most accurate tier the engine renders")
+AUTO_DESCRIPTION = (
+    "Exact profile in Cycles, Fitted in EEVEE (and any other engine): "
+    "the most accurate tier the engine renders"
+)
 #: AUTO per engine; any other engine (or none known): ``None``'s.
 AUTO_RESOLUTION = {CYCLES: EXACT_PROFILE, None: FITTED}
 AUTO_NUMBER = 4
@@ -90,18 +112,25 @@ def resolve_energy_model(model: str, engine: str | None = None) -> tuple[str, st
     tier = TIERS.get(model)
     if tier is not None and tier.engines == (CYCLES,) and engine and engine != CYCLES:
         shown = ENGINE_NAMES.get(engine, engine)
-        return FITTED, (f"{tier.short_label} needs Cycles (light node trees); the engine "
-                        f"is {shown}: made Fitted lights instead")
+        return FITTED, (
+            f"{tier.short_label} needs Cycles (light node trees); the engine "
+            f"is {shown}: made Fitted lights instead"
+        )
     return model, ""
 
 
-def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERGY_MODEL,
-                       *, optics: LensOptics | None = None,
-                       spot_blend: float = DEFAULT_SPOT_BLEND,
-                       scene_size: float = 1.0,
-                       scene_bounds=None,
-                       collimated_distance: float | None = None,
-                       receiver_distance: float | None = None) -> BlenderLight:
+def make_blender_light(
+    source,
+    primary: PrimaryLight,
+    model: str = DEFAULT_ENERGY_MODEL,
+    *,
+    optics: LensOptics | None = None,
+    spot_blend: float = DEFAULT_SPOT_BLEND,
+    scene_size: float = 1.0,
+    scene_bounds=None,
+    collimated_distance: float | None = None,
+    receiver_distance: float | None = None,
+) -> BlenderLight:
     """The Blender light for one `phase1.SecondarySource`.
 
     `primary`: the primary light's power (W), radius and colour. `model`: a key of
@@ -125,12 +154,20 @@ def make_blender_light(source, primary: PrimaryLight, model: str = DEFAULT_ENERG
     try:
         tier = TIERS[model]
     except KeyError:
-        raise ValueError(f"unknown energy model {model!r}; "
-                         f"known: {', '.join([AUTO, *TIERS])}") from None
-    scene_size = (float(scene_size) if scene_size and math.isfinite(scene_size)
-                  and scene_size > 0 else 1.0)
+        raise ValueError(
+            f"unknown energy model {model!r}; known: {', '.join([AUTO, *TIERS])}"
+        ) from None
+    scene_size = (
+        float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
+    )
     primary = effective_primary(source, primary)
-    return tier.make(source, primary, optics=optics, spot_blend=spot_blend,
-                     scene_size=scene_size, scene_bounds=scene_bounds,
-                     collimated_distance=collimated_distance,
-                     receiver_distance=receiver_distance)
+    return tier.make(
+        source,
+        primary,
+        optics=optics,
+        spot_blend=spot_blend,
+        scene_size=scene_size,
+        scene_bounds=scene_bounds,
+        collimated_distance=collimated_distance,
+        receiver_distance=receiver_distance,
+    )

@@ -45,6 +45,7 @@ blur the physics gives that receiver (SPEC §10), at the image ``|m|·r`` again.
 Other primaries (spot, sun, area: `addon.primaries`) reach the tiers as the point
 light that stands for them toward the lens (:func:`effective_primary`).
 """
+
 from __future__ import annotations
 
 import math
@@ -69,17 +70,23 @@ SPOT, POINT = "SPOT", "POINT"
 
 #: Render engines (`scene.render.engine`) as the panel and the README name them.
 CYCLES, EEVEE = "CYCLES", "BLENDER_EEVEE"
-ENGINE_NAMES = {CYCLES: "Cycles", EEVEE: "EEVEE", "BLENDER_EEVEE_NEXT": "EEVEE",
-                "BLENDER_WORKBENCH": "Workbench"}
+ENGINE_NAMES = {
+    CYCLES: "Cycles",
+    EEVEE: "EEVEE",
+    "BLENDER_EEVEE_NEXT": "EEVEE",
+    "BLENDER_WORKBENCH": "Workbench",
+}
 
 
 # --------------------------------------------------------------------------- inputs
 
+
 @dataclass(frozen=True)
 class PrimaryLight:
     """What the energy models need of the primary (point) light."""
-    power_w: float                   # Blender energy (× 2^exposure), W
-    radius: float = 0.0              # shadow_soft_size
+
+    power_w: float  # Blender energy (× 2^exposure), W
+    radius: float = 0.0  # shadow_soft_size
     color: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     @property
@@ -97,15 +104,19 @@ def effective_primary(source, primary: PrimaryLight) -> PrimaryLight:
     r = float(getattr(source, "source_radius", math.nan))
     if e == 1.0 and not math.isfinite(r):
         return primary
-    return PrimaryLight(power_w=primary.power_w * e,
-                        radius=r if math.isfinite(r) else primary.radius, color=primary.color)
+    return PrimaryLight(
+        power_w=primary.power_w * e,
+        radius=r if math.isfinite(r) else primary.radius,
+        color=primary.color,
+    )
 
 
 @dataclass(frozen=True)
 class LensOptics:
     """What the material adds to the sphere's geometry (see `material_model`)."""
-    transmission_weight: float = 1.0       # w (Principled's Transmission Weight …)
-    tint: tuple[float, float, float] = (1.0, 1.0, 1.0)        # colour of a path through the sphere
+
+    transmission_weight: float = 1.0  # w (Principled's Transmission Weight …)
+    tint: tuple[float, float, float] = (1.0, 1.0, 1.0)  # colour of a path through the sphere
     absorption: tuple[float, float, float] = (0.0, 0.0, 0.0)  # σ per length (Volume Absorption)
 
 
@@ -133,8 +144,11 @@ def unblocked_share(source) -> float:
 
 
 def non_full_note(source) -> list[str]:
-    return [] if source.full else [
-        f"non-full: energy × {unblocked_share(source):.4g} (unblocked share of the lit cap)"]
+    return (
+        []
+        if source.full
+        else [f"non-full: energy × {unblocked_share(source):.4g} (unblocked share of the lit cap)"]
+    )
 
 
 def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None):
@@ -149,8 +163,9 @@ def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None)
     return axis, R, D, wgt * wgt * unblocked_share(source), color, non_full_note(source)
 
 
-def lens_light_radius(source, primary: PrimaryLight, scene_size: float,
-                      receiver_distance: float | None = None) -> float:
+def lens_light_radius(
+    source, primary: PrimaryLight, scene_size: float, receiver_distance: float | None = None
+) -> float:
     """The radius of a lens light standing for `source`'s image (module docstring):
     ``r·z/D``, the blur ``z·r/D`` the physics gives a receiver ``z`` behind the lens
     centre (SPEC §10), with ``z`` the `receiver_distance` when known, else the
@@ -174,39 +189,47 @@ def downstream_reach(origin, axis, scene_bounds, fallback):
     if scene_bounds is None:
         return fallback
     lo, hi = ([float(x) for x in b] for b in scene_bounds)
-    return sum(max((lo_k - o) * a, (hi_k - o) * a)
-               for lo_k, hi_k, o, a in zip(lo, hi, origin, axis, strict=False))
+    return sum(
+        max((lo_k - o) * a, (hi_k - o) * a)
+        for lo_k, hi_k, o, a in zip(lo, hi, origin, axis, strict=False)
+    )
 
 
 # --------------------------------------------------------------------------- output
 
+
 @dataclass
 class BlenderLight:
     """One Blender light object, in world space."""
-    type: str                          # "SPOT"
-    energy_w: float                    # Light.energy
-    spot_size_deg: float               # Light.spot_size (full angle, within 1°–180°)
-    spot_blend: float                  # Light.spot_blend
-    radius: float                      # Light.shadow_soft_size
+
+    type: str  # "SPOT"
+    energy_w: float  # Light.energy
+    spot_size_deg: float  # Light.spot_size (full angle, within 1°–180°)
+    spot_blend: float  # Light.spot_blend
+    radius: float  # Light.shadow_soft_size
     location: tuple[float, float, float]
-    direction: tuple[float, float, float]   # unit; the light's local −Z
-    note: str = ""                     # what was approximated, for people
+    direction: tuple[float, float, float]  # unit; the light's local −Z
+    note: str = ""  # what was approximated, for people
     color: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    scale_xy: float = 1.0              # object scale in local x, y (narrows the cone)
-    cone_half_angle_deg: float = 0.0   # the cone actually made (after scale_xy)
-    cutoff_distance: float = 0.0       # EEVEE custom influence distance
-    kind: str = ""                     # "real" | "virtual" | "collimated"
+    scale_xy: float = 1.0  # object scale in local x, y (narrows the cone)
+    cone_half_angle_deg: float = 0.0  # the cone actually made (after scale_xy)
+    cutoff_distance: float = 0.0  # EEVEE custom influence distance
+    kind: str = ""  # "real" | "virtual" | "collimated"
     model: str = ""
     reference_irradiance: float = 0.0  # W/length², on the axis at the reference distance
-    relative_brightness: float = 0.0   # reference irradiance / primary's irradiance at the lens
+    relative_brightness: float = 0.0  # reference irradiance / primary's irradiance at the lens
     #: The light sits inside its lens: the lens must be out of its light and shadow
     #: linking (the builder always excludes it), else the lens swallows the light.
     inside_lens: bool = False
 
     def to_json(self) -> dict:
-        return {"type": self.type, "energy_w": self.energy_w,
-                "spot_size_deg": self.spot_size_deg, "spot_blend": self.spot_blend,
-                "radius": self.radius}
+        return {
+            "type": self.type,
+            "energy_w": self.energy_w,
+            "spot_size_deg": self.spot_size_deg,
+            "spot_blend": self.spot_blend,
+            "radius": self.radius,
+        }
 
 
 @dataclass
@@ -233,8 +256,9 @@ def cone_shape(half_angle_deg: float) -> ConeShape:
         theta = MIN_HALF_ANGLE_DEG
     full = 2.0 * theta
     if full > SPOT_SIZE_MAX_DEG:
-        return ConeShape(SPOT_SIZE_MAX_DEG, 1.0, 90.0,
-                         f"cone {full:.4g}° clamped to Blender's maximum 180°")
+        return ConeShape(
+            SPOT_SIZE_MAX_DEG, 1.0, 90.0, f"cone {full:.4g}° clamped to Blender's maximum 180°"
+        )
     if full >= SPOT_SIZE_MIN_DEG:
         return ConeShape(full, 1.0, theta, note)
     k = math.tan(math.radians(theta)) / math.tan(math.radians(0.5 * SPOT_SIZE_MIN_DEG))
@@ -244,14 +268,16 @@ def cone_shape(half_angle_deg: float) -> ConeShape:
 
 # --------------------------------------------------------------------------- registry entry
 
+
 @dataclass(frozen=True)
 class Accuracy:
     """A tier's figures in reports/accuracy.md: the relative L1 error of the
     irradiance over the lens's shadow disc against the exact optics, mean over
     receivers 0.5–10 R behind the lens, over the 15 cases with D ≥ 2R."""
+
     l1_mean: float
     l1_worst: float
-    l1_median: float | None = None     # given where the mean is dominated by a few cases
+    l1_median: float | None = None  # given where the mean is dominated by a few cases
 
 
 #: ``make(source, primary, *, optics, spot_blend, scene_size, scene_bounds,
@@ -267,6 +293,7 @@ class Tier:
     ``description``: the setting's tooltip; ``trades``: one line on what it trades
     (the panel, the README's table); ``engines``: where it renders; ``number``: the
     enum number a .blend stores (fixed: files must keep their choice)."""
+
     name: str
     label: str
     description: str

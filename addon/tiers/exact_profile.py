@@ -23,6 +23,7 @@ either, and the report measures it too.
 The Blender side — the image and the light node tree that reads it — is
 ``operators/light_builder.build_profile_nodes`` (the one description of it).
 """
+
 from __future__ import annotations
 
 import functools
@@ -73,6 +74,8 @@ def table_geometry(receiver: float | None) -> tuple[float, float, float]:
     if receiver is not None and receiver < NEAR_RECEIVER:
         return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
     return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+
+
 #: Largest angle from the axis the table covers (degrees).
 PROFILE_GAMMA_MAX_DEG = 90.0
 
@@ -96,10 +99,10 @@ class BeamProfile:
     gamma_max_deg: float
     h_min: float
     h_max: float
-    table: np.ndarray = field(repr=False)          # (M, K)
-    flux: float = 0.0                              # the beam's flux (W per W/sr of the primary)
+    table: np.ndarray = field(repr=False)  # (M, K)
+    flux: float = 0.0  # the beam's flux (W per W/sr of the primary)
     angular_apex: float = 0.0
-    angular: np.ndarray = field(default=None, repr=False)   # (K,)
+    angular: np.ndarray = field(default=None, repr=False)  # (K,)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -140,9 +143,17 @@ def _profile_nodes(intensity_bins: np.ndarray) -> np.ndarray:
     return out
 
 
-def exact_profile(D_over_R: float, n: float, absorption: float = 0.0, *, n_fan: int = 8000,
-                  K: int = PROFILE_ANGLES, M: int = PROFILE_DISTANCES,
-                  receivers=FIT_RECEIVERS, near: bool = False) -> BeamProfile:
+def exact_profile(
+    D_over_R: float,
+    n: float,
+    absorption: float = 0.0,
+    *,
+    n_fan: int = 8000,
+    K: int = PROFILE_ANGLES,
+    M: int = PROFILE_DISTANCES,
+    receivers=FIT_RECEIVERS,
+    near: bool = False,
+) -> BeamProfile:
     """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
     near field's, its apex at the lens centre (`table_geometry`)."""
     beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
@@ -150,8 +161,9 @@ def exact_profile(D_over_R: float, n: float, absorption: float = 0.0, *, n_fan: 
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
     apex, h_min, h_max = table_geometry(0.0 if near else None)
-    prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max,
-                       np.zeros((M, K)), flux=beam.lens_flux)
+    prof = BeamProfile(
+        apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)), flux=beam.lens_flux
+    )
     for j, h in enumerate(prof.distances):
         rf = beam.receiver(apex + h)
         prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
@@ -270,12 +282,14 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
     return {
         # (height, width), row 0 = v at the bottom
         "pixels": (prof.table / t_ref).astype(np.float32),
-        "width": prof.table.shape[1], "height": prof.table.shape[0],
+        "width": prof.table.shape[1],
+        "height": prof.table.shape[0],
         "gamma_max_deg": prof.gamma_max_deg,
-        "h_min": prof.h_min * R, "h_max": prof.h_max * R,    # world units
+        "h_min": prof.h_min * R,
+        "h_max": prof.h_max * R,  # world units
         "strength_scale": 1.0,
         "angles_deg": prof.angles_deg.tolist(),
-        "angular_relative": ang.tolist(),          # 1-D profile / (energy/4π), about angular_apex
+        "angular_relative": ang.tolist(),  # 1-D profile / (energy/4π), about angular_apex
         "angular_apex_location": tuple(float(v) for v in center + prof.angular_apex * R * axis),
         # Lights with equal keys have equal pixels (one image may serve them all);
         # None for a table passed in.
@@ -283,9 +297,16 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
     }
 
 
-def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
-                       scene_size: float = 1.0, profile: BeamProfile | None = None,
-                       receiver_distance: float | None = None, **_ignored) -> ProfileLight:
+def make_profile_light(
+    source,
+    primary: PrimaryLight,
+    *,
+    optics: LensOptics | None = None,
+    scene_size: float = 1.0,
+    profile: BeamProfile | None = None,
+    receiver_distance: float | None = None,
+    **_ignored,
+) -> ProfileLight:
     """The EXACT_PROFILE tier's light: a 180° spot (blend 0) just behind the back
     pole, or for a receiver nearer than ``NEAR_RECEIVER`` at the lens centre
     (``inside_lens``: the lens is out of its linking), whose emission is
@@ -310,53 +331,88 @@ def make_profile_light(source, primary: PrimaryLight, *, optics: LensOptics | No
     # power, not by the peak of its caustic.
     t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
     I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
-    near = receiver_distance is not None and \
-        table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
+    near = (
+        receiver_distance is not None
+        and table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
+    )
     apex = profile.apex if profile is not None else table_geometry(0.0 if near else None)[0]
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
     if near:
-        notes.append(f"near field: light at the lens centre (receiver "
-                     f"{float(receiver_distance) / R:.4g} R from it)")
-    irradiance = primary.intensity * scale * e_ref / R ** 2
-    primary_irr = primary.intensity / D ** 2
+        notes.append(
+            f"near field: light at the lens centre (receiver "
+            f"{float(receiver_distance) / R:.4g} R from it)"
+        )
+    irradiance = primary.intensity * scale * e_ref / R**2
+    primary_irr = primary.intensity / D**2
     if profile is not None:
         maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
+
         def maker():
-            return _profile_dict(_cached_profile(*key, near), t_ref, R, center, axis,
-                                 f"D/R {key[0]:.9g} n {key[1]:.9g}" + (" near" if near else ""))
+            return _profile_dict(
+                _cached_profile(*key, near),
+                t_ref,
+                R,
+                center,
+                axis,
+                f"D/R {key[0]:.9g} n {key[1]:.9g}" + (" near" if near else ""),
+            )
+
         shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
         info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(0.0 if near else None)[1:])
-    profile_info = {"gamma_max_deg": info[0], "h_min": info[1] * R, "h_max": info[2] * R,
-                    "width": shape[1], "height": shape[0], "strength_scale": 1.0}
+    profile_info = {
+        "gamma_max_deg": info[0],
+        "h_min": info[1] * R,
+        "h_max": info[2] * R,
+        "width": shape[1],
+        "height": shape[0],
+        "strength_scale": 1.0,
+    }
     return ProfileLight(
-        type=SPOT, energy_w=float(4.0 * math.pi * I_ref), spot_size_deg=180.0, spot_blend=0.0,
+        type=SPOT,
+        energy_w=float(4.0 * math.pi * I_ref),
+        spot_size_deg=180.0,
+        spot_blend=0.0,
         radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
-        location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
-        note="; ".join(notes), color=color, scale_xy=1.0, cone_half_angle_deg=90.0,
-        cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))), kind=source.kind,
-        model=NAME, reference_irradiance=float(irradiance),
+        location=tuple(float(v) for v in location),
+        direction=tuple(float(v) for v in axis),
+        note="; ".join(notes),
+        color=color,
+        scale_xy=1.0,
+        cone_half_angle_deg=90.0,
+        cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))),
+        kind=source.kind,
+        model=NAME,
+        reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
-        profile_info=profile_info, _profile_maker=maker, inside_lens=bool(apex < 1.0),
+        profile_info=profile_info,
+        _profile_maker=maker,
+        inside_lens=bool(apex < 1.0),
     )
 
 
-
-def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distance=None,
-               **_ignored):
-    return make_profile_light(source, primary, optics=optics, scene_size=scene_size,
-                              receiver_distance=receiver_distance)
+def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distance=None, **_ignored):
+    return make_profile_light(
+        source, primary, optics=optics, scene_size=scene_size, receiver_distance=receiver_distance
+    )
 
 
 ACCURACY = Accuracy(0.024, 0.080)
 TIER = Tier(
-    name=NAME, label="Exact profile (Cycles)",
-    description=("The exact beam tabulated over angle and distance in a light node tree: "
-                 "Cycles only, EEVEE gets Fitted lights instead "
-                 f"(relative L1 error {ACCURACY.l1_mean:.2g} for D ≥ 2R)"),
+    name=NAME,
+    label="Exact profile (Cycles)",
+    description=(
+        "The exact beam tabulated over angle and distance in a light node tree: "
+        "Cycles only, EEVEE gets Fitted lights instead "
+        f"(relative L1 error {ACCURACY.l1_mean:.2g} for D ≥ 2R)"
+    ),
     trades="Exact beam tabulated over angle and distance; Cycles only (light nodes)",
-    engines=(CYCLES,), accuracy=ACCURACY, number=3, make=make_light)
+    engines=(CYCLES,),
+    accuracy=ACCURACY,
+    number=3,
+    make=make_light,
+)

@@ -12,6 +12,7 @@ apex's distance before the first receiver (``1.5 R`` behind the centre), the
 spot's on-axis irradiance there relative to the primary's at the lens, the
 cone's radius there, and the blend.
 """
+
 from __future__ import annotations
 
 import functools
@@ -43,8 +44,9 @@ from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS, SUN_DISTANCE, SpotFit, fit_
 NAME = "FITTED"
 
 #: The grid of the table: x = R/D (rows) and the index of refraction (columns).
-TABLE_X = tuple(float(x) for x in np.round(
-    np.concatenate([[0.0, 0.02], np.arange(0.05, 0.951, 0.05)]), 4))
+TABLE_X = tuple(
+    float(x) for x in np.round(np.concatenate([[0.0, 0.02], np.arange(0.05, 0.951, 0.05)]), 4)
+)
 TABLE_N = (1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0)
 #: Written by bench/make_fitted_table.py: {"x", "n", and per quantity a row per x}.
 TABLE_FILE = Path(__file__).with_name("fitted_table.json")
@@ -57,6 +59,7 @@ class FittedTable:
     irradiance at the first receiver / the primary's irradiance at the lens
     centre, ``RCONE`` = cone radius there (R), ``BLEND`` = spot_blend, ``L1`` =
     the fit's mean L1 error over ``FIT_RECEIVERS``."""
+
     X: np.ndarray
     N: np.ndarray
     W: np.ndarray
@@ -84,8 +87,9 @@ def fitted_spot(D_over_R: float, n: float) -> tuple[SpotFit, str]:
     D_over_R = math.inf if x == 0.0 else float(D_over_R)
     note = []
     if x > xs[-1]:
-        note.append(f"light at {D_over_R:.4g} R: nearer than the table's "
-                    f"{1 / xs[-1]:.4g} R, clamped")
+        note.append(
+            f"light at {D_over_R:.4g} R: nearer than the table's {1 / xs[-1]:.4g} R, clamped"
+        )
         x = xs[-1]
     if not ns[0] <= n <= ns[-1]:
         note.append(f"n = {n:.4g} outside the table's {ns[0]:g}–{ns[-1]:g}, clamped")
@@ -98,13 +102,21 @@ def fitted_spot(D_over_R: float, n: float) -> tuple[SpotFit, str]:
     LE, LR, B = np.log(np.asarray(t.E)), np.log(np.asarray(t.RCONE)), np.asarray(t.BLEND)
 
     def lerp(A):
-        return ((1 - u) * (1 - v) * A[i, j] + u * (1 - v) * A[i + 1, j]
-                + (1 - u) * v * A[i, j + 1] + u * v * A[i + 1, j + 1])
-    fit = SpotFit.from_invariants(D_over_R if math.isfinite(D_over_R) else SUN_DISTANCE, lerp(W),
-                                  math.exp(lerp(LE)), math.exp(lerp(LR)), lerp(B))
+        return (
+            (1 - u) * (1 - v) * A[i, j]
+            + u * (1 - v) * A[i + 1, j]
+            + (1 - u) * v * A[i, j + 1]
+            + u * v * A[i + 1, j + 1]
+        )
+
+    fit = SpotFit.from_invariants(
+        D_over_R if math.isfinite(D_over_R) else SUN_DISTANCE,
+        lerp(W),
+        math.exp(lerp(LE)),
+        math.exp(lerp(LR)),
+        lerp(B),
+    )
     return fit, "; ".join(note)
-
-
 
 
 def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
@@ -119,14 +131,26 @@ def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
     r = d_old * math.tan(math.radians(fit.half_angle_deg))
     z_ref = 1.0 + FIT_RECEIVERS[len(FIT_RECEIVERS) // 2]
     k = fit.intensity * ((z_ref - apex) / (z_ref - fit.apex)) ** 2
-    return SpotFit(apex=apex, intensity=k, half_angle_deg=math.degrees(math.atan2(r, d_new)),
-                   blend=fit.blend, l1=float("nan"))
+    return SpotFit(
+        apex=apex,
+        intensity=k,
+        half_angle_deg=math.degrees(math.atan2(r, d_new)),
+        blend=fit.blend,
+        l1=float("nan"),
+    )
 
 
-def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | None = None,
-                      scene_size: float = 1.0, direct: bool = False,
-                      collimated_distance: float | None = None,
-                      receiver_distance: float | None = None, **_ignored) -> BlenderLight:
+def make_fitted_light(
+    source,
+    primary: PrimaryLight,
+    *,
+    optics: LensOptics | None = None,
+    scene_size: float = 1.0,
+    direct: bool = False,
+    collimated_distance: float | None = None,
+    receiver_distance: float | None = None,
+    **_ignored,
+) -> BlenderLight:
     """The FITTED tier's Blender light for ``source``: a spot on the lens's axis at
     ``lens_center + apex R axis``, shining along the axis.  ``direct``: fit now
     (about 0.3 s) instead of interpolating the shipped table.  Energy: the fit's
@@ -151,9 +175,11 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
     if collimated_distance:
         pulled = pull_in(fit, float(collimated_distance) / R)
         if pulled is not fit:
-            notes.append(f"spot pulled in from {(1.0 - fit.apex) * R:.4g} to "
-                         f"{(1.0 - pulled.apex) * R:.4g} behind the back vertex "
-                         "(geometry behind the lens)")
+            notes.append(
+                f"spot pulled in from {(1.0 - fit.apex) * R:.4g} to "
+                f"{(1.0 - pulled.apex) * R:.4g} behind the back vertex "
+                "(geometry behind the lens)"
+            )
             fit = pulled
     z_recv = float(receiver_distance) / R if receiver_distance else None
     if is_near(z_recv, fit.apex):
@@ -167,38 +193,63 @@ def make_fitted_light(source, primary: PrimaryLight, *, optics: LensOptics | Non
     reach = abs(fit.apex) * R + float(scene_size or 1.0)
     energy = primary.power_w * fit.intensity * scale
     d_ref = (1.0 + FIRST_RECEIVER - fit.apex) * R
-    irradiance = primary.intensity * fit.intensity * scale / d_ref ** 2
-    primary_irr = primary.intensity / D ** 2
+    irradiance = primary.intensity * fit.intensity * scale / d_ref**2
+    primary_irr = primary.intensity / D**2
     return BlenderLight(
-        type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
+        type=SPOT,
+        energy_w=float(energy),
+        spot_size_deg=float(shape.spot_size_deg),
         spot_blend=float(min(max(fit.blend, 0.0), 1.0)),
         radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
-        location=tuple(float(v) for v in location), direction=tuple(float(v) for v in axis),
-        note="; ".join(notes), color=color, scale_xy=float(shape.scale_xy),
+        location=tuple(float(v) for v in location),
+        direction=tuple(float(v) for v in axis),
+        note="; ".join(notes),
+        color=color,
+        scale_xy=float(shape.scale_xy),
         cone_half_angle_deg=float(shape.half_angle_deg),
-        cutoff_distance=float(CUTOFF_FACTOR * reach), kind=source.kind, model=NAME,
+        cutoff_distance=float(CUTOFF_FACTOR * reach),
+        kind=source.kind,
+        model=NAME,
         reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
         inside_lens=bool(fit.apex < 1.0),
     )
 
 
-
-def make_light(source, primary, *, optics=None, scene_size=1.0, collimated_distance=None,
-               receiver_distance=None, **_ignored):
+def make_light(
+    source,
+    primary,
+    *,
+    optics=None,
+    scene_size=1.0,
+    collimated_distance=None,
+    receiver_distance=None,
+    **_ignored,
+):
     """The registry's maker: a fitted spot stays within the beams' distance
     behind the lens (the operator's free distance, else the default) and before
     the receiver (`receiver_distance`)."""
     return make_fitted_light(
-        source, primary, optics=optics, scene_size=scene_size,
+        source,
+        primary,
+        optics=optics,
+        scene_size=scene_size,
         collimated_distance=collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size,
-        receiver_distance=receiver_distance)
+        receiver_distance=receiver_distance,
+    )
 
 
 ACCURACY = Accuracy(0.50, 0.79)
 TIER = Tier(
-    name=NAME, label="Fitted",
-    description=("One spot fitted to the exact beam: EEVEE and Cycles; its own cone and blend "
-                 f"(relative L1 error {ACCURACY.l1_mean:.2f} for D ≥ 2R)"),
+    name=NAME,
+    label="Fitted",
+    description=(
+        "One spot fitted to the exact beam: EEVEE and Cycles; its own cone and blend "
+        f"(relative L1 error {ACCURACY.l1_mean:.2f} for D ≥ 2R)"
+    ),
     trades="One spot fitted to the exact beam; cannot converge to the focus (EEVEE-safe)",
-    engines=(EEVEE, CYCLES), accuracy=ACCURACY, number=2, make=make_light)
+    engines=(EEVEE, CYCLES),
+    accuracy=ACCURACY,
+    number=2,
+    make=make_light,
+)

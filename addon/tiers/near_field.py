@@ -16,6 +16,7 @@ light on it:
 EXACT_PROFILE needs none of this: its apex is the lens centre and its table
 covers every plane the beam reaches.
 """
+
 from __future__ import annotations
 
 import functools
@@ -43,8 +44,7 @@ FLUX_WEIGHT = 0.5
 def is_near(receiver: float | None, apex: float) -> bool:
     """Whether a spot whose apex is `apex` (R from the centre) needs the receiver
     fit for a receiver at `receiver` (R from the centre; None: unknown)."""
-    return receiver is not None and (receiver <= NEAR_FIELD
-                                     or apex > receiver - APEX_CLEARANCE)
+    return receiver is not None and (receiver <= NEAR_FIELD or apex > receiver - APEX_CLEARANCE)
 
 
 @functools.lru_cache(maxsize=512)
@@ -83,8 +83,9 @@ def receiver_fit(D_over_R: float, n: float, Z: float, n_fan: int = 8000) -> Spot
                 if A > 0.0:
                     s = (a - APEX_MIN) / (top - APEX_MIN)
                     s = min(max(s, 1e-3), 1.0 - 1e-3)
-                    x = np.array([math.log(s / (1.0 - s)),
-                                  math.log(ob.total[0] / (2.0 * math.pi * A)), H, b])
+                    x = np.array(
+                        [math.log(s / (1.0 - s)), math.log(ob.total[0] / (2.0 * math.pi * A)), H, b]
+                    )
                     starts.append((f(x), x))
     starts.sort(key=lambda s: s[0])
     best_x, best_f = starts[0][1], starts[0][0]

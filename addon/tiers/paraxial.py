@@ -28,6 +28,7 @@ The reference irradiance of a light (for the brightness cut-off): a cone's
 on-axis irradiance at ``|1/V|`` beyond its apex (for PHYSICAL ``T(0)`` times the
 primary's irradiance at the lens), a beam's at ``L_ref``.
 """
+
 from __future__ import annotations
 
 import math
@@ -53,13 +54,15 @@ class EnergyModel(Protocol):
     def cone_intensity(self, source, primary: PrimaryLight, optics: LensOptics) -> float:
         """On-axis radiant intensity (W/sr) of a cone seen from its apex."""
 
-    def beam_irradiance(self, source, primary: PrimaryLight, optics: LensOptics,
-                        reference_distance: float) -> float:
+    def beam_irradiance(
+        self, source, primary: PrimaryLight, optics: LensOptics, reference_distance: float
+    ) -> float:
         """On-axis irradiance (W/length²) of a collimated beam, at
         `reference_distance` beyond the back vertex (on a plane across the beam)."""
 
-    def color(self, source, primary: PrimaryLight,
-              optics: LensOptics) -> tuple[float, float, float]:
+    def color(
+        self, source, primary: PrimaryLight, optics: LensOptics
+    ) -> tuple[float, float, float]:
         """Colour of the Blender light (0–1 per channel)."""
 
 
@@ -71,15 +74,27 @@ def is_beyond_scene(source, scene_bounds, scene_size) -> bool:
     """A real image beyond everything in the scene: drawn as a beam (the rule of
     `make_paraxial_light`)."""
     z = float(source.image_distance)
-    return downstream_reach(source.position, source.axis, scene_bounds,
-                            scene_size - (z - float(source.lens_radius))) <= 0.0
+    return (
+        downstream_reach(
+            source.position, source.axis, scene_bounds, scene_size - (z - float(source.lens_radius))
+        )
+        <= 0.0
+    )
 
 
-def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel, name: str, *,
-                        optics: LensOptics | None = None,
-                        spot_blend: float = DEFAULT_SPOT_BLEND, scene_size: float = 1.0,
-                        scene_bounds=None, collimated_distance: float | None = None,
-                        receiver_distance: float | None = None) -> BlenderLight:
+def make_paraxial_light(
+    source,
+    primary: PrimaryLight,
+    energy_model: EnergyModel,
+    name: str,
+    *,
+    optics: LensOptics | None = None,
+    spot_blend: float = DEFAULT_SPOT_BLEND,
+    scene_size: float = 1.0,
+    scene_bounds=None,
+    collimated_distance: float | None = None,
+    receiver_distance: float | None = None,
+) -> BlenderLight:
     """The light of tier `name` whose brightness is `energy_model`'s.
 
     Which representation (`BlenderLight.note` says):
@@ -111,19 +126,24 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
     unblocked = unblocked_share(source)
     color = energy_model.color(source, primary, optics)
     notes = []
-    primary_irradiance = primary.intensity / source.distance ** 2   # at the lens centre
-    s_far = (float(collimated_distance) if collimated_distance
-             else COLLIMATED_DISTANCE_FACTOR * scene_size)
+    primary_irradiance = primary.intensity / source.distance**2  # at the lens centre
+    s_far = (
+        float(collimated_distance)
+        if collimated_distance
+        else COLLIMATED_DISTANCE_FACTOR * scene_size
+    )
     s_far = max(s_far, 1e-6 * scene_size)
     back_vertex = [c + radius_lens * a for c, a in zip(center, axis, strict=True)]
 
     if source.kind == "collimated":
         beam = True
     else:
-        z_img = float(source.image_distance)             # signed, from the centre
+        z_img = float(source.image_distance)  # signed, from the centre
         if source.kind == "real":
-            beam = downstream_reach(position, axis, scene_bounds,
-                                    scene_size - (z_img - radius_lens)) <= 0.0
+            beam = (
+                downstream_reach(position, axis, scene_bounds, scene_size - (z_img - radius_lens))
+                <= 0.0
+            )
             why = "real image beyond the scene"
         else:
             beam = abs(z_img) > s_far
@@ -131,44 +151,56 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
 
     # Knowing the receiver, a real image beyond it is a cone pulled in before it
     # (the beam stands for the same converging light when the receiver is not known).
-    near = (source.kind == "real" and receiver_distance is not None
-            and z_img > float(receiver_distance) - APEX_CLEARANCE * radius_lens)
+    near = (
+        source.kind == "real"
+        and receiver_distance is not None
+        and z_img > float(receiver_distance) - APEX_CLEARANCE * radius_lens
+    )
     inside = False
     if near:
         z_r = float(receiver_distance)
         half, factor = pulled_in_cone(z_img, math.radians(source.spread_deg), z_r)
         shape = cone_shape(math.degrees(half))
-        intensity = (energy_model.cone_intensity(source, primary, optics) * unblocked
-                     * flux_keeping_factor(math.radians(source.spread_deg),
-                                           math.radians(shape.half_angle_deg)))
-        irradiance = intensity / z_r ** 2
+        intensity = (
+            energy_model.cone_intensity(source, primary, optics)
+            * unblocked
+            * flux_keeping_factor(
+                math.radians(source.spread_deg), math.radians(shape.half_angle_deg)
+            )
+        )
+        irradiance = intensity / z_r**2
         location = center
         radius = primary.radius * z_r / source.distance
         reach_total = scene_size
         inside = True
-        notes.append(f"near field: image {z_img:.4g} beyond the receiver {z_r:.4g} from the "
-                     "centre; cone pulled in to the lens centre, flux kept")
+        notes.append(
+            f"near field: image {z_img:.4g} beyond the receiver {z_r:.4g} from the "
+            "centre; cone pulled in to the lens centre, flux kept"
+        )
     elif beam:
         # Reference: half-way along the scene's reach beyond the back vertex.
         reach = downstream_reach(back_vertex, axis, scene_bounds, scene_size)
-        l_ref = (0.5 * min(max(reach, 0.0), scene_size) if scene_bounds is not None
-                 else 0.5 * scene_size)
+        l_ref = (
+            0.5 * min(max(reach, 0.0), scene_size) if scene_bounds is not None else 0.5 * scene_size
+        )
         if source.kind == "collimated":
             width = float(source.cylinder_radius or 0.0)
-            irradiance = energy_model.beam_irradiance(source, primary, optics,
-                                                      max(l_ref, 1e-9 * scene_size))
+            irradiance = energy_model.beam_irradiance(
+                source, primary, optics, max(l_ref, 1e-9 * scene_size)
+            )
             notes.append(f"collimated beam R_C={width:.4g}")
         else:
             width = math.tan(math.radians(source.spread_deg)) * abs(z_img - radius_lens)
-            irradiance = (energy_model.cone_intensity(source, primary, optics)
-                          / (z_img - (radius_lens + l_ref)) ** 2)
+            irradiance = (
+                energy_model.cone_intensity(source, primary, optics)
+                / (z_img - (radius_lens + l_ref)) ** 2
+            )
             notes.append(f"{why}: beam of radius {width:.4g}")
         irradiance *= unblocked
         shape = cone_shape(math.degrees(math.atan2(width, s_far)))
         intensity = irradiance * (s_far + l_ref) ** 2
         location = [p - s_far * a for p, a in zip(back_vertex, axis, strict=True)]
-        z_blur = (float(receiver_distance) if receiver_distance
-                  else radius_lens + max(l_ref, 0.0))
+        z_blur = float(receiver_distance) if receiver_distance else radius_lens + max(l_ref, 0.0)
         radius = z_blur * primary.radius / source.distance
         reach_total = s_far + scene_size
         notes.append(f"spot {s_far:.4g} behind the back vertex")
@@ -176,7 +208,7 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
         shape = cone_shape(source.spread_deg)
         intensity = energy_model.cone_intensity(source, primary, optics) * unblocked
         z_ref = abs(z_img)
-        irradiance = intensity / z_ref ** 2 if z_ref > 0 else math.inf
+        irradiance = intensity / z_ref**2 if z_ref > 0 else math.inf
         location = position
         radius = abs(source.magnification) * primary.radius
         reach_total = math.dist(position, center) + scene_size
@@ -186,14 +218,23 @@ def make_paraxial_light(source, primary: PrimaryLight, energy_model: EnergyModel
 
     energy = 4.0 * math.pi * intensity
     return BlenderLight(
-        type=SPOT, energy_w=float(energy), spot_size_deg=float(shape.spot_size_deg),
-        spot_blend=float(min(max(spot_blend, 0.0), 1.0)), radius=float(radius),
-        location=_vec(location), direction=_vec(axis), note="; ".join(notes),
-        color=color, scale_xy=float(shape.scale_xy),
+        type=SPOT,
+        energy_w=float(energy),
+        spot_size_deg=float(shape.spot_size_deg),
+        spot_blend=float(min(max(spot_blend, 0.0), 1.0)),
+        radius=float(radius),
+        location=_vec(location),
+        direction=_vec(axis),
+        note="; ".join(notes),
+        color=color,
+        scale_xy=float(shape.scale_xy),
         cone_half_angle_deg=float(shape.half_angle_deg),
-        cutoff_distance=float(CUTOFF_FACTOR * reach_total), kind=source.kind, model=name,
+        cutoff_distance=float(CUTOFF_FACTOR * reach_total),
+        kind=source.kind,
+        model=name,
         reference_irradiance=float(irradiance),
-        relative_brightness=(float(irradiance / primary_irradiance)
-                             if primary_irradiance > 0 else 0.0),
+        relative_brightness=(
+            float(irradiance / primary_irradiance) if primary_irradiance > 0 else 0.0
+        ),
         inside_lens=inside,
     )

@@ -4,6 +4,7 @@ point, with the head-on Fresnel transmission of both surfaces
 ``T(0) = (4n/(n + 1)²)²``, the square of the material's transmission weight (it
 applies at entry and at exit) and, in the colour, the tint of a path through the
 sphere (`material_model`) and Beer–Lambert absorption over the axial chord ``2R``."""
+
 from __future__ import annotations
 
 from .base import CYCLES, EEVEE, Accuracy, Tier, glass_color, head_on_transmission
@@ -24,7 +25,7 @@ class PhysicalModel:
     def beam_irradiance(self, source, primary, optics, reference_distance):
         # Paraxial rays leave parallel: dA = D² dΩ, so E = I0 T(0) / D²
         # (the limit of I0 T(0) m² / z² at the image's distance z = 1/V).
-        return primary.intensity * self._throughput(source, optics) / source.distance ** 2
+        return primary.intensity * self._throughput(source, optics) / source.distance**2
 
     def color(self, source, primary, optics):
         return glass_color(source, primary, optics)
@@ -38,7 +39,12 @@ def make_light(source, primary, **kwargs):
 
 
 TIER = Tier(
-    name=NAME, label="Physical",
+    name=NAME,
+    label="Physical",
     description="Flux-conserving: on-axis intensity I0·T(0)·m², tint and absorption of the glass",
     trades="Paraxial cone with the exact on-axis intensity; misses the halo and the near beam",
-    engines=(EEVEE, CYCLES), accuracy=Accuracy(0.87, 1.02), number=1, make=make_light)
+    engines=(EEVEE, CYCLES),
+    accuracy=Accuracy(0.87, 1.02),
+    number=1,
+    make=make_light,
+)

@@ -12,6 +12,7 @@ A point-like light can only make a beam that widens with distance; the true beam
 converges to a focus first (and has a bright core in a wide halo). No spot can
 reproduce that: the error is what the fit trades for working in EEVEE.
 """
+
 from __future__ import annotations
 
 import math
@@ -32,6 +33,7 @@ SUN_DISTANCE = 1e6
 #: receiver, its half-angle at least this (degrees).
 FIT_MAX_DISTANCE = 1e3
 FIT_MIN_HALF_ANGLE_DEG = 0.01
+
 
 @dataclass(frozen=True)
 class SpotFit:
@@ -58,18 +60,31 @@ class SpotFit:
         cone's radius there, ``d tan H`` (R).  All finite for a sun and for a
         collimated beam."""
         d = 1.0 + FIRST_RECEIVER - self.apex
-        return (1.0 / d, self.intensity * (D_over_R / d) ** 2,
-                d * math.tan(math.radians(self.half_angle_deg)), self.blend)
+        return (
+            1.0 / d,
+            self.intensity * (D_over_R / d) ** 2,
+            d * math.tan(math.radians(self.half_angle_deg)),
+            self.blend,
+        )
 
     @classmethod
     def from_invariants(cls, D_over_R, w, e, r, b, l1=float("nan")) -> SpotFit:
         d = 1.0 / w
-        return cls(apex=1.0 + FIRST_RECEIVER - d, intensity=e * (d / D_over_R) ** 2,
-                   half_angle_deg=math.degrees(math.atan2(r, d)), blend=b, l1=l1)
+        return cls(
+            apex=1.0 + FIRST_RECEIVER - d,
+            intensity=e * (d / D_over_R) ** 2,
+            half_angle_deg=math.degrees(math.atan2(r, d)),
+            blend=b,
+            l1=l1,
+        )
 
     def model(self, R=1.0, I0=1.0) -> acc.AxialSpot:
-        return acc.AxialSpot(apex=self.apex * R, intensity=self.intensity * I0,
-                             half_angle=math.radians(self.half_angle_deg), blend=self.blend)
+        return acc.AxialSpot(
+            apex=self.apex * R,
+            intensity=self.intensity * I0,
+            half_angle=math.radians(self.half_angle_deg),
+            blend=self.blend,
+        )
 
 
 class _SpotObjective:
@@ -114,8 +129,12 @@ class _SpotObjective:
 
     def __call__(self, x) -> float:
         self.evaluations += 1
-        if (not all(math.isfinite(v) for v in x)
-                or abs(x[0]) > 40 or abs(x[1]) > 80 or abs(x[2]) > 40):
+        if (
+            not all(math.isfinite(v) for v in x)
+            or abs(x[0]) > 40
+            or abs(x[1]) > 80
+            or abs(x[2]) > 40
+        ):
             return 10.0
         return float(np.mean(self.l1(*self.unpack(x))))
 
@@ -192,4 +211,3 @@ def fit_spot(D_over_R: float, n: float, receivers=FIT_RECEIVERS, n_fan: int = 80
             best_x, best_f = x, fx
     apex, k, H, b = ob.unpack(best_x)
     return SpotFit(apex=apex, intensity=k, half_angle_deg=math.degrees(H), blend=b, l1=best_f)
-

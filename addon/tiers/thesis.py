@@ -1,6 +1,7 @@
 """THESIS: the thesis' eq. 5.22. The secondary source is a paraxial cone (or
 beam, :mod:`.paraxial`) of intensity ``I0 · exp(−(1 − kt)(2R + TR)/2)``
 (``I0 = P/(4π)``) in the primary's colour: no concentration of flux."""
+
 from __future__ import annotations
 
 from .base import CYCLES, EEVEE, Accuracy, Tier
@@ -15,7 +16,7 @@ class ThesisModel:
 
     def beam_irradiance(self, source, primary, optics, reference_distance):
         # The thesis uses the cylinder like a point light at the back vertex.
-        return primary.intensity * source.brightness_factor / reference_distance ** 2
+        return primary.intensity * source.brightness_factor / reference_distance**2
 
     def color(self, source, primary, optics):
         return tuple(float(c) for c in primary.color)
@@ -29,8 +30,12 @@ def make_light(source, primary, **kwargs):
 
 
 TIER = Tier(
-    name=NAME, label="Thesis",
+    name=NAME,
+    label="Thesis",
     description="Eq. 5.22: the primary's power × the absorption factor, no concentration of flux",
     trades="Thesis eq. 5.22: paraxial cone, no flux concentration; far off for distant lights",
-    engines=(EEVEE, CYCLES), accuracy=Accuracy(187.0, 2243.0, l1_median=1.1), number=0,
-    make=make_light)
+    engines=(EEVEE, CYCLES),
+    accuracy=Accuracy(187.0, 2243.0, l1_median=1.1),
+    number=0,
+    make=make_light,
+)
