@@ -259,7 +259,9 @@ class _Reader:
         return tuple(self.number(rec, n, t) for n, t in zip(rec.args, self.take(rec), strict=False))
 
     def ints(self, rec: Rec) -> tuple[int, ...]:
-        return tuple(self.integer(rec, n, t) for n, t in zip(rec.args, self.take(rec), strict=False))
+        return tuple(
+            self.integer(rec, n, t) for n, t in zip(rec.args, self.take(rec), strict=False)
+        )
 
     def color(self, rec: Rec, store: Callable[[tuple], None], what: str = "") -> None:
         """Check a colour now; convert it once the whole file's scale is known."""
@@ -629,16 +631,22 @@ class _Writer:
 
     def record(self, rec: Rec, values, comment: str = "") -> None:
         texts = [
-            _float_text(self.value(rec, n, v)) for n, v in zip(rec.args, self.sized(rec, values), strict=False)
+            _float_text(self.value(rec, n, v))
+            for n, v in zip(rec.args, self.sized(rec, values), strict=False)
         ]
         self.emit(rec, texts, comment)
 
     def int_record(self, rec: Rec, values, comment: str = "") -> None:
-        texts = [str(self.integer(rec, n, v)) for n, v in zip(rec.args, self.sized(rec, values), strict=False)]
+        texts = [
+            str(self.integer(rec, n, v))
+            for n, v in zip(rec.args, self.sized(rec, values), strict=False)
+        ]
         self.emit(rec, texts, comment)
 
     def color(self, rec: Rec, values, scale: float) -> None:
-        values = [self.value(rec, n, v) for n, v in zip(rec.args, self.sized(rec, values), strict=False)]
+        values = [
+            self.value(rec, n, v) for n, v in zip(rec.args, self.sized(rec, values), strict=False)
+        ]
         texts = [_color_text(v, scale) for v in values]
         for name, text, v in zip(rec.args, texts, values, strict=False):
             if not math.isfinite(float(text)):  # v * 255 beyond the largest double

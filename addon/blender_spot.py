@@ -176,15 +176,15 @@ def profile_flux_within_angle(gammas, intensities, gamma):
     """Flux (W) within angle ``gamma`` (array-like, radians) of the axis of a light
     whose radiant intensity (W/sr) is linear in the angle between the table's nodes
     ``gammas`` (increasing, from 0) with values ``intensities``, and 0 beyond the
-    last node.  Exact: on a segment ``I = a + b g``,
+    last node.  Exact: on a segment ``I0 = a + b g``,
     ``integral (a + b g) sin g dg = -a cos g + b (sin g - g cos g)``, both written
     without cancellation for small angles."""
     g = np.asarray(gammas, dtype=float)
-    I = np.asarray(intensities, dtype=float)
+    I0 = np.asarray(intensities, dtype=float)
     if g.ndim != 1 or g.size < 2 or g[0] != 0.0 or np.any(np.diff(g) <= 0.0):
         raise ValueError("gammas must be increasing and start at 0")
-    slope = np.diff(I) / np.diff(g)
-    a = I[:-1] - slope * g[:-1]
+    slope = np.diff(I0) / np.diff(g)
+    a = I0[:-1] - slope * g[:-1]
 
     def prim(x, k):
         # -a cos x + b (sin x - x cos x), shifted by its value at 0 (= -a), using

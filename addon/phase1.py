@@ -23,7 +23,7 @@ import numpy as np
 
 from . import skip_reasons
 from .geometry import (
-    radial_angle,  # noqa: F401
+    radial_angle,
     tangent_length,
 )
 from .obstruction import find_blockers
@@ -144,9 +144,9 @@ class SceneArrays:
 
         nl, ns = len(scene.lights), len(scene.objects)
         return cls(
-            light_position=arr([l.position for l in scene.lights], (nl, 3)),
-            light_brightness=arr([l.brightness for l in scene.lights], (nl,)),
-            light_color=arr([l.color for l in scene.lights], (nl, 3)),
+            light_position=arr([lt.position for lt in scene.lights], (nl, 3)),
+            light_brightness=arr([lt.brightness for lt in scene.lights], (nl,)),
+            light_color=arr([lt.color for lt in scene.lights], (nl, 3)),
             center=arr([s.center for s in scene.objects], (ns, 3)),
             radius=arr([s.radius for s in scene.objects], (ns,)),
             ior=arr([s.surface.ior for s in scene.objects], (ns,)),

@@ -20,6 +20,7 @@ import argparse
 import math
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +28,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as xo  # noqa: E402
-from addon.beam_error import (  # noqa: E402
+from addon import exact_optics as xo
+from addon.beam_error import (
     D_OVER_R,
     IORS,
     PEAK_DISC,
@@ -39,13 +40,13 @@ from addon.beam_error import (  # noqa: E402
     evaluate_case,
     model_from_light,
 )
-from addon.blender_spot import one_minus_cos_of_radius, spot_mask_integral  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
-from addon.tiers import exact_profile as xp  # noqa: E402
-from addon.tiers import fitted as ft  # noqa: E402
-from addon.tiers import spot_fit as sf  # noqa: E402
+from addon.blender_spot import one_minus_cos_of_radius, spot_mask_integral
+from addon.phase1 import compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
+from addon.tiers import PrimaryLight, make_blender_light
+from addon.tiers import exact_profile as xp
+from addon.tiers import fitted as ft
+from addon.tiers import spot_fit as sf
 
 REPORTS = ROOT / "reports"
 P_PRIMARY = 4.0 * math.pi  # W: primary intensity 1 W/sr
@@ -173,21 +174,21 @@ def run_grid(log):
             models, row = {}, {}
             for tier in ("THESIS", "PHYSICAL"):
                 light, dt = timed(
-                    lambda: make_blender_light(src, primary, tier, scene_size=scene_size)
+                    partial(make_blender_light, src, primary, tier, scene_size=scene_size)
                 )
                 models[tier] = model_from_light(light, src)
                 times[tier].append(dt)
-            light, dt = timed(lambda: ft.make_fitted_light(src, primary, scene_size=scene_size))
+            light, dt = timed(partial(ft.make_fitted_light, src, primary, scene_size=scene_size))
             models["FITTED"] = model_from_light(light, src)
             times["FITTED"].append(dt)
             light, dt = timed(
-                lambda: ft.make_fitted_light(src, primary, scene_size=scene_size, direct=True)
+                partial(ft.make_fitted_light, src, primary, scene_size=scene_size, direct=True)
             )
             models["FITTED_DIRECT"] = model_from_light(light, src)
             times["FITTED_DIRECT"].append(dt)
-            prof, dt = timed(lambda: xp.exact_profile(D, n))
+            prof, dt = timed(partial(xp.exact_profile, D, n))
             light, dt2 = timed(
-                lambda: xp.make_profile_light(src, primary, scene_size=scene_size, profile=prof)
+                partial(xp.make_profile_light, src, primary, scene_size=scene_size, profile=prof)
             )
             models["EXACT_PROFILE"] = xp.profile_model(prof, 1.0, 1.0)
             models["ANGULAR_PROFILE"] = xp.profile_model(prof, 1.0, 1.0, angular=True)
@@ -195,7 +196,7 @@ def run_grid(log):
             times["ANGULAR_PROFILE"].append(dt + dt2)
             if D >= 2.0:
                 one = sf.fit_spot(D, n)
-                (l1_two, spots), dt = timed(lambda: fit_two_spots(D, n, one))
+                (l1_two, spots), dt = timed(partial(fit_two_spots, D, n, one))
                 models["TWO_SPOTS"] = TwoSpots(spots)
                 times["TWO_SPOTS"].append(dt)
                 extra_info[(D, n)] = spots

@@ -23,6 +23,7 @@ import math
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -30,18 +31,18 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import bpy  # noqa: E402
+import bpy
 
 sys.path.insert(0, str(ROOT / "scripts"))
-from dev_extension import load_extension  # noqa: E402
-from measuring_scene import build_measuring_scene  # noqa: E402
+from dev_extension import load_extension
+from measuring_scene import build_measuring_scene
 
-from addon.beam_error import ExactBeam  # noqa: E402
-from addon.blender_spot import spot_irradiance  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.tiers import PrimaryLight  # noqa: E402
-from addon.tiers import exact_profile as lt  # noqa: E402
+from addon.beam_error import ExactBeam
+from addon.blender_spot import spot_irradiance
+from addon.phase1 import compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
+from addon.tiers import PrimaryLight
+from addon.tiers import exact_profile as lt
 
 REPORTS = ROOT / "reports"
 RES = 400
@@ -125,8 +126,12 @@ def pixel_compare(E, rho, ref, rmax, n_rings=24):
     m = rho < rmax
     l1 = float(np.sum(np.abs(E[m] - ref[m])) / np.sum(ref[m]))
     edges = np.linspace(0.0, rmax, n_rings + 1)
-    got = np.array([E[(rho >= a) & (rho < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)])
-    want = np.array([ref[(rho >= a) & (rho < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)])
+    got = np.array(
+        [E[(rho >= a) & (rho < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)]
+    )
+    want = np.array(
+        [ref[(rho >= a) & (rho < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)]
+    )
     lit = want > 1e-9 * want.max()
     return edges, got, want, l1, float(np.max(np.abs(got[lit] / want[lit] - 1.0)))
 
@@ -145,16 +150,16 @@ def main() -> int:
     sc = new_scene(hw)
     add_spot("spot", 100.0, 60.0, 0.5, (0, 0, h))
     E, rho, dt = render_irradiance(sc, hw)
-    I = 100.0 / (4 * math.pi)
+    I0 = 100.0 / (4 * math.pi)
 
-    ref = spot_irradiance(I, h, math.radians(30.0), 0.5, rho)
+    ref = spot_irradiance(I0, h, math.radians(30.0), 0.5, rho)
     edges, got, want, l1, dev = pixel_compare(E, rho, ref, 1.6)
     axis = got[0] / want[0]
     results.append(("Spot 100 W, 60°, blend 0.5, 2 m", edges, got, want, l1))
     lines.append(
         f"## 1. Spot light\n\n100 W, spot_size 60°, blend 0.5, 2 m above the plane, against "
         "`spot_irradiance` at the same pixel centres: intensity P/(4π) × smoothstep((cos γ − "
-        "cos 30°)/((1 − cos 30°)·0.5)), E = I cos γ / r². Rendered / model on the axis "
+        "cos 30°)/((1 − cos 30°)·0.5)), E = I0 cos γ / r². Rendered / model on the axis "
         f"{axis:.4f}; L1 over the pixels within 1.6 m {l1:.4f}; largest deviation of a ring "
         f"mean (24 rings) {dev:.4f}; {dt:.1f} s.\n"
     )
@@ -188,8 +193,8 @@ def main() -> int:
             lt.ProfileLight(**{**light.__dict__, "location": (0.0, 0.0, Z + light.location[2])})
         )
         E, rho, dt = render_irradiance(sc, hw)
-        r_m, v_m = fine_ring_values(lambda e: prof_model.flux_within_radius(Z, e), 1.5 * rs)
-        r_x, v_x = fine_ring_values(lambda e: beam.flux_within_radius(Z, e), 1.5 * rs)
+        r_m, v_m = fine_ring_values(partial(prof_model.flux_within_radius, Z), 1.5 * rs)
+        r_x, v_x = fine_ring_values(partial(beam.flux_within_radius, Z), 1.5 * rs)
         ref_m, ref_x = np.interp(rho, r_m, v_m), np.interp(rho, r_x, v_x)
         _, _, _, l1_m, dev_m = pixel_compare(E, rho, ref_m, rs)
         edges, got, want, l1_x, _ = pixel_compare(E, rho, ref_x, rs)

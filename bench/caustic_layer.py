@@ -22,13 +22,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as eo  # noqa: E402
-from addon.caustic_sheet.beam_trace import trace_beam  # noqa: E402
-from addon.caustic_sheet.caustic_layer import build_layer  # noqa: E402
-from addon.caustic_sheet.emitters import Lens, PointLight  # noqa: E402
-from addon.caustic_sheet.layer_metrics import relative_l1, ring_irradiance  # noqa: E402
-from addon.caustic_sheet.meshes import merge, rectangle  # noqa: E402
-from addon.caustic_sheet.receiver_index import build_index  # noqa: E402
+from addon import exact_optics as eo
+from addon.caustic_sheet.beam_trace import trace_beam
+from addon.caustic_sheet.caustic_layer import build_layer
+from addon.caustic_sheet.emitters import Lens, PointLight
+from addon.caustic_sheet.layer_metrics import relative_l1, ring_irradiance
+from addon.caustic_sheet.meshes import merge, rectangle
+from addon.caustic_sheet.receiver_index import build_index
 
 REPORTS = ROOT / "reports"
 R, N_IOR, D = 1.0, 1.5, 10.0

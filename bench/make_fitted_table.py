@@ -17,8 +17,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.tiers.fitted import TABLE_COLUMNS, TABLE_FILE, TABLE_N, TABLE_X  # noqa: E402
-from addon.tiers.spot_fit import SUN_DISTANCE, fit_spot  # noqa: E402
+from addon.tiers.fitted import TABLE_COLUMNS, TABLE_FILE, TABLE_N, TABLE_X
+from addon.tiers.spot_fit import SUN_DISTANCE, fit_spot
 
 
 def table_json(columns: dict) -> str:

@@ -27,11 +27,11 @@ ap.add_argument("--ior", type=float, default=1.5)
 ARGS = ap.parse_args()
 sys.path.insert(0, ARGS.root)
 
-from addon import beam_error as acc  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.tiers import TIERS, PrimaryLight, make_blender_light  # noqa: E402
-from addon.tiers import exact_profile as xp  # noqa: E402
+from addon import beam_error as acc
+from addon.phase1 import compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
+from addon.tiers import TIERS, PrimaryLight, make_blender_light
+from addon.tiers import exact_profile as xp
 
 R = 0.01
 

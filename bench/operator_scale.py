@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT))
 
-import bpy  # noqa: E402
-from dev_extension import load_extension  # noqa: E402
+import bpy
+from dev_extension import load_extension
 
 REPORT = ROOT / "reports" / "operator_scale.md"
 SPACING = 1.0

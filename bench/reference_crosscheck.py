@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.reference import (  # noqa: E402
+from addon.reference import (
     AreaLight,
     GlassSphere,
     PointLight,

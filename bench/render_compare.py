@@ -52,15 +52,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as xo  # noqa: E402
-from addon.beam_error import ExactBeam, model_from_light  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
-from addon.tiers import exact_profile as lt  # noqa: E402
+from addon import exact_optics as xo
+from addon.beam_error import ExactBeam, model_from_light
+from addon.phase1 import compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
+from addon.tiers import PrimaryLight, make_blender_light
+from addon.tiers import exact_profile as lt
 
 sys.path.insert(0, str(ROOT / "scripts"))
-from measuring_scene import build_measuring_scene  # noqa: E402
+from measuring_scene import build_measuring_scene
 
 REPORTS = ROOT / "reports"
 
@@ -689,7 +689,9 @@ def plots(run, models, files):
     mid = 0.5 * (edges[1:] + edges[:-1])
 
     def prof(img):
-        return np.array([img[(rr >= a) & (rr < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)])
+        return np.array(
+            [img[(rr >= a) & (rr < b)].mean() for a, b in zip(edges[:-1], edges[1:], strict=False)]
+        )
 
     ax.plot(mid, prof(ref_full), "k-", lw=2.5, label="reference (exact optics)")
     for m in methods:
@@ -1398,7 +1400,7 @@ def main(argv=None) -> int:
     for tier in eevee_tiers:
         try:
             run.lens_lights("BLENDER_EEVEE", tier, samples_e)
-        except Exception as exc:  # noqa: BLE001  (EEVEE needs a GL context)
+        except Exception as exc:  # EEVEE needs a GL context
             log(f"  EEVEE {tier} failed: {type(exc).__name__}: {exc}")
             missing.append(f"EEVEE {tier} ({type(exc).__name__}: {exc})")
     if not args.no_mnee and not args.no_scales:

@@ -33,12 +33,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.bi_format import format_bi, read_bi  # noqa: E402
-from addon.phase1 import SceneArrays, compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
+from addon.bi_format import format_bi, read_bi
+from addon.phase1 import SceneArrays, compute_phase1
+from addon.scene import Light, Scene, Sphere, Surface
 
 sys.path.insert(0, str(ROOT / "scripts"))
-import cli  # noqa: E402
+import cli
 
 CASES = [
     (1, 10),

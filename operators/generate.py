@@ -124,7 +124,7 @@ def generate(context):
             work, how = rendered_depsgraph(context, lambda dg: plan_scene(dg, scene, options))
             work.read.how = how
             work.timings["probe_total"] = time.perf_counter() - t
-        except Exception as exc:  # noqa: BLE001  (reported, never raised)
+        except Exception as exc:  # reported, never raised
             message = error_text("read the scene", exc)
             traceback.print_exc()
             figures = dict(changed=False, seconds=time.perf_counter() - t0)
@@ -145,11 +145,11 @@ def generate(context):
                 work.read.sphere_objects,
                 progress=lambda k: progress(60 + 40 * k / total),
             )
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:  # the lights are made: say so
             traceback.print_exc()
             try:
                 light_builder.clear(scene)
-            except Exception:  # noqa: BLE001
+            except Exception:
                 traceback.print_exc()
             message = error_text("create the lens lights", exc) + " (the lens lights were removed)"
             figures = dict(changed=True, created=0, seconds=time.perf_counter() - t0)
@@ -163,7 +163,7 @@ def generate(context):
         level, message, figures = report_message(
             work, len(made), read_as_rendered=work.read.how == RENDER
         )
-    except Exception as exc:  # noqa: BLE001  (the lights are made: say so)
+    except Exception as exc:
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)

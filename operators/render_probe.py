@@ -115,7 +115,7 @@ def _probe(scene, view_layer, fn):
             copy.camera = camera
         _ACTIVE_RUN = run
         bpy.ops.render.render(scene=copy.name, layer=view_layer.name)
-    except Exception as exc:  # noqa: BLE001  (the caller falls back)
+    except Exception as exc:  # the caller falls back
         if run.error is None:
             raise ProbeUnavailable(f"the probe render failed: {str(exc).strip()}") from None
     finally:
@@ -142,7 +142,7 @@ def _probe(scene, view_layer, fn):
         for step in steps:
             try:
                 step()
-            except Exception:  # noqa: BLE001
+            except Exception:
                 import traceback
 
                 traceback.print_exc()

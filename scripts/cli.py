@@ -8,6 +8,7 @@ Subcommands:
                              (thesis|physical|fitted|exact_profile; default
                              fitted: the most accurate tier that renders in both
                              EEVEE and Cycles)
+  lint                       ruff check and ruff format --check (what CI runs first)
   test [PYTEST ARGS]         the whole test suite on Blender 5.2, then the Blender
                              tests on 4.2 (`--blender X.Y`: on that release only;
                              paths: those tests only)
@@ -69,7 +70,7 @@ def blender_lights(scene, result, model: str) -> list:
     from addon.bi_conversions import watts_from_brightness
     from addon.tiers import LensOptics, PrimaryLight, make_blender_light
 
-    pts = [np.asarray(l.position, dtype=float) for l in scene.lights]
+    pts = [np.asarray(lt.position, dtype=float) for lt in scene.lights]
     for o in scene.objects:
         c, r = np.asarray(o.center, dtype=float), abs(float(o.radius))
         pts += [c - r, c + r]
@@ -439,6 +440,18 @@ def cmd_test(args, extra) -> int:
     )
 
 
+# --------------------------------------------------------------------------- lint
+
+
+def cmd_lint(args, extra) -> int:
+    """`ruff check` and `ruff format --check` (pyproject.toml), as CI runs them."""
+    ruff = Path(sys.executable).with_name("ruff")
+    if not ruff.is_file():
+        return _fail(f"ruff is not installed beside {sys.executable}")
+    code = subprocess.call([str(ruff), "check", *extra, "."], cwd=ROOT)
+    return subprocess.call([str(ruff), "format", "--check", *extra, "."], cwd=ROOT) or code
+
+
 # --------------------------------------------------------------------------- bench
 
 
@@ -510,6 +523,7 @@ def main(argv=None) -> int:
     )
 
     sub.add_parser("test", help="run the whole test suite (extra args go to pytest)")
+    sub.add_parser("lint", help="ruff check and ruff format --check, as CI runs them")
 
     # Its options (--count, --seed) and --help are scripts/fuzz_bi.py's own.
     sub.add_parser(
@@ -537,6 +551,8 @@ def main(argv=None) -> int:
         return cmd_build(args, extra)
     if args.command == "test":
         return cmd_test(args, extra)
+    if args.command == "lint":
+        return cmd_lint(args, extra)
     if args.command == "bench":
         return cmd_bench(args, extra)
     if args.command == "fuzz":

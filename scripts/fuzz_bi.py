@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from addon.bi_format import BiFormatError, parse_bi  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
+from addon.bi_format import BiFormatError, parse_bi
+from addon.phase1 import compute_phase1
 
 TOKENS = [
     "0",
@@ -241,7 +241,7 @@ def main(argv=None) -> int:
                     check_cli(text, Path(tmp))
                 if n % 200 == 0:
                     check_import_operator(text, Path(tmp))
-            except Exception:  # noqa: BLE001 - the point of a fuzzer
+            except Exception:  # the point of a fuzzer
                 failures += 1
                 if failures <= 5:
                     print(f"--- failure on input {n}:\n{text!r}\n{traceback.format_exc()}")

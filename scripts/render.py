@@ -38,8 +38,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "scripts") not in sys.path:
     sys.path.insert(0, str(ROOT / "scripts"))
 
-import image_strip  # noqa: E402
-from image_strip import allowed_extensions, apply_format, image_format  # noqa: E402
+import image_strip
+from image_strip import allowed_extensions, apply_format, image_format
 
 PACKAGE = "lens_lights"
 EXIT_BAD_INPUT = 2

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from types import SimpleNamespace
 
 import bpy
 from measuring_scene import new_material  # (scripts/): Blender 4.x needs use_nodes
@@ -330,3 +331,53 @@ def snapshot_diff(a: dict, b: dict, limit=8) -> list[str]:
                 )
             )
     return out[:limit]
+
+
+# --------------------------------------------------------------------------- scenes and panels
+
+
+def basic_scene():
+    """Floor, glass sphere R 0.5 at height 2.5, point light 2 above its centre."""
+    bpy.ops.mesh.primitive_plane_add(size=8)
+    bpy.context.object.name = "Floor"
+    sphere = add_sphere("Marble", (0.0, 0.0, 2.5), material=glass_material())
+    light = add_point_light("Lamp", (0.0, 0.0, 4.5), energy=1000.0, radius=0.1)
+    return sphere, light
+
+
+class FakeLayout:
+    """Records what a panel draws; checks that every property drawn exists."""
+
+    def __init__(self, log):
+        self.log = log
+        self.scale_y = 1.0
+        self.active = True
+        self.use_property_split = False
+        self.use_property_decorate = True
+
+    def _sub(self, *a, **k):
+        return FakeLayout(self.log)
+
+    row = column = box = grid_flow = split = _sub
+
+    def prop(self, data, name, **kw):
+        assert name in data.bl_rna.properties, name
+        self.log.append(("prop", name))
+
+    def operator(self, idname, **kw):
+        module, op = idname.split(".")
+        getattr(getattr(bpy.ops, module), op).get_rna_type()  # KeyError if it is missing
+        self.log.append(("operator", idname))
+
+    def label(self, text="", **kw):
+        self.log.append(("label", text))
+
+    def separator(self, **kw):
+        pass
+
+
+def draw_panel(cls, context):
+    log = []
+    panel = SimpleNamespace(layout=FakeLayout(log))
+    cls.draw(panel, context)
+    return log

@@ -81,31 +81,31 @@ def test_mask_integral_is_the_integral_of_the_mask(H_deg, blend):
 
 
 def test_spot_on_axis_irradiance_is_intensity_over_distance_squared():
-    # 100 W spot → I = 100/(4π) W/sr; 2 m in front: E = I/4 = 1.98944 W/m².
-    I = 100.0 / (4 * math.pi)
-    assert spot_irradiance(I, 2.0, math.radians(20), 0.2, 0.0) == pytest.approx(1.989437, rel=1e-6)
-    # off axis, inside the full-intensity core: I h / r³ (cos γ / r²)
+    # 100 W spot → I0 = 100/(4π) W/sr; 2 m in front: E = I0/4 = 1.98944 W/m².
+    I0 = 100.0 / (4 * math.pi)
+    assert spot_irradiance(I0, 2.0, math.radians(20), 0.2, 0.0) == pytest.approx(1.989437, rel=1e-6)
+    # off axis, inside the full-intensity core: I0 h / r³ (cos γ / r²)
     r = math.hypot(2.0, 0.3)
-    assert spot_irradiance(I, 2.0, math.radians(20), 0.2, 0.3) == pytest.approx(I * 2.0 / r**3)
+    assert spot_irradiance(I0, 2.0, math.radians(20), 0.2, 0.3) == pytest.approx(I0 * 2.0 / r**3)
     # outside the cone, and behind the spot: nothing
-    assert spot_irradiance(I, 2.0, math.radians(20), 0.2, 2.0) == 0.0
-    assert spot_irradiance(I, -1.0, math.radians(20), 0.2, 0.0) == 0.0
+    assert spot_irradiance(I0, 2.0, math.radians(20), 0.2, 2.0) == 0.0
+    assert spot_irradiance(I0, -1.0, math.radians(20), 0.2, 0.0) == 0.0
 
 
 def test_spot_ring_flux_matches_quadrature_of_the_irradiance():
-    I, h, H, b = 3.0, 1.7, math.radians(25.0), 0.6
+    I0, h, H, b = 3.0, 1.7, math.radians(25.0), 0.6
     rho = np.linspace(0.0, 1.5, 300_001)
-    E = spot_irradiance(I, h, H, b, rho)
+    E = spot_irradiance(I0, h, H, b, rho)
     f = 2 * math.pi * rho * E
     num = np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(rho))
-    assert spot_flux_within_radius(I, h, H, b, [1.5])[0] == pytest.approx(num, rel=1e-7)
-    # a whole spot: I × its weighted solid angle
-    assert spot_flux_within_radius(I, h, H, b, [1e9])[0] == pytest.approx(
-        I * spot_solid_angle(H, b)
+    assert spot_flux_within_radius(I0, h, H, b, [1.5])[0] == pytest.approx(num, rel=1e-7)
+    # a whole spot: I0 × its weighted solid angle
+    assert spot_flux_within_radius(I0, h, H, b, [1e9])[0] == pytest.approx(
+        I0 * spot_solid_angle(H, b)
     )
     edges = np.array([0.0, 0.2, 0.5])
-    ring = spot_ring_irradiance(I, h, H, b, edges)
-    assert ring[0] * math.pi * 0.04 == pytest.approx(spot_flux_within_radius(I, h, H, b, [0.2])[0])
+    ring = spot_ring_irradiance(I0, h, H, b, edges)
+    assert ring[0] * math.pi * 0.04 == pytest.approx(spot_flux_within_radius(I0, h, H, b, [0.2])[0])
 
 
 def test_profile_flux_exact_for_constant_and_linear_profiles():
@@ -118,12 +118,12 @@ def test_profile_flux_exact_for_constant_and_linear_profiles():
         4 * math.pi * (1 - math.cos(0.8))
     )
     # piecewise linear: quadrature
-    I = np.array([5.0, 1.0, 0.0])
+    I0 = np.array([5.0, 1.0, 0.0])
     x = np.linspace(0.0, 0.7, 100_001)
-    f = np.interp(x, g, I) * np.sin(x)
+    f = np.interp(x, g, I0) * np.sin(x)
     num = 2 * math.pi * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x))
-    assert profile_flux_within_angle(g, I, 0.7) == pytest.approx(num, rel=1e-8)
-    assert profile_flux_within_angle(g, I, 1e-5) == pytest.approx(
+    assert profile_flux_within_angle(g, I0, 0.7) == pytest.approx(num, rel=1e-8)
+    assert profile_flux_within_angle(g, I0, 1e-5) == pytest.approx(
         2 * math.pi * 5.0 * 0.5e-10, rel=1e-4
     )
 
@@ -351,8 +351,8 @@ def test_exact_profile_is_accurate_and_conserves_flux():
     j = 100
     h = prof.distances[j]
     g = np.concatenate([[0.0], np.radians(prof.angles_deg)])
-    I = np.concatenate([[prof.table[j, 0]], prof.table[j]])
-    flux = profile_flux_within_angle(g, I, math.pi / 2)
+    I0 = np.concatenate([[prof.table[j, 0]], prof.table[j]])
+    flux = profile_flux_within_angle(g, I0, math.pi / 2)
     assert flux == pytest.approx(beam.receiver(prof.apex + h).total, rel=0.02)
 
 

@@ -218,7 +218,8 @@ def test_awkward_floats_round_trip_exactly(scale):
     assert again == scene
     for a, b in zip(
         again.lights[0].color + again.objects[0].surface.color,
-        scene.lights[0].color + scene.objects[0].surface.color, strict=False,
+        scene.lights[0].color + scene.objects[0].surface.color,
+        strict=False,
     ):
         assert a.hex() == b.hex() if a else a == b
 
@@ -276,7 +277,7 @@ def test_random_scenes_round_trip(scene):
     # Colours always come back; the scale only where the file can express it.
     expected_scale = again.color_scale
     assert again == Scene(**{**scene.__dict__, "color_scale": expected_scale})
-    colors = [c for l in scene.lights for c in l.color] + [
+    colors = [c for lt in scene.lights for c in lt.color] + [
         c for o in scene.objects for c in o.surface.color
     ]
     if any(c > 1 for c in colors):

@@ -200,8 +200,8 @@ def scenes_equal(a: Scene, b: Scene):
     assert (a.width, a.height) == (b.width, b.height)
     fields = ("position", "target", "up", "fov_deg")
     assert [getattr(a.camera, f) for f in fields] == [getattr(b.camera, f) for f in fields]
-    assert [(l.position, l.color, l.brightness) for l in a.lights] == [
-        (l.position, l.color, l.brightness) for l in b.lights
+    assert [(lt.position, lt.color, lt.brightness) for lt in a.lights] == [
+        (lt.position, lt.color, lt.brightness) for lt in b.lights
     ]
     assert [(s.center, s.radius, s.surface) for s in a.objects] == [
         (s.center, s.radius, s.surface) for s in b.objects

@@ -6,16 +6,12 @@ generate / regenerate / clear never change anything of the user's."""
 import math
 from types import SimpleNamespace
 
+import bpy
 import pytest
-
-pytestmark = pytest.mark.blender
-
-bpy = pytest.importorskip("bpy")  # the pinned environment has it
-
 from blender_scene_helpers import (
     add_point_light,
     add_sphere,
-    collection_instance,  # noqa: E402
+    collection_instance,
     collection_of,
     generate,
     glass_material,
@@ -25,6 +21,8 @@ from blender_scene_helpers import (
     snapshot,
     snapshot_diff,
 )
+
+pytestmark = pytest.mark.blender
 
 
 def read():
@@ -274,7 +272,7 @@ def test_collection_and_geometry_nodes_instances(empty_blend):
     bead = add_sphere("Bead", (0, 0, 0), radius=0.25, material=glass)
     beads = collection_of("Beads", bead)
     # nested: a collection instance inside an instanced collection
-    inner = collection_instance(
+    collection_instance(
         "Inner",
         beads,
         location=(0.5, 0, 0),

@@ -4,20 +4,15 @@ undo, skipped objects, the panel's drawing (bpy module, no images)."""
 import math
 from types import SimpleNamespace
 
+import bpy
 import pytest
 
-pytestmark = pytest.mark.blender
-
-bpy = pytest.importorskip("bpy")  # the pinned environment has it
-
-
 # --------------------------------------------------------------------------- helpers
-
-# The scene builders live in tests/blender_scene_helpers.py; these names stay
-# importable from here (tests/test_blender_tiers.py imports them).
 from blender_scene_helpers import (
     add_point_light,
-    add_sphere,  # noqa: E402,F401
+    add_sphere,
+    basic_scene,
+    draw_panel,
     generate,
     glass_material,
     lens_lights,
@@ -25,14 +20,7 @@ from blender_scene_helpers import (
     node_material,
 )
 
-
-def basic_scene():
-    """Floor, glass sphere R 0.5 at height 2.5, point light 2 above its centre."""
-    bpy.ops.mesh.primitive_plane_add(size=8)
-    bpy.context.object.name = "Floor"
-    sphere = add_sphere("Marble", (0.0, 0.0, 2.5), material=glass_material())
-    light = add_point_light("Lamp", (0.0, 0.0, 4.5), energy=1000.0, radius=0.1)
-    return sphere, light
+pytestmark = pytest.mark.blender
 
 
 # --------------------------------------------------------------------------- generate
@@ -413,44 +401,6 @@ def test_no_lights_and_no_lenses_warn(empty_blend):
 
 
 # --------------------------------------------------------------------------- panel
-
-
-class FakeLayout:
-    """Records what a panel draws; checks that every property drawn exists."""
-
-    def __init__(self, log):
-        self.log = log
-        self.scale_y = 1.0
-        self.active = True
-        self.use_property_split = False
-        self.use_property_decorate = True
-
-    def _sub(self, *a, **k):
-        return FakeLayout(self.log)
-
-    row = column = box = grid_flow = split = _sub
-
-    def prop(self, data, name, **kw):
-        assert name in data.bl_rna.properties, name
-        self.log.append(("prop", name))
-
-    def operator(self, idname, **kw):
-        module, op = idname.split(".")
-        assert hasattr(getattr(bpy.ops, module), op), idname
-        self.log.append(("operator", idname))
-
-    def label(self, text="", **kw):
-        self.log.append(("label", text))
-
-    def separator(self, **kw):
-        pass
-
-
-def draw_panel(cls, context):
-    log = []
-    panel = SimpleNamespace(layout=FakeLayout(log))
-    cls.draw(panel, context)
-    return log
 
 
 def test_panel_draws_buttons_settings_and_figures(empty_blend):

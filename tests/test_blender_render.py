@@ -42,22 +42,20 @@ the whole view, as ratios to the exact optics:
 
 import math
 
+import bpy
 import numpy as np
 import pytest
-
-pytestmark = pytest.mark.blender
-
-bpy = pytest.importorskip("bpy")
-
 from measuring_scene import (
     add_top_camera,
-    build_measuring_scene,  # noqa: E402 (scripts/)
+    build_measuring_scene,
     new_material,
     new_measuring_scene,
 )
 
-from addon import exact_optics  # noqa: E402
-from addon.tiers import head_on_transmission  # noqa: E402
+from addon import exact_optics
+from addon.tiers import head_on_transmission
+
+pytestmark = pytest.mark.blender
 
 R, N, D, HEIGHT, TILT_DEG, POWER, ALBEDO = 0.5, 1.5, 2.0, 2.5, 20.0, 1000.0, 0.8
 D_FOCAL = N * R / (2 * (N - 1))  # 0.75: front focal distance
@@ -315,7 +313,8 @@ def test_auto_tier_caustic_against_exact_optics(renders, engine):
     FIGURES[engine, "tier_ratio"] = ratio
     print(
         f"\n{engine} {tier}: centroid ({cx:.4f}, {cy:.4f}) vs exact ({ex:.4f}, {ey:.4f}): "
-        f"error {error:.4f}; axis patch {diff[patch].mean():.4f} vs exact {exact[patch].mean():.4f} "
+        f"error {error:.4f}; axis patch {diff[patch].mean():.4f} "
+        f"vs exact {exact[patch].mean():.4f} "
         f"(perpendicular-plane estimate {approx:.4f}): ratio {ratio:.4f}; light in the view "
         f"{view_ratio:.4f} of the exact; light {renders[engine, 'tier_light']}"
     )
@@ -364,7 +363,8 @@ def test_collimated_beam_renders_as_modelled(renders, engine):
     blend = math.sqrt(1 - 0.15 / 2)
     print(
         f"\n{engine}: collimated beam {measured:.4f} vs the far spot {expected:.4f}: "
-        f"ratio {ratio:.4f} (the spot is {model / paraxial:.3f} × I0 T(0)/D² at the floor); width {width:.3f} vs 2 R_C {2 * rc:.3f} (× blend "
+        f"ratio {ratio:.4f} (the spot is {model / paraxial:.3f} × I0 T(0)/D² at the floor); "
+        f"width {width:.3f} vs 2 R_C {2 * rc:.3f} (× blend "
         f"{2 * rc * blend:.3f}); exact optics near "
         f"the axis {exact:.1f} ({exact / measured:.1f} × the beam: axial caustic)"
     )

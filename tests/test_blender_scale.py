@@ -6,17 +6,13 @@ any Python object is made for them, merging, and what the report says was left o
 import math
 from types import SimpleNamespace
 
+import bpy
 import numpy as np
 import pytest
-
-pytestmark = pytest.mark.blender
-
-bpy = pytest.importorskip("bpy")  # the pinned environment has it
-
 from blender_scene_helpers import (
     add_point_light,
     add_sphere,
-    collection_instance,  # noqa: E402
+    collection_instance,
     collection_of,
     generate,
     glass_material,
@@ -24,6 +20,8 @@ from blender_scene_helpers import (
     grid,
     lens_lights,
 )
+
+pytestmark = pytest.mark.blender
 
 
 def floor(size=60):
@@ -57,7 +55,7 @@ def test_200_instances_are_fitted_once(empty_blend, monkeypatch, kind):
     else:
         beads = collection_of("Bead", bead)
         bead.location = (0, 0, 0)
-        for k, (x, y, z) in enumerate(points):
+        for k, (x, y, _z) in enumerate(points):
             collection_instance(f"Beads.{k:03d}", beads, location=(x, y, 1))
     if kind == "collection":
         assert bead.name not in bpy.context.scene.collection.objects
@@ -166,8 +164,8 @@ def test_merging_nearby_sources(empty_blend):
     assert "merged: energy ×" in ll.lens_lights.note
     assert figures["flux_left_out"] == pytest.approx(0.0, abs=1e-12)
     # the merge distance is a scene setting, drawn in the panel
+    from blender_scene_helpers import draw_panel
     from lens_lights.operators.panel import VIEW3D_PT_lens_lights
-    from test_blender_generate import draw_panel
 
     log = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
     assert ("prop", "use_merge") in log and ("prop", "merge_distance") in log

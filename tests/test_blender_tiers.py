@@ -7,22 +7,20 @@ tests/test_blender_render.py.
 
 import math
 
+import bpy
 import numpy as np
 import pytest
-
-pytestmark = pytest.mark.blender
-
-bpy = pytest.importorskip("bpy")
-
-from test_blender_generate import (
+from blender_scene_helpers import (
     add_point_light,
     add_sphere,
-    basic_scene,  # noqa: E402
+    basic_scene,
     draw_panel,
     generate,
     glass_material,
     lens_lights,
 )
+
+pytestmark = pytest.mark.blender
 
 PROFILE_MARK = "lens_lights_created"
 

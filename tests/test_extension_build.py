@@ -131,7 +131,7 @@ def test_install_from_disk_enable_and_run(built_zip, tmp_path):
         timeout=300,
         cwd=tmp_path,
     )
-    lines = [l for l in res.stdout.splitlines() if l.startswith("RESULT ")]
+    lines = [line for line in res.stdout.splitlines() if line.startswith("RESULT ")]
     assert res.returncode == 0 and lines, res.stdout[-3000:] + res.stderr[-3000:]
     out = json.loads(lines[-1][len("RESULT ") :])
     assert out["install"] == ["FINISHED"] and out["loaded"] and out["enabled"]

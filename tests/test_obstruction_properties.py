@@ -30,7 +30,7 @@ EXAMPLES = 120
 REL = 1e-9
 
 
-# --------------------------------------------------------------------------- geometry by hand
+# ------------------------------------------------------------ geometry by hand
 
 
 def cap_area(a):
@@ -101,7 +101,7 @@ def lens_skip(result):
     return {(k.light, k.lens): k.reason for k in result.skipped}.get((0, 0))
 
 
-# =========================================================================== partial, total, ignored
+# ============================================================ partial, total, ignored
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
@@ -234,7 +234,7 @@ def test_overlap_is_the_same_seen_from_either_disc(frame, Dl, alpha, beta, t, d_
     assert overlap[0] == pytest.approx(overlap[1], rel=1e-8, abs=1e-14)
 
 
-# =========================================================================== the two tangent boundaries
+# ============================================================ the two tangent boundaries
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
@@ -290,7 +290,7 @@ def test_disc_just_covering_beta_equals_gamma_plus_alpha(
         assert 0.0 <= src.unblocked_fraction < 1e-6
 
 
-# =========================================================================== small discs (far lenses)
+# ============================================================ small discs (far lenses)
 
 
 def planar_overlap_fraction(a, b, g):

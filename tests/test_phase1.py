@@ -87,11 +87,11 @@ def thesis_cos_theta_virtual(i, R, alpha, n):
     return 1.0 / math.sqrt(1.0 + (R * math.sin(sigma) / (abs(i) - R - R * math.cos(sigma))) ** 2)
 
 
-def thesis_brightness(I, R, n, kt):
-    """Eq. 5.22: I · exp(−(1 − kt)(2R + TR)/2), TR = 2R cos δ."""
+def thesis_brightness(I0, R, n, kt):
+    """Eq. 5.22: I0 · exp(−(1 − kt)(2R + TR)/2), TR = 2R cos δ."""
     delta = math.asin(1.0 / n)
     TR = 2.0 * R * math.cos(delta)
-    return I * math.exp(-(1.0 - kt) * (2.0 * R + TR) / 2.0)
+    return I0 * math.exp(-(1.0 - kt) * (2.0 * R + TR) / 2.0)
 
 
 def vergence_image_from_center(D, R, n):

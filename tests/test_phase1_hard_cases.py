@@ -17,7 +17,7 @@ from plain_vectors import vadd, vdot, vnorm, vscale, vsub, vunit
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
 
-# --------------------------------------------------------------------------- plain-Python references
+# ------------------------------------------------------------ plain-Python references
 
 
 def thesis_image_distance(p, R, n):
@@ -53,9 +53,9 @@ def thesis_tan_theta(i, R, alpha, n, kind):
     return abs(R * math.sin(sigma) / (abs(i) - R - R * math.cos(sigma)))
 
 
-def thesis_brightness(I, R, n, kt):
+def thesis_brightness(I0, R, n, kt):
     delta = math.asin(1.0 / n)
-    return I * math.exp(-(1.0 - kt) * (2.0 * R + 2.0 * R * math.cos(delta)) / 2.0)
+    return I0 * math.exp(-(1.0 - kt) * (2.0 * R + 2.0 * R * math.cos(delta)) / 2.0)
 
 
 def _refract(d, N, eta):
@@ -79,7 +79,7 @@ def trace_axis_crossing(D, R, n, impact=1e-5):
     return p2[0] - p2[1] * d2[0] / d2[1]
 
 
-# --------------------------------------------------------------------------- scenes and checks
+# ------------------------------------------------------------ scenes and checks
 
 
 def lens(center, radius, n=1.5, kt=1.0):
@@ -100,7 +100,7 @@ def opaque(center, radius):
 
 def scene(lights, objects):
     return Scene(
-        lights=[l if isinstance(l, Light) else Light(position=tuple(l)) for l in lights],
+        lights=[lt if isinstance(lt, Light) else Light(position=tuple(lt)) for lt in lights],
         objects=list(objects),
     )
 
@@ -152,10 +152,13 @@ def reasons(result):
 
 
 def close_vec(actual, expected, tol):
-    assert all(abs(float(a) - e) <= tol for a, e in zip(actual, expected, strict=False)), (list(actual), expected)
+    assert all(abs(float(a) - e) <= tol for a, e in zip(actual, expected, strict=False)), (
+        list(actual),
+        expected,
+    )
 
 
-# =========================================================================== the focal point
+# ============================================================ the focal point
 
 # Lens: R = 1, n = 1.5 → front focal point at D0 = nR/(2(n − 1)) = 1.5 from the centre
 # (p = f = 0.5 R). The light sits at D0 + ε R along an oblique axis.
@@ -250,7 +253,7 @@ def test_cylinder_radius_continues_the_cone_at_the_switch():
         assert radius == pytest.approx(cyl.cylinder_radius, rel=1e-3)
 
 
-# =========================================================================== p·a = R
+# ============================================================ p·a = R
 
 
 @pytest.mark.parametrize("n,R", [(1.5, 1.0), (1.5171, 0.7), (1.33, 2.0), (1.9, 0.05)])
@@ -278,7 +281,7 @@ def test_p_times_a_equals_R_gives_the_finite_image(n, R):
         assert near == pytest.approx(D, rel=1e-5)
 
 
-# =========================================================================== light on / in the sphere
+# ============================================================ light on / in the sphere
 
 
 LC, LR = (2.0, -1.0, 0.5), 1.3
@@ -330,7 +333,7 @@ def test_light_on_another_sphere_is_reported_or_finite():
         assert r[(0, 0)] == "light on the surface of sphere 1"
 
 
-# =========================================================================== index of refraction
+# ============================================================ index of refraction
 
 
 @pytest.mark.parametrize("n,text", [(1.0, "n = 1 ≤ 1"), (0.75, "n = 0.75 ≤ 1"), (0.0, "n = 0 ≤ 1")])
@@ -368,7 +371,7 @@ def test_very_large_index_of_refraction(D):
     assert s.intensity == pytest.approx(thesis_brightness(1.0, R, n, 0.9), rel=1e-12)
 
 
-# =========================================================================== transmission
+# ============================================================ transmission
 
 
 def test_kt_zero_is_opaque():
@@ -397,7 +400,7 @@ def test_kt_above_one_is_reported():
     assert reasons(result)[(0, 0)].startswith("invalid transmission")
 
 
-# =========================================================================== scale
+# ============================================================ scale
 
 
 def scaled_scene(s):
@@ -449,7 +452,7 @@ def test_scene_scaled_by_radius_1e_minus_4_to_1e4(s):
     )
 
 
-# =========================================================================== very far lights
+# ============================================================ very far lights
 
 
 @pytest.mark.parametrize("n", [1.2, 1.5, 1.5171, 1.9])
@@ -473,7 +476,7 @@ def test_very_far_light_images_at_the_back_focal_point(n, R):
     assert s.alpha_deg == pytest.approx(math.degrees(R / D), rel=1e-7)
 
 
-# =========================================================================== obstacles
+# ============================================================ obstacles
 
 
 def test_obstacle_on_the_axis_bigger_than_the_lens_in_front_blocks_totally():
@@ -567,7 +570,7 @@ def test_many_lenses_in_a_row_growing():
         assert s.full == (k == 0)
 
 
-# =========================================================================== degenerate input
+# ============================================================ degenerate input
 
 
 NAN, INF = float("nan"), float("inf")

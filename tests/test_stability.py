@@ -545,7 +545,7 @@ def decisions_are_robust(sc, ratio=1e4, margin=1e-6):
     """False when some decision of phase 1 (inside/on/outside, tangent-length order,
     α + β vs γ, β vs γ + α, collimation, nearest total blocker) is within `margin`
     of its boundary: then a relative change of 1e-16 may flip it legitimately."""
-    size = box_size([l.position for l in sc.lights], [(s.center, s.radius) for s in sc.objects])
+    size = box_size([lt.position for lt in sc.lights], [(s.center, s.radius) for s in sc.objects])
     for light in sc.lights:
         geo = []
         for s in sc.objects:
@@ -632,7 +632,7 @@ def assert_same_result(ref, got, point, direction, length, size, input_error):
 
 def transformed(sc, point, length=1.0):
     return Scene(
-        lights=[Light(position=point(l.position), brightness=l.brightness) for l in sc.lights],
+        lights=[Light(position=point(lt.position), brightness=lt.brightness) for lt in sc.lights],
         objects=[
             Sphere(center=point(s.center), radius=s.radius * length, surface=s.surface)
             for s in sc.objects
@@ -654,7 +654,7 @@ def test_scaling_the_scene_scales_the_sources(sc, log_s):
     s = 10.0**log_s
     ref = run(sc)
     got = run(transformed(sc, lambda p: vscale(p, s), s))
-    size = box_size([l.position for l in sc.lights], [(o.center, o.radius) for o in sc.objects])
+    size = box_size([lt.position for lt in sc.lights], [(o.center, o.radius) for o in sc.objects])
     assert_same_result(ref, got, lambda p: vscale(p, s), lambda d: d, s, size, 1.2e-16)
 
 
@@ -707,9 +707,11 @@ def test_rotating_and_moving_the_scene_rotates_the_sources(sc, q, t):
     moved = transformed(sc, lambda p: vadd(matvec(M, p), t))
     assume(decisions_are_robust(moved))
     got = run(moved)
-    size = box_size([l.position for l in sc.lights], [(o.center, o.radius) for o in sc.objects])
+    size = box_size([lt.position for lt in sc.lights], [(o.center, o.radius) for o in sc.objects])
     # coordinates of the moved scene are rounded relative to |t| + |p|, not to D
-    extent = max(vnorm(p) for p in [l.position for l in sc.lights] + [o.center for o in sc.objects])
+    extent = max(
+        vnorm(p) for p in [lt.position for lt in sc.lights] + [o.center for o in sc.objects]
+    )
     rel = 4e-16 * (vnorm(t) + extent + size) / max(size, 1e-300)
     assert_same_result(
         ref,
