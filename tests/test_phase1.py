@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 from plain_vectors import vadd, vcross, vdot, vnorm, vscale, vsub, vunit
 
-from addon.phase1 import cap_overlap_fraction, compute_phase1
+from addon.geometry import cap_overlap_fraction
+from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
 
 # --------------------------------------------------------------------------- vectors
