@@ -99,7 +99,7 @@ def blender_lights(scene, result, model: str) -> list:
 
 def format_phase1_table(result, lights=None, model: str = "") -> str:
     """A readable report of phase 1: one row per source (with `lights`, a
-    `tier_tables.LightTable` or a list of `BlenderLight`, the energy of its
+    `tiers.LightTable` or a list of `BlenderLight`, the energy of its
     Blender light for the tier `model`), then the skipped pairs."""
     lines = [
         f"{len(result.sources)} secondary light source(s), "
@@ -140,14 +140,45 @@ def format_phase1_table(result, lights=None, model: str = "") -> str:
 
 
 def phase1_light_table(scene, result, model: str):
-    """`blender_lights` for every source at once (`addon.tier_tables`: columns,
-    the same numbers as the per-source makers)."""
+    """`blender_lights` for every source at once (`tiers.make_light_table`: columns,
+    the same lights as the per-source makers)."""
     import numpy as np
-
-    from addon.tier_tables import bi_scene_light_table
 
     radius = np.array([float(lt.radius) for lt in scene.lights], dtype=float)
     return bi_scene_light_table(result._arrays, result.table, model, radius)
+
+
+def bi_scene_light_table(arrays, table, model: str, light_radius=None):
+    """`blender_lights` on columns: the lights of the sources `table` (a
+    `phase1.SourceTable`) of a scene given as `arrays` (its `phase1.SceneArrays`),
+    with the same conventions (point lights of b × 10 000 W, kt as transmission
+    weight, the bounds of the lights and spheres, no receiver known)."""
+    import numpy as np
+
+    from addon.bi_conversions import watts_from_brightness
+    from addon.tiers import Primaries, make_light_table
+
+    j, i = table.light, table.lens
+    radius = (
+        np.zeros(len(arrays.light_brightness))
+        if light_radius is None
+        else np.asarray(light_radius, dtype=float)
+    )
+    primaries = Primaries(
+        power_w=arrays.light_brightness[j] * watts_from_brightness(1.0),
+        radius=radius[j],
+        color=arrays.light_color[j],
+        transmission_weight=arrays.kt[i],
+    )
+    r = np.abs(arrays.radius)[:, None]
+    pts = np.concatenate([arrays.light_position, arrays.center - r, arrays.center + r])
+    bounds, size = None, 1.0
+    if pts.size:
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        if np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+            bounds = (tuple(lo.tolist()), tuple(hi.tolist()))
+            size = float(np.linalg.norm(hi - lo)) or 1.0
+    return make_light_table(table, primaries, model.upper(), scene_size=size, scene_bounds=bounds)
 
 
 def _split(flat: list, offsets: list) -> list[list]:

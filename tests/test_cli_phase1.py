@@ -250,7 +250,7 @@ def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, mon
     sys.path.insert(0, str(ROOT / "scripts"))
     sys.path.insert(0, str(ROOT / "tests"))
     import cli
-    from test_tier_tables import random_scene
+    from random_scenes import random_scene
 
     from addon.phase1 import compute_phase1
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from reference_quadrature import angle_to, cone_grid, disc_mean_transmission
 
-from addon import blender_spot as spot_irradiance
+from addon import blender_spot
 from addon import exact_optics as xo
 from addon.reference import (
     AreaLight,
@@ -135,7 +135,7 @@ def test_spot_mask_is_the_projects_model():
         (math.radians(10.0), 0.0),
     ):
         assert np.allclose(
-            spot_mask(c, size, blend), spot_irradiance.spot_mask(c, 0.5 * size, blend), atol=1e-12
+            spot_mask(c, size, blend), blender_spot.spot_mask(c, 0.5 * size, blend), atol=1e-12
         )
 
 
@@ -161,7 +161,7 @@ def test_spot_blend_toward_the_lens():
     spot = SpotLight((0.0, 0.0, -D), (0.0, 0.0, 1.0), POWER, 2.0 * alpha, 1.0)
     res = trace_irradiance(spot, LENS, BEHIND, 200_000, seed=6)
     dirs, w = cone_grid(D, R, N, n_phi=1)
-    expected = I0 * np.sum(w * spot_irradiance.spot_mask(dirs[:, 2], alpha, 1.0))
+    expected = I0 * np.sum(w * blender_spot.spot_mask(dirs[:, 2], alpha, 1.0))
     assert expected < 0.6 * I0 * np.sum(w)
     assert _close(res, expected)
 

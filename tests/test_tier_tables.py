@@ -1,7 +1,7 @@
-"""Tier lights for a whole source table (addon/tier_tables.py) against the
-per-source makers (`light_models.make_blender_light`, `lens_tiers`): every field
-of every light, on the thesis' scenes and random ones with all kinds of source;
-plus hand values for one source."""
+"""Tier lights for a whole source table (`tiers.make_light_table`, each tier's
+``make_table``) against the per-source makers (`tiers.make_blender_light`): every
+field of every light, on the thesis' scenes and random ones with all kinds of
+source, other primaries' emission and radius; plus hand values for one source."""
 
 import dataclasses
 import math
@@ -10,60 +10,27 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from random_scenes import random_scene
 
 from addon.bi_format import read_bi
-from addon.light_models import BlenderLight, LensOptics, PrimaryLight, make_blender_light
 from addon.phase1 import SceneArrays, compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
-from addon.tier_tables import Primaries, bi_scene_light_table, make_light_table
+from addon.tiers import (
+    BlenderLight,
+    LensOptics,
+    Primaries,
+    PrimaryLight,
+    make_blender_light,
+    make_light_table,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "scripts"))
-from cli import blender_lights  # noqa: E402
+from cli import bi_scene_light_table, blender_lights  # noqa: E402
 
 MODELS = ("THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE")
 #: numpy's tan/exp/arctan2 may differ from math's in the last bit.
 RTOL = 1e-9
-
-
-def random_scene(seed, n_lights=3, n_spheres=40, spread=6.0):
-    rng = np.random.default_rng(seed)
-    lights = [
-        Light(
-            position=tuple(rng.uniform(-spread, spread, 3).tolist()),
-            color=tuple(rng.uniform(0, 1, 3).tolist()),
-            brightness=float(rng.uniform(0.1, 2)),
-            radius=float(rng.uniform(0, 0.2)),
-        )
-        for _ in range(n_lights)
-    ]
-    objects = [
-        Sphere(
-            center=tuple(rng.uniform(-spread, spread, 3).tolist()),
-            radius=float(rng.uniform(0.05, 1.0)),
-            surface=Surface(
-                transmission=float(rng.choice([0.0, 0.4, 0.9, 1.0])),
-                ior=float(rng.choice([0.9, 1.1, 1.33, 1.5, 2.4])),
-            ),
-        )
-        for _ in range(n_spheres)
-    ]
-    # A light at a lens's focal point (collimated: D = 1/P = 1.5 R for n = 1.5) and
-    # lenses far away and inside the focal length (virtual).
-    lights.append(Light(position=(100.0, 100.0, 100.0)))
-    objects += [
-        Sphere(
-            center=(101.5, 100.0, 100.0), radius=1.0, surface=Surface(transmission=1.0, ior=1.5)
-        ),
-        Sphere(
-            center=(100.0, 125.45, 100.0),
-            radius=1.0,  # 1/P = 25.5
-            surface=Surface(transmission=1.0, ior=1.02),
-        ),
-        Sphere(center=(40.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=1.0, ior=1.5)),
-        Sphere(center=(0.0, 40.0, 0.0), radius=1.0, surface=Surface(transmission=1.0, ior=1.02)),
-    ]
-    return Scene(lights=lights, objects=objects)
 
 
 def scenes():
@@ -182,3 +149,63 @@ def test_hand_values_of_one_thesis_source():
     assert lt.radius == 0.0
     assert lt.reference_irradiance == pytest.approx(10_000.0 / (4 * math.pi) / (30 / 17) ** 2)
     assert lt.spot_size_deg == pytest.approx(2.0 * result.sources[0].spread_deg)
+
+
+def test_other_primaries_emission_and_source_radius_as_per_source():
+    """Sources of spot, sun and area lights carry `emission` and `source_radius`:
+    the table makes the same effective primary as `make_blender_light`."""
+    import dataclasses as dc
+
+    scene = random_scene(4)
+    result = compute_phase1(scene)
+    n = len(result.table)
+    rng = np.random.default_rng(1)
+    emission = rng.uniform(0.0, 3.0, n)
+    source_radius = np.where(rng.uniform(size=n) < 0.5, np.nan, rng.uniform(0.0, 0.3, n))
+    table = dc.replace(result.table, emission=emission, source_radius=source_radius)
+    primaries = Primaries(
+        power_w=np.full(n, 500.0),
+        radius=np.full(n, 0.1),
+        color=np.ones((n, 3)),
+        transmission_weight=np.ones(n),
+    )
+    for model in MODELS:
+        lights = make_light_table(table, primaries, model, scene_size=20.0)
+        for t in range(n):
+            want = make_blender_light(
+                table.source(t), PrimaryLight(500.0, 0.1), model, scene_size=20.0
+            )
+            assert_same_light(lights.light(t), want, f"{model} {t}")
+
+
+def test_hand_values_of_the_lens_light_radius_and_emission():
+    # Light of radius 0.1 at the origin, lens n = 1.5, R = 1 at D = 10 on +x: real
+    # image at 1/V = 30/17 from the centre. FITTED: blur z·r/D with z = min(1/V, S).
+    scene = Scene(
+        lights=[Light(position=(0.0, 0.0, 0.0), radius=0.1)],
+        objects=[
+            Sphere(center=(10.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=1.0, ior=1.5))
+        ],
+    )
+    result = compute_phase1(scene)
+    import dataclasses as dc
+
+    table = dc.replace(result.table, emission=np.array([0.25]), source_radius=np.array([0.2]))
+    p = Primaries(
+        power_w=np.array([1000.0]),
+        radius=np.array([0.1]),
+        color=np.ones((1, 3)),
+        transmission_weight=np.ones(1),
+    )
+    plain = make_light_table(result.table, p, "FITTED", scene_size=100.0).light(0)
+    assert plain.radius == pytest.approx(0.1 * (30.0 / 17.0) / 10.0)
+    small = make_light_table(result.table, p, "FITTED", scene_size=1.5).light(0)
+    assert small.radius == pytest.approx(0.1 * 1.5 / 10.0)
+    # emission 1/4: a quarter of the energy; the source's radius 0.2 instead of 0.1
+    other = make_light_table(table, p, "FITTED", scene_size=100.0).light(0)
+    assert other.energy_w == pytest.approx(0.25 * plain.energy_w)
+    assert other.radius == pytest.approx(2.0 * plain.radius)
+    # THESIS cone at the image: the image's radius |m|·r, m = −(1/V)/D
+    cone = make_light_table(result.table, p, "THESIS", scene_size=100.0).light(0)
+    assert cone.radius == pytest.approx(0.1 * (30.0 / 17.0) / 10.0)
+    assert not cone.inside_lens and not plain.inside_lens

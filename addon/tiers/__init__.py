@@ -20,8 +20,6 @@ reports/accuracy.md (each tier's ``accuracy``).
 
 from __future__ import annotations
 
-import math
-
 from . import exact_profile, fitted, physical, thesis
 from .base import (
     COLLIMATED_DISTANCE_FACTOR,
@@ -31,11 +29,14 @@ from .base import (
     ENGINE_NAMES,
     BlenderLight,
     LensOptics,
+    LightTable,
+    Primaries,
     PrimaryLight,
     Tier,
     cone_shape,
     effective_primary,
     head_on_transmission,
+    safe_scene_size,
 )
 
 __all__ = [
@@ -54,6 +55,9 @@ __all__ = [
     "energy_model_items",
     "resolve_energy_model",
     "make_blender_light",
+    "make_light_table",
+    "LightTable",
+    "Primaries",
     "BlenderLight",
     "LensOptics",
     "PrimaryLight",
@@ -149,17 +153,8 @@ def make_blender_light(
     `source_radius` (primaries other than point lights) turn `primary` into the
     point light that stands for it toward this lens (`base.effective_primary`).
     """
-    if model == AUTO:
-        model = resolve_energy_model(model)[0]
-    try:
-        tier = TIERS[model]
-    except KeyError:
-        raise ValueError(
-            f"unknown energy model {model!r}; known: {', '.join([AUTO, *TIERS])}"
-        ) from None
-    scene_size = (
-        float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
-    )
+    tier = _tier(model)
+    scene_size = safe_scene_size(scene_size)
     primary = effective_primary(source, primary)
     return tier.make(
         source,
@@ -171,3 +166,39 @@ def make_blender_light(
         collimated_distance=collimated_distance,
         receiver_distance=receiver_distance,
     )
+
+
+def make_light_table(
+    table,
+    primaries: Primaries,
+    model: str = DEFAULT_ENERGY_MODEL,
+    *,
+    spot_blend: float = DEFAULT_SPOT_BLEND,
+    scene_size: float = 1.0,
+    scene_bounds=None,
+    collimated_distance: float | None = None,
+) -> LightTable:
+    """`make_blender_light` for every source of a `phase1.SourceTable` at once, as
+    columns (the tier's ``make_table``), with no receiver known: `primaries` per
+    source (their effective primary from the table's ``emission`` and
+    ``source_radius``, as `make_blender_light`); ``light(t)`` is source t's light."""
+    tier = _tier(model)
+    return tier.make_table(
+        table,
+        primaries.effective(table),
+        spot_blend=spot_blend,
+        scene_size=safe_scene_size(scene_size),
+        scene_bounds=scene_bounds,
+        collimated_distance=collimated_distance,
+    )
+
+
+def _tier(model: str) -> Tier:
+    if model == AUTO:
+        model = resolve_energy_model(model)[0]
+    try:
+        return TIERS[model]
+    except KeyError:
+        raise ValueError(
+            f"unknown energy model {model!r}; known: {', '.join([AUTO, *TIERS])}"
+        ) from None

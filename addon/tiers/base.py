@@ -48,6 +48,7 @@ light that stands for them toward the lens (:func:`effective_primary`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -99,15 +100,23 @@ def effective_primary(source, primary: PrimaryLight) -> PrimaryLight:
     """The point light that stands for `primary` toward `source`'s lens: its power
     times the source's ``emission`` (a spot's cone share, an area light's
     Lambertian intensity, a sun's equivalent distance², see `addon.primaries`),
-    its radius the source's ``source_radius`` where phase 1 gave one."""
+    its radius the source's ``source_radius`` where phase 1 gave one
+    (:func:`effective_columns`)."""
     e = float(getattr(source, "emission", 1.0))
     r = float(getattr(source, "source_radius", math.nan))
     if e == 1.0 and not math.isfinite(r):
         return primary
-    return PrimaryLight(
-        power_w=primary.power_w * e,
-        radius=r if math.isfinite(r) else primary.radius,
-        color=primary.color,
+    power, radius = effective_columns(primary.power_w, primary.radius, e, r)
+    return PrimaryLight(power_w=float(power), radius=float(radius), color=primary.color)
+
+
+def effective_columns(power_w, radius, emission, source_radius):
+    """`effective_primary` on columns (or scalars): (power × emission, the source's
+    radius where finite, else the primary's)."""
+    source_radius = np.asarray(source_radius, dtype=float)
+    return (
+        np.multiply(power_w, emission),
+        np.where(np.isfinite(source_radius), source_radius, radius),
     )
 
 
@@ -129,13 +138,29 @@ def head_on_transmission(ior: float) -> float:
 
 def glass_color(source, primary: PrimaryLight, optics: LensOptics) -> tuple[float, float, float]:
     """The primary's colour through the glass: × tint, × Beer–Lambert over the
-    axial chord ``2R`` (PHYSICAL, FITTED, EXACT_PROFILE)."""
-    chord = 2.0 * source.lens_radius
-    out = []
-    for c, t, a in zip(primary.color, optics.tint, optics.absorption, strict=False):
-        t = min(max(float(t), 0.0), 1.0)
-        out.append(float(c) * t * math.exp(-max(float(a), 0.0) * chord))
-    return tuple(out)
+    axial chord ``2R`` (PHYSICAL, FITTED, EXACT_PROFILE; :func:`glass_colors`)."""
+    c = glass_colors(
+        np.atleast_1d(source.lens_radius), primary.color, optics.tint, optics.absorption
+    )
+    return tuple(c[0].tolist())
+
+
+def glass_colors(lens_radius, color, tint=None, absorption=None) -> np.ndarray:
+    """:func:`glass_color` over rows: `color`, `tint`, `absorption` (N, 3) or one
+    row of 3 (None: clear, none), `lens_radius` (N,)."""
+    color = np.asarray(color, dtype=float).reshape(-1, 3)
+    tint = (
+        np.ones_like(color)
+        if tint is None
+        else np.clip(np.asarray(tint, dtype=float).reshape(-1, 3), 0.0, 1.0)
+    )
+    absorption = (
+        np.zeros_like(color)
+        if absorption is None
+        else np.maximum(np.asarray(absorption, dtype=float).reshape(-1, 3), 0.0)
+    )
+    chord = 2.0 * np.asarray(lens_radius, dtype=float)[:, None]
+    return color * tint * np.exp(-absorption * chord)
 
 
 def unblocked_share(source) -> float:
@@ -163,36 +188,59 @@ def axial_light_common(source, primary: PrimaryLight, optics: LensOptics | None)
     return axis, R, D, wgt * wgt * unblocked_share(source), color, non_full_note(source)
 
 
+def safe_scene_size(scene_size) -> float:
+    """`scene_size` if a positive finite number, else 1."""
+    ok = scene_size and math.isfinite(scene_size) and scene_size > 0
+    return float(scene_size) if ok else 1.0
+
+
 def lens_light_radius(
     source, primary: PrimaryLight, scene_size: float, receiver_distance: float | None = None
 ) -> float:
-    """The radius of a lens light standing for `source`'s image (module docstring):
-    ``r·z/D``, the blur ``z·r/D`` the physics gives a receiver ``z`` behind the lens
-    centre (SPEC §10), with ``z`` the `receiver_distance` when known, else the
+    """The radius of a lens light standing for `source`'s image (module docstring,
+    :func:`lens_light_radii`)."""
+    z = math.nan if receiver_distance is None else float(receiver_distance)
+    return float(lens_light_radii(primary.radius, source.distance, source.vergence, scene_size, z))
+
+
+def lens_light_radii(radius, distance, vergence, scene_size, receiver_distance=math.nan):
+    """:func:`lens_light_radius` on columns (or scalars): ``r·z/D``, the blur
+    ``z·r/D`` the physics gives a receiver ``z`` behind the lens centre (SPEC §10),
+    with ``z`` the `receiver_distance` where known (> 0; NaN: unknown), else the
     image's distance ``min(|1/V|, S)`` (= ``min(|m|·r, r·S/D)``, the image's own
-    radius); finite for a collimated source."""
-    r, D = float(primary.radius), float(source.distance)
-    if not (r > 0.0 and D > 0.0):
-        return 0.0
-    S = float(scene_size) if scene_size and math.isfinite(scene_size) and scene_size > 0 else 1.0
-    if receiver_distance is not None and receiver_distance > 0:
-        return r * min(float(receiver_distance), S) / D
-    V = float(source.vergence)
-    reach = S if V == 0.0 else min(abs(1.0 / V), S)
-    return r * reach / D
+    radius); finite for a collimated source; 0 without a radius or distance."""
+    r, D, V = (np.asarray(x, dtype=float) for x in (radius, distance, vergence))
+    z_r = np.asarray(receiver_distance, dtype=float)
+    S = safe_scene_size(scene_size)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(V == 0.0, S, np.minimum(np.abs(1.0 / V), S))
+        z = np.where(z_r > 0, np.minimum(z_r, S), reach)
+        return np.where((r > 0.0) & (D > 0.0), r * z / D, 0.0)
 
 
 def downstream_reach(origin, axis, scene_bounds, fallback):
     """How far the scene reaches beyond `origin` along `axis` (the largest
     `(corner − origin)·axis` over the bounding box, may be negative); `fallback`
-    without bounds."""
+    without bounds (:func:`downstream_reaches`)."""
     if scene_bounds is None:
         return fallback
-    lo, hi = ([float(x) for x in b] for b in scene_bounds)
-    return sum(
-        max((lo_k - o) * a, (hi_k - o) * a)
-        for lo_k, hi_k, o, a in zip(lo, hi, origin, axis, strict=False)
+    return float(
+        downstream_reaches(
+            np.asarray([origin], dtype=float),
+            np.asarray([axis], dtype=float),
+            scene_bounds,
+            fallback,
+        )[0]
     )
+
+
+def downstream_reaches(origin, axis, scene_bounds, fallback) -> np.ndarray:
+    """:func:`downstream_reach` over rows (`origin`, `axis`: (N, 3); `fallback`: a
+    number or (N,))."""
+    if scene_bounds is None:
+        return np.broadcast_to(np.asarray(fallback, dtype=float), origin.shape[:1])
+    lo, hi = (np.asarray(b, dtype=float) for b in scene_bounds)
+    return np.sum(np.maximum((lo - origin) * axis, (hi - origin) * axis), axis=1)
 
 
 # --------------------------------------------------------------------------- output
@@ -247,23 +295,212 @@ def cone_shape(half_angle_deg: float) -> ConeShape:
     object scaled by `tan θ / tan 0.5°` in x and y (both engines narrow the cone by
     that scale without changing intensity), so the cone is exact. 2θ > 180°: 180°
     (a spot cannot emit backward), noted. θ below `MIN_HALF_ANGLE_DEG` (or not a
-    finite number) is widened to it, noted.
+    finite number) is widened to it, noted. (One row of :func:`cone_shapes`.)
     """
-    note = ""
-    theta = float(half_angle_deg)
-    if not math.isfinite(theta) or theta < MIN_HALF_ANGLE_DEG:
-        note = f"cone half-angle {theta:.3g}° widened to {MIN_HALF_ANGLE_DEG:g}°"
-        theta = MIN_HALF_ANGLE_DEG
-    full = 2.0 * theta
-    if full > SPOT_SIZE_MAX_DEG:
-        return ConeShape(
-            SPOT_SIZE_MAX_DEG, 1.0, 90.0, f"cone {full:.4g}° clamped to Blender's maximum 180°"
+    s = cone_shapes(np.asarray([half_angle_deg], dtype=float))
+    return ConeShape(
+        float(s.spot_size_deg[0]), float(s.scale_xy[0]), float(s.half_angle_deg[0]), s.note(0)
+    )
+
+
+@dataclass
+class ConeShapes:
+    """:func:`cone_shape` over rows; the flags say which note applies."""
+
+    spot_size_deg: np.ndarray
+    scale_xy: np.ndarray
+    half_angle_deg: np.ndarray
+    asked_deg: np.ndarray  # the half-angle asked for (for the note)
+    widened: np.ndarray  # bool: below MIN_HALF_ANGLE_DEG or not finite
+    clamped: np.ndarray  # bool: wider than 180°
+    narrowed: np.ndarray  # bool: spot_size 1° plus object scale
+
+    def note(self, t: int) -> str:
+        theta = float(self.asked_deg[t])
+        note = (
+            f"cone half-angle {theta:.3g}° widened to {MIN_HALF_ANGLE_DEG:g}°"
+            if self.widened[t]
+            else ""
         )
-    if full >= SPOT_SIZE_MIN_DEG:
-        return ConeShape(full, 1.0, theta, note)
-    k = math.tan(math.radians(theta)) / math.tan(math.radians(0.5 * SPOT_SIZE_MIN_DEG))
-    extra = f"cone {full:.3g}° < 1°: spot_size 1°, narrowed by object scale {k:.4g}"
-    return ConeShape(SPOT_SIZE_MIN_DEG, k, theta, f"{note}; {extra}" if note else extra)
+        if self.clamped[t]:
+            full = 2.0 * float(self.half_angle_deg[t] if self.widened[t] else theta)
+            return f"cone {full:.4g}° clamped to Blender's maximum 180°"
+        if self.narrowed[t]:
+            full = 2.0 * float(self.half_angle_deg[t])
+            extra = (
+                f"cone {full:.3g}° < 1°: spot_size 1°, narrowed by object scale "
+                f"{float(self.scale_xy[t]):.4g}"
+            )
+            return f"{note}; {extra}" if note else extra
+        return note
+
+    def where(self, mask: np.ndarray, other: ConeShapes) -> ConeShapes:
+        """Rows of `self` where `mask`, of `other` elsewhere."""
+        return ConeShapes(
+            *(
+                np.where(mask, getattr(self, f), getattr(other, f))
+                for f in ConeShapes.__dataclass_fields__
+            )
+        )
+
+
+def cone_shapes(half_angle_deg) -> ConeShapes:
+    """:func:`cone_shape` of every half-angle (degrees) of an array."""
+    asked = np.asarray(half_angle_deg, dtype=float)
+    with np.errstate(invalid="ignore"):
+        widened = ~np.isfinite(asked) | (asked < MIN_HALF_ANGLE_DEG)
+    theta = np.where(widened, MIN_HALF_ANGLE_DEG, asked)
+    full = 2.0 * theta
+    clamped = full > SPOT_SIZE_MAX_DEG
+    narrowed = ~clamped & (full < SPOT_SIZE_MIN_DEG)
+    k = np.tan(np.radians(theta)) / math.tan(math.radians(0.5 * SPOT_SIZE_MIN_DEG))
+    return ConeShapes(
+        spot_size_deg=np.where(
+            clamped, SPOT_SIZE_MAX_DEG, np.where(narrowed, SPOT_SIZE_MIN_DEG, full)
+        ),
+        scale_xy=np.where(narrowed, k, 1.0),
+        half_angle_deg=np.where(clamped, 90.0, theta),
+        asked_deg=asked,
+        widened=widened,
+        clamped=clamped,
+        narrowed=narrowed,
+    )
+
+
+# --------------------------------------------------------------------------- columns
+
+#: Source kinds in the order of `phase1.SourceTable.kind`'s codes.
+KINDS = ("real", "virtual", "collimated")
+REAL, VIRTUAL, COLLIMATED = range(3)
+
+
+@dataclass
+class Primaries:
+    """Per source (rows of a `phase1.SourceTable`): its primary light and its
+    lens's material, as columns (`PrimaryLight`, `LensOptics`)."""
+
+    power_w: np.ndarray  # (N,)
+    radius: np.ndarray  # (N,)
+    color: np.ndarray  # (N, 3)
+    transmission_weight: np.ndarray  # (N,)
+    tint: np.ndarray | None = None  # (N, 3); None: clear (1, 1, 1)
+    absorption: np.ndarray | None = None  # (N, 3); None: none
+
+    @property
+    def intensity(self) -> np.ndarray:
+        return self.power_w / (4.0 * math.pi)
+
+    def effective(self, table) -> Primaries:
+        """`effective_primary` for every source of `table` (its ``emission`` and
+        ``source_radius`` columns)."""
+        power, radius = effective_columns(
+            self.power_w, self.radius, table.emission, table.source_radius
+        )
+        return dataclasses.replace(self, power_w=power, radius=radius)
+
+
+def unblocked_columns(table) -> tuple[np.ndarray, np.ndarray]:
+    """(`unblocked_share`, full) of every source of a `phase1.SourceTable`."""
+    return np.clip(table.unblocked_fraction, 0.0, 1.0), np.diff(table.shadow_offsets) == 0
+
+
+def non_full_notes(unblocked: np.ndarray, full: np.ndarray) -> Callable[[int], str]:
+    """`non_full_note` of row t (a `LightTable` note part)."""
+    return lambda t: (
+        ""
+        if full[t]
+        else f"non-full: energy × {float(unblocked[t]):.4g} (unblocked share of the lit cap)"
+    )
+
+
+def unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.sqrt(np.sum(v * v, axis=1))[:, None]
+
+
+def relative_brightness(irradiance, primary_irradiance) -> np.ndarray:
+    """irradiance / the primary's irradiance at the lens (0 where that is not > 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(primary_irradiance > 0, irradiance / primary_irradiance, 0.0)
+
+
+@dataclass
+class LightTable:
+    """One Blender light per source of a `phase1.SourceTable`, as columns (what a
+    tier's table maker gives); `light(t)` is the `BlenderLight` its per-source
+    maker makes."""
+
+    model: str
+    kind: np.ndarray  # source kind codes (`KINDS`)
+    energy_w: np.ndarray
+    spot_size_deg: np.ndarray
+    spot_blend: np.ndarray
+    radius: np.ndarray
+    location: np.ndarray  # (N, 3)
+    direction: np.ndarray  # (N, 3)
+    color: np.ndarray  # (N, 3)
+    scale_xy: np.ndarray
+    cone_half_angle_deg: np.ndarray
+    cutoff_distance: np.ndarray
+    reference_irradiance: np.ndarray
+    relative_brightness: np.ndarray
+    inside_lens: np.ndarray  # bool
+    note_parts: list  # callables t → str ("" when none), in note order
+    profile_info: dict | None = None  # EXACT_PROFILE: `ProfileLight.profile_info` columns
+    light_class: type | None = None  # the per-source maker's class (None: BlenderLight)
+
+    def __len__(self) -> int:
+        return int(self.energy_w.size)
+
+    def note(self, t: int) -> str:
+        return "; ".join(p for p in (part(t) for part in self.note_parts) if p)
+
+    def light(self, t: int) -> BlenderLight:
+        common = dict(
+            type=SPOT,
+            energy_w=float(self.energy_w[t]),
+            spot_size_deg=float(self.spot_size_deg[t]),
+            spot_blend=float(self.spot_blend[t]),
+            radius=float(self.radius[t]),
+            location=tuple(self.location[t].tolist()),
+            direction=tuple(self.direction[t].tolist()),
+            note=self.note(t),
+            color=tuple(self.color[t].tolist()),
+            scale_xy=float(self.scale_xy[t]),
+            cone_half_angle_deg=float(self.cone_half_angle_deg[t]),
+            cutoff_distance=float(self.cutoff_distance[t]),
+            kind=KINDS[int(self.kind[t])],
+            model=self.model,
+            reference_irradiance=float(self.reference_irradiance[t]),
+            relative_brightness=float(self.relative_brightness[t]),
+            inside_lens=bool(self.inside_lens[t]),
+        )
+        if self.profile_info is None:
+            return (self.light_class or BlenderLight)(**common)
+        info = {
+            k: (v[t].item() if isinstance(v, np.ndarray) else v)
+            for k, v in self.profile_info.items()
+        }
+        return self.light_class(**common, profile_info=info)
+
+    def json_columns(self) -> dict[str, list]:
+        """`BlenderLight.to_json` of every light, as columns of lists (for JSON)."""
+        n = len(self)
+        cols = {
+            "type": [SPOT] * n,
+            "energy_w": self.energy_w.tolist(),
+            "spot_size_deg": self.spot_size_deg.tolist(),
+            "spot_blend": self.spot_blend.tolist(),
+            "radius": self.radius.tolist(),
+        }
+        if self.profile_info is not None:
+            info = {
+                k: (v.tolist() if isinstance(v, np.ndarray) else [v] * n)
+                for k, v in self.profile_info.items()
+            }
+            cols["profile"] = [
+                dict(zip(info, row, strict=True)) for row in zip(*info.values(), strict=True)
+            ]
+        return cols
 
 
 # --------------------------------------------------------------------------- registry entry
@@ -284,6 +521,10 @@ class Accuracy:
 #: collimated_distance, receiver_distance) -> BlenderLight`` (see
 #: `tiers.make_blender_light`).
 LightMaker = Callable[..., BlenderLight]
+#: ``make_table(table, primaries, *, spot_blend, scene_size, scene_bounds,
+#: collimated_distance) -> LightTable``: the same lights for every source of a
+#: `phase1.SourceTable` with no receiver known (see `tiers.make_light_table`).
+TableMaker = Callable[..., LightTable]
 
 
 @dataclass(frozen=True)
@@ -302,6 +543,7 @@ class Tier:
     accuracy: Accuracy
     number: int
     make: LightMaker
+    make_table: TableMaker
 
     @property
     def short_label(self) -> str:

@@ -40,10 +40,18 @@ from .base import (
     Accuracy,
     BlenderLight,
     LensOptics,
+    LightTable,
+    Primaries,
     PrimaryLight,
     Tier,
     axial_light_common,
+    glass_colors,
+    lens_light_radii,
     lens_light_radius,
+    non_full_notes,
+    relative_brightness,
+    unblocked_columns,
+    unit_rows,
 )
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
@@ -401,6 +409,61 @@ def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distanc
     )
 
 
+def make_table(table, p: Primaries, *, scene_size: float = 1.0, **_ignored) -> LightTable:
+    """:func:`make_light` for every source of a `phase1.SourceTable` at once, no
+    receiver known (the light just behind the back pole). The beam's flux and
+    reference irradiance are traced once per distinct ``(D/R, n)`` (`_beam_summary`,
+    remembered); ``light(t)`` is a `ProfileLight` without its table."""
+    axis = unit_rows(table.axis)
+    R, D = table.lens_radius, table.distance
+    unblocked, full = unblocked_columns(table)
+    scale = np.clip(p.transmission_weight, 0.0, 1.0) ** 2 * unblocked
+    keys = list(
+        zip(
+            [round(x, 9) for x in (D / R).tolist()],
+            [round(x, 9) for x in table.ior.tolist()],
+            strict=True,
+        )
+    )
+    summary = {k: _beam_summary(*k) for k in dict.fromkeys(keys)}
+    flux = np.array([summary[k][0] for k in keys], dtype=float).reshape(-1)
+    e_ref = np.array([summary[k][1] for k in keys], dtype=float).reshape(-1)
+    t_ref = np.where(flux > 0, flux / (2.0 * math.pi), 1.0)
+    I_ref = np.where(flux > 0, p.intensity * t_ref * scale, 0.0)
+    apex, h_min, h_max = table_geometry(None)
+    irradiance = p.intensity * scale * e_ref / R**2
+    n = len(table)
+    info = {
+        "gamma_max_deg": PROFILE_GAMMA_MAX_DEG,
+        "h_min": h_min * R,
+        "h_max": h_max * R,
+        "width": PROFILE_ANGLES,
+        "height": PROFILE_DISTANCES,
+        "strength_scale": 1.0,
+    }
+    cycles = "Cycles only: intensity from the light node tree (EEVEE ignores it)"
+    return LightTable(
+        model=NAME,
+        kind=table.kind,
+        energy_w=4.0 * math.pi * I_ref,
+        spot_size_deg=np.full(n, 180.0),
+        spot_blend=np.zeros(n),
+        radius=lens_light_radii(p.radius, D, table.vergence, scene_size),
+        location=table.lens_center + (apex * R)[:, None] * axis,
+        direction=axis,
+        color=glass_colors(R, p.color, p.tint, p.absorption),
+        scale_xy=np.ones(n),
+        cone_half_angle_deg=np.full(n, 90.0),
+        cutoff_distance=CUTOFF_FACTOR * (R + float(scene_size or 1.0)),
+        reference_irradiance=irradiance,
+        relative_brightness=relative_brightness(irradiance, p.intensity / D**2),
+        inside_lens=np.full(n, apex < 1.0),
+        note_parts=[non_full_notes(unblocked, full), lambda t: cycles],
+        profile_info=info,
+        light_class=ProfileLight,
+    )
+
+
 ACCURACY = Accuracy(0.024, 0.080)
 TIER = Tier(
     name=NAME,
@@ -415,4 +478,5 @@ TIER = Tier(
     accuracy=ACCURACY,
     number=3,
     make=make_light,
+    make_table=make_table,
 )

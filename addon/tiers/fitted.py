@@ -32,14 +32,30 @@ from .base import (
     Accuracy,
     BlenderLight,
     LensOptics,
+    LightTable,
+    Primaries,
     PrimaryLight,
     Tier,
     axial_light_common,
     cone_shape,
+    cone_shapes,
+    glass_colors,
+    lens_light_radii,
     lens_light_radius,
+    non_full_notes,
+    relative_brightness,
+    unblocked_columns,
+    unit_rows,
 )
 from .near_field import is_near, receiver_fit
-from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS, SUN_DISTANCE, SpotFit, fit_spot
+from .spot_fit import (
+    FIRST_RECEIVER,
+    FIT_RECEIVERS,
+    SUN_DISTANCE,
+    SpotFit,
+    fit_spot,
+    from_invariants,
+)
 
 NAME = "FITTED"
 
@@ -79,27 +95,63 @@ def fitted_table() -> FittedTable:
 def fitted_spot(D_over_R: float, n: float) -> tuple[SpotFit, str]:
     """The fitted spot for a lens seen from ``D/R`` with index ``n``, interpolated
     from the shipped table (bilinear in ``x = R/D`` and ``n``, on the invariants
-    ``w``, ``log e``, ``log r``, ``blend``).  Returns the fit and a note ("" or
-    what was clamped)."""
+    ``w``, ``log e``, ``log r``, ``blend``; one row of :func:`fitted_spots`).
+    Returns the fit and a note ("" or what was clamped)."""
+    s = fitted_spots(np.asarray([D_over_R], dtype=float), np.asarray([n], dtype=float))
+    fit = SpotFit(
+        apex=float(s.apex[0]),
+        intensity=float(s.intensity[0]),
+        half_angle_deg=float(s.half_angle_deg[0]),
+        blend=float(s.blend[0]),
+    )
+    return fit, s.note(0)
+
+
+@dataclass
+class FittedSpots:
+    """:class:`.spot_fit.SpotFit` columns (R = 1, primary intensity 1) from the
+    shipped table, with what was clamped (`note`)."""
+
+    apex: np.ndarray
+    intensity: np.ndarray
+    half_angle_deg: np.ndarray
+    blend: np.ndarray
+    D_over_R: np.ndarray  # as looked up (inf: a sun)
+    n: np.ndarray  # as asked
+    x_clamped: np.ndarray  # bool: nearer than the table's last row
+    n_clamped: np.ndarray  # bool: index outside the table's columns
+
+    def note(self, t: int) -> str:
+        xs, ns = fitted_table().X, fitted_table().N
+        parts = []
+        if self.x_clamped[t]:
+            parts.append(
+                f"light at {float(self.D_over_R[t]):.4g} R: nearer than the table's "
+                f"{1 / xs[-1]:.4g} R, clamped"
+            )
+        if self.n_clamped[t]:
+            parts.append(
+                f"n = {float(self.n[t]):.4g} outside the table's {ns[0]:g}–{ns[-1]:g}, clamped"
+            )
+        return "; ".join(parts)
+
+
+def fitted_spots(D_over_R: np.ndarray, n: np.ndarray) -> FittedSpots:
+    """:func:`fitted_spot` of every ``(D/R, n)`` of two arrays."""
     t = fitted_table()
     xs, ns = np.asarray(t.X), np.asarray(t.N)
-    x = 0.0 if not math.isfinite(D_over_R) else 1.0 / float(D_over_R)
-    D_over_R = math.inf if x == 0.0 else float(D_over_R)
-    note = []
-    if x > xs[-1]:
-        note.append(
-            f"light at {D_over_R:.4g} R: nearer than the table's {1 / xs[-1]:.4g} R, clamped"
-        )
-        x = xs[-1]
-    if not ns[0] <= n <= ns[-1]:
-        note.append(f"n = {n:.4g} outside the table's {ns[0]:g}–{ns[-1]:g}, clamped")
-        n = min(max(n, ns[0]), ns[-1])
-    i = int(np.clip(np.searchsorted(xs, x, side="right") - 1, 0, xs.size - 2))
-    j = int(np.clip(np.searchsorted(ns, n, side="right") - 1, 0, ns.size - 2))
+    n_asked = np.asarray(n, dtype=float)
+    with np.errstate(divide="ignore"):
+        x = np.where(np.isfinite(D_over_R), 1.0 / D_over_R, 0.0)
+    DR = np.where(x == 0.0, math.inf, D_over_R)
+    x_clamped = x > xs[-1]
+    x = np.where(x_clamped, xs[-1], x)
+    n_clamped = ~((ns[0] <= n_asked) & (n_asked <= ns[-1]))
+    n = np.clip(n_asked, ns[0], ns[-1])
+    i = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, xs.size - 2)
+    j = np.clip(np.searchsorted(ns, n, side="right") - 1, 0, ns.size - 2)
     u = (x - xs[i]) / (xs[i + 1] - xs[i])
     v = (n - ns[j]) / (ns[j + 1] - ns[j])
-    W = np.asarray(t.W)
-    LE, LR, B = np.log(np.asarray(t.E)), np.log(np.asarray(t.RCONE)), np.asarray(t.BLEND)
 
     def lerp(A):
         return (
@@ -109,34 +161,53 @@ def fitted_spot(D_over_R: float, n: float) -> tuple[SpotFit, str]:
             + u * v * A[i + 1, j + 1]
         )
 
-    fit = SpotFit.from_invariants(
-        D_over_R if math.isfinite(D_over_R) else SUN_DISTANCE,
-        lerp(W),
-        math.exp(lerp(LE)),
-        math.exp(lerp(LR)),
-        lerp(B),
+    apex, intensity, half = from_invariants(
+        np.where(np.isfinite(DR), DR, SUN_DISTANCE),
+        lerp(np.asarray(t.W)),
+        np.exp(lerp(np.log(np.asarray(t.E)))),
+        np.exp(lerp(np.log(np.asarray(t.RCONE)))),
     )
-    return fit, "; ".join(note)
+    return FittedSpots(
+        apex, intensity, half, lerp(np.asarray(t.BLEND)), DR, n_asked, x_clamped, n_clamped
+    )
 
 
 def pull_in(fit: SpotFit, max_behind: float) -> SpotFit:
     """``fit`` with its apex at most ``max_behind`` (in R) behind the back pole
     (a nearly collimated beam's fitted spot may sit up to 1000 R behind the lens,
     where other geometry could block it): the cone keeps its radius at the first
-    receiver and the on-axis irradiance at the middle fit receiver is kept."""
-    if not (1.0 - fit.apex) > max_behind or not max_behind > 0.0:
+    receiver and the on-axis irradiance at the middle fit receiver is kept
+    (one row of :func:`pull_in_columns`)."""
+    pulled, apex, intensity, half = pull_in_columns(
+        np.asarray([fit.apex]),
+        np.asarray([fit.intensity]),
+        np.asarray([fit.half_angle_deg]),
+        np.asarray([max_behind], dtype=float),
+    )
+    if not pulled[0]:
         return fit
-    apex = 1.0 - max_behind
-    d_old, d_new = 1.0 + FIRST_RECEIVER - fit.apex, 1.0 + FIRST_RECEIVER - apex
-    r = d_old * math.tan(math.radians(fit.half_angle_deg))
-    z_ref = 1.0 + FIT_RECEIVERS[len(FIT_RECEIVERS) // 2]
-    k = fit.intensity * ((z_ref - apex) / (z_ref - fit.apex)) ** 2
     return SpotFit(
-        apex=apex,
-        intensity=k,
-        half_angle_deg=math.degrees(math.atan2(r, d_new)),
+        apex=float(apex[0]),
+        intensity=float(intensity[0]),
+        half_angle_deg=float(half[0]),
         blend=fit.blend,
         l1=float("nan"),
+    )
+
+
+def pull_in_columns(apex, intensity, half_angle_deg, max_behind):
+    """:func:`pull_in` on columns: (pulled, apex, intensity, half_angle_deg)."""
+    pulled = ((1.0 - apex) > max_behind) & (max_behind > 0.0)
+    new_apex = 1.0 - max_behind
+    d_old, d_new = 1.0 + FIRST_RECEIVER - apex, 1.0 + FIRST_RECEIVER - new_apex
+    r = d_old * np.tan(np.radians(half_angle_deg))
+    z_ref = 1.0 + FIT_RECEIVERS[len(FIT_RECEIVERS) // 2]
+    k = intensity * ((z_ref - new_apex) / (z_ref - apex)) ** 2
+    return (
+        pulled,
+        np.where(pulled, new_apex, apex),
+        np.where(pulled, k, intensity),
+        np.where(pulled, np.degrees(np.arctan2(r, d_new)), half_angle_deg),
     )
 
 
@@ -239,6 +310,58 @@ def make_light(
     )
 
 
+def make_table(
+    table,
+    p: Primaries,
+    *,
+    scene_size: float = 1.0,
+    collimated_distance: float | None = None,
+    **_ignored,
+) -> LightTable:
+    """:func:`make_light` for every source of a `phase1.SourceTable` at once (the
+    table lookup, no receiver known: no near-field fits)."""
+    axis = unit_rows(table.axis)
+    R, D = table.lens_radius, table.distance
+    unblocked, full = unblocked_columns(table)
+    scale = np.clip(p.transmission_weight, 0.0, 1.0) ** 2 * unblocked
+    spots = fitted_spots(D / R, table.ior)
+    far = collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size
+    pulled, apex, intensity, half = pull_in_columns(
+        spots.apex, spots.intensity, spots.half_angle_deg, float(far) / R
+    )
+
+    def pull_note(t):
+        return (
+            ""
+            if not pulled[t]
+            else f"spot pulled in from {float((1.0 - spots.apex[t]) * R[t]):.4g} to "
+            f"{float((1.0 - apex[t]) * R[t]):.4g} behind the back vertex "
+            "(geometry behind the lens)"
+        )
+
+    shape = cone_shapes(half)
+    d_ref = (1.0 + FIRST_RECEIVER - apex) * R
+    irradiance = p.intensity * intensity * scale / d_ref**2
+    return LightTable(
+        model=NAME,
+        kind=table.kind,
+        energy_w=p.power_w * intensity * scale,
+        spot_size_deg=shape.spot_size_deg,
+        spot_blend=np.clip(spots.blend, 0.0, 1.0),
+        radius=lens_light_radii(p.radius, D, table.vergence, scene_size),
+        location=table.lens_center + (apex * R)[:, None] * axis,
+        direction=axis,
+        color=glass_colors(R, p.color, p.tint, p.absorption),
+        scale_xy=shape.scale_xy,
+        cone_half_angle_deg=shape.half_angle_deg,
+        cutoff_distance=CUTOFF_FACTOR * (np.abs(apex) * R + float(scene_size or 1.0)),
+        reference_irradiance=irradiance,
+        relative_brightness=relative_brightness(irradiance, p.intensity / D**2),
+        inside_lens=apex < 1.0,
+        note_parts=[non_full_notes(unblocked, full), spots.note, pull_note, shape.note],
+    )
+
+
 ACCURACY = Accuracy(0.50, 0.79)
 TIER = Tier(
     name=NAME,
@@ -252,4 +375,5 @@ TIER = Tier(
     accuracy=ACCURACY,
     number=2,
     make=make_light,
+    make_table=make_table,
 )

@@ -32,25 +32,44 @@ primary's irradiance at the lens), a beam's at ``L_ref``.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Protocol
 
+import numpy as np
+
 from .base import (
+    COLLIMATED,
     COLLIMATED_DISTANCE_FACTOR,
     CUTOFF_FACTOR,
     DEFAULT_SPOT_BLEND,
+    REAL,
     SPOT,
+    VIRTUAL,
     BlenderLight,
     LensOptics,
+    LightTable,
+    Primaries,
     PrimaryLight,
     cone_shape,
+    cone_shapes,
     downstream_reach,
+    downstream_reaches,
     non_full_note,
+    non_full_notes,
+    relative_brightness,
+    unblocked_columns,
     unblocked_share,
+    unit_rows,
 )
 from .near_field import APEX_CLEARANCE, flux_keeping_factor, pulled_in_cone
 
 
 class EnergyModel(Protocol):
+    """Each method takes one source, primary and material (a `SecondarySource`,
+    `PrimaryLight`, `LensOptics`) or columns of many (:func:`paraxial_table`: the
+    sources' columns, `Primaries` for both primary and material) and returns a
+    number or a column."""
+
     def cone_intensity(self, source, primary: PrimaryLight, optics: LensOptics) -> float:
         """On-axis radiant intensity (W/sr) of a cone seen from its apex."""
 
@@ -60,10 +79,8 @@ class EnergyModel(Protocol):
         """On-axis irradiance (W/length²) of a collimated beam, at
         `reference_distance` beyond the back vertex (on a plane across the beam)."""
 
-    def color(
-        self, source, primary: PrimaryLight, optics: LensOptics
-    ) -> tuple[float, float, float]:
-        """Colour of the Blender light (0–1 per channel)."""
+    def color(self, source, primary: PrimaryLight, optics: LensOptics) -> np.ndarray:
+        """Colour of the Blender light (0–1 per channel), one row per source."""
 
 
 def _vec(v) -> tuple[float, float, float]:
@@ -124,7 +141,7 @@ def make_paraxial_light(
     center = [float(x) for x in source.lens_center]
     radius_lens = float(source.lens_radius)
     unblocked = unblocked_share(source)
-    color = energy_model.color(source, primary, optics)
+    color = _vec(energy_model.color(source, primary, optics)[0])
     notes = []
     primary_irradiance = primary.intensity / source.distance**2  # at the lens centre
     s_far = (
@@ -237,4 +254,130 @@ def make_paraxial_light(
             float(irradiance / primary_irradiance) if primary_irradiance > 0 else 0.0
         ),
         inside_lens=inside,
+    )
+
+
+#: Why a table's light is a beam (`paraxial_table`; CONE: a cone at the image).
+CONE, BEAM_COLLIMATED, BEAM_REAL_BEYOND, BEAM_VIRTUAL_FAR = range(4)
+
+
+def paraxial_table(
+    table,
+    p: Primaries,
+    energy_model: EnergyModel,
+    name: str,
+    *,
+    spot_blend: float = DEFAULT_SPOT_BLEND,
+    scene_size: float = 1.0,
+    scene_bounds=None,
+    collimated_distance: float | None = None,
+    **_ignored,
+) -> LightTable:
+    """`make_paraxial_light` for every source of a `phase1.SourceTable` at once,
+    no receiver known (so no pulled-in cones): cones and beams as there."""
+    axis = unit_rows(table.axis)
+    R, D, kind = table.lens_radius, table.distance, table.kind
+    center, position = table.lens_center, table.position
+    unblocked, full = unblocked_columns(table)
+    col = kind == COLLIMATED
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_img = np.where(col, np.nan, 1.0 / table.vergence)  # signed, from the centre
+        m = np.where(col, np.nan, -1.0 / (table.vergence * D))
+    columns = SimpleNamespace(
+        brightness_factor=table.brightness_factor,
+        magnification=m,
+        ior=table.ior,
+        distance=D,
+        lens_radius=R,
+    )
+    color = energy_model.color(columns, p, p)
+    primary_irradiance = p.intensity / D**2
+    s_far = (
+        float(collimated_distance)
+        if collimated_distance
+        else COLLIMATED_DISTANCE_FACTOR * scene_size
+    )
+    s_far = max(s_far, 1e-6 * scene_size)
+    back_vertex = center + R[:, None] * axis
+    spread_deg = np.degrees(table.spread)
+    cone_intensity = energy_model.cone_intensity(columns, p, p)
+
+    real_far = downstream_reaches(position, axis, scene_bounds, scene_size - (z_img - R)) <= 0.0
+    why = np.where(
+        col,
+        BEAM_COLLIMATED,
+        np.where(
+            (kind == REAL) & real_far,
+            BEAM_REAL_BEYOND,
+            np.where((kind == VIRTUAL) & (np.abs(z_img) > s_far), BEAM_VIRTUAL_FAR, CONE),
+        ),
+    )
+    beam = why != CONE
+
+    # Beams: far-away spots behind the back vertex.
+    reach = downstream_reaches(back_vertex, axis, scene_bounds, scene_size)
+    l_ref = (
+        0.5 * np.minimum(np.maximum(reach, 0.0), scene_size)
+        if scene_bounds is not None
+        else np.full(len(table), 0.5 * scene_size)
+    )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        beam_irradiance = energy_model.beam_irradiance(
+            columns, p, p, np.maximum(l_ref, 1e-9 * scene_size)
+        )
+        width = np.where(
+            col,
+            np.nan_to_num(table.cylinder_radius),
+            np.tan(np.radians(spread_deg)) * np.abs(z_img - R),
+        )
+        b_irr = (
+            np.where(col, beam_irradiance, cone_intensity / (z_img - (R + l_ref)) ** 2) * unblocked
+        )
+    b_shape = cone_shapes(np.degrees(np.arctan2(width, s_far)))
+    b_intensity = b_irr * (s_far + l_ref) ** 2
+    b_radius = (R + np.maximum(l_ref, 0.0)) * p.radius / D
+
+    # Cones at the image point.
+    c_shape = cone_shapes(spread_deg)
+    c_intensity = cone_intensity * unblocked
+    z_ref = np.abs(z_img)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c_irr = np.where(z_ref > 0, c_intensity / z_ref**2, np.inf)
+
+    shape = b_shape.where(beam, c_shape)
+    irradiance = np.where(beam, b_irr, c_irr)
+    reach_total = np.where(
+        beam, s_far + scene_size, np.sqrt(np.sum((position - center) ** 2, axis=1)) + scene_size
+    )
+
+    def beam_note(t):
+        w = float(width[t])
+        return {
+            CONE: "",
+            BEAM_COLLIMATED: f"collimated beam R_C={w:.4g}",
+            BEAM_REAL_BEYOND: f"real image beyond the scene: beam of radius {w:.4g}",
+            BEAM_VIRTUAL_FAR: f"virtual image far behind: beam of radius {w:.4g}",
+        }[int(why[t])]
+
+    def spot_note(t):
+        return f"spot {s_far:.4g} behind the back vertex" if beam[t] else ""
+
+    n = len(table)
+    return LightTable(
+        model=name,
+        kind=kind,
+        energy_w=4.0 * math.pi * np.where(beam, b_intensity, c_intensity),
+        spot_size_deg=shape.spot_size_deg,
+        spot_blend=np.full(n, float(min(max(spot_blend, 0.0), 1.0))),
+        radius=np.where(beam, b_radius, np.abs(m) * p.radius),
+        location=np.where(beam[:, None], back_vertex - s_far * axis, position),
+        direction=axis,
+        color=np.broadcast_to(color, (n, 3)),
+        scale_xy=shape.scale_xy,
+        cone_half_angle_deg=shape.half_angle_deg,
+        cutoff_distance=CUTOFF_FACTOR * reach_total,
+        reference_irradiance=irradiance,
+        relative_brightness=relative_brightness(irradiance, primary_irradiance),
+        inside_lens=np.zeros(n, dtype=bool),
+        note_parts=[beam_note, spot_note, shape.note, non_full_notes(unblocked, full)],
     )

@@ -7,15 +7,17 @@ sphere (`material_model`) and Beer–Lambert absorption over the axial chord ``2
 
 from __future__ import annotations
 
-from .base import CYCLES, EEVEE, Accuracy, Tier, glass_color, head_on_transmission
-from .paraxial import make_paraxial_light
+import numpy as np
+
+from .base import CYCLES, EEVEE, Accuracy, Tier, glass_colors, head_on_transmission
+from .paraxial import make_paraxial_light, paraxial_table
 
 NAME = "PHYSICAL"
 
 
 class PhysicalModel:
     def _throughput(self, source, optics):
-        w = min(max(optics.transmission_weight, 0.0), 1.0)
+        w = np.clip(optics.transmission_weight, 0.0, 1.0)
         return head_on_transmission(source.ior) * w * w
 
     def cone_intensity(self, source, primary, optics):
@@ -28,7 +30,9 @@ class PhysicalModel:
         return primary.intensity * self._throughput(source, optics) / source.distance**2
 
     def color(self, source, primary, optics):
-        return glass_color(source, primary, optics)
+        return glass_colors(
+            np.atleast_1d(source.lens_radius), primary.color, optics.tint, optics.absorption
+        )
 
 
 MODEL = PhysicalModel()
@@ -36,6 +40,10 @@ MODEL = PhysicalModel()
 
 def make_light(source, primary, **kwargs):
     return make_paraxial_light(source, primary, MODEL, NAME, **kwargs)
+
+
+def make_table(table, primaries, **kwargs):
+    return paraxial_table(table, primaries, MODEL, NAME, **kwargs)
 
 
 TIER = Tier(
@@ -47,4 +55,5 @@ TIER = Tier(
     accuracy=Accuracy(0.87, 1.02),
     number=1,
     make=make_light,
+    make_table=make_table,
 )

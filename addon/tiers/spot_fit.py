@@ -69,14 +69,8 @@ class SpotFit:
 
     @classmethod
     def from_invariants(cls, D_over_R, w, e, r, b, l1=float("nan")) -> SpotFit:
-        d = 1.0 / w
-        return cls(
-            apex=1.0 + FIRST_RECEIVER - d,
-            intensity=e * (d / D_over_R) ** 2,
-            half_angle_deg=math.degrees(math.atan2(r, d)),
-            blend=b,
-            l1=l1,
-        )
+        apex, intensity, half = (float(v) for v in from_invariants(D_over_R, w, e, r))
+        return cls(apex=apex, intensity=intensity, half_angle_deg=half, blend=b, l1=l1)
 
     def model(self, R=1.0, I0=1.0) -> acc.AxialSpot:
         return acc.AxialSpot(
@@ -85,6 +79,13 @@ class SpotFit:
             half_angle=math.radians(self.half_angle_deg),
             blend=self.blend,
         )
+
+
+def from_invariants(D_over_R, w, e, r):
+    """(apex, intensity, half_angle_deg) of the spot with the invariants ``w, e, r``
+    (:meth:`SpotFit.invariants`), on numbers or columns."""
+    d = 1.0 / w
+    return (1.0 + FIRST_RECEIVER - d, e * (d / D_over_R) ** 2, np.degrees(np.arctan2(r, d)))
 
 
 class _SpotObjective:

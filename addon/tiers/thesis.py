@@ -4,8 +4,10 @@ beam, :mod:`.paraxial`) of intensity ``I0 · exp(−(1 − kt)(2R + TR)/2)``
 
 from __future__ import annotations
 
+import numpy as np
+
 from .base import CYCLES, EEVEE, Accuracy, Tier
-from .paraxial import make_paraxial_light
+from .paraxial import make_paraxial_light, paraxial_table
 
 NAME = "THESIS"
 
@@ -19,7 +21,7 @@ class ThesisModel:
         return primary.intensity * source.brightness_factor / reference_distance**2
 
     def color(self, source, primary, optics):
-        return tuple(float(c) for c in primary.color)
+        return np.array(primary.color, dtype=float).reshape(-1, 3)
 
 
 MODEL = ThesisModel()
@@ -27,6 +29,10 @@ MODEL = ThesisModel()
 
 def make_light(source, primary, **kwargs):
     return make_paraxial_light(source, primary, MODEL, NAME, **kwargs)
+
+
+def make_table(table, primaries, **kwargs):
+    return paraxial_table(table, primaries, MODEL, NAME, **kwargs)
 
 
 TIER = Tier(
@@ -38,4 +44,5 @@ TIER = Tier(
     accuracy=Accuracy(187.0, 2243.0, l1_median=1.1),
     number=0,
     make=make_light,
+    make_table=make_table,
 )
