@@ -256,4 +256,9 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    # Blender 4.2's bpy module (imported for the import operator) crashes in its static
+    # destructors at exit, after the work: leave without running them.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code or 0)

@@ -34,6 +34,8 @@ def new_measuring_scene(engine: str, resolution: int | tuple[int, int]):
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
+    if engine == "BLENDER_EEVEE" and bpy.app.version < (5, 0, 0):
+        engine = "BLENDER_EEVEE_NEXT"  # EEVEE's identifier in 4.2–4.5
     sc.render.engine = engine
     w, h = (resolution, resolution) if isinstance(resolution, int) else resolution
     sc.render.resolution_x, sc.render.resolution_y = w, h

@@ -106,7 +106,9 @@ def test_render_bi_with_lens_lights_and_compare(tmp_path):
     assert w == 48 + 4 + 48 and h > 36
     image = png_pixels(cmp_png)
     without, with_ = image[h - 36 :, :48], image[h - 36 :, 52:]
-    assert np.array_equal(with_, png_pixels(with_png))  # same scene, same seed
+    # Same scene, same seed: the same image (Cycles 4.2 differs by a level or two of
+    # 8 bits between processes; 5.x is bit-identical).
+    assert np.abs(with_ - png_pixels(with_png)).max() <= 3 / 255
     gain = with_ - without
     assert gain.max() > 0.05 and gain.sum() > 5.0 and gain.min() > -0.05
 
@@ -120,7 +122,9 @@ def test_render_blend_with_eevee(tmp_path):
         f"import render; render.ensure_extension(); "
         f"bpy.ops.import_scene.bi(filepath={str(FIG3)!r}); "
         f"s = bpy.context.scene; s.render.resolution_x = 40; s.render.resolution_y = 32; "
-        f"bpy.ops.wm.save_as_mainfile(filepath={str(blend)!r})"
+        f"bpy.ops.wm.save_as_mainfile(filepath={str(blend)!r}); "
+        # Blender 4.2's bpy crashes in its destructors at exit, after the work.
+        f"import os; sys.stdout.flush(); os._exit(0)"
     )
     made = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
