@@ -38,7 +38,7 @@ from ..addon.phase1 import compute_phase1
 from ..addon.planning import PRESELECT_FACTOR, plan_result
 from ..addon.report import error_text, report_message
 from ..addon.tiers import resolve_energy_model
-from . import light_builder
+from . import layer_generate, light_builder
 from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
 from .scene_state import has_lens_lights
 
@@ -121,7 +121,10 @@ def generate(context):
         try:
             options = _options(settings)
             t = time.perf_counter()
-            work, how = rendered_depsgraph(context, lambda dg: plan_scene(dg, scene, options))
+            work, how = rendered_depsgraph(
+                context,
+                lambda dg: layer_generate.prepare(dg, plan_scene(dg, scene, options), options),
+            )
             work.read.how = how
             work.timings["probe_total"] = time.perf_counter() - t
         except Exception as exc:  # reported, never raised
@@ -139,12 +142,15 @@ def generate(context):
         total = max(len(plan.lights), 1)
         try:
             light_builder.clear(scene)
-            made = light_builder.build(
-                scene,
-                plan,
-                work.read.sphere_objects,
-                progress=lambda k: progress(60 + 40 * k / total),
-            )
+            if layer_generate.is_layer(options):  # the layers replace the lights
+                made = layer_generate.build(scene, work, lambda f: progress(60 + 40 * f))
+            else:
+                made = light_builder.build(
+                    scene,
+                    plan,
+                    work.read.sphere_objects,
+                    progress=lambda k: progress(60 + 40 * k / total),
+                )
         except Exception as exc:  # the lights are made: say so
             traceback.print_exc()
             try:
@@ -167,6 +173,9 @@ def generate(context):
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
+    if getattr(work, "layer_figures", None) is not None:
+        message = f"{message}; {work.layer_figures.text()}"
+        figures["layer"] = vars(work.layer_figures)
     if options["model_warning"]:
         level = "WARNING" if level == "INFO" else level
         message = f"{message}; {options['model_warning']}"

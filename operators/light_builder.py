@@ -278,6 +278,9 @@ def clear(scene) -> int:
     if orphans:
         bpy.data.batch_remove(orphans)  # with their embedded node trees
     remove_unused_profile_images()
+    from .layer_builder import remove_unused_layer_materials  # (it imports this module)
+
+    remove_unused_layer_materials()
     settings.created_objects.clear()
     keep = []
     for item in settings.created_collections:

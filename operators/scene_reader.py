@@ -267,9 +267,9 @@ def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
 
 
 def _classify(ob, orig, groups, fit_cache, optics_cache) -> int:
+    if _is_lens_light(orig):  # lens lights and caustic layers
+        return -1
     if ob.type == "LIGHT":
-        if _is_lens_light(orig):
-            return -1
         group = _light_group(ob, orig)
     else:
         group = _geometry_group(ob, orig, fit_cache, optics_cache)

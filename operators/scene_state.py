@@ -23,4 +23,6 @@ def has_lens_lights(scene) -> bool:
         mark = coll.get(COLLECTION_MARK) if coll is not None else None
         if mark == "link" or (mark is not None and not coll.objects and not coll.children):
             return True
-    return any(img.get(COLLECTION_MARK) == "profile" and img.users == 0 for img in bpy.data.images)
+    return any(
+        img.get(COLLECTION_MARK) == "profile" and img.users == 0 for img in bpy.data.images
+    ) or any(m.get(COLLECTION_MARK) == "layer" and m.users == 0 for m in bpy.data.materials)

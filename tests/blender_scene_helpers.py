@@ -381,3 +381,10 @@ def draw_panel(cls, context):
     panel = SimpleNamespace(layout=FakeLayout(log))
     cls.draw(panel, context)
     return log
+
+
+def set_engine(engine):
+    """Set the render engine; EEVEE's identifier was BLENDER_EEVEE_NEXT before 5.0."""
+    if engine == "BLENDER_EEVEE" and bpy.app.version < (5, 0, 0):
+        engine = "BLENDER_EEVEE_NEXT"
+    bpy.context.scene.render.engine = engine

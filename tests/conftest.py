@@ -33,6 +33,17 @@ def empty_blend(extension):
     return bpy.context
 
 
+@pytest.fixture
+def auto_builds_lights(extension, monkeypatch):
+    """AUTO in EEVEE builds Fitted lights, as before the Caustic layer tier: for the
+    tests of the light pipeline (reading, planning, building, clearing lights), which
+    run in the factory scene's EEVEE. The layer's own: tests/test_blender_layer.py."""
+    from lens_lights.addon import tiers
+
+    for engine in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
+        monkeypatch.setitem(tiers.AUTO_RESOLUTION, engine, tiers.FITTED)
+
+
 def pytest_configure(config):
     # `./lens-lights test --blender 4.2` runs only these (`-m blender`) on another release.
     config.addinivalue_line("markers", "blender: the module runs Blender (the bpy module)")

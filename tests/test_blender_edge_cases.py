@@ -22,7 +22,8 @@ from blender_scene_helpers import (
     snapshot_diff,
 )
 
-pytestmark = pytest.mark.blender
+# The light pipeline: AUTO builds lights here (the Caustic layer: test_blender_layer.py).
+pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
 
 def read():

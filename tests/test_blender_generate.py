@@ -20,7 +20,8 @@ from blender_scene_helpers import (
     node_material,
 )
 
-pytestmark = pytest.mark.blender
+# The light pipeline: AUTO builds lights here (the Caustic layer: test_blender_layer.py).
+pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
 
 # --------------------------------------------------------------------------- generate

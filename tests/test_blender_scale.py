@@ -21,7 +21,8 @@ from blender_scene_helpers import (
     lens_lights,
 )
 
-pytestmark = pytest.mark.blender
+# The light pipeline: AUTO builds lights here (the Caustic layer: test_blender_layer.py).
+pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
 
 def floor(size=60):

@@ -18,6 +18,7 @@ from blender_scene_helpers import (
     generate,
     glass_material,
     lens_lights,
+    set_engine,
 )
 
 pytestmark = pytest.mark.blender
@@ -49,17 +50,12 @@ def expected_lights(model="EXACT_PROFILE"):
     ]
 
 
-def set_engine(engine):
-    """Set the render engine; EEVEE's identifier was BLENDER_EEVEE_NEXT before 5.0."""
-    if engine == "BLENDER_EEVEE" and bpy.app.version < (5, 0, 0):
-        engine = "BLENDER_EEVEE_NEXT"
-    bpy.context.scene.render.engine = engine
-
-
 # --------------------------------------------------------------------------- AUTO
 
 
-@pytest.mark.parametrize("engine, tier", [("CYCLES", "EXACT_PROFILE"), ("BLENDER_EEVEE", "FITTED")])
+@pytest.mark.parametrize(
+    "engine, tier", [("CYCLES", "EXACT_PROFILE"), ("BLENDER_EEVEE", "CAUSTIC_LAYER")]
+)
 def test_auto_is_the_default_and_builds_the_best_tier_for_the_engine(empty_blend, engine, tier):
     basic_scene()
     set_engine(engine)
@@ -253,7 +249,7 @@ def test_failed_build_leaves_no_profile_image(empty_blend, monkeypatch):
     "model, engine, shown, warned",
     [
         ("AUTO", "CYCLES", "Exact profile (Cycles)", False),
-        ("AUTO", "BLENDER_EEVEE", "Fitted", False),
+        ("AUTO", "BLENDER_EEVEE", "Caustic layer", False),
         ("EXACT_PROFILE", "BLENDER_EEVEE", "Fitted", True),
         ("PHYSICAL", "CYCLES", "Physical", False),
     ],
@@ -271,9 +267,12 @@ def test_panel_shows_the_tier_and_what_it_trades(empty_blend, model, engine, sho
     log = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
     labels = [text for kind, text in log if kind == "label"]
     assert f"Builds: {shown}" in labels
-    tier = {"Exact profile (Cycles)": "EXACT_PROFILE", "Fitted": "FITTED", "Physical": "PHYSICAL"}[
-        shown
-    ]
+    tier = {
+        "Exact profile (Cycles)": "EXACT_PROFILE",
+        "Fitted": "FITTED",
+        "Physical": "PHYSICAL",
+        "Caustic layer": "CAUSTIC_LAYER",
+    }[shown]
     assert all(line in labels for line in _wrap(TIER_LINES[tier]))
     assert any("needs Cycles" in t for t in labels) == warned
 

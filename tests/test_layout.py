@@ -28,13 +28,14 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_each_tier_has_one_home_and_one_entry():
-    from addon.tiers import exact_profile, fitted, physical, thesis
+    from addon.tiers import caustic_layer, exact_profile, fitted, physical, thesis
 
     modules = {
         "THESIS": thesis,
         "PHYSICAL": physical,
         "FITTED": fitted,
         "EXACT_PROFILE": exact_profile,
+        "CAUSTIC_LAYER": caustic_layer,
     }
     assert list(TIERS) == list(modules)
     for name, module in modules.items():
@@ -52,7 +53,8 @@ def test_each_tier_has_one_home_and_one_entry():
 
 def test_auto_resolves_per_engine_from_the_table():
     assert resolve_energy_model(AUTO, "CYCLES")[0] == AUTO_RESOLUTION["CYCLES"]
-    assert resolve_energy_model(AUTO, "BLENDER_EEVEE")[0] == AUTO_RESOLUTION[None]
+    assert resolve_energy_model(AUTO, "BLENDER_EEVEE")[0] == AUTO_RESOLUTION["BLENDER_EEVEE"]
+    assert resolve_energy_model(AUTO, "BLENDER_WORKBENCH")[0] == AUTO_RESOLUTION[None]
     for name, tier in TIERS.items():
         if tier.engines == ("CYCLES",):
             assert resolve_energy_model(name, "BLENDER_EEVEE")[0] == "FITTED"

@@ -230,25 +230,33 @@ def test_unknown_model_and_registry():
 # --------------------------------------------------------------------------- tiers
 
 
-def test_all_four_tiers_and_auto_are_registered():
+def test_all_five_tiers_and_auto_are_registered():
     from addon.tiers import AUTO, DEFAULT_ENERGY_MODEL
 
-    assert list(ENERGY_MODELS) == ["THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
+    assert list(ENERGY_MODELS) == ["THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER"]
     items = energy_model_items(include_auto=True)
-    assert [i[0] for i in items] == ["AUTO", "THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE"]
+    assert [i[0] for i in items] == [
+        "AUTO",
+        "THESIS",
+        "PHYSICAL",
+        "FITTED",
+        "EXACT_PROFILE",
+        "CAUSTIC_LAYER",
+    ]
     assert DEFAULT_ENERGY_MODEL == AUTO
     assert items[0][1] == "Auto — most accurate for the engine"
     assert all(len(i) == 4 and all(isinstance(x, str) and x for x in i[:3]) for i in items)
     # numbers as stored in .blend files: THESIS 0 and PHYSICAL 1 as before the tiers
-    assert [i[3] for i in items] == [4, 0, 1, 2, 3]
+    assert [i[3] for i in items] == [4, 0, 1, 2, 3, 5]
 
 
 @pytest.mark.parametrize(
     "model, engine, tier, warns",
     [
         ("AUTO", "CYCLES", "EXACT_PROFILE", False),
-        ("AUTO", "BLENDER_EEVEE", "FITTED", False),
-        ("AUTO", "BLENDER_EEVEE_NEXT", "FITTED", False),
+        ("AUTO", "BLENDER_EEVEE", "CAUSTIC_LAYER", False),
+        ("AUTO", "BLENDER_EEVEE_NEXT", "CAUSTIC_LAYER", False),
+        ("CAUSTIC_LAYER", "CYCLES", "CAUSTIC_LAYER", False),
         ("AUTO", "BLENDER_WORKBENCH", "FITTED", False),
         ("AUTO", None, "FITTED", False),
         ("EXACT_PROFILE", "CYCLES", "EXACT_PROFILE", False),

@@ -8,24 +8,26 @@ table the panel, the CLI and the README's table read) and resolves AUTO.
 ``PHYSICAL``       :mod:`.physical` — paraxial cone, exact on-axis intensity
 ``FITTED``         :mod:`.fitted` — one spot fitted to the exact beam (EEVEE, Cycles)
 ``EXACT_PROFILE``  :mod:`.exact_profile` — the exact beam in a light node tree (Cycles)
+``CAUSTIC_LAYER``  :mod:`.caustic_layer` — the exact caustic as an emissive mesh (EEVEE, Cycles)
 
 Shared pieces (inputs, the Blender light, the cone a spot can make) are in
 :mod:`.base`; the cone/beam geometry of THESIS and PHYSICAL in :mod:`.paraxial`.
 
 ``AUTO`` (the panel's default) is not a tier: :func:`resolve_energy_model` turns it
 into the most accurate tier the render engine can show (``AUTO_RESOLUTION``) —
-``EXACT_PROFILE`` in Cycles, ``FITTED`` otherwise — as measured in
-reports/accuracy.md (each tier's ``accuracy``).
+``EXACT_PROFILE`` in Cycles, ``CAUSTIC_LAYER`` in EEVEE, ``FITTED`` otherwise — as
+measured in reports/accuracy.md and reports/caustic_layer.md (each tier's ``accuracy``).
 """
 
 from __future__ import annotations
 
-from . import exact_profile, fitted, physical, thesis
+from . import caustic_layer, exact_profile, fitted, physical, thesis
 from .base import (
     COLLIMATED_DISTANCE_FACTOR,
     CUTOFF_FACTOR,
     CYCLES,
     DEFAULT_SPOT_BLEND,
+    EEVEE,
     ENGINE_NAMES,
     BlenderLight,
     LensOptics,
@@ -46,6 +48,7 @@ __all__ = [
     "PHYSICAL",
     "FITTED",
     "EXACT_PROFILE",
+    "CAUSTIC_LAYER",
     "AUTO",
     "AUTO_LABEL",
     "AUTO_DESCRIPTION",
@@ -71,9 +74,10 @@ __all__ = [
 
 #: Every tier, in the order the setting lists them.
 TIERS: dict[str, Tier] = {
-    t.name: t for t in (thesis.TIER, physical.TIER, fitted.TIER, exact_profile.TIER)
+    t.name: t
+    for t in (thesis.TIER, physical.TIER, fitted.TIER, exact_profile.TIER, caustic_layer.TIER)
 }
-THESIS, PHYSICAL, FITTED, EXACT_PROFILE = TIERS
+THESIS, PHYSICAL, FITTED, EXACT_PROFILE, CAUSTIC_LAYER = TIERS
 #: One line per tier on what it trades (the panel).
 TIER_LINES = {name: t.trades for name, t in TIERS.items()}
 
@@ -81,11 +85,16 @@ TIER_LINES = {name: t.trades for name, t in TIERS.items()}
 AUTO = "AUTO"
 AUTO_LABEL = "Auto — most accurate for the engine"
 AUTO_DESCRIPTION = (
-    "Exact profile in Cycles, Fitted in EEVEE (and any other engine): "
-    "the most accurate tier the engine renders"
+    "Exact profile in Cycles, Caustic layer in EEVEE, Fitted in any other "
+    "engine: the most accurate tier the engine renders"
 )
 #: AUTO per engine; any other engine (or none known): ``None``'s.
-AUTO_RESOLUTION = {CYCLES: EXACT_PROFILE, None: FITTED}
+AUTO_RESOLUTION = {
+    CYCLES: EXACT_PROFILE,
+    EEVEE: CAUSTIC_LAYER,
+    "BLENDER_EEVEE_NEXT": CAUSTIC_LAYER,
+    None: FITTED,
+}
 AUTO_NUMBER = 4
 #: The generator's default setting (`properties`): the best tier for the engine.
 DEFAULT_ENERGY_MODEL = AUTO

@@ -1,0 +1,85 @@
+"""Generate's Caustic layer stage: when the resolved tier is CAUSTIC_LAYER, read
+the receivers from the depsgraph the plan was read from (`receiver_reader`), bake
+every planned source's layer in one pipeline call (`addon.caustic_sheet.pipeline`,
+the ray budget from each lens' flux and screen size, capped: `addon.layer_plan`),
+and build the layers instead of the lens lights (`layer_builder`; with no receiver
+at all, the planned Fitted spots). The bake is
+part of the plan (a failure changes nothing); the build is one undo step with the
+rest of Generate.
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..addon.caustic_sheet.pipeline import bake
+from ..addon.layer_plan import (
+    MAX_RAYS_PER_SOURCE,
+    TOTAL_RAYS,
+    figures_of,
+    raster_resolution,
+    sheet_camera,
+    sheet_sources,
+)
+from ..addon.tiers import CAUSTIC_LAYER
+from . import layer_builder, light_builder
+from .receiver_reader import read_receivers
+
+
+def is_layer(options: dict) -> bool:
+    return options.get("energy_model") == CAUSTIC_LAYER
+
+
+def prepare(depsgraph, work, options: dict):
+    """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
+    ``layer_bake`` (None: no layer tier or nothing to bake)."""
+    work.receivers = work.layer_bake = None
+    if not is_layer(options) or not work.plan.lights:
+        return work
+    read = work.read
+    t = time.perf_counter()
+    lenses = [
+        ob for ob, lens in zip(read.sphere_objects, read.lens_candidates, strict=False) if lens
+    ]
+    work.receivers = read_receivers(depsgraph, exclude=lenses)
+    work.timings["receivers"] = time.perf_counter() - t
+    if not len(work.receivers.mesh.triangles):
+        return work  # nothing to lay a caustic on
+    t = time.perf_counter()
+    sources = sheet_sources(work.plan.lights, read.primaries, read.lens_optics)
+    cam = depsgraph.scene.camera
+    ortho = (
+        cam.data.ortho_scale
+        if cam is not None and cam.type == "CAMERA" and cam.data.type == "ORTHO"
+        else None
+    )
+    camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
+    work.layer_bake = bake(
+        sources,
+        work.receivers.mesh,
+        camera,
+        total_rays=TOTAL_RAYS,
+        max_rays=MAX_RAYS_PER_SOURCE,
+        resolution=raster_resolution(sources, camera),
+    )
+    work.timings["bake"] = time.perf_counter() - t
+    work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
+    return work
+
+
+def build(scene, work, progress=None) -> list:
+    """Stage 2: the layers (and fallback spots); returns every object made and sets
+    ``work.layer_figures`` for the report."""
+    work.layer_figures = None
+    if work.layer_bake is None:  # no receivers: the Fitted spots stand in
+        return light_builder.build(scene, work.plan, work.read.sphere_objects)
+    layers, lights, fallback = layer_builder.build(
+        scene,
+        work.layer_bake,
+        work.receivers,
+        work.plan.lights,
+        work.read.sphere_objects,
+        progress=progress,
+    )
+    work.layer_figures = figures_of(work.layer_bake, len(lights), fallback)
+    return layers + lights

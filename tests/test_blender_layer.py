@@ -1,0 +1,171 @@
+"""The Caustic layer tier on the Blender side, without rendering (the EEVEE render
+of the layer against the exact optics: tests/test_blender_render.py): AUTO in EEVEE
+builds layers and no spot, the layer's flux against `addon.exact_optics`, a textured
+receiver's image sampled through the receiver's UVs, a glossy receiver falls back to
+a Fitted spot lighting only it, and Clear removes the layers and nothing else.
+"""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_scene_helpers import (
+    basic_scene,
+    generate,
+    lens_lights,
+    set_engine,
+    snapshot,
+    snapshot_diff,
+)
+from measuring_scene import new_material
+
+from addon import exact_optics
+
+pytestmark = pytest.mark.blender
+
+MARK = "lens_lights_created"
+#: The layer's flux against the exact beam's flux (reports/caustic_layer.md: 0.9988
+#: for the floating ball; the floor catches all but the grazing rays).
+FLUX_TOL = 0.02
+
+
+def layers():
+    return [o for o in lens_lights() if o.type == "MESH"]
+
+
+def layer_flux(ob):
+    """Σ irradiance × face area of a layer mesh (green channel: a white light)."""
+    me = ob.data
+    n = len(me.polygons)
+    rgba = np.empty(n * 4)
+    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
+    area = np.empty(n)
+    me.polygons.foreach_get("area", area)
+    return float((rgba.reshape(-1, 4)[:, 1] * area).sum())
+
+
+def test_auto_in_eevee_builds_layers_not_lights(empty_blend):
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    assert level == "INFO", message
+    assert figures["energy_model"] == "CAUSTIC_LAYER"
+    assert "caustic layer" in message
+    assert not [o for o in lens_lights() if o.type == "LIGHT"]  # no double light
+    (ob,) = layers()
+    assert ob.lens_lights.energy_model == "CAUSTIC_LAYER"
+    assert ob.visible_camera and not ob.visible_shadow and not ob.visible_diffuse
+    assert ob.users_collection[0].name == "Lens Lights"
+    mat = ob.data.materials[0]
+    assert mat.get(MARK) == "layer"
+    types = {n.type for n in mat.node_tree.nodes}
+    assert {"ATTRIBUTE", "EMISSION", "BSDF_TRANSPARENT", "ADD_SHADER"} <= types
+    # Lifted above the floor (z = 0), toward the light.
+    z = np.empty(len(ob.data.vertices) * 3)
+    ob.data.vertices.foreach_get("co", z)
+    assert 0.0 < z[2::3].min() < 1e-2
+    # Flux on the floor against the exact optics (R 0.5, n 1.5, D 2, 1000 W).
+    exact = exact_optics.lens_flux(1000.0 / (4 * math.pi), 2.0, 0.5, 1.5)
+    assert layer_flux(ob) == pytest.approx(exact, rel=FLUX_TOL)
+    # Read back, the layer is neither a lens, a receiver nor an occluder: same result.
+    level, message, figures = generate()
+    (ob2,) = layers()
+    assert layer_flux(ob2) == pytest.approx(layer_flux_value := layer_flux(ob2))
+    assert layer_flux_value == pytest.approx(exact, rel=FLUX_TOL)
+
+
+def test_auto_in_cycles_keeps_the_exact_profile(empty_blend):
+    basic_scene()
+    set_engine("CYCLES")
+    level, message, figures = generate()
+    assert figures["energy_model"] == "EXACT_PROFILE" and not layers()
+
+
+def checker_image(n=8):
+    img = bpy.data.images.new("Checker", n, n, float_buffer=True)
+    ij = np.indices((n, n)).sum(axis=0) % 2
+    px = np.ones((n, n, 4), dtype=np.float32)
+    px[..., :3] = ij[..., None]
+    img.pixels.foreach_set(px.ravel())
+    return img
+
+
+def test_textured_receiver_layer_samples_the_receivers_texture(empty_blend):
+    basic_scene()
+    floor = bpy.data.objects["Floor"]
+    mat = new_material("Checker floor")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = checker_image()
+    tex.interpolation = "Closest"
+    nt.links.new(tex.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    floor.data.materials.append(mat)
+    set_engine("BLENDER_EEVEE")
+    generate()
+    (ob,) = layers()
+    lm = ob.data.materials[0]
+    (tnode,) = [n for n in lm.node_tree.nodes if n.type == "TEX_IMAGE"]
+    assert tnode.image == tex.image and tnode.interpolation == "Closest"
+    (uvnode,) = [n for n in lm.node_tree.nodes if n.type == "UVMAP"]
+    assert uvnode.uv_map in ob.data.uv_layers
+    # The layer's UVs are the floor's at the same points (plane of size 8: u = x/8 + ½).
+    me = ob.data
+    uv = np.empty(len(me.loops) * 2)
+    me.uv_layers[uvnode.uv_map].data.foreach_get("uv", uv)
+    vi = np.empty(len(me.loops), dtype=np.int64)
+    me.loops.foreach_get("vertex_index", vi)
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    xy = co.reshape(-1, 3)[vi, :2]
+    assert uv.reshape(-1, 2) == pytest.approx(xy / 8.0 + 0.5, abs=1e-5)
+    # The texture is what multiplies the irradiance (a white and a black square give
+    # 1 : 0): the image feeds the multiply's B, the irradiance its A.
+    (mix,) = [n for n in lm.node_tree.nodes if n.type == "MIX"]
+    assert mix.inputs["B"].links[0].from_node == tnode
+    assert mix.inputs["A"].links[0].from_node.type == "ATTRIBUTE"
+
+
+def test_glossy_receiver_gets_a_fitted_spot_for_itself(empty_blend):
+    basic_scene()
+    floor = bpy.data.objects["Floor"]
+    mat = new_material("Mirror")
+    mat.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 1.0
+    floor.data.materials.append(mat)
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    assert not layers()
+    (ll,) = [o for o in lens_lights() if o.type == "LIGHT"]
+    assert ll.data.type == "SPOT" and "glossy or transparent" in message
+    include = ll.light_linking.receiver_collection
+    assert list(include.objects) == [floor]
+
+
+def test_clear_removes_the_layers_and_nothing_else(empty_blend):
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    before = snapshot()
+    n_mesh, n_mat = len(bpy.data.meshes), len(bpy.data.materials)
+    generate()
+    assert layers() and len(bpy.data.materials) > n_mat
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert not lens_lights()
+    assert len(bpy.data.meshes) == n_mesh and len(bpy.data.materials) == n_mat
+    assert not [m for m in bpy.data.materials if m.get(MARK)]
+    assert not [c for c in bpy.data.collections if c.get(MARK)]
+    after = snapshot()
+    assert before == after, snapshot_diff(before, after)
+
+
+def test_generate_with_layers_is_one_undo_step(empty_blend):
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    bpy.ops.ed.undo_push(message="scene")
+    empty = snapshot()
+    bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)
+    assert len(layers()) == 1
+    bpy.ops.ed.undo()
+    assert lens_lights() == [] and not [m for m in bpy.data.meshes if m.get(MARK)]
+    assert snapshot_diff(empty, snapshot()) == []
+    bpy.ops.ed.redo()
+    assert len(layers()) == 1 and layers()[0].data.attributes.get("lens_irradiance")
