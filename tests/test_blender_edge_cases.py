@@ -464,7 +464,7 @@ def test_hundreds_of_lights(empty_blend):
         figures["skipped_by_reason"][f"not among the {4 * 64} strongest by flux"]
         == figures["sources"] - 256
     )
-    assert figures["seconds"] < 20
+    # (Its time is a benchmark's business, not a test's: bench/operator_scale.py.)
 
 
 # --------------------------------------------------------------------------- failures
