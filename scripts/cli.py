@@ -10,7 +10,7 @@ Subcommands:
                              EEVEE and Cycles)
   lint                       ruff check and ruff format --check (what CI runs first)
   test [PYTEST ARGS]         the whole test suite on Blender 5.2, then the Blender
-                             tests on 4.2 (`--blender X.Y`: on that release only;
+                             tests on 4.5 (`--blender X.Y`: on that release only;
                              paths: those tests only)
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
@@ -444,7 +444,7 @@ def cmd_phase1(args) -> int:
 #: The release whose environment the launcher picks without `--blender`.
 DEFAULT_BLENDER = "5.2"
 #: The manifest's `blender_version_min`: plain `test` also runs the Blender tests there.
-MINIMUM_BLENDER = "4.2"
+MINIMUM_BLENDER = "4.5"
 
 
 def cmd_test(args, extra) -> int:
