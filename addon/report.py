@@ -71,12 +71,12 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
 
     level = "INFO"
     parts = [
-        f"Created {plural(made, 'lens light')} ({plural(lights, 'point light')}"
+        f"Created {plural(made, 'lens light')} ({plural(lights, 'light')}"
         f" × {plural(lenses, 'lens', 'lenses')})"
     ]
     if not lights:
         level = "WARNING"
-        parts.append("no point light is enabled for rendering")
+        parts.append("no light with power is enabled for rendering")
     elif lenses == 0:
         level = "WARNING"
         parts.append("no glass sphere found")
@@ -103,6 +103,11 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
             f"left out {plural(len(read.left_out_lenses), 'object')}: {shown}"
             + (f"; and {more} more" if more > 0 else "")
         )
+    notes = getattr(read, "light_notes", [])
+    if notes:
+        shown = "; ".join(f"{n}: {why}" for n, why in notes[:REPORT_FIRST])
+        more = len(notes) - REPORT_FIRST
+        parts.append("not modelled: " + shown + (f"; and {more} more" if more > 0 else ""))
     if not read_as_rendered:
         parts.append(f"scene read as the {read.how}")
     figures = dict(
@@ -114,10 +119,23 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
         primaries=lights,
         lenses=lenses,
         left_out=len(read.left_out_lenses),
+        light_notes=list(getattr(read, "light_notes", [])),
         flux_left_out=left_share,
         how=read.how,
     )
     return level, "; ".join(parts), figures
+
+
+def linking_note(version: tuple, engine: str, inside: int) -> str:
+    """The warning for lens lights inside their lens (`BlenderLight.inside_lens`)
+    where light and shadow linking do not work: EEVEE before Blender 4.3."""
+    if inside and engine.startswith("BLENDER_EEVEE") and tuple(version[:2]) < (4, 3):
+        return (
+            f"{plural(inside, 'lens light')} inside {'its' if inside == 1 else 'their'} "
+            "lens: EEVEE before Blender 4.3 ignores light and shadow linking, so the lens "
+            "shadows them (render in Cycles or Blender 4.3+)"
+        )
+    return ""
 
 
 def error_text(stage, exc):

@@ -20,8 +20,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .instances import Indexed, InstanceNames, LeftOut, instance_names, scale_codes, scale_reason
+from .light_read import LightProps, light_power, primary_of  # noqa: F401
 from .material_model import MaterialOptics
 from .phase1 import SceneArrays
+from .primaries import PointPrimary, SunPrimary, nominal_power, tier_primaries
 from .scene import Camera, Light, Scene, Sphere, Surface
 from .sphere_fit import BOX_RATIO, SphereFit, uniform_scales
 from .tiers import LensOptics, PrimaryLight
@@ -55,10 +57,7 @@ class InstanceGroup:
     surface: Surface | None = None
     notes: list = field(default_factory=list)
     # LIGHT_GROUP
-    light_type: str = ""
-    power: float = 0.0
-    light_radius: float = 0.0
-    color: tuple = (1.0, 1.0, 1.0)
+    light: LightProps | None = None
     mesh_source: object = None  # what blocks rays (`occluders`), or None
 
 
@@ -78,6 +77,12 @@ class BlenderSceneRead:
     lens_candidates: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     material_notes: Sequence = field(default_factory=list)
     primaries: list[PrimaryLight] = field(default_factory=list)
+    #: The lights as `addon.primaries` dataclasses (parallel to `light_sources`).
+    primary_lights: list = field(default_factory=list)
+    #: (light name, reason) of every light left out or only partly modelled.
+    light_notes: list[tuple[str, str]] = field(default_factory=list)
+    #: Names of the point lights, parallel to ``lights`` (the `.bi` model's lights).
+    point_light_sources: list[str] = field(default_factory=list)
     #: (name, reason) of left-out objects that looked like lenses (refracting
     #: material or lens mode Always): the ones worth reporting to the user.
     left_out_lenses: list[tuple[str, str]] = field(default_factory=list)
@@ -139,15 +144,6 @@ class Blocking:
 def render_size(resolution_x: int, resolution_y: int, percentage: int) -> tuple[int, int]:
     """The rendered image's size in pixels."""
     return resolution_x * percentage // 100, resolution_y * percentage // 100
-
-
-def light_power(energy: float, exposure: float, normalize: bool, radius: float) -> float:
-    """A light's power in W: ``energy × 2^exposure``, × the sphere's area 4πr²
-    when its power is not normalised."""
-    power = float(energy) * 2.0 ** float(exposure)
-    if not normalize and radius > 0:
-        power *= 4.0 * math.pi * radius * radius
-    return power
 
 
 def light_color(color, temperature_color=None) -> tuple:
@@ -257,37 +253,43 @@ def _finite_rows(a: np.ndarray) -> np.ndarray:
 
 
 def add_lights(out: BlenderSceneRead, groups, gid, kind, M, names, left: LeftOut):
-    """The point lights (few: a Python loop) into `out`; the other lights left
-    out. Returns their positions, powers and colours (lists)."""
+    """Every light into `out` as a primary (`light_read.primary_of`; few: a Python
+    loop); what cannot be one is left out, what is only partly modelled gets a note
+    (both in ``light_notes``). Returns their positions (a sun's NaN), nominal powers
+    (`primaries.nominal_power`) and colours (lists)."""
     pos_list, power_list, color_list = [], [], []
     for i in np.flatnonzero(kind == LIGHT_GROUP):
         g = groups[gid[i]]
-        pos = M[i, :3, 3]
-        if g.light_type != "POINT":
-            left.add(i, f"{g.light_type.lower()} light: only point lights make lens lights", False)
-            continue
-        if not g.power > 0 or not math.isfinite(g.power):
-            left.add(i, f"point light without power ({g.power:g} W)", False)
-            continue
-        if not np.all(np.isfinite(pos)):
-            left.add(i, "invalid transform (non-finite numbers)", False)
-            continue
         name = names[i]
-        out.lights.append(
-            Light(
-                position=tuple(float(x) for x in pos),
-                color=g.color,
-                brightness=g.power,
-                radius=g.light_radius,
-                name=name,
-            )
+        primary, why, notes = primary_of(g.light, M[i], name)
+        if primary is None:
+            left.add(i, why, False)
+            out.light_notes.append((name, why))
+            continue
+        out.light_notes.extend((name, note) for note in notes)
+        pos = (
+            np.full(3, np.nan)
+            if isinstance(primary, SunPrimary)
+            else np.asarray(primary.position, dtype=float)
         )
-        out.primaries.append(PrimaryLight(power_w=g.power, radius=g.light_radius, color=g.color))
+        if isinstance(primary, PointPrimary):  # the `.bi` model: point lights only
+            out.lights.append(
+                Light(
+                    position=tuple(float(x) for x in pos),
+                    color=primary.color,
+                    brightness=primary.power_w,
+                    radius=primary.radius,
+                    name=name,
+                )
+            )
+            out.point_light_sources.append(name)
+        out.primary_lights.append(primary)
+        out.primaries.extend(tier_primaries([primary]))
         out.light_sources.append(name)
         out.light_objects.append(g.orig)
         pos_list.append(pos)
-        power_list.append(g.power)
-        color_list.append(g.color)
+        power_list.append(nominal_power(primary))
+        color_list.append(primary.color)
     return pos_list, power_list, color_list
 
 
@@ -392,8 +394,10 @@ def assemble(
 def scene_bounds(box_lo, box_hi, points):
     """(lo, hi) of the finite boxes and the `points` (None: nothing)."""
     finite = _finite_rows(box_lo) & _finite_rows(box_hi)
-    lo = np.concatenate([box_lo[finite], np.reshape(points, (-1, 3))])
-    hi = np.concatenate([box_hi[finite], np.reshape(points, (-1, 3))])
+    points = np.reshape(points, (-1, 3))
+    points = points[_finite_rows(points)]  # a sun has no position
+    lo = np.concatenate([box_lo[finite], points])
+    hi = np.concatenate([box_hi[finite], points])
     if not len(lo):
         return None
     return lo.min(axis=0), hi.max(axis=0)

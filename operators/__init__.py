@@ -9,8 +9,9 @@ only while it renders):
   render depsgraph), `material_reader` (materials' node trees) and `occluders`
   (rays against the read geometry); the numpy work is in `addon.scene_read` and
   `addon.instances`;
-* `light_builder` creates and removes the lens lights; `scene_state` says whether a
-  scene has any (Clear's poll);
+* `light_builder` creates and removes the lens lights; `cycles_caustics` turns
+  Cycles' own caustics of their lenses off and back on; `scene_state` says whether
+  a scene has any (Clear's poll);
 * `bi_scene_builder` builds and reads the Blender data of `.bi` scenes for `bi_io`.
 
 Nothing here runs without bpy; what can is in `addon/`.

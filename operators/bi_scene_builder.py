@@ -365,7 +365,7 @@ def read_for_export(context) -> ExportRead:
     camera, width, height = read_camera(context, warnings)
 
     lights = []
-    for name, light in zip(read.light_sources, read.scene.lights, strict=True):
+    for name, light in zip(read.point_light_sources, read.scene.lights, strict=True):
         obj = bpy.data.objects.get(name)
         stored = _stored(obj) or {}
         position = conv.prefer_stored(
@@ -414,4 +414,14 @@ def read_for_export(context) -> ExportRead:
         objects=[s for _, s in spheres],
         color_scale=255.0 if scale == 255.0 else 1.0,
     )
-    return ExportRead(scene=scene, left_out=list(read.left_out), warnings=warnings)
+    # The `.bi` model has point lights only: the other types are named.
+    others = [
+        (
+            name,
+            f"{type(p).__name__.removesuffix('Primary').lower()} light: the .bi "
+            "format has point lights only",
+        )
+        for name, p in zip(read.light_sources, read.primary_lights, strict=True)
+        if name not in read.point_light_sources
+    ]
+    return ExportRead(scene=scene, left_out=others + list(read.left_out), warnings=warnings)

@@ -6,15 +6,18 @@ Generate works in two stages, so that a failure never leaves the scene half-done
 
 1. **Plan** (nothing in the file changes): read the scene as the renderer sees it
    (`scene_reader.rendered_depsgraph`: the render depsgraph of the context scene
-   and view layer), run phase 1, then `planning.plan_result`: pre-select the
+   and view layer), run phase 1 for every light type
+   (`phase1_primaries.compute_phase1_primaries`), then `planning.plan_result`: pre-select the
    sources (merging nearby ones if the scene's settings ask for it, then the
    ``PRESELECT_FACTOR × max_lights`` strongest by estimated flux) and plan the
    lights (energy model, merged sources' energy scale, brightness cut-off,
    maximum number). The rays that keep a beam's spot clear of the geometry behind
    its lens are cast against the geometry read from the same render depsgraph
    (`occluders`).
-2. **Build**: remove the lights a previous run created (only those) and create the
-   planned ones (`light_builder`).
+2. **Build**: remove the lights a previous run created (only those) and put back
+   the Cycles settings it changed, create the planned ones (`light_builder`), and
+   with "Replace Cycles' Caustics" on turn Cycles' own caustics of their lenses
+   off (`cycles_caustics`: recorded, restored by Clear and by the next Generate).
 
 A failure in stage 1 is reported and changes nothing (the operator is cancelled);
 one in stage 2 removes what was made and is reported. Generate never raises.
@@ -34,11 +37,11 @@ import traceback
 
 import bpy
 
-from ..addon.phase1 import compute_phase1
+from ..addon.phase1_primaries import compute_phase1_primaries
 from ..addon.planning import PRESELECT_FACTOR, plan_result
-from ..addon.report import error_text, report_message
+from ..addon.report import error_text, linking_note, report_message
 from ..addon.tiers import resolve_energy_model
-from . import layer_generate, light_builder
+from . import cycles_caustics, layer_generate, light_builder
 from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
 from .scene_state import has_lens_lights
 
@@ -74,7 +77,7 @@ def plan_scene(depsgraph, scene, options: dict):
     read = read_depsgraph(depsgraph, scene)
     timings["read"] = time.perf_counter() - t
     t = time.perf_counter()
-    result = compute_phase1(read.arrays)
+    result = compute_phase1_primaries(read.arrays, read.primary_lights)
     timings["phase1"] = time.perf_counter() - t
     return plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
 
@@ -142,6 +145,7 @@ def generate(context):
         total = max(len(plan.lights), 1)
         try:
             light_builder.clear(scene)
+            cycles_caustics.restore(scene)
             if layer_generate.is_layer(options):  # the layers replace the lights
                 made = layer_generate.build(scene, work, lambda f: progress(60 + 40 * f))
             else:
@@ -151,10 +155,12 @@ def generate(context):
                     work.read.sphere_objects,
                     progress=lambda k: progress(60 + 40 * k / total),
                 )
-        except Exception as exc:  # the lights are made: say so
+            caustics_note = cycles_caustics.after_build(scene, plan, work.read, len(made))
+        except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
             try:
                 light_builder.clear(scene)
+                cycles_caustics.restore(scene)
             except Exception:
                 traceback.print_exc()
             message = error_text("create the lens lights", exc) + " (the lens lights were removed)"
@@ -169,7 +175,7 @@ def generate(context):
         level, message, figures = report_message(
             work, len(made), read_as_rendered=work.read.how == RENDER
         )
-    except Exception as exc:
+    except Exception as exc:  # the lights are made: say so
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
@@ -179,6 +185,15 @@ def generate(context):
     if options["model_warning"]:
         level = "WARNING" if level == "INFO" else level
         message = f"{message}; {options['model_warning']}"
+    inside = sum(1 for p in work.plan.lights if getattr(p.light, "inside_lens", False))
+    eevee_note = linking_note(bpy.app.version, scene.render.engine, inside)
+    if eevee_note:
+        level = "WARNING" if level == "INFO" else level
+        message = f"{message}; {eevee_note}"
+    if caustics_note:
+        message = f"{message}; {caustics_note}"
+        if caustics_note.startswith("Cycles' refractive caustics are on"):
+            level = "WARNING" if level == "INFO" else level
     figures["energy_model"] = options["energy_model"]
     figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
     LAST_FIGURES = figures
@@ -187,7 +202,7 @@ def generate(context):
 
 
 class LENS_LIGHTS_OT_generate(bpy.types.Operator):
-    """Turn every point light × glass sphere into a spot light that paints its caustic"""
+    """Turn every light × glass sphere into a spot light that paints its caustic"""
 
     bl_idname = "lens_lights.generate"
     bl_label = "Generate Lens Lights"
@@ -221,9 +236,12 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         removed = light_builder.clear(context.scene)
+        restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
         settings.last_created = 0
         settings.last_report = f"Removed {removed} lens light{'s' if removed != 1 else ''}"
+        if restored:
+            settings.last_report += "; " + cycles_caustics.restore_text(restored)
         self.report({"INFO"}, settings.last_report)
         return {"FINISHED"}
 

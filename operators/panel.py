@@ -88,6 +88,7 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         sub = row.row()
         sub.active = settings.use_merge
         sub.prop(settings, "merge_distance", text="")
+        col.prop(settings, "replace_cycles_caustics")
 
         box = layout.box()
         if not settings.last_run:
@@ -96,7 +97,7 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         grid = box.grid_flow(columns=2, even_columns=True, align=True)
         _figure(grid, "Lens lights: {}", settings.last_created)
         _figure(grid, "Sources: {}", settings.last_sources)
-        _figure(grid, "Point lights: {}", settings.last_primaries)
+        _figure(grid, "Lights: {}", settings.last_primaries)
         _figure(grid, "Lenses: {}", settings.last_lenses)
         _figure(grid, "Skipped pairs: {}", settings.last_skipped)
         _figure(grid, "Left out: {}", settings.last_left_out)

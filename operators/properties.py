@@ -53,6 +53,16 @@ class LensLightsCreatedCollection(bpy.types.PropertyGroup):
     collection: PointerProperty(type=bpy.types.Collection)
 
 
+class LensLightsReplacedSetting(bpy.types.PropertyGroup):
+    """One Cycles setting Generate changed (`cycles_caustics`): on the scene
+    (``object`` None) or a lens, its property name, the user's value and the one set."""
+
+    object: PointerProperty(type=bpy.types.Object)
+    prop: StringProperty()
+    old: BoolProperty()
+    new: BoolProperty()
+
+
 class LensLightsSceneSettings(bpy.types.PropertyGroup):
     energy_model: EnumProperty(
         name="Energy Model",
@@ -108,13 +118,22 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         precision=3,
         description="Sources whose images are this close may be merged",
     )
+    replace_cycles_caustics: BoolProperty(
+        name="Replace Cycles' Caustics",
+        default=True,
+        description=(
+            "Turn Cycles' own caustics of the lenses off while they have lens lights "
+            "(refractive caustics of the scene, shadow caustics of each lens), so that "
+            "no caustic is rendered twice; Clear restores them"
+        ),
+    )
 
     # The last run's figures (shown in the panel).
     last_run: BoolProperty(default=False, options={"HIDDEN"})
     last_created: IntProperty(name="Created", default=0)
     last_sources: IntProperty(name="Secondary Sources", default=0)
     last_skipped: IntProperty(name="Skipped Pairs", default=0)
-    last_primaries: IntProperty(name="Point Lights", default=0)
+    last_primaries: IntProperty(name="Lights", default=0)
     last_lenses: IntProperty(name="Lenses", default=0)
     last_left_out: IntProperty(name="Left Out", default=0)
     last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
@@ -122,6 +141,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
 
     created_objects: CollectionProperty(type=LensLightsCreatedObject, options={"HIDDEN"})
     created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={"HIDDEN"})
+    replaced: CollectionProperty(type=LensLightsReplacedSetting, options={"HIDDEN"})
 
 
 class LensLightsObjectSettings(bpy.types.PropertyGroup):
@@ -159,6 +179,7 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
 _CLASSES = (
     LensLightsCreatedObject,
     LensLightsCreatedCollection,
+    LensLightsReplacedSetting,
     LensLightsSceneSettings,
     LensLightsObjectSettings,
 )

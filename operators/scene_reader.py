@@ -15,13 +15,16 @@ the uniform-scale test, bounding boxes, names: `addon.scene_read.assemble`,
 `addon.instances`).  Materials are read by `material_reader`.  It returns a
 :class:`BlenderSceneRead`:
 
-* ``arrays`` — `addon.phase1.SceneArrays`: the POINT lights (position, power in W,
-  colour) and the spheres (centre, radius, IOR, kt) for phase 1; ``scene`` — the
+* ``arrays`` — `addon.phase1.SceneArrays`: the lights (position, a sun's NaN;
+  nominal power in W; colour) and the spheres (centre, radius, IOR, kt) for phase 1; ``scene`` — the
   same as an `addon.scene.Scene` (made on first use; the `.bi` exporter's);
 * ``sphere_sources`` / ``light_sources`` — the object (or instance: "instancer/
   object", "#k" for repeats) names, parallel to the spheres / lights;
+* ``primary_lights`` — every light as an `addon.primaries` dataclass (point, spot,
+  sun, area: `addon.light_read`), ``light_notes`` — (name, reason) of the lights
+  left out or only partly modelled (light nodes, an area light's spread, …);
 * ``left_out`` — (name, reason) for every render-enabled light or geometry that is
-  not in the model (not a point light, not a sphere, non-uniform or zero scale …);
+  not in the model (a light without power, not a sphere, non-uniform or zero scale …);
   the instances of one instancer left out for one reason are one entry
   ("Grid/Cube (250 instances)");
 * for the generator: ``sphere_objects`` / ``light_objects`` (original objects: for
@@ -39,8 +42,9 @@ Rules:
   geometry-nodes instances the instancer's): AUTO: the material decides; ALWAYS:
   a lens even if the material is opaque (transmission 1, IOR 1.5 unless known);
   NEVER: an opaque sphere. The IOR override replaces the material's IOR.
-* A light's power is ``energy × 2^exposure`` (× the sphere's area 4πr² if its power
-  is not normalised); its colour includes the blackbody colour when temperature is used.
+* A light's power is ``energy × 2^exposure`` (× its area — a point or spot light's
+  sphere 4πr², an area light's surface — if its power is not normalised; a sun's
+  strength in W/m²); its colour includes the blackbody colour when temperature is used.
 * A sphere's transform may rotate, mirror (negative scale) and scale uniformly;
   a non-uniform scale (an ellipsoid) or a zero scale is left out and named.
   Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
@@ -49,10 +53,14 @@ Rules:
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import bpy
 import numpy as np
 
 from ..addon.instances import Indexed, InstanceNames  # noqa: F401  (re-exported)
+from ..addon.light_read import plain_light_nodes
 from ..addon.material_model import MaterialOptics
 from ..addon.scene import Camera
 from ..addon.scene_read import (  # noqa: F401
@@ -63,6 +71,7 @@ from ..addon.scene_read import (  # noqa: F401
     SPHERE_GROUP,
     BlenderSceneRead,
     InstanceGroup,
+    LightProps,
     assemble,
     box_fit_failure,
     camera_from_matrix,
@@ -179,24 +188,64 @@ def _camera(scene) -> Camera:
 # --------------------------------------------------------------------------- groups
 
 
+def _linked(ob) -> bool:
+    ll = getattr(ob, "light_linking", None)
+    return bool(ll and (ll.receiver_collection or ll.blocker_collection))
+
+
+def _uses_nodes(ld) -> bool:
+    """Whether a light node tree changes the light (every light has a plain one
+    from 5.0 on: `addon.light_read.plain_light_nodes`; `use_nodes` is deprecated)."""
+    nt = getattr(ld, "node_tree", None)
+    if nt is None:
+        return False
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        if not getattr(ld, "use_nodes", True):
+            return False
+    emission = [n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission"]
+    if len(emission) != 1:
+        return True
+    e = emission[0].inputs
+    linked = sum(1 for i in e if i.is_linked)
+    return not plain_light_nodes(
+        [n.bl_idname for n in nt.nodes],
+        tuple(e["Color"].default_value),
+        float(e["Strength"].default_value),
+        linked,
+    )
+
+
 def _light_group(ob, orig) -> InstanceGroup:
+    """The properties of a light (`addon.light_read.LightProps`); ``exposure`` and
+    ``normalize`` are 4.3+ (4.2: 0, True)."""
     ld = ob.data
-    radius = float(ld.shadow_soft_size)
-    power = light_power(
-        ld.energy, getattr(ld, "exposure", 0.0), getattr(ld, "normalize", True), radius
+    kind = ld.type
+    props = dict(
+        type=kind,
+        energy=float(ld.energy),
+        color=light_color(
+            ld.color, ld.temperature_color if getattr(ld, "use_temperature", False) else None
+        ),
+        exposure=float(getattr(ld, "exposure", 0.0)),
+        normalize=bool(getattr(ld, "normalize", True)),
+        uses_nodes=_uses_nodes(ld),
+        linked=_linked(orig),
     )
-    color = light_color(
-        ld.color, ld.temperature_color if getattr(ld, "use_temperature", False) else None
-    )
-    return InstanceGroup(
-        LIGHT_GROUP,
-        ob.name,
-        orig,
-        light_type=ld.type,
-        power=power,
-        light_radius=radius,
-        color=color,
-    )
+    if kind in ("POINT", "SPOT"):
+        props["radius"] = float(ld.shadow_soft_size)
+    if kind == "SPOT":
+        props.update(spot_size=float(ld.spot_size), spot_blend=float(ld.spot_blend))
+    elif kind == "SUN":
+        props["angle"] = float(ld.angle)
+    elif kind == "AREA":
+        props.update(
+            shape=ld.shape,
+            size=float(ld.size),
+            size_y=float(ld.size_y),
+            spread=float(getattr(ld, "spread", math.pi)),
+        )
+    return InstanceGroup(LIGHT_GROUP, ob.name, orig, light=LightProps(**props))
 
 
 def _material_optics_cached(material, cache) -> MaterialOptics:

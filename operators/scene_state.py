@@ -9,11 +9,14 @@ from .properties import COLLECTION_MARK
 
 def has_lens_lights(scene) -> bool:
     """Whether Clear would remove anything: a lens light the extension created in
-    `scene` (listed in its registry and marked), a linking collection or an empty
-    "Lens Lights" collection it made, or one of its profile images nothing uses."""
+    `scene` (listed in its registry and marked), a Cycles setting it changed, a
+    linking collection or an empty "Lens Lights" collection it made, or one of its
+    profile images nothing uses."""
     if scene is None:
         return False
     settings = scene.lens_lights
+    if len(settings.replaced):
+        return True  # Cycles settings to restore (`cycles_caustics`)
     for item in settings.created_objects:
         ob = item.object
         if ob is not None and ob.lens_lights.is_lens_light:

@@ -371,7 +371,7 @@ def test_linked_library_data(empty_blend, tmp_path):
     bpy.context.scene.collection.objects.link(ball)  # the linked object itself, at the origin
     add_point_light("Lamp", (3.0, 0.0, 8.0))
     floor()
-    before = snapshot()
+    before, replaced = snapshot(), replaced_snapshot()
     level, message, figures = generate()
     assert figures["created"] == 2, message
     assert sorted(ll.lens_lights.source_lens for ll in lens_lights()) == [
@@ -379,10 +379,22 @@ def test_linked_library_data(empty_blend, tmp_path):
         "Library ball",
     ]
     assert ball.library is not None and ball.is_editable is False
-    assert snapshot_diff(before, snapshot()) == []
+    assert snapshot_diff(replaced, snapshot()) == []
     bpy.ops.lens_lights.clear()
     assert snapshot_diff(before, snapshot()) == []
     assert len(bpy.data.libraries) == 1
+
+
+def replaced_snapshot():
+    """The snapshot of the context scene as Generate leaves it: the user's data as it
+    was but for the scene's Cycles refractive caustics, off (Replace Cycles'
+    Caustics; the lenses here are no MNEE casters). Clear puts it back."""
+    cycles = bpy.context.scene.cycles
+    cycles.caustics_refractive = False
+    try:
+        return snapshot()
+    finally:
+        cycles.caustics_refractive = True
 
 
 # --------------------------------------------------------------------------- scenes
@@ -400,13 +412,13 @@ def test_generate_acts_on_the_context_scene_only(empty_blend):
         other.collection.objects.link(ob)
         first.collection.objects.unlink(ob)
     assert ball.name in other.collection.objects and ball.name not in first.collection.objects
-    before = snapshot()
+    replaced = replaced_snapshot()
     generate()
     (ll,) = lens_lights()
     assert ll.lens_lights.source_lens == "A ball" and ll.name in first.collection.all_objects
     assert ll.name not in other.collection.all_objects
     assert other.lens_lights.last_run is False
-    assert snapshot_diff(before, snapshot()) == []
+    assert snapshot_diff(replaced, snapshot()) == []
     with bpy.context.temp_override(scene=other, view_layer=other.view_layers[0]):
         level, message, figures = generate()
     assert figures["created"] == 1
@@ -486,7 +498,7 @@ def test_generate_never_raises(empty_blend, monkeypatch):
 
     # A failure while planning: reported, nothing changed, the operator cancelled
     # (called from Python, an operator's error report becomes a RuntimeError).
-    monkeypatch.setattr(gen, "compute_phase1", boom)
+    monkeypatch.setattr(gen, "compute_phase1_primaries", boom)
     level, message, figures = gen.generate(bpy.context)
     assert level == "ERROR" and figures["changed"] is False
     assert message.startswith("Lens Lights could not read the scene: ValueError: boom")
@@ -517,6 +529,9 @@ def test_generate_never_raises(empty_blend, monkeypatch):
     assert reports[0][0] == {"ERROR"}
     assert "could not create the lens lights: RuntimeError: no more lights" in s.last_report
     assert lens_lights() == []
+    # the lens lights removed, Cycles' refractive caustics are back on (as before Generate)
+    assert bpy.context.scene.cycles.caustics_refractive is True
+    bpy.context.scene.cycles.caustics_refractive = False
     assert snapshot_diff(before, snapshot()) == []
 
 
@@ -567,12 +582,12 @@ def test_generate_regenerate_and_clear_touch_nothing_of_the_users(empty_blend):
         a: sorted(x.name_full for x in getattr(bpy.data, a))
         for a in ("objects", "collections", "lights", "images", "scenes")
     }
-    before = snapshot()
+    before, replaced = snapshot(), replaced_snapshot()
     generate()
     assert len(lens_lights()) >= 3
-    assert snapshot_diff(before, snapshot()) == []
+    assert snapshot_diff(replaced, snapshot()) == []
     generate()
-    assert snapshot_diff(before, snapshot()) == []
+    assert snapshot_diff(replaced, snapshot()) == []
     bpy.ops.lens_lights.clear()
     assert snapshot_diff(before, snapshot()) == []
     assert {a: sorted(x.name_full for x in getattr(bpy.data, a)) for a in names} == names

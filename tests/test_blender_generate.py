@@ -65,7 +65,7 @@ def test_generate_creates_the_physical_spot_light(empty_blend):
         1,
         0,
     )
-    assert s.last_report.startswith("Created 1 lens light (1 point light × 1 lens)")
+    assert s.last_report.startswith("Created 1 lens light (1 light × 1 lens)")
 
 
 def test_thesis_model_and_settings(empty_blend):
@@ -94,9 +94,9 @@ def test_regenerate_replaces_only_the_extensions_lights(empty_blend):
     dup.name = "My copy of a lens light"
     bpy.context.scene.collection.objects.link(dup)
     level, message, figures = generate()
-    assert figures["created"] == 1
+    assert figures["created"] == 2  # the user's area light is a primary too
     ours = [o for o in bpy.data.objects if o.name.startswith("Lens light")]
-    assert len(ours) == 1
+    assert len(ours) == 2
     assert bpy.data.objects.get("My spot") is mine and mine.data.energy == 50.0
     assert bpy.data.objects.get("Kept") is keep and keep.name in coll.objects
     assert bpy.data.objects.get("My copy of a lens light") is dup
@@ -166,7 +166,7 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     hidden.hide_render = True
     off = add_point_light("Off", (0, 0, 9))
     off.hide_render = True
-    add_point_light("Sun", (0, 0, 9), kind="SUN")
+    add_point_light("Sun", (0, 0, 9), energy=0.0, kind="SUN")
     add_sphere("Coarse", (0, 3, 1), material=glass, segments=8, rings=4)
     off_coll = bpy.data.collections.new("Render off")
     bpy.context.scene.collection.children.link(off_coll)
@@ -184,7 +184,7 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     assert reasons["Glass cube"].startswith("too coarse for a sphere")
     assert reasons["Egg"].startswith("non-uniform scale (1, 1, 1.3)")
     assert reasons["Coarse"].startswith("too coarse for a sphere")
-    assert reasons["Sun"].startswith("sun light")
+    assert reasons["Sun"].startswith("sun without strength")  # a sun of 0 W/m²
     assert reasons["Floor"].startswith("not a sphere: its bounding box")
     assert sorted(n for n, _ in read.left_out_lenses) == ["Coarse", "Egg", "Glass cube"]
 

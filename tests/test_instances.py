@@ -23,6 +23,7 @@ from addon.scene_read import (
     OTHER_GROUP,
     SPHERE_GROUP,
     InstanceGroup,
+    LightProps,
     assemble,
     box_fit_failure,
     lens_material,
@@ -128,15 +129,10 @@ def test_one_objects_rules():
 
 def test_assemble_a_hand_made_scene():
     lamp = InstanceGroup(
-        LIGHT_GROUP,
-        "Lamp",
-        "lamp-object",
-        light_type="POINT",
-        power=100.0,
-        light_radius=0.1,
-        color=(1.0, 1.0, 1.0),
+        LIGHT_GROUP, "Lamp", "lamp-object", light=LightProps("POINT", 100.0, radius=0.1)
     )
-    sun = InstanceGroup(LIGHT_GROUP, "Sun", "sun-object", light_type="SUN", power=3.0)
+    sun = InstanceGroup(LIGHT_GROUP, "Sun", "sun-object", light=LightProps("SUN", 3.0))
+    dark = InstanceGroup(LIGHT_GROUP, "Dark", "dark-object", light=LightProps("SPOT", 0.0))
     ball = InstanceGroup(
         SPHERE_GROUP,
         "Ball",
@@ -160,9 +156,10 @@ def test_assemble_a_hand_made_scene():
         "not a sphere: flat",
         mesh_source="plane-mesh",
     )
-    groups = [lamp, sun, ball, plane]
-    # lamp at z 5; sun; ball scaled 2 at x 1 and squashed (1, 2, 1) in "Grid"; plane
-    gid = np.array([0, 1, 2, 2, 3])
+    groups = [lamp, sun, ball, plane, dark]
+    # lamp at z 5; sun; ball scaled 2 at x 1 and squashed (1, 2, 1) in "Grid"; plane;
+    # a spot without power
+    gid = np.array([0, 1, 2, 2, 3, 4])
     M = np.array(
         [
             matrix(translation=(0, 0, 5)),
@@ -170,27 +167,34 @@ def test_assemble_a_hand_made_scene():
             matrix((2, 2, 2), (1, 0, 0)),
             matrix((1, 2, 1)),
             matrix(),
+            matrix(),
         ]
     )
-    pid = np.array([-1, -1, 0, 0, -1])
+    pid = np.array([-1, -1, 0, 0, -1, -1])
     read, blocking = assemble(groups, gid, M, pid, ["Grid"], "render", 64, 32)
 
     a = read.arrays
-    assert a.light_position.tolist() == [[0.0, 0.0, 5.0]]
-    assert a.light_brightness.tolist() == [100.0]
+    assert a.light_position[0].tolist() == [0.0, 0.0, 5.0]
+    assert np.isnan(a.light_position[1]).all()  # a sun has no position
+    # a sun's nominal power: 4π × its strength (primaries.nominal_power)
+    assert a.light_brightness.tolist() == pytest.approx([100.0, 4 * math.pi * 3.0])
     assert a.center.tolist() == [[1.0, 0.0, 0.0]] and a.radius.tolist() == [2.0]
     assert a.ior.tolist() == [1.5] and a.kt.tolist() == [1.0]
-    assert read.light_sources == ["Lamp"] and read.light_objects == ["lamp-object"]
+    assert read.light_sources == ["Lamp", "Sun"]
+    assert read.light_objects == ["lamp-object", "sun-object"]
+    assert read.primary_lights[1].direction == (0.0, 0.0, -1.0)
+    assert read.point_light_sources == ["Lamp"] and len(read.lights) == 1
     assert read.sphere_sources == ["Grid/Ball"] and read.sphere_objects == ["ball-object"]
     assert read.lens_optics == ["ball-optics"] and read.surfaces == ["ball-surface"]
     assert read.lens_candidates.tolist() == [True]
     assert read.primaries[0].power_w == 100.0 and read.lights[0].radius == 0.1
+    assert read.light_notes == [("Dark", "spot light without power (0 W)")]
     assert read.left_out == [
-        ("Sun", "sun light: only point lights make lens lights"),
         ("Grid/Ball#1", "non-uniform scale (1, 2, 1): an ellipsoid, not a sphere"),
         ("Plane", "not a sphere: flat"),
+        ("Dark", "spot light without power (0 W)"),
     ]
-    assert read.left_out_lenses == [read.left_out[1]]
+    assert read.left_out_lenses == [read.left_out[0]]
     # boxes: ball 1 [−1, 3] × [−2, 2]², ball 2 [−1, 1] × [−2, 2] × [−1, 1],
     # plane [−5, 5]² × {0}; the lamp at z 5
     lo, hi = read.bounds
