@@ -13,7 +13,8 @@ import math
 
 import pytest
 
-pytestmark = pytest.mark.blender
+# The light pipeline: AUTO builds lights here (the Caustic layer: test_blender_layer.py).
+pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
 bpy = pytest.importorskip("bpy")
 
