@@ -66,10 +66,6 @@ def restore(scene) -> list[Change]:
     return undone
 
 
-def restore_text(changes) -> str:
-    return describe(changes, verb="restored")
-
-
 def after_build(scene, plan, read, made: int) -> str:
     """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
     Cycles' own caustics of the lenses that got lens lights off; else say when they

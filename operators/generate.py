@@ -37,10 +37,11 @@ import traceback
 
 import bpy
 
+from ..addon.cycles_caustics import describe as describe_caustics
 from ..addon.phase1_primaries import compute_phase1_primaries
 from ..addon.planning import PRESELECT_FACTOR, plan_result
 from ..addon.report import error_text, linking_note, report_message
-from ..addon.tiers import resolve_energy_model
+from ..addon.tiers import builds_layer, resolve_energy_model
 from . import cycles_caustics, layer_generate, light_builder
 from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
 from .scene_state import has_lens_lights
@@ -146,7 +147,7 @@ def generate(context):
         try:
             light_builder.clear(scene)
             cycles_caustics.restore(scene)
-            if layer_generate.is_layer(options):  # the layers replace the lights
+            if builds_layer(options["energy_model"]):  # the layers replace the lights
                 made = layer_generate.build(scene, work, lambda f: progress(60 + 40 * f))
             else:
                 made = light_builder.build(
@@ -241,7 +242,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         settings.last_created = 0
         settings.last_report = f"Removed {removed} lens light{'s' if removed != 1 else ''}"
         if restored:
-            settings.last_report += "; " + cycles_caustics.restore_text(restored)
+            settings.last_report += "; " + describe_caustics(restored, verb="restored")
         self.report({"INFO"}, settings.last_report)
         return {"FINISHED"}
 

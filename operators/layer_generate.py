@@ -21,20 +21,16 @@ from ..addon.layer_plan import (
     sheet_camera,
     sheet_sources,
 )
-from ..addon.tiers import CAUSTIC_LAYER
+from ..addon.tiers import builds_layer
 from . import layer_builder, light_builder
 from .receiver_reader import read_receivers
-
-
-def is_layer(options: dict) -> bool:
-    return options.get("energy_model") == CAUSTIC_LAYER
 
 
 def prepare(depsgraph, work, options: dict):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
     ``layer_bake`` (None: no layer tier or nothing to bake)."""
     work.receivers = work.layer_bake = None
-    if not is_layer(options) or not work.plan.lights:
+    if not builds_layer(options.get("energy_model")) or not work.plan.lights:
         return work
     read = work.read
     t = time.perf_counter()

@@ -43,6 +43,7 @@ from .base import (
 
 __all__ = [
     "TIERS",
+    "builds_layer",
     "TIER_LINES",
     "THESIS",
     "PHYSICAL",
@@ -211,3 +212,8 @@ def _tier(model: str) -> Tier:
         raise ValueError(
             f"unknown energy model {model!r}; known: {', '.join([AUTO, *TIERS])}"
         ) from None
+
+
+def builds_layer(model: str) -> bool:
+    """Does the (resolved) tier `model` build caustic layers instead of lights?"""
+    return model == CAUSTIC_LAYER
