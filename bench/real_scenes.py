@@ -424,15 +424,15 @@ def main():
                 samples = args.cycles_samples if engine == "CYCLES" else args.eevee_samples
                 img, dt, message = caustic(case, frame, engine, args.px, samples, tmp, replace)
                 m = metrics(img, E)
-                tier = ", ".join(
-                    sorted(
-                        {
-                            o.lens_lights.energy_model
-                            for o in bpy.data.objects
-                            if o.type == "LIGHT" and o.lens_lights.is_lens_light
-                        }
-                    )
-                )
+                tiers = {
+                    o.lens_lights.energy_model
+                    for o in bpy.data.objects
+                    if o.type == "LIGHT" and o.lens_lights.is_lens_light
+                }
+                # Caustic layers are meshes, not lights (their data carry the mark).
+                if any(m.get("lens_lights_created") == "layer" for m in bpy.data.meshes):
+                    tiers.add("CAUSTIC_LAYER")
+                tier = ", ".join(sorted(tiers))
                 table.append(
                     dict(
                         scene=case.name,
