@@ -115,19 +115,28 @@ def build_bvh(mesh: ReceiverMesh, leaf_size: int = 4) -> TriangleBvh:
     )
 
 
-def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf, chunk: int = 16384) -> Hits:
-    """Nearest hit with ``t_min < t ≤ t_max`` (per ray or scalar) of the rays
-    ``origins + t · dirs`` ((N, 3) each; ``dirs`` need not be unit, ``t`` is in its
-    units). Triangles are two-sided."""
+def ray_arrays(origins, dirs, t_min, t_max):
+    """Rays as (N, 3) origins and directions with per-ray ``t`` bounds."""
     o = np.asarray(origins, dtype=float).reshape(-1, 3)
     d = np.asarray(dirs, dtype=float).reshape(-1, 3)
     n = len(o)
     t_min = np.broadcast_to(np.asarray(t_min, dtype=float), (n,))
     t_max = np.broadcast_to(np.asarray(t_max, dtype=float), (n,))
-    tri = np.full(n, -1, dtype=np.int64)
-    tt = np.full(n, np.inf)
-    uu = np.zeros(n)
-    vv = np.zeros(n)
+    return o, d, t_min, t_max
+
+
+def no_hits(n: int):
+    """(triangle, t, u, v) columns of `n` rays that hit nothing yet."""
+    return np.full(n, -1, dtype=np.int64), np.full(n, np.inf), np.zeros(n), np.zeros(n)
+
+
+def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf, chunk: int = 16384) -> Hits:
+    """Nearest hit with ``t_min < t ≤ t_max`` (per ray or scalar) of the rays
+    ``origins + t · dirs`` ((N, 3) each; ``dirs`` need not be unit, ``t`` is in its
+    units). Triangles are two-sided."""
+    o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
+    n = len(o)
+    tri, tt, uu, vv = no_hits(n)
     for s in range(0, n, chunk):
         sl = slice(s, min(n, s + chunk))
         tri[sl], tt[sl], uu[sl], vv[sl] = _intersect_chunk(bvh, o[sl], d[sl], t_min[sl], t_max[sl])

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .emitters import perpendicular_frame
-from .receiver_bvh import Hits, ReceiverMesh, TriangleBvh, build_bvh
+from .receiver_bvh import Hits, ReceiverMesh, TriangleBvh, build_bvh, no_hits, ray_arrays
 from .receiver_bvh import intersect as bvh_intersect
 from .receiver_patches import ReceiverPatch, find_patches
 
@@ -139,15 +139,8 @@ def _plane_grids(mesh, patches, big, cells_per_triangle) -> PlaneGrids:
 def intersect(index: ReceiverIndex, origins, dirs, t_min=0.0, t_max=np.inf) -> Hits:
     """Nearest hit with ``t_min < t ≤ t_max`` of rays ``origins + t·dirs`` ((N, 3)) on the
     indexed mesh; triangles two-sided. Same result as a BVH over the whole mesh."""
-    o = np.asarray(origins, dtype=float).reshape(-1, 3)
-    d = np.asarray(dirs, dtype=float).reshape(-1, 3)
-    n = len(o)
-    t_min = np.broadcast_to(np.asarray(t_min, dtype=float), (n,))
-    t_max = np.broadcast_to(np.asarray(t_max, dtype=float), (n,))
-    tri = np.full(n, -1, dtype=np.int64)
-    tt = np.full(n, np.inf)
-    uu = np.zeros(n)
-    vv = np.zeros(n)
+    o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
+    tri, tt, uu, vv = no_hits(len(o))
     if index.planes is not None:
         tri, tt, uu, vv = _intersect_planes(index.planes, o, d, t_min, t_max)
     if index.bvh is not None:
@@ -190,10 +183,7 @@ def _intersect_planes(g: PlaneGrids, o, d, t_min, t_max):
     q, tri, uv = q[first], tri[first], uv[first]
     head = np.ones(len(q), dtype=bool)
     head[1:] = ray[q][1:] != ray[q][:-1]
-    out_tri = np.full(n, -1, dtype=np.int64)
-    out_t = np.full(n, np.inf)
-    out_u = np.zeros(n)
-    out_v = np.zeros(n)
+    out_tri, out_t, out_u, out_v = no_hits(n)
     r = ray[q[head]]
     out_tri[r], out_t[r] = tri[head], t[q[head]]
     out_u[r], out_v[r] = uv[head, 0], uv[head, 1]
