@@ -9,7 +9,8 @@ only while it renders):
   render depsgraph), `material_reader` (materials' node trees) and `occluders`
   (rays against the read geometry); the numpy work is in `addon.scene_read` and
   `addon.instances`;
-* `light_builder` creates and removes the lens lights; `cycles_caustics` turns
+* `light_builder` creates and removes the lens lights; `bake` keys them over a
+  frame range; `cycles_caustics` turns
   Cycles' own caustics of their lenses off and back on; `scene_state` says whether
   a scene has any (Clear's poll);
 * `bi_scene_builder` builds and reads the Blender data of `.bi` scenes for `bi_io`.
@@ -22,6 +23,7 @@ import importlib
 _MODULE_NAMES = (
     "properties",
     "generate",
+    "bake",
     "panel",
     "bi_io",
 )

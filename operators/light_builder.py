@@ -281,6 +281,9 @@ def clear(scene) -> int:
     from .layer_builder import remove_unused_layer_materials  # (it imports this module)
 
     remove_unused_layer_materials()
+    from .bake import remove_unused_bake_actions  # (it imports this module)
+
+    remove_unused_bake_actions()
     settings.created_objects.clear()
     keep = []
     for item in settings.created_collections:

@@ -62,6 +62,7 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         row.scale_y = 1.4
         row.operator("lens_lights.generate", icon="LIGHT_SPOT")
         row.operator("lens_lights.clear", icon="TRASH", text="")
+        layout.operator("lens_lights.bake", icon="KEYTYPE_KEYFRAME_VEC")
 
         col = layout.column()
         col.use_property_split = True

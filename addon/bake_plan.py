@@ -1,0 +1,271 @@
+"""The pure part of the animation bake (`operators/bake.py`): which lens light is
+"the same" from one frame to the next, its values over the frames as keyframe
+columns, and the Exact profile's one table per lens for all frames.
+
+* **Keys.** A lens light keeps its Blender object over the frames when its key is
+  equal: the primary light's name, the lens' (object or instance) name, the source's
+  kind (real, virtual, collimated) and a variant (the Exact profile's near field has
+  another table geometry). `bake_key` makes it.
+* **Tracks.** Per key, one row per frame of every keyed value (`Track`); a frame
+  without the key holds its nearest present values (so nothing jumps in or out
+  between keys) and is keyed hidden. Quaternions are made continuous (q and −q are
+  the same rotation; interpolating across a sign flip would spin the light).
+* **Profile slices.** The Exact profile's table depends on the lens' D/R (and n);
+  a moving light changes D/R on every frame. Instead of one image per frame, the
+  bake tabulates a geometric grid of D/R values (anchored at 1, ratio
+  `SLICE_RATIO`, so lenses and re-bakes share tables) covering the D/R the key
+  takes, stacks the grid's tables in one image (slice k: rows k·M … (k+1)·M − 1)
+  and keys a fractional slice coordinate per frame: the node tree blends the two
+  neighbouring slices (`slice_coordinate`). The number of images is the number of
+  (lens, n, near) groups, whatever the number of frames.
+* **Frame ranges** of the command line (`parse_frames`, `frame_path`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Ratio between neighbouring D/R slices of a baked profile table (a 4 % step moves
+#: the paraxial focus by about 2 % of its distance, one table row); widened
+#: (squared) until a group needs at most `MAX_SLICES`.
+SLICE_RATIO = 1.04
+MAX_SLICES = 12
+#: The D/R grid's range (the exact trace needs D > R; a sun's D/R is huge).
+MIN_D_OVER_R, MAX_D_OVER_R = 1.0 + 1e-6, 1e6
+
+#: Keyed per frame: name → number of components.
+CHANNELS = {
+    "location": 3,
+    "rotation_quaternion": 4,
+    "scale_xy": 1,
+    "energy": 1,
+    "color": 3,
+    "spot_size": 1,
+    "spot_blend": 1,
+    "radius": 1,
+    "slice": 1,  # Exact profile: the fractional slice coordinate
+    "h_min": 1,  # Exact profile: the table's first distance (world units)
+}
+
+
+def bake_key(light_name: str, lens_name: str, kind: str, variant: str = "") -> str:
+    """The stable identity of a lens light across frames."""
+    return " | ".join((light_name, lens_name, kind) + ((variant,) if variant else ()))
+
+
+@dataclass
+class FrameLight:
+    """One lens light on one frame (world units; angles in radians)."""
+
+    key: str
+    values: dict  # channel name → float or sequence (see CHANNELS); missing: 0
+    #: Exact profile: (lens name, n, near) of its table group, and its D/R.
+    profile_group: tuple | None = None
+    d_over_r: float = math.nan
+
+
+@dataclass
+class Track:
+    """One key over the bake's frames."""
+
+    key: str
+    frames: np.ndarray  # (F,) int
+    present: np.ndarray  # (F,) bool
+    values: dict = field(default_factory=dict)  # channel → (F, components)
+    profile_group: tuple | None = None
+    d_over_r: np.ndarray | None = None  # (F,), held like the values
+
+    @property
+    def first(self) -> int:
+        """Index of the first frame the key exists on."""
+        return int(np.argmax(self.present))
+
+
+def _fill_nearest(present: np.ndarray) -> np.ndarray:
+    """For each frame, the index of the nearest present frame (earlier on a tie)."""
+    idx = np.flatnonzero(present)
+    pos = np.arange(len(present))
+    right = np.clip(np.searchsorted(idx, pos), 0, len(idx) - 1)
+    left = np.clip(right - 1, 0, len(idx) - 1)
+    use_left = np.abs(pos - idx[left]) <= np.abs(idx[right] - pos)
+    return np.where(use_left, idx[left], idx[right])
+
+
+def continuous_quaternions(q: np.ndarray) -> np.ndarray:
+    """`q` (F, 4) with each row's sign chosen to be nearest the previous row."""
+    q = np.array(q, dtype=float)
+    for k in range(1, len(q)):
+        if float(np.dot(q[k], q[k - 1])) < 0.0:
+            q[k] = -q[k]
+    return q
+
+
+def build_tracks(frames, per_frame) -> list[Track]:
+    """Tracks for `frames` (list of int) from `per_frame[i]` (the `FrameLight`s of
+    frame i), in order of first appearance. A key present twice on one frame is an
+    error (keys must identify a light)."""
+    frames = np.asarray(list(frames), dtype=np.int64)
+    if len(frames) != len(per_frame):
+        raise ValueError(f"{len(frames)} frames but {len(per_frame)} frame plans")
+    order: dict[str, int] = {}
+    rows: list[dict[int, FrameLight]] = []
+    for i, lights in enumerate(per_frame):
+        for fl in lights:
+            t = order.get(fl.key)
+            if t is None:
+                t = order[fl.key] = len(rows)
+                rows.append({})
+            if i in rows[t]:
+                raise ValueError(f"two lens lights with the key '{fl.key}' on frame {frames[i]}")
+            rows[t][i] = fl
+    out = []
+    n = len(frames)
+    for key, t in order.items():
+        got = rows[t]
+        present = np.zeros(n, dtype=bool)
+        present[list(got)] = True
+        near = _fill_nearest(present)
+        first = got[min(got)]
+        track = Track(key, frames, present, profile_group=first.profile_group)
+        for name, size in CHANNELS.items():
+            col = np.zeros((n, size))
+            for i, fl in got.items():
+                v = fl.values.get(name, 0.0)
+                col[i] = np.broadcast_to(np.asarray(v, dtype=float), (size,))
+            track.values[name] = col[near]
+        track.values["rotation_quaternion"] = continuous_quaternions(
+            track.values["rotation_quaternion"]
+        )
+        dr = np.full(n, np.nan)
+        for i, fl in got.items():
+            dr[i] = fl.d_over_r
+        track.d_over_r = dr[near]
+        out.append(track)
+    return out
+
+
+def visibility_keys(frames, present) -> list[tuple[int, bool]]:
+    """(frame, hidden) keyframes, CONSTANT interpolation: the first frame and every
+    frame where presence changes (before the first key Blender holds its value,
+    after the last too)."""
+    out = []
+    prev = None
+    for f, p in zip(np.asarray(frames).tolist(), np.asarray(present).tolist(), strict=True):
+        if p != prev:
+            out.append((int(f), not p))
+            prev = p
+    return out
+
+
+def single_frame_visibility(frame: int, first: int, last: int) -> list[tuple[int, bool]]:
+    """(frame, hidden) keys for an object shown only on `frame` of `first…last`."""
+    keys = []
+    if frame > first:
+        keys.append((frame - 1, True))
+    keys.append((frame, False))
+    if frame < last:
+        keys.append((frame + 1, True))
+    return keys
+
+
+# --------------------------------------------------------------------------- profile slices
+
+
+def _clamped(d_over_r) -> np.ndarray:
+    return np.clip(np.asarray(d_over_r, dtype=float), MIN_D_OVER_R, MAX_D_OVER_R)
+
+
+def slice_grid(d_over_r_values, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES):
+    """The D/R grid covering `d_over_r_values` (finite ones): ``ratio**k`` for the
+    k spanning them (one value if they all round to one node), the ratio squared
+    until at most `max_slices` nodes are needed. Returns a float array."""
+    v = _clamped([x for x in np.ravel(d_over_r_values) if math.isfinite(x)])
+    if not len(v):
+        raise ValueError("no finite D/R to tabulate")
+    lo, hi = float(v.min()), float(v.max())
+    if math.isclose(lo, hi, rel_tol=1e-9):
+        return np.array([lo])  # a still lens: its own table, as Generate makes it
+    while True:
+        step = math.log(ratio)
+        k0 = math.floor(math.log(lo) / step + 1e-9)
+        k1 = math.ceil(math.log(hi) / step - 1e-9)
+        if k1 - k0 + 1 <= max_slices:
+            return np.exp(np.arange(k0, k1 + 1) * step)
+        ratio *= ratio
+
+
+def slice_coordinate(d_over_r, grid) -> np.ndarray:
+    """The fractional slice index (0 … len(grid) − 1) of each D/R, linear in
+    log(D/R) between the grid's nodes, clamped at its ends."""
+    g = np.log(np.asarray(grid, dtype=float))
+    x = np.log(_clamped(d_over_r))
+    if len(g) == 1:
+        return np.zeros_like(x)
+    return np.interp(x, g, np.arange(len(g), dtype=float))
+
+
+def stack_slices(tables) -> np.ndarray:
+    """The tables (each (M, K), already normalised) stacked bottom-up: slice k at
+    rows k·M … (k+1)·M − 1 (Blender's row 0 is the bottom row)."""
+    tables = [np.asarray(t, dtype=np.float32) for t in tables]
+    shapes = {t.shape for t in tables}
+    if len(shapes) != 1:
+        raise ValueError(f"slices of different sizes: {sorted(shapes)}")
+    return np.concatenate(tables, axis=0)
+
+
+def slice_row(v: float, slice_index: int, slices: int, rows: int) -> float:
+    """The image's vertical texture coordinate of the table coordinate `v` in slice
+    `slice_index` of `slices` of `rows` rows each: `v` clamped to the slice's first
+    and last row centres, so the linear filter never reads a neighbouring slice
+    (what the node tree of `operators/bake.py` computes)."""
+    half = 0.5 / rows
+    return (slice_index + min(max(v, half), 1.0 - half)) / slices
+
+
+def profile_slice_table(d_over_r: float, n: float, near: bool) -> np.ndarray:
+    """The Exact profile's table for one D/R, normalised as Generate normalises it
+    (intensity over energy/(4π), `tiers.exact_profile.make_profile_light`)."""
+    from .tiers.exact_profile import _cached_profile
+
+    prof = _cached_profile(round(float(d_over_r), 9), round(float(n), 9), bool(near))
+    t_ref = prof.flux / (2.0 * math.pi) if prof.flux > 0 else 1.0
+    return (prof.table / t_ref).astype(np.float32)
+
+
+# --------------------------------------------------------------------------- frame ranges
+
+
+def parse_frames(text: str) -> tuple[int, int]:
+    """'A-B' (or 'A..B', or one frame 'A') → (A, B), A ≤ B; a clear ValueError else."""
+    s = str(text).strip()
+    for sep in ("..", ":"):
+        s = s.replace(sep, "-")
+    parts = s[1:].split("-", 1) if s.startswith("-") else s.split("-", 1)
+    if s.startswith("-"):
+        parts[0] = "-" + parts[0]
+    try:
+        a = int(parts[0])
+        b = int(parts[1]) if len(parts) > 1 else a
+    except ValueError:
+        raise ValueError(f"expected a frame range START-END, e.g. 1-120, got '{text}'") from None
+    if b < a:
+        raise ValueError(f"the frame range {text} ends before it starts (did you mean {b}-{a}?)")
+    return a, b
+
+
+def frame_path(pattern: str, frame: int) -> str:
+    """`pattern` with its last run of '#' replaced by `frame`, zero-padded to the run's
+    length (Blender's convention); unchanged when it has no '#'."""
+    end = pattern.rfind("#")
+    if end < 0:
+        return pattern
+    start = end
+    while start > 0 and pattern[start - 1] == "#":
+        start -= 1
+    width = end - start + 1
+    sign = "-" if frame < 0 else ""
+    return f"{pattern[:start]}{sign}{abs(frame):0{width}d}{pattern[end + 1 :]}"

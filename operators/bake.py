@@ -1,0 +1,509 @@
+"""Operator "Bake lens lights" (`lens_lights.bake`): lens lights keyed over a frame
+range, so that the .blend renders the animation with stock Blender (no extension:
+render-farm nodes). One undo step; from the UI it runs modal (a frame per timer
+tick, progress bar, Esc cancels and changes nothing); from Python or in the
+background it runs at once.
+
+Two stages, as Generate (`generate.py`), so that a failure or a cancel leaves the
+scene as it was:
+
+1. **Plan** every frame (nothing changes but the current frame, put back at the
+   end): `scene.frame_set(f)`, then Generate's planning (`generate.plan_scene`, and
+   the Caustic layer's bake `layer_generate.prepare`) on the render depsgraph of a
+   probe render (`render_probe.rendered_depsgraph`; `use_viewport=True`: the
+   viewport depsgraph with the render rules, faster, for scenes where render and
+   viewport agree). Each frame's lights become `addon.bake_plan.FrameLight`s keyed
+   by `bake_plan.bake_key` (primary, lens, kind).
+2. **Build**: Clear (the previous lens lights, baked or not), then
+   * light tiers: one Blender object per key (`light_builder.create_light` from the
+     key's first frame), its transform (object action), energy, colour, cone,
+     blend and radius (light data action) keyed on every frame, LINEAR; on frames
+     without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
+   * Exact profile: per (lens, n, near field) one image of stacked D/R slices
+     (`bake_plan.slice_grid`), and a node tree (`build_sliced_profile_nodes`) whose
+     slice coordinate and first table distance are keyed Value nodes (node-tree
+     action): the number of images does not grow with the frames;
+   * Caustic layer: each frame's layer meshes (`layer_builder`), each object keyed
+     visible on its own frame only (the meshes grow with the frames: one set per
+     frame).
+
+Every action made is marked (`properties.COLLECTION_MARK` = "bake") and removed by
+Clear once unused (`remove_unused_bake_actions`, called by `light_builder.clear`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import traceback
+
+import bpy
+from mathutils import Vector
+
+from ..addon import bake_plan
+from ..addon.report import error_text
+from ..addon.tiers import EXACT_PROFILE, builds_layer
+from . import cycles_caustics, layer_generate, light_builder
+from .generate import _options, plan_scene
+from .properties import COLLECTION_MARK
+from .scene_reader import rendered_depsgraph
+
+BAKE_MARK = "bake"
+SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+#: The figures of the last bake (seconds per stage, counts).
+LAST_BAKE: dict = {}
+
+
+# --------------------------------------------------------------------------- keyframes
+
+
+def _fcurves(idb):
+    """The F-curves of `idb`'s action (its slot's channel bag from 4.4 on)."""
+    ad = idb.animation_data
+    slot = getattr(ad, "action_slot", None)
+    if slot is not None:
+        from bpy_extras.anim_utils import action_get_channelbag_for_slot
+
+        return action_get_channelbag_for_slot(ad.action, slot).fcurves
+    return ad.action.fcurves
+
+
+def key_column(idb, data_path, index, frames, values, interpolation="LINEAR"):
+    """Key `idb`'s `data_path[index]` to `values` on `frames` in one go:
+    `keyframe_insert` once (the action, slot and F-curve, on every release), then
+    all the points at once."""
+    frames = [float(f) for f in frames]
+    values = [float(v) for v in values]
+    idb.keyframe_insert(data_path, index=index, frame=frames[0])
+    ad = idb.animation_data
+    if ad.action.get(COLLECTION_MARK) is None:
+        ad.action[COLLECTION_MARK] = BAKE_MARK
+    fc = _fcurves(idb).find(data_path, index=max(index, 0))
+    points = fc.keyframe_points
+    points.add(len(frames) - len(points))
+    co = [x for pair in zip(frames, values, strict=True) for x in pair]
+    points.foreach_set("co", co)
+    for p in points:
+        p.interpolation = interpolation
+    fc.update()
+    return fc
+
+
+def key_visibility(ob, keys):
+    """`ob` hidden / shown at (frame, hidden) `keys` (render and viewport), CONSTANT."""
+    frames = [f for f, _ in keys]
+    hidden = [1.0 if h else 0.0 for _, h in keys]
+    for path in ("hide_render", "hide_viewport"):
+        key_column(ob, path, -1, frames, hidden, "CONSTANT")
+
+
+# --------------------------------------------------------------------------- profile
+
+
+def build_sliced_profile_nodes(data, info: dict, image, slices: int, rows: int):
+    """`light_builder.build_profile_nodes` for a baked light: the same u (angle) and
+    v (distance) coordinates, with v read in slice `s` of the stacked image
+    (`bake_plan.slice_row`), `s` and the table's first distance `h_min` being Value
+    nodes keyed per frame; two slices blended by the fractional part of `s`."""
+    data.use_nodes = True
+    nt = data.node_tree
+    nt.nodes.clear()
+
+    def math_node(op, a, b=None, c=None):
+        n = nt.nodes.new("ShaderNodeMath")
+        n.operation = op
+        for k, v in enumerate((a, b, c)):
+            if v is None:
+                continue
+            if isinstance(v, (int, float)):
+                n.inputs[k].default_value = float(v)
+            else:
+                nt.links.new(v, n.inputs[k])
+        return n.outputs[0]
+
+    def value_node(name):
+        n = nt.nodes.new("ShaderNodeValue")
+        n.name = n.label = name
+        return n
+
+    s_node, h_node = value_node(SLICE_NODE), value_node(H_MIN_NODE)
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(tc.outputs["Normal"], sep.inputs[0])
+    cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
+    gam = math_node("ARCCOSINE", math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0))
+    u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(info["gamma_max_deg"])))
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
+    h_min = h_node.outputs[0]
+    ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
+    log_range = math.log(float(info["h_max"]) / float(info["h_min"]))
+    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
+    half = 0.5 / rows
+    v = math_node("MAXIMUM", math_node("MINIMUM", v, 1.0 - half), half)
+    s = s_node.outputs[0]
+    base = math_node("MINIMUM", math_node("FLOOR", s), max(slices - 2, 0))
+    frac = math_node("SUBTRACT", s, base)
+
+    def lookup(offset):
+        row = math_node(
+            "DIVIDE", math_node("ADD", math_node("ADD", base, float(offset)), v), slices
+        )
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(row, comb.inputs["Y"])
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        tex.interpolation = "Linear"
+        tex.extension = "EXTEND"
+        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+        return tex.outputs["Color"]
+
+    if slices > 1:
+        a = math_node("MULTIPLY", lookup(0), math_node("SUBTRACT", 1.0, frac))
+        strength = math_node("ADD", a, math_node("MULTIPLY", lookup(1), frac))
+    else:
+        strength = math_node("MULTIPLY", lookup(0), 1.0)
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(
+        math_node("MULTIPLY", strength, float(info.get("strength_scale", 1.0))),
+        em.inputs["Strength"],
+    )
+    out = nt.nodes.new("ShaderNodeOutputLight")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return nt
+
+
+def _profile_images(tracks) -> dict:
+    """Per profile group: (image, grid) with the group's D/R slices stacked."""
+    groups: dict = {}
+    for t in tracks:
+        if t.profile_group is not None:
+            groups.setdefault(t.profile_group, []).append(t.d_over_r[t.present])
+    out = {}
+    for group, values in groups.items():
+        lens, n, near = group
+        grid = bake_plan.slice_grid([x for v in values for x in v])
+        tables = [bake_plan.profile_slice_table(g, n, near) for g in grid]
+        pixels = bake_plan.stack_slices(tables)
+        key = f"bake {lens} n {n:.9g}{' near' if near else ''} D/R " + " ".join(
+            f"{g:.9g}" for g in grid
+        )
+        profile = dict(key=key, height=pixels.shape[0], width=pixels.shape[1], pixels=pixels)
+        out[group] = (light_builder.profile_image(profile), grid, tables[0].shape[0])
+    return out
+
+
+# --------------------------------------------------------------------------- the bake
+
+
+def _frame_lights(work, firsts: dict) -> list:
+    """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
+    (PlannedLight, lens object)."""
+    out = []
+    for p in work.plan.lights:
+        bl = p.light
+        profile = bl.model == EXACT_PROFILE and getattr(bl, "profile_info", None) is not None
+        near = bool(profile and bl.inside_lens)
+        key = bake_plan.bake_key(p.light_name, p.lens_name, bl.kind, "near" if near else "")
+        q = Vector(bl.direction).to_track_quat("-Z", "Y")
+        values = dict(
+            location=bl.location,
+            rotation_quaternion=tuple(q),
+            scale_xy=bl.scale_xy,
+            energy=bl.energy_w,
+            color=bl.color,
+            spot_size=math.radians(bl.spot_size_deg),
+            spot_blend=bl.spot_blend,
+            radius=bl.radius,
+        )
+        fl = bake_plan.FrameLight(key, values)
+        if profile:
+            src = p.source
+            fl.profile_group = (p.lens_name, round(float(src.ior), 9), near)
+            fl.d_over_r = float(src.distance) / float(src.lens_radius)
+            values["h_min"] = float(bl.profile_info["h_min"])
+        if key not in firsts:
+            firsts[key] = (p, work.read.sphere_objects[p.source.lens])
+        out.append(fl)
+    return out
+
+
+class Baker:
+    """One bake: `plan_next()` per frame, then `build()` (or `cancel()`)."""
+
+    def __init__(self, context, frame_start: int, frame_end: int, use_viewport=False):
+        if frame_end < frame_start:
+            raise ValueError(f"the frame range {frame_start}–{frame_end} ends before it starts")
+        self.context, self.scene = context, context.scene
+        self.frames = list(range(int(frame_start), int(frame_end) + 1))
+        self.use_viewport = use_viewport
+        self.options = _options(self.scene.lens_lights)
+        self.layer = builds_layer(self.options["energy_model"])
+        self.frame_before = (self.scene.frame_current, self.scene.frame_subframe)
+        self.per_frame, self.works, self.firsts = [], [], {}
+        self.lens_objects: set = set()
+        self.timings = dict(plan=0.0, build=0.0)
+        self.t0 = time.perf_counter()
+
+    @property
+    def done(self) -> bool:
+        return len(self.per_frame) == len(self.frames)
+
+    def plan_next(self):
+        """Plan the next frame (changes nothing but the current frame)."""
+        t = time.perf_counter()
+        f = self.frames[len(self.per_frame)]
+        scene, options = self.scene, self.options
+
+        def plan(dg):
+            return layer_generate.prepare(dg, plan_scene(dg, scene, options), options)
+
+        scene.frame_set(f)
+        if self.use_viewport:
+            work = plan(self.context.evaluated_depsgraph_get())
+            work.read.occluders.release()
+        else:
+            work, _how = rendered_depsgraph(self.context, plan)
+        self.per_frame.append(_frame_lights(work, self.firsts))
+        self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
+        if self.layer:
+            self.works.append(work)  # built per frame (its meshes)
+        self.timings["plan"] += time.perf_counter() - t
+
+    def restore_frame(self):
+        self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
+
+    def build(self) -> dict:
+        """Clear, then make the keyed lights (stage 2); figures for the report."""
+        t = time.perf_counter()
+        scene = self.scene
+        self.restore_frame()
+        light_builder.clear(scene)
+        cycles_caustics.restore(scene)
+        try:
+            figures = self._build_layers() if self.layer else self._build_lights()
+            if scene.lens_lights.replace_cycles_caustics and figures["objects"]:
+                cycles_caustics.replace(scene, sorted(self.lens_objects, key=lambda o: o.name))
+        except Exception:
+            light_builder.clear(scene)
+            cycles_caustics.restore(scene)
+            raise
+        self.timings["build"] = time.perf_counter() - t
+        figures.update(
+            frames=len(self.frames),
+            frame_start=self.frames[0],
+            frame_end=self.frames[-1],
+            energy_model=self.options["energy_model"],
+            seconds=time.perf_counter() - self.t0,
+            timings=dict(self.timings),
+        )
+        return figures
+
+    def _build_lights(self) -> dict:
+        scene = self.scene
+        tracks = bake_plan.build_tracks(self.frames, self.per_frame)
+        images = _profile_images(tracks)
+        collection = light_builder.lights_collection(scene)
+        links: dict = {}
+        for track in tracks:
+            planned, lens_ob = self.firsts[track.key]
+            bl = planned.light
+            if track.profile_group is not None:  # no per-frame image: the nodes come below
+                bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
+            ob = light_builder.create_light(
+                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
+            )
+            self._key_track(ob, track, images)
+        return dict(objects=len(tracks), images=len(images))
+
+    def _key_track(self, ob, track, images):
+        frames, v = track.frames, track.values
+        for i in range(3):
+            key_column(ob, "location", i, frames, v["location"][:, i])
+        for i in range(4):
+            key_column(ob, "rotation_quaternion", i, frames, v["rotation_quaternion"][:, i])
+        for i in range(2):
+            key_column(ob, "scale", i, frames, v["scale_xy"][:, 0])
+        data = ob.data
+        key_column(data, "energy", -1, frames, v["energy"][:, 0])
+        for i in range(3):
+            key_column(data, "color", i, frames, v["color"][:, i])
+        key_column(data, "spot_size", -1, frames, v["spot_size"][:, 0])
+        key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
+        key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
+        if track.profile_group is not None:
+            image, grid, rows = images[track.profile_group]
+            info = self.firsts[track.key][0].light.profile_info
+            nt = build_sliced_profile_nodes(data, info, image, len(grid), rows)
+            s = bake_plan.slice_coordinate(track.d_over_r, grid)
+            path = 'nodes["{}"].outputs[0].default_value'
+            key_column(nt, path.format(SLICE_NODE), -1, frames, s)
+            key_column(nt, path.format(H_MIN_NODE), -1, frames, v["h_min"][:, 0])
+        key_visibility(ob, bake_plan.visibility_keys(frames, track.present))
+
+    def _build_layers(self) -> dict:
+        scene = self.scene
+        first, last = self.frames[0], self.frames[-1]
+        objects = 0
+        for f, work in zip(self.frames, self.works, strict=True):
+            made = layer_generate.build(scene, work)
+            for ob in made:
+                key_visibility(ob, bake_plan.single_frame_visibility(f, first, last))
+            objects += len(made)
+        return dict(objects=objects, images=0)
+
+
+def bake_message(figures: dict) -> str:
+    n = figures["objects"]
+    what = "caustic layer objects" if figures["energy_model"] == "CAUSTIC_LAYER" else "lens lights"
+    text = (
+        f"Baked {n} {what} over frames {figures['frame_start']}–{figures['frame_end']} "
+        f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
+    )
+    if figures.get("images"):
+        text += f"; {figures['images']} profile image{'s' if figures['images'] != 1 else ''}"
+    return text
+
+
+def remove_unused_bake_actions() -> int:
+    """Remove the bake's actions (marked) that nothing uses (Clear's hook)."""
+    unused = [a for a in bpy.data.actions if a.get(COLLECTION_MARK) == BAKE_MARK and a.users == 0]
+    if unused:
+        bpy.data.batch_remove(unused)
+    return len(unused)
+
+
+def bake(context, frame_start=None, frame_end=None, use_viewport=False, progress=None):
+    """Plan and build at once; returns (level, message, figures). Never raises."""
+    global LAST_BAKE
+    scene = context.scene
+    a = scene.frame_start if frame_start is None else frame_start
+    b = scene.frame_end if frame_end is None else frame_end
+    try:
+        baker = Baker(context, a, b, use_viewport)
+    except ValueError as exc:
+        return "ERROR", str(exc), dict(changed=False)
+    try:
+        while not baker.done:
+            baker.plan_next()
+            if progress is not None:
+                progress(len(baker.per_frame) / len(baker.frames))
+    except Exception as exc:
+        traceback.print_exc()
+        baker.restore_frame()
+        return "ERROR", error_text("read the scene", exc), dict(changed=False)
+    return finish(baker)
+
+
+def finish(baker):
+    global LAST_BAKE
+    try:
+        figures = baker.build()
+    except Exception as exc:
+        traceback.print_exc()
+        message = error_text("bake the lens lights", exc) + " (the lens lights were removed)"
+        return "ERROR", message, dict(changed=True)
+    figures["changed"] = True
+    LAST_BAKE = figures
+    settings = baker.scene.lens_lights
+    settings.last_run = True
+    settings.last_created = figures["objects"]
+    settings.last_seconds = figures["seconds"]
+    settings.last_report = bake_message(figures)
+    return "INFO", settings.last_report, figures
+
+
+class LENS_LIGHTS_OT_bake(bpy.types.Operator):
+    """Key the lens lights on every frame of a range, so that the file renders the
+    animation without the extension (render farms). Esc cancels"""
+
+    bl_idname = "lens_lights.bake"
+    bl_label = "Bake Lens Lights"
+    bl_options = {"REGISTER", "UNDO"}
+
+    frame_start: bpy.props.IntProperty(
+        name="Start", description="First frame (default: the scene's)", default=0
+    )
+    frame_end: bpy.props.IntProperty(
+        name="End", description="Last frame (default: the scene's)", default=-1
+    )
+    use_viewport: bpy.props.BoolProperty(
+        name="Viewport Depsgraph",
+        description=(
+            "Read each frame from the viewport's evaluation with the render rules "
+            "instead of a probe render (faster; differs where the render settings do)"
+        ),
+        default=False,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def _range(self, context):
+        scene = context.scene
+        a = self.frame_start if self.properties.is_property_set("frame_start") else None
+        b = self.frame_end if self.properties.is_property_set("frame_end") else None
+        return (scene.frame_start if a is None else a), (scene.frame_end if b is None else b)
+
+    def execute(self, context):
+        a, b = self._range(context)
+        level, message, figures = bake(context, a, b, self.use_viewport)
+        self.report({level}, message)
+        if level == "ERROR" and not figures.get("changed", True):
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        a, b = self._range(context)
+        try:
+            self._baker = Baker(context, a, b, self.use_viewport)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, len(self._baker.frames))
+        self._timer = wm.event_timer_add(0.001, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _end(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+
+    def modal(self, context, event):
+        baker = self._baker
+        if event.type == "ESC":
+            self._end(context)
+            baker.restore_frame()
+            self.report({"WARNING"}, "Bake cancelled: nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            baker.plan_next()
+        except Exception as exc:
+            traceback.print_exc()
+            self._end(context)
+            baker.restore_frame()
+            self.report({"ERROR"}, error_text("read the scene", exc))
+            return {"CANCELLED"}
+        context.window_manager.progress_update(len(baker.per_frame))
+        if not baker.done:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        level, message, _figures = finish(baker)
+        self.report({level}, message)
+        return {"FINISHED"}
+
+
+_CLASSES = (LENS_LIGHTS_OT_bake,)
+
+
+register, unregister = bpy.utils.register_classes_factory(_CLASSES)
