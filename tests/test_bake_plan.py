@@ -1,0 +1,136 @@
+"""The bake's pure part (addon/bake_plan.py): keys, tracks over frames, visibility
+keys, the D/R slice grid and its texture rows, frame ranges and output names.
+Expected values are worked out by hand in each test."""
+
+import math
+
+import numpy as np
+import pytest
+
+from addon import bake_plan as bp
+
+
+def fl(key, x, energy=1.0, q=(1.0, 0.0, 0.0, 0.0), d_over_r=math.nan, group=None):
+    return bp.FrameLight(
+        key,
+        dict(location=(x, 0.0, 0.0), rotation_quaternion=q, energy=energy),
+        profile_group=group,
+        d_over_r=d_over_r,
+    )
+
+
+def test_key_names_light_lens_kind_and_variant():
+    assert bp.bake_key("Lamp", "Marble", "real") == "Lamp | Marble | real"
+    assert bp.bake_key("Lamp", "Grid/Ball#2", "virtual", "near") == (
+        "Lamp | Grid/Ball#2 | virtual | near"
+    )
+    assert bp.bake_key("A", "B", "real") != bp.bake_key("A", "B", "virtual")
+
+
+def test_tracks_hold_the_nearest_present_values_and_mark_absence():
+    # key "a" on frames 10, 11, 13; "b" only on frame 12
+    per_frame = [[fl("a", 1.0)], [fl("a", 2.0)], [fl("b", 9.0, energy=5.0)], [fl("a", 4.0)]]
+    a, b = bp.build_tracks([10, 11, 12, 13], per_frame)
+    assert (a.key, b.key) == ("a", "b")
+    assert a.present.tolist() == [True, True, False, True]
+    # frame 12 holds the nearest present frame's values (11 and 13 are equally near:
+    # the earlier one)
+    assert a.values["location"][:, 0].tolist() == [1.0, 2.0, 2.0, 4.0]
+    assert b.present.tolist() == [False, False, True, False]
+    assert b.values["energy"][:, 0].tolist() == [5.0] * 4
+    assert b.first == 2
+    assert a.values["spot_blend"].shape == (4, 1)  # missing channels: zeros
+    assert not a.values["spot_blend"].any()
+
+
+def test_a_key_twice_on_one_frame_is_an_error():
+    with pytest.raises(ValueError, match="two lens lights with the key 'a' on frame 3"):
+        bp.build_tracks([3], [[fl("a", 0.0), fl("a", 1.0)]])
+
+
+def test_quaternions_take_the_sign_nearest_the_previous_frame():
+    q = np.array([[1, 0, 0, 0], [-0.99, -0.1, 0, 0], [0.98, 0.2, 0, 0]], dtype=float)
+    out = bp.continuous_quaternions(q)
+    assert out.tolist() == [[1, 0, 0, 0], [0.99, 0.1, 0, 0], [0.98, 0.2, 0, 0]]
+
+
+def test_visibility_keys_only_where_presence_changes():
+    frames = [1, 2, 3, 4, 5]
+    assert bp.visibility_keys(frames, [True] * 5) == [(1, False)]
+    assert bp.visibility_keys(frames, [False, True, True, False, True]) == [
+        (1, True),
+        (2, False),
+        (4, True),
+        (5, False),
+    ]
+    assert bp.single_frame_visibility(3, 1, 5) == [(2, True), (3, False), (4, True)]
+    assert bp.single_frame_visibility(1, 1, 5) == [(1, False), (2, True)]
+    assert bp.single_frame_visibility(5, 1, 5) == [(4, True), (5, False)]
+
+
+def test_slice_grid_is_anchored_geometric_and_capped():
+    # 1.04^k nodes around 4.0 … 4.8: k from floor(ln 4 / ln 1.04) = 35 to
+    # ceil(ln 4.8 / ln 1.04) = 40
+    grid = bp.slice_grid([4.0, 4.8, 4.4, math.inf])
+    k = np.round(np.log(grid) / math.log(1.04)).astype(int)
+    assert k.tolist() == list(range(35, 41))
+    assert grid[0] <= 4.0 and grid[-1] >= 4.8
+    # a still lens: its own D/R, one slice
+    assert bp.slice_grid([4.0, 4.0]).tolist() == [4.0]
+    # a wide range: the ratio is squared until at most MAX_SLICES nodes
+    wide = bp.slice_grid([2.0, 200.0])
+    assert len(wide) <= bp.MAX_SLICES
+    assert wide[0] <= 2.0 and wide[-1] >= 200.0
+    with pytest.raises(ValueError, match="no finite D/R"):
+        bp.slice_grid([math.nan])
+
+
+def test_slice_coordinate_is_linear_in_log_d_over_r():
+    grid = [2.0, 4.0, 8.0]
+    s = bp.slice_coordinate([2.0, 4.0, math.sqrt(8.0), 8.0, 1.5, 20.0], grid)
+    assert np.allclose(s, [0.0, 1.0, 0.5, 2.0, 0.0, 2.0])
+    assert bp.slice_coordinate([3.0], [4.0]).tolist() == [0.0]
+
+
+def test_slice_rows_stay_inside_their_slice():
+    # 3 slices of 4 rows: slice 1 spans v_img 1/3 … 2/3; row centres at
+    # (1 + (j + 0.5)/4)/3
+    assert bp.slice_row(0.0, 1, 3, 4) == pytest.approx((1 + 0.125) / 3)
+    assert bp.slice_row(1.0, 1, 3, 4) == pytest.approx((1 + 0.875) / 3)
+    assert bp.slice_row(0.5, 1, 3, 4) == pytest.approx(1.5 / 3)
+    stacked = bp.stack_slices([np.zeros((4, 2)), np.ones((4, 2))])
+    assert stacked.shape == (8, 2) and stacked[:4].sum() == 0 and stacked[4:].min() == 1
+    with pytest.raises(ValueError, match="different sizes"):
+        bp.stack_slices([np.zeros((4, 2)), np.zeros((3, 2))])
+
+
+def test_profile_slice_is_generates_normalised_table():
+    """A slice is Generate's table for that D/R: with energy = 2 × beam flux the
+    texture is intensity / (energy/4π) = intensity / (flux/2π); so ∫ texture dΩ
+    over a far row is 2π (all of the beam's flux within 90°)."""
+    table = bp.profile_slice_table(4.0, 1.5, False)
+    from addon.tiers.exact_profile import PROFILE_ANGLES, PROFILE_GAMMA_MAX_DEG
+
+    gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
+    edges = gmax * (np.arange(PROFILE_ANGLES + 1) / PROFILE_ANGLES) ** 2
+    omega = np.diff(2 * math.pi * (1 - np.cos(edges)))
+    total = float((table[-1].astype(float) * omega).sum())  # last row: 30 R away
+    assert total == pytest.approx(2 * math.pi, rel=0.03)
+
+
+def test_parse_frames():
+    assert bp.parse_frames("1-120") == (1, 120)
+    assert bp.parse_frames("7") == (7, 7)
+    assert bp.parse_frames(" 3..5 ") == (3, 5)
+    assert bp.parse_frames("-2-4") == (-2, 4)
+    with pytest.raises(ValueError, match="ends before it starts"):
+        bp.parse_frames("5-2")
+    with pytest.raises(ValueError, match="expected a frame range"):
+        bp.parse_frames("a-b")
+
+
+def test_frame_path_pads_the_last_run_of_hashes():
+    assert bp.frame_path("out/shot_####.png", 7) == "out/shot_0007.png"
+    assert bp.frame_path("a#b_##.exr", 123) == "a#b_123.exr"
+    assert bp.frame_path("still.png", 4) == "still.png"
+    assert bp.frame_path("f_###.png", -3) == "f_-003.png"
