@@ -15,7 +15,10 @@ Subcommands:
   render SCENE -o OUT.png    render a .blend or .bi scene with lens lights
                              [--engine cycles|eevee] [--samples N] [--resolution WxH]
                              [--no-lens-lights | --compare]; OUT's extension picks
-                             the format (.png .jpg/.jpeg .exr .tif/.tiff .webp)
+                             the format (.png .jpg/.jpeg .exr .tif/.tiff .webp);
+                             [--frame N | --frames A-B] (OUT_####.png: the frame
+                             number) [--bake BAKED.blend] (lens lights keyed over
+                             the frames: renders without the extension)
   demo [--out DIR]           render the showcase scene without and with lens lights
   build [ARGS]               build the extension's zip (scripts/build_extension.py)
   bench NAME [ARGS]          a benchmark of bench/ (e.g. `bench scale`), report in reports/

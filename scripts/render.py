@@ -17,6 +17,15 @@ render SCENE -o OUT.png   render a `.blend` or `.bi` scene with lens lights; the
   --no-lens-lights        render without lens lights (removes any generated ones)
   --compare               one image: without | with lens lights, side by side, labelled
                           (scripts/image_strip.py)
+  --frame N               render frame N (lens lights generated on that frame)
+  --frames A-B            render frames A to B: the lens lights are baked over the range
+                          first (`lens_lights.bake`), then each frame is rendered to OUT
+                          with its last run of '#' replaced by the frame number
+                          (OUT_####.png → OUT_0001.png …; several frames need a '#')
+  --bake OUT.blend        save the baked file (frames: --frames, --frame, else the
+                          scene's range) for a render farm: stock Blender renders it
+                          (`blender -b OUT.blend -a`); -o is optional then; never the
+                          input file
 
 demo [--out DIR]          build the showcase scene, render it without and with lens
                           lights; writes DIR/showcase.blend, showcase_without.png,
@@ -37,9 +46,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "scripts") not in sys.path:
     sys.path.insert(0, str(ROOT / "scripts"))
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
 
 import image_strip
 from image_strip import allowed_extensions, apply_format, image_format
+
+from addon.bake_plan import frame_path, parse_frames
 
 PACKAGE = "lens_lights"
 EXIT_BAD_INPUT = 2
@@ -110,12 +123,25 @@ def add_engine_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def frame_range(text: str) -> tuple[int, int]:
+    try:
+        return parse_frames(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def frame_number(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a frame number, got '{text}'") from None
+
+
 def add_render_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", help="a .blend or .bi scene")
     p.add_argument(
         "-o",
         "--output",
-        required=True,
         metavar="OUT.png",
         help=(
             "the image to write; its extension picks the format: "
@@ -131,6 +157,23 @@ def add_render_arguments(p: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--compare", action="store_true", help="one image: without | with lens lights, labelled"
+    )
+    frames = p.add_mutually_exclusive_group()
+    frames.add_argument(
+        "--frame", type=frame_number, metavar="N", help="render frame N (default: the current)"
+    )
+    frames.add_argument(
+        "--frames",
+        type=frame_range,
+        metavar="A-B",
+        help="render frames A to B (lens lights baked over the range); OUT needs a '#' "
+        "run for the frame number, e.g. OUT_####.png",
+    )
+    p.add_argument(
+        "--bake",
+        metavar="OUT.blend",
+        help="save the file with the lens lights baked over the frames (default: the "
+        "scene's range) for a render farm; renders without the extension",
     )
 
 
@@ -404,18 +447,121 @@ def render_to(scene, path: str, label: str) -> float:
     return seconds
 
 
+def check_bake_path(path: str, scene_path: str) -> str:
+    """`--bake OUT.blend`: a .blend path that is not the input scene; its folder is
+    created."""
+    out = Path(os.path.abspath(path))
+    if out.suffix.lower() != ".blend":
+        raise RenderError(
+            f"{path}: --bake writes a .blend file (got '{out.suffix}')", EXIT_BAD_INPUT
+        )
+    if out.is_dir():
+        raise RenderError(f"{path}: is a directory (expected a .blend file)", EXIT_BAD_INPUT)
+    src = Path(os.path.abspath(scene_path))
+    if out == src or (out.exists() and os.path.samefile(out, src)):
+        raise RenderError(
+            f"{path}: is the input scene; --bake never overwrites it (choose another name)",
+            EXIT_BAD_INPUT,
+        )
+    _make_folder(out.parent, "folder of the baked file")
+    return str(out)
+
+
+def check_frame_arguments(args) -> None:
+    """The frame options against the others (before anything is loaded)."""
+    several = args.frames is not None and args.frames[0] != args.frames[1]
+    if args.output is None and args.bake is None:
+        raise RenderError(
+            "nothing to do: give -o OUT.png, --bake OUT.blend or both", EXIT_BAD_INPUT
+        )
+    if (args.frames or args.frame is not None or args.bake) and args.compare:
+        raise RenderError(
+            "--compare renders one still: not with --frame, --frames or --bake", EXIT_BAD_INPUT
+        )
+    if args.bake and args.no_lens_lights:
+        raise RenderError("--bake bakes the lens lights: not with --no-lens-lights", EXIT_BAD_INPUT)
+    if several and args.output is not None and "#" not in args.output:
+        raise RenderError(
+            f"{args.output}: {args.frames[1] - args.frames[0] + 1} frames need a '#' run "
+            "for the frame number in the output name, e.g. OUT_####.png",
+            EXIT_BAD_INPUT,
+        )
+
+
+def bake_lens_lights(start: int, end: int) -> str:
+    """Bake the lens lights over start…end (`lens_lights.bake`); a short report."""
+    import bpy
+
+    if not _has_operator("lens_lights", "bake"):
+        raise RenderError("the Lens Lights bake (bpy.ops.lens_lights.bake) is not available")
+    _run_operator(
+        lambda: bpy.ops.lens_lights.bake(frame_start=start, frame_end=end), "baking lens lights"
+    )
+    return bpy.context.scene.lens_lights.last_report
+
+
+def render_frames_baked(scene, out: str, start: int, end: int) -> list[str]:
+    """Render each frame of an already baked scene; returns the paths written."""
+    paths = []
+    count = end - start + 1
+    for k, frame in enumerate(range(start, end + 1)):
+        scene.frame_set(frame)
+        path = frame_path(out, frame)
+        render_to(scene, path, f"frame {frame} ({k + 1}/{count})")
+        paths.append(path)
+    return paths
+
+
+def render_frames(scene, out: str, start: int, end: int, on: bool) -> list[str]:
+    """Bake (on) or clear the lens lights, then render each frame; the paths written."""
+    if on:
+        say(f"baking lens lights over frames {start}–{end} ...")
+        say(bake_lens_lights(start, end))
+    else:
+        say(set_lens_lights(False))
+    return render_frames_baked(scene, out, start, end)
+
+
 # --------------------------------------------------------------------------- commands
 
 
 def cmd_render(args) -> int:
-    check_scene_path(args.scene)  # both before anything is loaded or rendered
-    out = check_output(args.output)
+    check_scene_path(args.scene)  # all before anything is loaded or rendered
+    check_frame_arguments(args)
+    out = check_output(args.output) if args.output is not None else None
+    bake_out = check_bake_path(args.bake, args.scene) if args.bake else None
     import bpy
 
     say(f"loading {args.scene}")
     is_bi = load_scene(args.scene)
     scene = bpy.context.scene
     configure(scene, args.engine, args.samples, args.resolution, is_bi)
+    if args.frames is not None or bake_out is not None:
+        start, end = args.frames or (
+            (args.frame, args.frame)
+            if args.frame is not None
+            else (scene.frame_start, scene.frame_end)
+        )
+        if end < start:
+            raise RenderError(f"the scene's frame range {start}–{end} is empty", EXIT_BAD_INPUT)
+        on = not args.no_lens_lights
+        if bake_out is not None:
+            say(f"baking lens lights over frames {start}–{end} ...")
+            say(bake_lens_lights(start, end))
+            bpy.ops.wm.save_as_mainfile(filepath=bake_out, copy=True)
+            say(f"wrote the baked file → {bake_out}")
+            print(bake_out)
+            if out is None:
+                return 0
+            for path in render_frames_baked(scene, out, start, end):
+                print(path)
+            return 0
+        for path in render_frames(scene, out, start, end, on):
+            print(path)
+        return 0
+    if args.frame is not None:
+        scene.frame_set(args.frame)
+    out = frame_path(out, scene.frame_current)  # a '#' run in a still's name: its frame
     if not args.compare:
         on = not args.no_lens_lights
         say(f"{'generating' if on else 'removing'} lens lights ...")
