@@ -14,6 +14,7 @@ from blender_scene_helpers import (
     add_sphere,
     glass_material,
     lens_lights,
+    set_engine,
     snapshot,
     snapshot_diff,
 )
@@ -40,7 +41,7 @@ def two_lamps_scene(engine="CYCLES", model="FITTED"):
     """A glass ball, a floor, lamp A moving over frames 1–3, lamp B hidden for the
     render on frame 2 only."""
     sc = bpy.context.scene
-    sc.render.engine = engine
+    set_engine(engine)
     sc.lens_lights.energy_model = model
     sc.frame_start, sc.frame_end = 1, 3
     add_sphere("Marble", (0.0, 0.0, 1.0), material=glass_material())
