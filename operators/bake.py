@@ -106,7 +106,8 @@ def build_sliced_profile_nodes(data, info: dict, image, slices: int, rows: int):
     v (distance) coordinates, with v read in slice `s` of the stacked image
     (`bake_plan.slice_row`), `s` and the table's first distance `h_min` being Value
     nodes keyed per frame; two slices blended by the fractional part of `s`."""
-    data.use_nodes = True
+    if bpy.app.version < (5, 0, 0) or data.node_tree is None:
+        data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
     nt = data.node_tree
     nt.nodes.clear()
 
@@ -451,6 +452,7 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
 
     def execute(self, context):
         a, b = self._range(context)
+        self.frame_start, self.frame_end = a, b  # the redo panel shows what was baked
         level, message, figures = bake(context, a, b, self.use_viewport)
         self.report({level}, message)
         if level == "ERROR" and not figures.get("changed", True):

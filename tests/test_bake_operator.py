@@ -12,6 +12,7 @@ import pytest
 from blender_scene_helpers import (
     add_point_light,
     add_sphere,
+    draw_panel,
     glass_material,
     lens_lights,
     set_engine,
@@ -115,11 +116,24 @@ def test_bake_equals_generate_on_every_frame(empty_blend):
         assert o.data.animation_data.action is not None
 
 
+def test_panel_has_the_bake_button(empty_blend):
+    from types import SimpleNamespace
+
+    from lens_lights.operators.bake import LENS_LIGHTS_OT_bake
+    from lens_lights.operators.panel import VIEW3D_PT_lens_lights
+
+    log = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
+    assert ("operator", "lens_lights.bake") in log
+    assert "UNDO" in LENS_LIGHTS_OT_bake.bl_options
+
+
 def test_bad_range_changes_nothing(empty_blend):
     two_lamps_scene()
     before = snapshot()
     with pytest.raises(RuntimeError, match="ends before it starts"):
         bpy.ops.lens_lights.bake(frame_start=5, frame_end=2)
+    with pytest.raises(RuntimeError, match="ends before it starts"):  # no window: at once
+        bpy.ops.lens_lights.bake("INVOKE_DEFAULT", frame_start=5, frame_end=2)
     assert lens_lights() == [] and snapshot_diff(before, snapshot()) == []
 
 
