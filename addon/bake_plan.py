@@ -197,6 +197,40 @@ def slice_grid(d_over_r_values, ratio: float = SLICE_RATIO, max_slices: int = MA
         ratio *= ratio
 
 
+def grid_size(d_over_r_values, ratio: float = SLICE_RATIO) -> int:
+    """How many nodes of the `ratio` grid cover `d_over_r_values` (finite ones)."""
+    v = _clamped([x for x in np.ravel(d_over_r_values) if math.isfinite(x)])
+    if not len(v) or math.isclose(float(v.min()), float(v.max()), rel_tol=1e-9):
+        return 1
+    step = math.log(ratio)
+    return (
+        math.ceil(math.log(float(v.max())) / step - 1e-9)
+        - math.floor(math.log(float(v.min())) / step + 1e-9)
+        + 1
+    )
+
+
+def profile_groups(tracks) -> dict:
+    """{image group: (track keys, D/R grid)} for the Exact profile tracks: one group
+    per (lens, n, near field) whose keys' D/R fit in `MAX_SLICES` nodes of the
+    `SLICE_RATIO` grid together; else (a sun and a lamp on one lens: D/R 10⁶ and 4)
+    each key of it is a group of its own, so that one far-off key does not coarsen
+    the others' slices."""
+    by_lens: dict = {}
+    for t in tracks:
+        if t.profile_group is not None:
+            by_lens.setdefault(t.profile_group, []).append(t)
+    out = {}
+    for group, members in by_lens.items():
+        values = [x for t in members for x in t.d_over_r[t.present]]
+        if len(members) == 1 or grid_size(values) <= MAX_SLICES:
+            out[group] = ([t.key for t in members], slice_grid(values))
+            continue
+        for t in members:
+            out[(*group, t.key)] = ([t.key], slice_grid(t.d_over_r[t.present]))
+    return out
+
+
 def slice_coordinate(d_over_r, grid) -> np.ndarray:
     """The fractional slice index (0 … len(grid) − 1) of each D/R, linear in
     log(D/R) between the grid's nodes, clamped at its ends."""

@@ -178,22 +178,20 @@ def build_sliced_profile_nodes(data, info: dict, image, slices: int, rows: int):
 
 
 def _profile_images(tracks) -> dict:
-    """Per profile group: (image, grid) with the group's D/R slices stacked."""
-    groups: dict = {}
-    for t in tracks:
-        if t.profile_group is not None:
-            groups.setdefault(t.profile_group, []).append(t.d_over_r[t.present])
+    """Per Exact profile track key: (image, grid, rows), the image stacking its
+    group's D/R slices (`bake_plan.profile_groups`)."""
     out = {}
-    for group, values in groups.items():
-        lens, n, near = group
-        grid = bake_plan.slice_grid([x for v in values for x in v])
+    for group, (keys, grid) in bake_plan.profile_groups(tracks).items():
+        lens, n, near = group[:3]
         tables = [bake_plan.profile_slice_table(g, n, near) for g in grid]
         pixels = bake_plan.stack_slices(tables)
         key = f"bake {lens} n {n:.9g}{' near' if near else ''} D/R " + " ".join(
             f"{g:.9g}" for g in grid
         )
         profile = dict(key=key, height=pixels.shape[0], width=pixels.shape[1], pixels=pixels)
-        out[group] = (light_builder.profile_image(profile), grid, tables[0].shape[0])
+        image = light_builder.profile_image(profile)
+        for k in keys:
+            out[k] = (image, grid, tables[0].shape[0])
     return out
 
 
@@ -318,7 +316,7 @@ class Baker:
                 scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
             )
             self._key_track(ob, track, images)
-        return dict(objects=len(tracks), images=len(images))
+        return dict(objects=len(tracks), images=len({v[0].name for v in images.values()}))
 
     def _key_track(self, ob, track, images):
         frames, v = track.frames, track.values
@@ -336,7 +334,7 @@ class Baker:
         key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
         key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
         if track.profile_group is not None:
-            image, grid, rows = images[track.profile_group]
+            image, grid, rows = images[track.key]
             info = self.firsts[track.key][0].light.profile_info
             nt = build_sliced_profile_nodes(data, info, image, len(grid), rows)
             s = bake_plan.slice_coordinate(track.d_over_r, grid)

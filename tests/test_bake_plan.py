@@ -134,3 +134,36 @@ def test_frame_path_pads_the_last_run_of_hashes():
     assert bp.frame_path("a#b_##.exr", 123) == "a#b_123.exr"
     assert bp.frame_path("still.png", 4) == "still.png"
     assert bp.frame_path("f_###.png", -3) == "f_-003.png"
+
+
+def profile_track(key, d_over_r, lens="Marble", present=None):
+    per = [
+        [fl(key, 0.0, d_over_r=d, group=(lens, 1.5, False))] if p else []
+        for d, p in zip(d_over_r, present or [True] * len(d_over_r), strict=True)
+    ]
+    return bp.build_tracks(range(len(d_over_r)), per)[0]
+
+
+def test_profile_groups_share_a_lens_image_unless_a_key_is_far_off():
+    a = profile_track("a", [4.0, 4.4, 4.8])
+    b = profile_track("b", [4.5, 5.0, 6.0])
+    c = profile_track("c", [1e6, 1e6, 1e6])  # a sun
+    other = profile_track("d", [4.0, 4.0, 4.0], lens="Other")
+    groups = bp.profile_groups([a, b, other])
+    assert sorted(groups) == [("Marble", 1.5, False), ("Other", 1.5, False)]
+    keys, grid = groups["Marble", 1.5, False]
+    assert keys == ["a", "b"] and grid[0] <= 4.0 and grid[-1] >= 6.0
+    assert groups["Other", 1.5, False][1].tolist() == [4.0]
+    # 4 … 10⁶ needs far more than MAX_SLICES nodes at 1.04: one group per key
+    groups = bp.profile_groups([a, b, c])
+    assert sorted(groups, key=str) == sorted([("Marble", 1.5, False, k) for k in "abc"], key=str)
+    assert groups["Marble", 1.5, False, "c"][1].tolist() == [1e6]
+    assert bp.grid_size([4.0, 4.8]) == 6  # 1.04^35 … 1.04^40
+    assert bp.grid_size([5.0]) == 1
+
+
+def test_absent_frames_do_not_widen_the_grid():
+    # the key's held values on absent frames repeat present ones: same range
+    t = profile_track("a", [4.0, 9.0, 4.8], present=[True, False, True])
+    ((keys, grid),) = bp.profile_groups([t]).values()
+    assert grid[-1] < 5.0
