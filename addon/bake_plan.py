@@ -270,6 +270,23 @@ def profile_slice_table(d_over_r: float, n: float, near: bool) -> np.ndarray:
     return (prof.table / t_ref).astype(np.float32)
 
 
+# --------------------------------------------------------------------------- report
+
+
+def bake_message(figures: dict) -> str:
+    """The report of a bake (`operators/bake.py`'s figures)."""
+    n = figures["objects"]
+    what = "caustic layer object" if figures["energy_model"] == "CAUSTIC_LAYER" else "lens light"
+    what += "s" if n != 1 else ""
+    text = (
+        f"Baked {n} {what} over frames {figures['frame_start']}–{figures['frame_end']} "
+        f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
+    )
+    if figures.get("images"):
+        text += f"; {figures['images']} profile image{'s' if figures['images'] != 1 else ''}"
+    return text
+
+
 # --------------------------------------------------------------------------- frame ranges
 
 

@@ -27,6 +27,9 @@ scene as it was:
      visible on its own frame only (the meshes grow with the frames: one set per
      frame).
 
+Live update (where the extension has it) is turned off for the bake and stays off
+after it (the keys drive the lights; a cancel or a failed plan puts it back).
+
 Every action made is marked (`properties.COLLECTION_MARK` = "bake") and removed by
 Clear once unused (`remove_unused_bake_actions`, called by `light_builder.clear`).
 """
@@ -242,6 +245,13 @@ class Baker:
         self.options = _options(self.scene.lens_lights)
         self.layer = builds_layer(self.options["energy_model"])
         self.frame_before = (self.scene.frame_current, self.scene.frame_subframe)
+        # Live update (where the extension has it) would rebuild the lens lights on
+        # every frame the bake visits, and later overwrite the baked keys: off while
+        # baking, and after (the keys drive the lights); a cancel puts it back.
+        settings = self.scene.lens_lights
+        self.live_before = bool(getattr(settings, "live_update", False))
+        if self.live_before:
+            settings.live_update = False
         self.per_frame, self.works, self.firsts = [], [], {}
         self.lens_objects: set = set()
         self.timings = dict(plan=0.0, build=0.0)
@@ -274,6 +284,12 @@ class Baker:
 
     def restore_frame(self):
         self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
+
+    def cancel(self):
+        """Nothing changed: the frame and Live update as they were."""
+        self.restore_frame()
+        if self.live_before:
+            self.scene.lens_lights.live_update = True
 
     def build(self) -> dict:
         """Clear, then make the keyed lights (stage 2); figures for the report."""
@@ -355,18 +371,6 @@ class Baker:
         return dict(objects=objects, images=0)
 
 
-def bake_message(figures: dict) -> str:
-    n = figures["objects"]
-    what = "caustic layer objects" if figures["energy_model"] == "CAUSTIC_LAYER" else "lens lights"
-    text = (
-        f"Baked {n} {what} over frames {figures['frame_start']}–{figures['frame_end']} "
-        f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
-    )
-    if figures.get("images"):
-        text += f"; {figures['images']} profile image{'s' if figures['images'] != 1 else ''}"
-    return text
-
-
 def remove_unused_bake_actions() -> int:
     """Remove the bake's actions (marked) that nothing uses (Clear's hook)."""
     unused = [a for a in bpy.data.actions if a.get(COLLECTION_MARK) == BAKE_MARK and a.users == 0]
@@ -392,7 +396,7 @@ def bake(context, frame_start=None, frame_end=None, use_viewport=False, progress
                 progress(len(baker.per_frame) / len(baker.frames))
     except Exception as exc:
         traceback.print_exc()
-        baker.restore_frame()
+        baker.cancel()
         return "ERROR", error_text("read the scene", exc), dict(changed=False)
     return finish(baker)
 
@@ -411,7 +415,9 @@ def finish(baker):
     settings.last_run = True
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]
-    settings.last_report = bake_message(figures)
+    settings.last_report = bake_plan.bake_message(figures)
+    if baker.live_before:
+        settings.last_report += "; Live update turned off (the keys drive the lens lights)"
     return "INFO", settings.last_report, figures
 
 
@@ -481,7 +487,7 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
         baker = self._baker
         if event.type == "ESC":
             self._end(context)
-            baker.restore_frame()
+            baker.cancel()
             self.report({"WARNING"}, "Bake cancelled: nothing changed")
             return {"CANCELLED"}
         if event.type != "TIMER":
@@ -491,7 +497,7 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
         except Exception as exc:
             traceback.print_exc()
             self._end(context)
-            baker.restore_frame()
+            baker.cancel()
             self.report({"ERROR"}, error_text("read the scene", exc))
             return {"CANCELLED"}
         context.window_manager.progress_update(len(baker.per_frame))

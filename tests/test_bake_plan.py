@@ -167,3 +167,16 @@ def test_absent_frames_do_not_widen_the_grid():
     t = profile_track("a", [4.0, 9.0, 4.8], present=[True, False, True])
     ((keys, grid),) = bp.profile_groups([t]).values()
     assert grid[-1] < 5.0
+
+
+def test_bake_message():
+    fig = dict(objects=2, energy_model="EXACT_PROFILE", frame_start=1, frame_end=100)
+    fig.update(frames=100, seconds=12.34, images=1)
+    assert bp.bake_message(fig) == (
+        "Baked 2 lens lights over frames 1–100 (100 frames, 12.3 s); 1 profile image"
+    )
+    fig.update(objects=1, energy_model="CAUSTIC_LAYER", images=0)
+    assert (
+        bp.bake_message(fig)
+        == "Baked 1 caustic layer object over frames 1–100 (100 frames, 12.3 s)"
+    )

@@ -63,7 +63,7 @@ def test_frames_write_one_file_each(animated_blend, tmp_path):
     written = sorted(p.name for p in tmp_path.iterdir())
     assert written == ["shot_0002.png", "shot_0003.png"]
     assert "frame 2 (1/2)" in run.stderr and "frame 3 (2/2)" in run.stderr
-    assert "Baked 1 lens lights over frames 2–3" in run.stderr
+    assert "Baked 1 lens light over frames 2–3" in run.stderr
     assert printed(run, tmp_path) == [str(tmp_path / n) for n in written]
 
 
