@@ -221,8 +221,10 @@ def write_report(timing, sizes, errors, args):
         "",
         "Planning is Generate's planning once per frame (with the probe render: a tiny "
         "render of a copy of the scene per frame, for the render depsgraph). Building "
-        "includes the Exact profile's slices (the exact trace, about 0.25 s per new "
-        "D/R slice, remembered for the session; at most 12 slices per lens).",
+        "includes the Exact profile's slices (the exact trace, about 0.3–2 s per new "
+        "D/R slice, remembered for the session; at most 12 per image). "
+        "One image per lens, or one per lens light where a lens' lights together span "
+        "more D/R than 12 slices cover (the profile images column).",
         "",
         "## File size",
         "",
