@@ -137,6 +137,22 @@ def test_bad_range_changes_nothing(empty_blend):
     assert lens_lights() == [] and snapshot_diff(before, snapshot()) == []
 
 
+def test_cancel_after_some_frames_changes_nothing(empty_blend):
+    """What Esc does in the modal bake: frames planned, then cancelled."""
+    from lens_lights.operators.bake import Baker
+
+    sc = two_lamps_scene()
+    sc.frame_set(3)
+    before = snapshot()
+    baker = Baker(bpy.context, 1, 3)
+    baker.plan_next()
+    baker.plan_next()
+    assert not baker.done and sc.frame_current == 2  # (frame 2 planned last)
+    baker.cancel()
+    assert sc.frame_current == 3
+    assert lens_lights() == [] and snapshot_diff(before, snapshot()) == []
+
+
 def test_exact_profile_bake_one_image_clear_and_undo(empty_blend):
     sc = two_lamps_scene(model="EXACT_PROFILE")
     sc.frame_end = 6
