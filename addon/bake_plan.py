@@ -210,7 +210,7 @@ def grid_size(d_over_r_values, ratio: float = SLICE_RATIO) -> int:
     )
 
 
-def profile_groups(tracks) -> dict:
+def profile_groups(tracks, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES) -> dict:
     """{image group: (track keys, D/R grid)} for the Exact profile tracks: one group
     per (lens, n, near field) whose keys' D/R fit in `MAX_SLICES` nodes of the
     `SLICE_RATIO` grid together; else (a sun and a lamp on one lens: D/R 10⁶ and 4)
@@ -223,11 +223,12 @@ def profile_groups(tracks) -> dict:
     out = {}
     for group, members in by_lens.items():
         values = [x for t in members for x in t.d_over_r[t.present]]
-        if len(members) == 1 or grid_size(values) <= MAX_SLICES:
-            out[group] = ([t.key for t in members], slice_grid(values))
+        if len(members) == 1 or grid_size(values, ratio) <= max_slices:
+            out[group] = ([t.key for t in members], slice_grid(values, ratio, max_slices))
             continue
         for t in members:
-            out[(*group, t.key)] = ([t.key], slice_grid(t.d_over_r[t.present]))
+            grid = slice_grid(t.d_over_r[t.present], ratio, max_slices)
+            out[(*group, t.key)] = ([t.key], grid)
     return out
 
 

@@ -180,11 +180,11 @@ def build_sliced_profile_nodes(data, info: dict, image, slices: int, rows: int):
     return nt
 
 
-def _profile_images(tracks) -> dict:
+def _profile_images(tracks, ratio) -> dict:
     """Per Exact profile track key: (image, grid, rows), the image stacking its
     group's D/R slices (`bake_plan.profile_groups`)."""
     out = {}
-    for group, (keys, grid) in bake_plan.profile_groups(tracks).items():
+    for group, (keys, grid) in bake_plan.profile_groups(tracks, ratio).items():
         lens, n, near = group[:3]
         tables = [bake_plan.profile_slice_table(g, n, near) for g in grid]
         pixels = bake_plan.stack_slices(tables)
@@ -236,12 +236,20 @@ def _frame_lights(work, firsts: dict) -> list:
 class Baker:
     """One bake: `plan_next()` per frame, then `build()` (or `cancel()`)."""
 
-    def __init__(self, context, frame_start: int, frame_end: int, use_viewport=False):
+    def __init__(
+        self,
+        context,
+        frame_start: int,
+        frame_end: int,
+        use_viewport=False,
+        profile_step=bake_plan.SLICE_RATIO - 1.0,
+    ):
         if frame_end < frame_start:
             raise ValueError(f"the frame range {frame_start}–{frame_end} ends before it starts")
         self.context, self.scene = context, context.scene
         self.frames = list(range(int(frame_start), int(frame_end) + 1))
         self.use_viewport = use_viewport
+        self.profile_step = float(profile_step)
         self.options = _options(self.scene.lens_lights)
         self.layer = builds_layer(self.options["energy_model"])
         self.frame_before = (self.scene.frame_current, self.scene.frame_subframe)
@@ -320,7 +328,7 @@ class Baker:
     def _build_lights(self) -> dict:
         scene = self.scene
         tracks = bake_plan.build_tracks(self.frames, self.per_frame)
-        images = _profile_images(tracks)
+        images = _profile_images(tracks, 1.0 + self.profile_step)
         collection = light_builder.lights_collection(scene)
         links: dict = {}
         for track in tracks:
@@ -379,14 +387,21 @@ def remove_unused_bake_actions() -> int:
     return len(unused)
 
 
-def bake(context, frame_start=None, frame_end=None, use_viewport=False, progress=None):
+def bake(
+    context,
+    frame_start=None,
+    frame_end=None,
+    use_viewport=False,
+    progress=None,
+    profile_step=bake_plan.SLICE_RATIO - 1.0,
+):
     """Plan and build at once; returns (level, message, figures). Never raises."""
     global LAST_BAKE
     scene = context.scene
     a = scene.frame_start if frame_start is None else frame_start
     b = scene.frame_end if frame_end is None else frame_end
     try:
-        baker = Baker(context, a, b, use_viewport)
+        baker = Baker(context, a, b, use_viewport, profile_step)
     except ValueError as exc:
         return "ERROR", str(exc), dict(changed=False)
     try:
@@ -443,6 +458,17 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
         ),
         default=False,
     )
+    profile_step: bpy.props.FloatProperty(
+        name="Profile Step",
+        description=(
+            "Exact profile: relative D/R step between the baked tables (smaller: closer "
+            "to the exact beam near the focus between tables; more tables, larger file)"
+        ),
+        default=100.0 * (bake_plan.SLICE_RATIO - 1.0),
+        min=0.5,
+        max=25.0,
+        subtype="PERCENTAGE",
+    )
 
     @classmethod
     def poll(cls, context):
@@ -457,7 +483,9 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
     def execute(self, context):
         a, b = self._range(context)
         self.frame_start, self.frame_end = a, b  # the redo panel shows what was baked
-        level, message, figures = bake(context, a, b, self.use_viewport)
+        level, message, figures = bake(
+            context, a, b, self.use_viewport, profile_step=self.profile_step / 100.0
+        )
         self.report({level}, message)
         if level == "ERROR" and not figures.get("changed", True):
             return {"CANCELLED"}
@@ -468,7 +496,7 @@ class LENS_LIGHTS_OT_bake(bpy.types.Operator):
             return self.execute(context)
         a, b = self._range(context)
         try:
-            self._baker = Baker(context, a, b, self.use_viewport)
+            self._baker = Baker(context, a, b, self.use_viewport, self.profile_step / 100.0)
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -180,3 +180,12 @@ def test_bake_message():
         bp.bake_message(fig)
         == "Baked 1 caustic layer object over frames 1–100 (100 frames, 12.3 s)"
     )
+
+
+def test_a_finer_profile_step_takes_more_slices():
+    a = profile_track("a", [4.0, 4.4, 4.8])
+    ((_, grid4),) = bp.profile_groups([a]).values()
+    ((_, grid2),) = bp.profile_groups([a], ratio=1.02).values()
+    # 1.04^35 … 1.04^40 (6 nodes); 1.02^70 … 1.02^80 (11 nodes)
+    assert len(grid4) == 6 and len(grid2) == 11
+    assert np.allclose(np.log(grid2) / math.log(1.02), np.arange(70, 81))
