@@ -207,3 +207,31 @@ def test_caustic_layer_bake_shows_each_frame_its_own_layer(empty_blend):
         assert len(shown) < len(layers)  # the other frame's are hidden
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert lens_lights() == []
+
+
+def test_marble_rolling_on_a_table_bakes_the_near_field_profile(empty_blend):
+    """A marble resting on the table (the receiver nearer than the profile's first
+    row): Generate puts the Exact-profile light at the lens centre with the near
+    field's table; the bake keys that light (its own key variant, its own image)
+    and equals Generate on each frame."""
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    sc.frame_start, sc.frame_end = 1, 2
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    marble = add_sphere("Marble", (0.0, 0.0, 0.5), material=glass_material())
+    add_point_light("Lamp", (0.0, 0.0, 3.0))
+    linear(marble, "location", [(0.0, 0.0, 0.5), (0.4, 0.0, 0.5)])
+    sc.frame_set(1)
+    expected = {f: generated_on(f) for f in (1, 2)}
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    (light,) = lens_lights()
+    (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
+    assert " near " in img.name
+    for f in (1, 2):
+        got = baked_on(f)
+        for key, values in expected[f].items():
+            assert got[key] == pytest.approx(values, rel=1e-5, abs=1e-6), (f, key)
+    # the light sits at the lens centre on each frame
+    sc.frame_set(2)
+    assert tuple(light.location) == pytest.approx((0.4, 0.0, 0.5), abs=1e-6)
