@@ -8,6 +8,7 @@ puts the scene back; the user's data is untouched."""
 import math
 
 import bpy
+import numpy as np
 import pytest
 from blender_scene_helpers import (
     add_point_light,
@@ -167,6 +168,15 @@ def test_exact_profile_bake_one_image_clear_and_undo(empty_blend):
     assert len(profiles) == 1  # two lights, six frames: one stacked table for the lens
     (img,) = profiles
     assert img.packed_file is not None
+    # the slices 1.04^45 … 1.04^51, stacked, kept bit for bit (one-channel float EXR)
+    from lens_lights.addon.bake_plan import profile_slice_table
+
+    tables = [profile_slice_table(1.04**k, 1.5, False) for k in range(45, 52)]
+    w, h = img.size
+    assert (w, h) == (tables[0].shape[1], 7 * tables[0].shape[0])
+    px = np.empty(w * h * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    assert np.array_equal(px.reshape(h, w, 4)[..., 0], np.concatenate(tables))
     a = next(o for o in lens_lights() if o.lens_lights.source_light == "A")
     nodes = a.data.node_tree.nodes
     assert "Lens bake slice" in nodes and a.data.node_tree.animation_data.action is not None
