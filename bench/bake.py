@@ -207,6 +207,8 @@ def write_report(timing, sizes, errors, args):
         "",
         "## Time",
         "",
+        "Times vary by up to 2.5× between runs with the other work on these CPUs.",
+        "",
         "| scene | tier | frames read by | frames | objects | profile images "
         "| bake (s) | planning (s) | building (s) | per frame (s) |",
         "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
