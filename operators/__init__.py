@@ -9,6 +9,8 @@ only while it renders):
   render depsgraph), `material_reader` (materials' node trees) and `occluders`
   (rays against the read geometry); the numpy work is in `addon.scene_read` and
   `addon.instances`;
+* `live_update` (registers its handlers) keeps the lens lights in step with the
+  scene while ``scene.lens_lights.live_update`` is on;
 * `light_builder` creates and removes the lens lights; `cycles_caustics` turns
   Cycles' own caustics of their lenses off and back on; `scene_state` says whether
   a scene has any (Clear's poll);
@@ -22,6 +24,7 @@ import importlib
 _MODULE_NAMES = (
     "properties",
     "generate",
+    "live_update",
     "panel",
     "bi_io",
 )
