@@ -216,7 +216,11 @@ def _on(scene) -> bool:
 def on_frame_change(scene, depsgraph=None):
     if _BUSY or not _on(scene):
         return
-    _run(scene, depsgraph if depsgraph is not None else bpy.context.evaluated_depsgraph_get(), "frame")
+    _run(
+        scene,
+        depsgraph if depsgraph is not None else bpy.context.evaluated_depsgraph_get(),
+        "frame",
+    )
 
 
 @bpy.app.handlers.persistent
