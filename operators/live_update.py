@@ -179,6 +179,8 @@ def update(scene, depsgraph) -> dict:
                     links,
                     image_cache=images,
                 )
+        if images:  # a profile's node tree was rebuilt: its old image may be unused
+            light_builder.remove_unused_profile_images()
         if not m.same_set:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))

@@ -6,7 +6,7 @@ import math
 
 import bpy
 import pytest
-from blender_scene_helpers import basic_scene, generate, lens_lights
+from blender_scene_helpers import basic_scene, generate, lens_lights, set_engine
 
 from addon import exact_optics
 
@@ -86,6 +86,55 @@ def test_frame_set_follows_an_animated_light_in_place(empty_blend):
         _, _, g_loc, g_energy = _state()
         assert loc == pytest.approx(g_loc, abs=1e-5)
         assert energy == pytest.approx(g_energy, rel=1e-5)
+
+
+def _profile_images():
+    return sorted(i.name for i in bpy.data.images if i.get("lens_lights_created") == "profile")
+
+
+def test_exact_profile_follows_with_one_image_per_frame_at_most(empty_blend):
+    _, lamp = _animated_scene()
+    scene = bpy.context.scene
+    set_engine("CYCLES")
+    scene.lens_lights.energy_model = "EXACT_PROFILE"
+    scene.frame_set(1)
+    scene.lens_lights.live_update = True
+    (ll,) = lens_lights()
+    pointer, images_1 = ll.as_pointer(), _profile_images()
+    scene.frame_set(5)
+    (ll5,) = lens_lights()
+    live = (tuple(ll5.location), ll5.data.energy, _profile_images())
+    assert ll5.as_pointer() == pointer and ll5.lens_lights.energy_model == "EXACT_PROFILE"
+    assert len(live[2]) == 1 and live[2] != images_1  # D/R changed: the old image is gone
+    tex = [n for n in ll5.data.node_tree.nodes if n.type == "TEX_IMAGE"]
+    assert [n.image.name for n in tex] == live[2]
+    scene.lens_lights.live_update = False
+    generate()  # a fresh Generate at frame 5
+    (g,) = lens_lights()
+    assert live[0] == pytest.approx(tuple(g.location), abs=1e-5)
+    assert live[1] == pytest.approx(g.data.energy, rel=1e-5)
+    assert live[2] == _profile_images()
+
+
+def test_caustic_layer_is_rebuilt_on_frame_change(empty_blend):
+    _, lamp = _animated_scene()
+    scene = bpy.context.scene
+    set_engine("BLENDER_EEVEE")
+    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    scene.frame_set(1)
+    scene.lens_lights.live_update = True
+
+    def centroid():
+        (ob,) = [o for o in lens_lights() if o.type == "MESH"]
+        xs = [v.co.x for v in ob.data.vertices]
+        return sum(xs) / len(xs)
+
+    x1 = centroid()
+    scene.frame_set(5)
+    x5 = centroid()
+    # The lamp moved +0.8 in x: the caustic under the ball moves the other way.
+    assert x1 == pytest.approx(0.0, abs=0.02) and x5 < x1 - 0.1
+    assert len(lens_lights()) == 1
 
 
 def test_moving_the_lamp_updates_on_depsgraph_update(empty_blend):
