@@ -31,10 +31,13 @@ lights in place: each light is matched to its planned source by a stable key
 that changed (`light_builder.apply_light`: transform, power, colour, cone, blend,
 radius; an Exact profile's node tree and image only when its profile changed), new
 keys get new lights, vanished keys' lights are removed. So the objects stay the
-same from frame to frame (selection, undo). The Caustic layer tier (EEVEE's AUTO)
+same from frame to frame (selection, undo). When the read's inputs (lights, spheres,
+primaries, the other geometry's transforms and boxes, camera, settings) are those of
+the last update, nothing is planned (a camera-only animation costs the read). The Caustic layer tier (EEVEE's AUTO)
 is rebuilt whole on every update (its meshes depend on the traced beam): correct
 but slow. Cycles' own caustics are re-replaced when the set of lights changes.
 
+Clear turns live update off (else the lights would come back at the next update).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
 not there at all, so their lights and lenses are missed until a render (whose
 depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.
@@ -42,20 +45,27 @@ depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.
 
 from __future__ import annotations
 
+import hashlib
 import time
 import traceback
 
 import bpy
+import numpy as np
 
 from ..addon.light_keys import keys_of, match
+from ..addon.phase1_primaries import compute_phase1_primaries
+from ..addon.planning import PRESELECT_FACTOR, plan_result
 from ..addon.tiers import builds_layer
 from . import cycles_caustics, layer_generate, light_builder, render_probe
-from .generate import _options, plan_scene
+from .generate import _options
 from .properties import COLLECTION_MARK
+from .scene_reader import read_depsgraph
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
 _BUSY = False
+#: Per scene: (signature of the last update's inputs, how many objects it left).
+_LAST_INPUTS: dict = {}
 
 #: Datablock types whose change (when not ours) can move a lens light.
 _WATCHED = ("Object", "Light", "Mesh", "Material", "Camera")
@@ -138,12 +148,75 @@ def _remove(scene, objects):
     light_builder.remove_unused_profile_images()
 
 
-def update(scene, depsgraph) -> dict:
+def _signature(read, options, scene) -> str:
+    """A digest of everything the plan is made from (lights, spheres, primaries, the
+    other geometry's transforms and boxes, camera, settings): equal digests, equal
+    plans. (A mesh deformed within the same bounding box is not seen.)"""
+    h = hashlib.blake2b(digest_size=16)
+    a, occ = read.arrays, read.occluders
+    for arr in (
+        a.light_position,
+        a.light_brightness,
+        a.light_color,
+        a.center,
+        a.radius,
+        a.ior,
+        a.kt,
+        occ.matrices,
+        occ.box_lo,
+        occ.box_hi,
+    ):
+        h.update(np.ascontiguousarray(arr, dtype=float).tobytes())
+    h.update(
+        repr(
+            (
+                read.primaries,
+                read.light_sources,
+                read.sphere_sources,
+                read.camera,
+                read.width,
+                read.height,
+                sorted(options.items()),
+                scene.render.engine,
+            )
+        ).encode()
+    )
+    return h.hexdigest()
+
+
+def _unchanged(scene, signature) -> bool:
+    last = _LAST_INPUTS.get(scene.as_pointer())
+    if last is None or last[0] != signature:
+        return False
+    items = scene.lens_lights.created_objects
+    return len(items) == last[1] and all(item.object is not None for item in items)
+
+
+def update(scene, depsgraph, force=False) -> dict:
     """Bring `scene`'s lens lights to what `depsgraph` shows (see the module's
-    docstring); returns the figures. Raises on failure (the handlers catch)."""
+    docstring); returns the figures. Nothing is planned when the inputs are those
+    of the last update (unless `force`). Raises on failure (the handlers catch)."""
     t0 = time.perf_counter()
     options = _options(scene.lens_lights)
-    work = plan_scene(depsgraph, scene, options)
+    timings: dict = {}
+    read = read_depsgraph(depsgraph, scene)
+    timings["read"] = time.perf_counter() - t0
+    signature = _signature(read, options, scene)
+    if not force and _unchanged(scene, signature):
+        read.occluders.release()
+        t1 = time.perf_counter()
+        return dict(
+            skipped=True,
+            seconds=t1 - t0,
+            plan_seconds=t1 - t0,
+            apply_seconds=0.0,
+            how=read.how,
+            timings=timings,
+        )
+    t = time.perf_counter()
+    result = compute_phase1_primaries(read.arrays, read.primary_lights)
+    timings["phase1"] = time.perf_counter() - t
+    work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
     work = layer_generate.prepare(depsgraph, work, options)
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
@@ -185,6 +258,7 @@ def update(scene, depsgraph) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
+    _LAST_INPUTS[scene.as_pointer()] = (signature, len(scene.lens_lights.created_objects))
     t1 = time.perf_counter()
     figures.update(
         plan_seconds=t_plan - t0, apply_seconds=t1 - t_plan, seconds=t1 - t0, how=read.how
@@ -193,13 +267,13 @@ def update(scene, depsgraph) -> dict:
     return figures
 
 
-def _run(scene, depsgraph, why):
+def _run(scene, depsgraph, why, force=False):
     global _BUSY, LAST_FIGURES
     if _BUSY:
         return
     _BUSY = True
     try:
-        figures = update(scene, depsgraph)
+        figures = update(scene, depsgraph, force)
         figures["why"] = why
         LAST_FIGURES = figures
     except Exception:  # a handler must never raise into Blender
@@ -207,6 +281,10 @@ def _run(scene, depsgraph, why):
         LAST_FIGURES = dict(why=why, error=traceback.format_exc(limit=1))
     finally:
         _BUSY = False
+
+
+#: Per scene: (signature of the last update's inputs, how many objects it left).
+_LAST_INPUTS: dict = {}
 
 
 def _on(scene) -> bool:
@@ -246,7 +324,7 @@ def live_update_changed(settings, context):
     """The checkbox's update: turned on, bring the lights up to date at once."""
     scene = settings.id_data
     if settings.live_update and context is not None and context.view_layer is not None:
-        _run(scene, context.evaluated_depsgraph_get(), "turned on")
+        _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True)
 
 
 _HANDLERS = (
