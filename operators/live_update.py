@@ -33,9 +33,10 @@ radius; an Exact profile's node tree and image only when its profile changed), n
 keys get new lights, vanished keys' lights are removed. So the objects stay the
 same from frame to frame (selection, undo). When the read's inputs (lights, spheres,
 primaries, the other geometry's transforms and boxes, camera, settings) are those of
-the last update, nothing is planned (a camera-only animation costs the read). The Caustic layer tier (EEVEE's AUTO)
-is rebuilt whole on every update (its meshes depend on the traced beam): correct
-but slow. Cycles' own caustics are re-replaced when the set of lights changes.
+the last update, nothing is planned (a camera-only animation costs the read). The
+Caustic layer tier (EEVEE's AUTO) is rebuilt whole on every update (its meshes depend
+on the traced beam): correct but slow. Cycles' own caustics are re-replaced when the
+set of lights changes.
 
 Clear turns live update off (else the lights would come back at the next update).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
