@@ -182,8 +182,7 @@ def write_report(rows, args):
         "* **kept**: the Blender light objects of the first update are still the ones "
         "after the last frame (updated in place, not re-created).",
         "",
-        "Targets (issue 15): ≤ 20 ms per frame for 10 lenses × 2 lights, ≤ 200 ms for "
-        "1000 lenses.",
+        "Targets (issue 15): ≤ 20 ms per frame for 10 lenses × 2 lights, ≤ 200 ms for 1000 lenses.",
         "",
         "| lenses | tier | max lights | lens lights | update ms (max) | plan ms | apply ms "
         "| frame_set ms | without ms | first ms | kept |",
@@ -211,9 +210,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--counts", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--frames", type=int, default=6)
-    ap.add_argument(
-        "--tiers", nargs="+", default=["FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER"]
-    )
+    ap.add_argument("--tiers", nargs="+", default=["FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER"])
     ap.add_argument("--layer-max", type=int, default=10)
     args = ap.parse_args(argv)
     load_extension().register()
