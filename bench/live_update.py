@@ -8,12 +8,14 @@ viewport depsgraph, phase 1, planning, applying to the Blender lights in place) 
 the whole ``frame_set`` with and without live update (Blender's own evaluation).
 
     ./lens-lights bench live_update [--counts 10 100 1000] [--frames 6]
-        [--tiers FITTED EXACT_PROFILE CAUSTIC_LAYER] [--layer-max 10]
+        [--tiers FITTED EXACT_PROFILE CAUSTIC_LAYER] [--layer-max 10] [--profile-max 10]
 
 Targets (issue 15): ≤ 20 ms per frame for 10 lenses × 2 lights, ≤ 200 ms for 1000
 lenses. Each count runs with the default maximum of 64 lens lights and with every
 source lit (max_lights = 2 N). The Caustic layer (rebuilt whole on each update) runs
-only up to ``--layer-max`` lenses.
+only up to ``--layer-max`` lenses, the Exact profile (a new profile table for every
+new D/R, i.e. for every light whose distance to its lens changed) up to
+``--profile-max``.
 """
 
 from __future__ import annotations
@@ -165,6 +167,7 @@ def write_report(rows, args):
         + " ".join(
             [f"--counts {' '.join(map(str, args.counts))}", f"--frames {args.frames}"]
             + [f"--tiers {' '.join(args.tiers)}", f"--layer-max {args.layer_max}"]
+            + [f"--profile-max {args.profile_max}"]
         )
         + "`",
         "",
@@ -212,12 +215,15 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--tiers", nargs="+", default=["FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER"])
     ap.add_argument("--layer-max", type=int, default=10)
+    ap.add_argument("--profile-max", type=int, default=10)
     args = ap.parse_args(argv)
     load_extension().register()
     rows = []
     for n in args.counts:
         for tier in args.tiers:
             if tier == "CAUSTIC_LAYER" and n > args.layer_max:
+                continue
+            if tier == "EXACT_PROFILE" and n > args.profile_max:
                 continue
             for max_lights in dict.fromkeys((64, 2 * n)):
                 r = run_case(n, tier, max_lights, args.frames)
