@@ -17,7 +17,7 @@ with live update off):
 * ``render_init`` / ``render_complete`` / ``render_cancel`` — tell the render probe
   that a render of the user's is running (`render_probe.note_render`): Generate
   called from a user's handler then reads the viewport instead of rendering inside
-  the render (which crashes Blender).
+  the render (which crashes Blender); ``load_post`` forgets both.
 
 A module flag guards against re-entry: what an update changes never runs another
 update from inside it.
@@ -321,6 +321,12 @@ def on_render_end(scene, *args):
     render_probe.note_render(False)
 
 
+@bpy.app.handlers.persistent
+def on_load(*args):
+    _LAST_INPUTS.clear()  # another file: other objects
+    render_probe.note_render(None)
+
+
 def live_update_changed(settings, context):
     """The checkbox's update: turned on, bring the lights up to date at once."""
     scene = settings.id_data
@@ -334,6 +340,7 @@ _HANDLERS = (
     ("render_init", on_render_start),
     ("render_complete", on_render_end),
     ("render_cancel", on_render_end),
+    ("load_post", on_load),
 )
 
 

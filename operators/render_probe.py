@@ -94,10 +94,14 @@ _ACTIVE_RUN: _ProbeRun | None = None
 _RENDERS_RUNNING = 0
 
 
-def note_render(started: bool):
-    """Count a render of the user's starting (True) or ending (False)."""
+def note_render(started: bool | None):
+    """Count a render of the user's starting (True) or ending (False); None: forget
+    them all (a file was loaded)."""
     global _RENDERS_RUNNING
-    _RENDERS_RUNNING = _RENDERS_RUNNING + 1 if started else max(0, _RENDERS_RUNNING - 1)
+    if started is None:
+        _RENDERS_RUNNING = 0
+    else:
+        _RENDERS_RUNNING = _RENDERS_RUNNING + 1 if started else max(0, _RENDERS_RUNNING - 1)
 
 
 class LENS_LIGHTS_RE_probe(bpy.types.RenderEngine):
