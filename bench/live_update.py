@@ -100,8 +100,12 @@ def set_engine(engine):
 
 
 def run_case(n, tier, max_lights, frames):
+    from lens_lights.addon.tiers import exact_profile
     from lens_lights.operators import live_update
 
+    # Each case from cold caches: a row must not reuse the profiles of the one before.
+    exact_profile._cached_profile.cache_clear()
+    exact_profile._beam_summary.cache_clear()
     build_scene(n, frames)
     scene = bpy.context.scene
     set_engine(ENGINE[tier])
