@@ -290,7 +290,9 @@ _LAST_INPUTS: dict = {}
 
 def _on(scene) -> bool:
     settings = getattr(scene, "lens_lights", None)
-    return settings is not None and settings.live_update
+    # The probe's scene copy carries the setting too: never update it.
+    probe = scene.render.engine == render_probe.LENS_LIGHTS_RE_probe.bl_idname
+    return settings is not None and settings.live_update and not probe
 
 
 @bpy.app.handlers.persistent
