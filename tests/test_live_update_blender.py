@@ -156,6 +156,21 @@ def test_unchanged_frames_are_not_replanned_and_clear_stops_live_update(empty_bl
     assert lens_lights() == []
 
 
+def test_generate_with_live_update_on_then_frames_reuse_its_lights(empty_blend):
+    _, lamp = _animated_scene()
+    scene = bpy.context.scene
+    scene.frame_set(2)
+    scene.lens_lights.live_update = True
+    level, message, _ = generate()  # probe render with our handlers detached
+    assert level == "INFO", message
+    assert [s.name for s in bpy.data.scenes] == ["Scene"]  # the probe's copy is gone
+    pointer = _state()[0]
+    scene.frame_set(4)
+    (ll,) = lens_lights()
+    assert ll.as_pointer() == pointer
+    assert tuple(ll.location) == pytest.approx(_exact(_lamp_at(lamp, 4))[0], abs=1e-4)
+
+
 def test_moving_the_lamp_updates_on_depsgraph_update(empty_blend):
     _, lamp = _animated_scene()
     lamp.animation_data_clear()
