@@ -176,8 +176,9 @@ def write_report(rows, args):
         + "`",
         "",
         f"Blender {bpy.app.version_string}, Python {platform.python_version()}, "
-        f"{platform.machine()}, {os.cpu_count()} CPUs (shared with other work: figures "
-        "are indicative). N glass spheres (separate objects, one shared mesh) 1 above a "
+        f"{platform.machine()}, {os.cpu_count()} CPUs, shared with other work: load "
+        f"average {args.load_before:.1f} at the start, {os.getloadavg()[0]:.1f} at the end "
+        "(above the CPU count, every figure is inflated by about load / CPUs). N glass spheres (separate objects, one shared mesh) 1 above a "
         "floor, two point lights, one keyed to move every frame; medians over "
         f"{args.frames} frames of `scene.frame_set(k)`.",
         "",
@@ -237,6 +238,7 @@ def main(argv=None):
     ap.add_argument("--profile-max", type=int, default=10)
     args = ap.parse_args(argv)
     load_extension().register()
+    args.load_before = os.getloadavg()[0]
     rows = []
     for n in args.counts:
         for tier in args.tiers:
