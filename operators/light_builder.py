@@ -26,6 +26,9 @@ demand, under the scene's collection), placed, turned and shaped from a
   `properties.COLLECTION_MARK` = "profile" and its cache key, and shared by every
   light with the same key (same D/R and n: same pixels).
 
+The values (all but the name, linking and origin) are put by `apply_light`, on a new
+light or on one live update keeps (`live_update`): only what differs is written.
+
 Everything created is listed in `scene.lens_lights.created_*` and marked
 (`object.lens_lights.is_lens_light`, collection custom property
 `properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
