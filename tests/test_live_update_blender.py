@@ -315,3 +315,43 @@ def test_generate_fires_no_user_render_or_frame_handler(empty_blend):
         for name, fn in added.items():
             getattr(bpy.app.handlers, name).remove(fn)
         bpy.app.handlers.render_pre.remove(persistent_pre)
+
+
+def test_lights_made_and_removed_during_an_animation_render(empty_blend, tmp_path):
+    _, lamp = _animated_scene()
+    lamp.animation_data_clear()
+    lamp.location = KEYS[1]
+    for frame, energy in ((3, 0.0), (4, 1000.0), (6, 0.0)):
+        lamp.data.energy = energy
+        lamp.data.keyframe_insert("energy", frame=frame)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.render.resolution_x = scene.render.resolution_y = 8
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.frame_start, scene.frame_end = 3, 6
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.frame_set(3)
+    scene.lens_lights.live_update = True
+    seen = []
+
+    def engine_view(scene, depsgraph):
+        if depsgraph.mode == "RENDER":
+            watts = lamp.data.evaluated_get(depsgraph).energy
+            seen.append((scene.frame_current, watts, [o.data.energy for o in lens_lights()]))
+
+    bpy.app.handlers.frame_change_post.append(engine_view)
+    try:
+        bpy.ops.render.render(animation=True)
+    finally:
+        bpy.app.handlers.frame_change_post.remove(engine_view)
+    assert [f for f, _, _ in seen] == [3, 4, 5, 6]
+    _, per_watt = _exact(KEYS[1])  # lamp 2 above the centre: power per 1000 W
+    for frame, watts, energies in seen:
+        if frame in (3, 6):
+            assert energies == []  # no power: no lens light
+        else:
+            assert energies == [pytest.approx(per_watt * watts / 1000.0, rel=1e-4)]
+    assert len(list(tmp_path.iterdir())) == 4
