@@ -35,10 +35,12 @@ render farm's, persistent or not, and the extension's own) is detached, and each
 list is put back in its order afterwards, also when the render fails (a handler
 something appends meanwhile is kept, after them).  So Generate neither runs a
 farm's render hooks nor recurses through a user's ``frame_change_pre`` handler
-that calls Generate.  When the probe cannot run (a render is in progress, the
-render is refused), the viewport depsgraph is read instead with the
-render-visibility rules applied by hand, and the read says so
-(``BlenderSceneRead.how``).
+that calls Generate.  When the probe cannot run (a render is in progress — a
+render job, or a render of the user's that calls Generate from one of its
+handlers: a render started inside a render crashes Blender; the extension's own
+render handlers count those, `note_render` — or the render is refused), the
+viewport depsgraph is read instead with the render-visibility rules applied by
+hand, and the read says so (``BlenderSceneRead.how``).
 """
 
 from __future__ import annotations
