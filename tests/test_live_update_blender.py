@@ -171,6 +171,24 @@ def test_generate_with_live_update_on_then_frames_reuse_its_lights(empty_blend):
     assert tuple(ll.location) == pytest.approx(_exact(_lamp_at(lamp, 4))[0], abs=1e-4)
 
 
+def test_updates_of_its_own_lights_do_not_run_live_update(empty_blend):
+    _animated_scene()
+    from lens_lights.operators import live_update
+
+    scene = bpy.context.scene
+    scene.lens_lights.live_update = True
+    (ll,) = lens_lights()
+    before = live_update.LAST_FIGURES
+    ll.location.x += 1.0  # only ours changed: ignored (no feedback loop)
+    ll.data.energy *= 2.0
+    bpy.context.view_layer.update()
+    assert live_update.LAST_FIGURES is before
+    bpy.data.objects["Floor"].location.z = 0.1  # a receiver moved: an update
+    bpy.context.view_layer.update()
+    assert live_update.LAST_FIGURES is not before
+    assert live_update.LAST_FIGURES["why"] == "edit"
+
+
 def test_moving_the_lamp_updates_on_depsgraph_update(empty_blend):
     _, lamp = _animated_scene()
     lamp.animation_data_clear()
