@@ -9,10 +9,11 @@ only while it renders):
   render depsgraph), `material_reader` (materials' node trees) and `occluders`
   (rays against the read geometry); the numpy work is in `addon.scene_read` and
   `addon.instances`;
+* `live_update` (registers its handlers) keeps the lens lights in step with the
+  scene while ``scene.lens_lights.live_update`` is on;
 * `light_builder` creates and removes the lens lights; `bake` keys them over a
-  frame range; `cycles_caustics` turns
-  Cycles' own caustics of their lenses off and back on; `scene_state` says whether
-  a scene has any (Clear's poll);
+  frame range; `cycles_caustics` turns Cycles' own caustics of their lenses off
+  and back on; `scene_state` says whether a scene has any (Clear's poll);
 * `bi_scene_builder` builds and reads the Blender data of `.bi` scenes for `bi_io`.
 
 Nothing here runs without bpy; what can is in `addon/`.
@@ -24,6 +25,7 @@ _MODULE_NAMES = (
     "properties",
     "generate",
     "bake",
+    "live_update",
     "panel",
     "bi_io",
 )

@@ -236,6 +236,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         return True
 
     def execute(self, context):
+        context.scene.lens_lights.live_update = False  # else the lights come back at once
         removed = light_builder.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights

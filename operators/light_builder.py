@@ -26,6 +26,9 @@ demand, under the scene's collection), placed, turned and shaped from a
   `properties.COLLECTION_MARK` = "profile" and its cache key, and shared by every
   light with the same key (same D/R and n: same pixels).
 
+The values (all but the name, linking and origin) are put by `apply_light`, on a new
+light or on one live update keeps (`live_update`): only what differs is written.
+
 Everything created is listed in `scene.lens_lights.created_*` and marked
 (`object.lens_lights.is_lens_light`, collection custom property
 `properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
@@ -188,29 +191,16 @@ def create_light(
 ):
     """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
     tree; `image_cache` shares profile images within a run)."""
-    bl = planned.light
     name = f"Lens light {planned.light_name} > {planned.lens_name}"
     data = bpy.data.lights.new(name, "SPOT")
-    data.energy = bl.energy_w
-    data.color = bl.color
-    data.spot_size = math.radians(bl.spot_size_deg)
-    data.spot_blend = bl.spot_blend
-    data.shadow_soft_size = bl.radius
-    data.use_custom_distance = True
-    data.cutoff_distance = bl.cutoff_distance
-    profile = getattr(bl, "profile", None)
-    if profile is not None:
-        try:
-            build_profile_nodes(data, profile, profile_image(profile, image_cache))
-        except Exception:
-            bpy.data.lights.remove(data)  # not registered yet: clear would miss it
-            raise
     ob = bpy.data.objects.new(name, data)
+    try:
+        apply_light(ob, planned, image_cache)
+    except Exception:
+        bpy.data.objects.remove(ob)  # not registered yet: clear would miss them
+        bpy.data.lights.remove(data)
+        raise
     collection.objects.link(ob)
-    ob.location = bl.location
-    ob.rotation_mode = "QUATERNION"
-    ob.rotation_quaternion = Vector(bl.direction).to_track_quat("-Z", "Y")
-    ob.scale = (bl.scale_xy, bl.scale_xy, 1.0)
     if lens_object is not None:
         link = link_collection(scene, lens_object, link_cache)
         ob.light_linking.receiver_collection = link
@@ -219,15 +209,65 @@ def create_light(
     meta.is_lens_light = True
     meta.source_light = planned.light_name
     meta.source_lens = planned.lens_name
-    meta.kind = bl.kind
-    meta.full = bool(planned.source.full)
-    meta.unblocked_fraction = float(planned.source.unblocked_fraction)
-    meta.energy_model = model_name or bl.model
-    meta.relative_brightness = bl.relative_brightness
-    meta.note = bl.note
+    meta.kind = planned.light.kind
+    meta.energy_model = model_name or planned.light.model
     item = scene.lens_lights.created_objects.add()
     item.object = ob
     return ob
+
+
+def _put(owner, attr, value):
+    """Set `owner.attr` only if it differs (float32 storage: a relative tolerance),
+    so that an unchanged lens light is not tagged for re-evaluation (live update)."""
+    old = getattr(owner, attr)
+    if isinstance(value, str) or isinstance(old, (bool, str)):
+        same = old == value
+    else:
+        olds = tuple(old) if hasattr(old, "__len__") else (old,)
+        news = tuple(value) if hasattr(value, "__len__") else (value,)
+        same = len(olds) == len(news) and all(
+            abs(a - b) <= 1e-6 * max(1.0, abs(b)) for a, b in zip(olds, news, strict=True)
+        )
+    if not same:
+        setattr(owner, attr, value)
+
+
+#: Custom property of a profile light's data: what its node tree was built from.
+PROFILE_SIGNATURE = "lens_lights_profile_signature"
+
+
+def apply_light(ob, planned, image_cache=None):
+    """Put a `PlannedLight`'s values on the lens light `ob` (new, or kept by live
+    update): transform, energy, colour, cone, blend, radius, distance, the origin
+    notes, and for EXACT_PROFILE its node tree (rebuilt only when the profile
+    differs from the one it was built from). Writes only what changed."""
+    bl = planned.light
+    data = ob.data
+    _put(data, "energy", bl.energy_w)
+    _put(data, "color", bl.color)
+    _put(data, "spot_size", math.radians(bl.spot_size_deg))
+    _put(data, "spot_blend", bl.spot_blend)
+    _put(data, "shadow_soft_size", bl.radius)
+    _put(data, "use_custom_distance", True)
+    _put(data, "cutoff_distance", bl.cutoff_distance)
+    profile = getattr(bl, "profile", None)
+    if profile is not None:
+        signature = repr(
+            [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
+            + [profile.get(k) for k in ("h_max", "strength_scale")]
+        )
+        if profile.get("key") is None or data.get(PROFILE_SIGNATURE) != signature:
+            build_profile_nodes(data, profile, profile_image(profile, image_cache))
+            data[PROFILE_SIGNATURE] = signature
+    _put(ob, "location", bl.location)
+    _put(ob, "rotation_mode", "QUATERNION")
+    _put(ob, "rotation_quaternion", Vector(bl.direction).to_track_quat("-Z", "Y"))
+    _put(ob, "scale", (bl.scale_xy, bl.scale_xy, 1.0))
+    meta = ob.lens_lights
+    _put(meta, "full", bool(planned.source.full))
+    _put(meta, "unblocked_fraction", float(planned.source.unblocked_fraction))
+    _put(meta, "relative_brightness", bl.relative_brightness)
+    _put(meta, "note", bl.note)
 
 
 def build(scene, plan, lens_objects, progress=None):

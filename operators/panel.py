@@ -2,7 +2,8 @@
 
 Main panel: the Generate and Clear buttons, the settings (energy model — with the
 tier it builds for the render engine and one line on what that tier trades —, minimum
-brightness, maximum number of lens lights, spot blend, merging nearby lens lights)
+brightness, maximum number of lens lights, spot blend, merging nearby lens lights,
+live update)
 and the last run's figures.
 Sub-panel "Object": for the active mesh its lens mode and IOR override; for a lens
 light where it came from, and for an Exact-profile one that the power Blender shows
@@ -90,6 +91,7 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         sub.active = settings.use_merge
         sub.prop(settings, "merge_distance", text="")
         col.prop(settings, "replace_cycles_caustics")
+        col.prop(settings, "live_update")
 
         box = layout.box()
         if not settings.last_run:

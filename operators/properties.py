@@ -127,6 +127,16 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
             "no caustic is rendered twice; Clear restores them"
         ),
     )
+    live_update: BoolProperty(
+        name="Live Update",
+        default=False,
+        description=(
+            "Lens lights follow the scene: when lights, lenses or receivers move, on "
+            "frame change and on every frame of a render (slower playback; the Caustic "
+            "layer is rebuilt on each update)"
+        ),
+        update=lambda settings, context: _live_update_changed(settings, context),
+    )
 
     # The last run's figures (shown in the panel).
     last_run: BoolProperty(default=False, options={"HIDDEN"})
@@ -174,6 +184,12 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     )
     relative_brightness: FloatProperty(name="Relative Brightness", precision=4)
     note: StringProperty(name="Note")
+
+
+def _live_update_changed(settings, context):
+    from .live_update import live_update_changed  # (it imports this module)
+
+    live_update_changed(settings, context)
 
 
 _CLASSES = (

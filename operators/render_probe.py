@@ -27,11 +27,20 @@ tiny render:
    "Render Result" image are removed.
 
 The user's scene is never changed, and their last render is kept (the copy
-renders into its own render result).  The render handlers
-(``bpy.app.handlers.render_*``) do run, with the copy as their scene.  When the
-probe cannot run (a render is in progress, the render is refused), the viewport
-depsgraph is read instead with the render-visibility rules applied by hand, and
-the read says so (``BlenderSceneRead.how``).
+renders into its own render result).  **No handler runs**: for the probe's
+duration every function in ``bpy.app.handlers`` ``render_init``, ``render_pre``,
+``render_post``, ``render_stats``, ``render_write``, ``render_complete``,
+``render_cancel``, ``frame_change_pre`` and ``frame_change_post`` (the user's, a
+render farm's, persistent or not, and the extension's own) is detached, and each
+list is put back in its order afterwards, also when the render fails (a handler
+something appends meanwhile is kept, after them).  So Generate neither runs a
+farm's render hooks nor recurses through a user's ``frame_change_pre`` handler
+that calls Generate.  When the probe cannot run (a render is in progress — a
+render job, or a render of the user's that calls Generate from one of its
+handlers: a render started inside a render crashes Blender; the extension's own
+render handlers count those, `note_render` — or the render is refused), the
+viewport depsgraph is read instead with the render-visibility rules applied by
+hand, and the read says so (``BlenderSceneRead.how``).
 """
 
 from __future__ import annotations
@@ -45,6 +54,21 @@ from ..addon.scene_read import RENDER
 #: The probe render's smaller image side, in pixels (the resolution is scaled down
 #: to about this; nothing is drawn, but the render result is allocated).
 PROBE_PIXELS = 16
+
+
+#: The handler lists a render fires (`render.render` on the copy): detached while
+#: the probe renders (see the module's docstring).
+QUIET_HANDLERS = (
+    "render_init",
+    "render_pre",
+    "render_post",
+    "render_stats",
+    "render_write",
+    "render_complete",
+    "render_cancel",
+    "frame_change_pre",
+    "frame_change_post",
+)
 
 
 class ProbeUnavailable(RuntimeError):
@@ -66,6 +90,20 @@ class _ProbeRun:
 
 
 _ACTIVE_RUN: _ProbeRun | None = None
+#: Renders of the user's under way (`note_render`, from the extension's own
+#: render_init / render_complete / render_cancel handlers in `live_update`): a
+#: render started inside one crashes Blender, so the probe refuses then.
+_RENDERS_RUNNING = 0
+
+
+def note_render(started: bool | None):
+    """Count a render of the user's starting (True) or ending (False); None: forget
+    them all (a file was loaded)."""
+    global _RENDERS_RUNNING
+    if started is None:
+        _RENDERS_RUNNING = 0
+    else:
+        _RENDERS_RUNNING = _RENDERS_RUNNING + 1 if started else max(0, _RENDERS_RUNNING - 1)
 
 
 class LENS_LIGHTS_RE_probe(bpy.types.RenderEngine):
@@ -81,13 +119,33 @@ class LENS_LIGHTS_RE_probe(bpy.types.RenderEngine):
             _ACTIVE_RUN(depsgraph)
 
 
+class _HandlersDetached:
+    """Empties the `QUIET_HANDLERS` lists and puts them back, in order, on exit."""
+
+    def __enter__(self):
+        self.saved = {}
+        for name in QUIET_HANDLERS:
+            handlers = getattr(bpy.app.handlers, name, None)
+            if handlers is not None:
+                self.saved[name] = list(handlers)
+                handlers.clear()
+        return self
+
+    def __exit__(self, *exc):
+        for name, saved in self.saved.items():
+            handlers = getattr(bpy.app.handlers, name)
+            added = [f for f in handlers if f not in saved]  # appended meanwhile: kept
+            handlers.clear()
+            handlers.extend(saved + added)
+
+
 def _render_results():
     return {img.as_pointer() for img in bpy.data.images if img.type == "RENDER_RESULT"}
 
 
 def _probe(scene, view_layer, fn):
     global _ACTIVE_RUN
-    if bpy.app.is_job_running("RENDER"):
+    if bpy.app.is_job_running("RENDER") or _RENDERS_RUNNING:
         raise ProbeUnavailable("a render is in progress")
     run = _ProbeRun(fn)
     results_before = _render_results()
@@ -114,7 +172,8 @@ def _probe(scene, view_layer, fn):
             copy.collection.objects.link(camera)
             copy.camera = camera
         _ACTIVE_RUN = run
-        bpy.ops.render.render(scene=copy.name, layer=view_layer.name)
+        with _HandlersDetached():
+            bpy.ops.render.render(scene=copy.name, layer=view_layer.name)
     except Exception as exc:  # the caller falls back
         if run.error is None:
             raise ProbeUnavailable(f"the probe render failed: {str(exc).strip()}") from None

@@ -245,3 +245,23 @@ def test_marble_rolling_on_a_table_bakes_the_near_field_profile(empty_blend):
     # the light sits at the lens centre on each frame
     sc.frame_set(2)
     assert tuple(light.location) == pytest.approx((0.4, 0.0, 0.5), abs=1e-6)
+
+
+def test_bake_turns_live_update_off(empty_blend):
+    """Live update would rebuild the lights on every frame the bake visits and then
+    overwrite its keys: the bake turns it off (and says so); a cancel turns it back on."""
+    from lens_lights.operators.bake import Baker
+
+    sc = two_lamps_scene()
+    sc.lens_lights.live_update = True
+    baker = Baker(bpy.context, 1, 2)
+    assert not sc.lens_lights.live_update
+    baker.cancel()
+    assert sc.lens_lights.live_update
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    assert not sc.lens_lights.live_update
+    assert "Live update turned off" in sc.lens_lights.last_report
+    assert len(lens_lights()) == 2
+    sc.frame_set(2)  # no live update: the keys drive the lights
+    b = next(o for o in lens_lights() if o.lens_lights.source_light == "B")
+    assert b.hide_render
