@@ -76,12 +76,24 @@ NEAR_H_MIN, NEAR_H_MAX = 0.25, 31.0
 NEAR_RECEIVER = PROFILE_APEX + PROFILE_H_MIN
 
 
-def table_geometry(receiver: float | None) -> tuple[float, float, float]:
+def table_geometry(
+    receiver: float | None, rows: int = PROFILE_DISTANCES, *, on_row: bool = False
+) -> tuple[float, float, float]:
     """(apex, h_min, h_max) in R for a receiver `receiver` R from the centre (None:
-    unknown)."""
-    if receiver is not None and receiver < NEAR_RECEIVER:
+    unknown). With `on_row`, a near field's rows are shifted (by under half a row)
+    so that one of the `rows` row centres lies on the receiver: right past the
+    lens's surface the beam changes by tens of per cent within one row (the
+    crossing marginal rays: +50 % on the axis from 1.000 R to 1.017 R for
+    D = 100 R, n = 1.5), and a plane between two rows would read their blend."""
+    if receiver is None or receiver >= NEAR_RECEIVER:
+        return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+    if not on_row:
         return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
-    return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+    span = math.log(NEAR_H_MAX / NEAR_H_MIN)
+    h = max(float(receiver) - NEAR_APEX, 1e-9)
+    y = math.log(h / NEAR_H_MIN) / span * rows - 0.5
+    shift = math.exp((y - round(y)) * span / rows)
+    return NEAR_APEX, NEAR_H_MIN * shift, NEAR_H_MAX * shift
 
 
 #: Largest angle from the axis the table covers (degrees).
@@ -151,6 +163,21 @@ def _profile_nodes(intensity_bins: np.ndarray) -> np.ndarray:
     return out
 
 
+def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
+    """Texels whose angular bin reaches inside the lens (apex inside it: the near
+    field) get the value of their column's first texel wholly outside. No
+    receiver lies inside the lens, but the texture's linear interpolation blends
+    those texels into the points just outside: left as traced (no light yet, or
+    only part of the bin) they darken the caustic around the contact point of a
+    resting lens (a dark disc of about 4° at the back pole)."""
+    h = prof.distances[:, None]
+    inside = (prof.apex + h) ** 2 + (h * np.tan(g_edges[:-1])) ** 2 < 1.0
+    for i in np.flatnonzero(inside.any(axis=0)):
+        first = int(np.flatnonzero(inside[:, i]).max()) + 1
+        if first < prof.table.shape[0]:
+            prof.table[:first, i] = prof.table[first, i]
+
+
 def exact_profile(
     D_over_R: float,
     n: float,
@@ -161,20 +188,28 @@ def exact_profile(
     M: int = PROFILE_DISTANCES,
     receivers=FIT_RECEIVERS,
     near: bool = False,
+    receiver: float | None = None,
 ) -> BeamProfile:
     """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
-    near field's, its apex at the lens centre (`table_geometry`)."""
+    near field's, its apex at the lens centre (`table_geometry`); `receiver` (R
+    from the centre, nearer than ``NEAR_RECEIVER``): the near field's with a row
+    on that plane."""
     beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
-    apex, h_min, h_max = table_geometry(0.0 if near else None)
+    if receiver is not None:
+        apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
+    else:
+        apex, h_min, h_max = table_geometry(0.0 if near else None)
     prof = BeamProfile(
         apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)), flux=beam.lens_flux
     )
     for j, h in enumerate(prof.distances):
         rf = beam.receiver(apex + h)
         prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
+    if apex < 1.0:
+        _fill_inside_lens(prof, g_edges)
     # 1-D profile: best apex among candidates, per-bin weighted median over receivers
     best = None
     z0 = 1.0 + FIRST_RECEIVER
@@ -201,11 +236,13 @@ def exact_profile(
 
 
 @functools.lru_cache(maxsize=128)
-def _cached_profile(D_over_R: float, n: float, near: bool = False) -> BeamProfile:
+def _cached_profile(
+    D_over_R: float, n: float, near: bool = False, receiver: float | None = None
+) -> BeamProfile:
     """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
     lenses and lights (frame changes, re-runs) pays once.  Do not modify the
     returned table."""
-    return exact_profile(D_over_R, n, near=near)
+    return exact_profile(D_over_R, n, near=near, receiver=receiver)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -343,7 +380,10 @@ def make_profile_light(
         receiver_distance is not None
         and table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
     )
-    apex = profile.apex if profile is not None else table_geometry(0.0 if near else None)[0]
+    # the near table's rows are placed on the receiver (`table_geometry`): its key
+    # carries the receiver (R, to 1e-6: a table per distinct resting height)
+    z_near = round(float(receiver_distance) / R, 6) if near else None
+    apex = profile.apex if profile is not None else table_geometry(z_near)[0]
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
@@ -362,16 +402,16 @@ def make_profile_light(
 
         def maker():
             return _profile_dict(
-                _cached_profile(*key, near),
+                _cached_profile(*key, near, z_near),
                 t_ref,
                 R,
                 center,
                 axis,
-                f"D/R {key[0]:.9g} n {key[1]:.9g}" + (" near" if near else ""),
+                f"D/R {key[0]:.9g} n {key[1]:.9g}" + (f" near {z_near:.6g}" if near else ""),
             )
 
         shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
-        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(0.0 if near else None)[1:])
+        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, on_row=True)[1:])
     profile_info = {
         "gamma_max_deg": info[0],
         "h_min": info[1] * R,
