@@ -133,18 +133,19 @@ def build_profile_nodes(data, profile: dict, image):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
     ignores light nodes): emission strength = texture(u, v) × strength_scale, with
     u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
-    Normal) and v = ln(h / h_min) / ln(h_max / h_min) (h: distance along the axis,
-    Light Path ▸ Ray Length × cos γ); the image (`profile_image`) read with linear
-    interpolation, EXTEND. With the light's energy twice the beam's flux, the
-    intensity toward (γ, h) is energy/(4π) × texture."""
+    Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
+    distance along the axis, Light Path ▸ Ray Length × cos γ); the image
+    (`profile_image`) read with linear interpolation, EXTEND. With the light's
+    energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
+    texture."""
     data.use_nodes = True
     nt = data.node_tree
     nt.nodes.clear()
 
-    def math_node(op, a, b=None):
+    def math_node(op, a, b=None, c=None):
         n = nt.nodes.new("ShaderNodeMath")
         n.operation = op
-        for k, v in enumerate((a, b)):
+        for k, v in enumerate((a, b, c)):
             if v is None:
                 continue
             if isinstance(v, (int, float)):
@@ -157,7 +158,12 @@ def build_profile_nodes(data, profile: dict, image):
     sep = nt.nodes.new("ShaderNodeSeparateXYZ")
     nt.links.new(tc.outputs["Normal"], sep.inputs[0])
     cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
-    gam = math_node("ARCCOSINE", math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0))
+    # γ = atan2(sin γ, cos γ), not acos(cos γ): in 32-bit floats acos quantises the
+    # angles below ~0.02° (cos γ = 1 − γ²/2 rounds), which read the axial caustic's
+    # first texels far out from the axis (a 4× hot pixel at a sun's caustic centre)
+    x2 = math_node("MULTIPLY", sep.outputs["X"], sep.outputs["X"])
+    sin_g = math_node("SQRT", math_node("MULTIPLY_ADD", sep.outputs["Y"], sep.outputs["Y"], x2))
+    gam = math_node("ARCTAN2", sin_g, math_node("MAXIMUM", cosg, 0.0))
     u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(profile["gamma_max_deg"])))
     lp = nt.nodes.new("ShaderNodeLightPath")
     h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
