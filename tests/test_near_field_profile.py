@@ -19,6 +19,7 @@ from addon import reference as ref
 from addon.phase1 import compute_phase1
 from addon.scene import Light, Scene, Sphere, Surface
 from addon.tiers import PrimaryLight, make_blender_light
+from addon.tiers.near_field import ReceiverDistance, rim_plane_normal
 
 N = 1.5
 
@@ -137,3 +138,98 @@ def test_near_field_profile_against_the_reference_tracer():
     )
     want, se = res.ring_irradiance, res.ring_se
     assert np.all(np.abs(got - want) <= 5.0 * se + 0.04 * want), (got / want, se / want)
+
+
+# --------------------------------------------------------------------------- tilted
+
+
+def _tilt_factor(light, points):
+    """The node tree's tilt correction (near field, `profile["receiver_normal"]`):
+    cos γ (n·a + T ρ̂·n) / (n·ω) in [0, 8], T the image's green channel (world
+    frame here; the tree works in the light's, where it is the same number)."""
+    p = light.profile
+    a = np.asarray(light.direction, float)
+    nrm = np.asarray(p["receiver_normal"], float)
+    d = np.asarray(points, float) - np.asarray(light.location, float)
+    dist = np.linalg.norm(d, axis=-1)
+    w = d / dist[..., None]
+    cos_g = w @ a
+    radial = w - cos_g[..., None] * a
+    sin_g = np.linalg.norm(radial, axis=-1)
+    u = np.sqrt(np.arctan2(sin_g, np.maximum(cos_g, 0.0)) / math.radians(p["gamma_max_deg"]))
+    h = np.maximum(dist * cos_g, p["h_min"])
+    v = np.log(h / p["h_min"]) / math.log(p["h_max"] / p["h_min"])
+    slope = _texture(np.asarray(p["slope"], float), u, v)
+    rho_n = (radial @ nrm) / np.maximum(sin_g, 1e-6)
+    factor = cos_g * (nrm @ a + slope * rho_n) / np.maximum(w @ nrm, 1e-4)
+    return np.clip(factor, 0.0, 8.0)
+
+
+def test_rim_plane_normal_of_a_tilted_table():
+    """Rim rays along −z from (±1, 0, 0) and (0, ±1, 0) onto the plane z = −2 + x tan 30°:
+    hits 2 ∓ tan 30° and 2, 2; the normal (−sin 30°, 0, cos 30°) up to sign. Pairs
+    that disagree on the axis (two different surfaces): None."""
+    t = math.tan(math.radians(30.0))
+    origins = [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)]
+    nrm = rim_plane_normal(origins, (0.0, 0.0, -1.0), [2.0 - t, 2.0 + t, 2.0, 2.0], 1.0)
+    want = np.array([-0.5, 0.0, math.cos(math.radians(30.0))])
+    assert abs(float(np.dot(nrm, want))) == pytest.approx(1.0, abs=1e-12)
+    assert rim_plane_normal(origins, (0.0, 0.0, -1.0), [2.0, 2.0, 2.0, 2.5], 1.0) is None
+    assert rim_plane_normal(origins, (0.0, 0.0, -1.0), [2.0, np.inf, 2.0, 2.0], 1.0) is None
+    d = ReceiverDistance(1.5, (0.0, 0.0, 1.0))
+    assert d == 1.5 and d / 3.0 == 0.5 and d.normal == (0.0, 0.0, 1.0)
+
+
+def test_near_field_profile_on_a_tilted_table_against_the_reference():
+    """A 2 cm marble resting on a table, a point light 1 m away at 60° elevation
+    (bench real_scenes rest_60): the axis meets the table 2/√3 R from the centre,
+    at 30° to its normal. The light's rays leave its apex, the beam's converge from
+    the lens, and a tilted plane takes each ray's light by its own slope: without
+    the tilt correction the near side of the caustic is too bright, the far side
+    too dark (relative L1 0.17 on the grid below, flux +8 %; bench L1 0.21). With
+    it: the relative L1 error against the Monte-Carlo reference on a 24 × 24 grid
+    over the caustic below 0.11 (the reference's noise about 0.02), the flux within
+    5 %."""
+    R, P, n = 0.01, 100.0, N
+    e = math.radians(60.0)
+    L = np.array([-math.cos(e), 0.0, math.sin(e)])  # the light, 1 m from the centre
+    scene = Scene(
+        lights=[Light(tuple(L))],
+        objects=[Sphere((0.0, 0.0, 0.0), R, Surface(transmission=1.0, ior=n))],
+    )
+    src = compute_phase1(scene).sources[0]
+    axis = -L
+    z_axis = R / math.sin(e)  # the table z = −R along the axis
+    light = make_blender_light(
+        src,
+        PrimaryLight(P),
+        "EXACT_PROFILE",
+        scene_size=2.0,
+        receiver_distance=ReceiverDistance(z_axis, (0.0, 0.0, 1.0)),
+    )
+    assert light.profile["receiver_normal"] is not None
+    hit = z_axis * axis  # where the axis meets the table
+    half = 0.45 * R
+    px = 96
+    xs = hit[0] + ((np.arange(px) + 0.5) / px - 0.5) * 2 * half
+    ys = ((np.arange(px) + 0.5) / px - 0.5) * 2 * half
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.stack([X, Y, np.full_like(X, -R)], axis=-1)
+    intensity, d, dist = _intensity(light, pts)
+    E = intensity * _tilt_factor(light, pts) * np.clip(-d[..., 2] / dist, 0.0, None) / dist**2
+    m = 24
+    edges = np.linspace(-half, half, m + 1)
+    res = ref.trace_irradiance(
+        ref.PointLight(tuple(L), P),
+        ref.GlassSphere((0.0, 0.0, 0.0), R, n),
+        ref.ReceiverPlane((hit[0], 0.0, -R), (0.0, 0.0, 1.0)),
+        600_000,
+        seed=3,
+        grid=(edges, edges),
+    )
+    truth = res.irradiance
+    got = E.reshape(m, px // m, m, px // m).mean(axis=(1, 3))
+    region = truth > 0.01 * truth.max()
+    l1 = np.abs(got - truth)[region].sum() / truth[region].sum()
+    flux = got[region].sum() / truth[region].sum()
+    assert l1 < 0.11 and flux == pytest.approx(1.0, abs=0.05), (l1, flux)

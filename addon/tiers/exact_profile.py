@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import beam_error as acc
+from .. import exact_optics as xo
 from .base import (
     CUTOFF_FACTOR,
     CYCLES,
@@ -73,6 +74,12 @@ PROFILE_APEX = 1.0 + PROFILE_OFFSET
 #: farther: its rows are sparser near the lens (mean L1 0.044 instead of 0.024).
 NEAR_APEX = 0.0
 NEAR_H_MIN, NEAR_H_MAX = 0.25, 31.0
+#: The near table's rows: twice the far table's (a tilted receiver crosses many
+#: rows right past the lens, where the beam changes fastest: bench real_scenes'
+#: marble at 60°, L1 0.14 → 0.08 with the tilt correction).
+NEAR_DISTANCES = 512
+#: Fan intervals per exact-trace interval for the near table's slope channel.
+SLOPE_SUBDIVISION = 4
 NEAR_RECEIVER = PROFILE_APEX + PROFILE_H_MIN
 
 
@@ -123,6 +130,9 @@ class BeamProfile:
     flux: float = 0.0  # the beam's flux (W per W/sr of the primary)
     angular_apex: float = 0.0
     angular: np.ndarray = field(default=None, repr=False)  # (K,)
+    #: near field: the flux-weighted mean of tan(ray angle to the axis), signed
+    #: outward, of the rays through each texel (M, K) (`_slope_table`)
+    slope: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -176,6 +186,40 @@ def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
         first = int(np.flatnonzero(inside[:, i]).max()) + 1
         if first < prof.table.shape[0]:
             prof.table[:first, i] = prof.table[first, i]
+            if prof.slope is not None:
+                prof.slope[:first, i] = prof.slope[first, i]
+
+
+def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
+    """The flux-weighted mean of ``tan α`` over the rays through each texel of the
+    table (``α``: the ray's angle to the axis, positive away from it): on a receiver
+    tilted against the axis the irradiance is ``E_perp (n·a + tan α ρ̂·n)`` per ray
+    (``n`` its normal, ``a`` the axis, ``ρ̂`` outward), linear in ``tan α``, so this
+    mean gives the exact tilted irradiance from the table's (`build_profile_nodes`'s
+    tilt correction). The apex's own rays have ``tan γ``: where no ray passes,
+    that (no correction)."""
+    M, K = prof.table.shape
+    iota = np.linspace(0.0, 0.5 * np.pi, int(n_fan) * SLOPE_SUBDIVISION + 1)
+    fan = xo.trace_rays_iota(iota, float(D_over_R), 1.0, float(n), float(absorption))
+    w = fan.transmission * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
+    c = np.cos(fan.theta_exit)
+    tan_exit = np.tan(fan.theta_exit)  # toward the axis: the signed height falls
+    z_exit = -np.cos(fan.exit_polar)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b_over_c = fan.b / c
+    out = np.tile(np.tan(np.radians(prof.angles_deg)), (M, 1))
+    for j, h in enumerate(prof.distances):
+        Z = prof.apex + h
+        height = b_over_c - Z * tan_exit
+        ok = (c > 0.0) & (Z >= z_exit) & np.isfinite(height) & (w > 0.0)
+        k = np.searchsorted(g_edges, np.arctan2(np.abs(height[ok]), h), side="right") - 1
+        keep = k < K
+        k, wk = k[keep], w[ok][keep]
+        tan_out = (-np.sign(height[ok]) * tan_exit[ok])[keep]
+        W = np.bincount(k, wk, K)
+        S = np.bincount(k, wk * tan_out, K)
+        out[j] = np.where(W > 0.0, S / np.where(W > 0.0, W, 1.0), out[j])
+    return out
 
 
 def exact_profile(
@@ -209,6 +253,7 @@ def exact_profile(
         rf = beam.receiver(apex + h)
         prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
     if apex < 1.0:
+        prof.slope = _slope_table(prof, float(D_over_R), n, absorption, n_fan, g_edges)
         _fill_inside_lens(prof, g_edges)
     # 1-D profile: best apex among candidates, per-bin weighted median over receivers
     best = None
@@ -242,7 +287,8 @@ def _cached_profile(
     """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
     lenses and lights (frame changes, re-runs) pays once.  Do not modify the
     returned table."""
-    return exact_profile(D_over_R, n, near=near, receiver=receiver)
+    M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
+    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -322,9 +368,11 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
     return beam.lens_flux, e
 
 
-def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) -> dict:
+def _profile_dict(
+    prof: BeamProfile, t_ref: float, R: float, center, axis, key, normal=None
+) -> dict:
     ang = prof.angular / t_ref
-    return {
+    out = {
         # (height, width), row 0 = v at the bottom
         "pixels": (prof.table / t_ref).astype(np.float32),
         "width": prof.table.shape[1],
@@ -340,6 +388,32 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
         # None for a table passed in.
         "key": key,
     }
+    if prof.slope is not None:
+        out["slope"] = prof.slope.astype(np.float32)  # the image's green channel
+    if normal is not None and prof.slope is not None:
+        # a receiver tilted against the axis: the node tree's tilt correction
+        out["axis"] = tuple(float(v) for v in axis)
+        out["receiver_normal"] = tuple(float(v) for v in normal)
+    return out
+
+
+def tilted_normal(normal, axis, min_tilt_deg: float = 0.5):
+    """The receiver's unit normal turned along the beam (``n·axis > 0``), if it is
+    known and tilted more than `min_tilt_deg` against the axis; else None (a plane
+    square to the axis needs no tilt correction)."""
+    if normal is None:
+        return None
+    nrm = np.asarray(normal, dtype=float)
+    length = float(np.linalg.norm(nrm))
+    if not math.isfinite(length) or length == 0.0:
+        return None
+    nrm = nrm / length
+    c = float(nrm @ axis)
+    if c < 0.0:
+        nrm, c = -nrm, -c
+    if c > math.cos(math.radians(min_tilt_deg)) or c < 1e-3:
+        return None
+    return nrm
 
 
 def make_profile_light(
@@ -384,6 +458,7 @@ def make_profile_light(
     # carries the receiver (R, to 1e-6: a table per distinct resting height)
     z_near = round(float(receiver_distance) / R, 6) if near else None
     apex = profile.apex if profile is not None else table_geometry(z_near)[0]
+    normal = tilted_normal(getattr(receiver_distance, "normal", None), axis) if near else None
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
@@ -395,7 +470,7 @@ def make_profile_light(
     irradiance = primary.intensity * scale * e_ref / R**2
     primary_irr = primary.intensity / D**2
     if profile is not None:
-        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None)
+        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, normal)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
@@ -408,10 +483,12 @@ def make_profile_light(
                 center,
                 axis,
                 f"D/R {key[0]:.9g} n {key[1]:.9g}" + (f" near {z_near:.6g}" if near else ""),
+                normal,
             )
 
-        shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
-        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, on_row=True)[1:])
+        rows = NEAR_DISTANCES if near else PROFILE_DISTANCES
+        shape = (rows, PROFILE_ANGLES)
+        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, rows, on_row=True)[1:])
     profile_info = {
         "gamma_max_deg": info[0],
         "h_min": info[1] * R,
