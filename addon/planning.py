@@ -36,6 +36,7 @@ from .tiers import (
     BlenderLight,
     make_blender_light,
 )
+from .tiers.near_field import ReceiverDistance, rim_plane_normal
 from .tiers.paraxial import is_beyond_scene
 
 #: A beam's spot stays this share of the free distance behind the lens.
@@ -174,7 +175,10 @@ def receiver_distance(occluders, source, scene_size):
             found.append(min(ha, hb))
     if np.isfinite(hits[4]):
         found.append(r * (1.0 + 1e-6) + float(hits[4]))
-    return max(min(found), r) if found else None
+    if not found:
+        return None
+    # with the plane's normal where the four rim rays found one (a tilted table)
+    return ReceiverDistance(max(min(found), r), rim_plane_normal(origins, u, hits, r))
 
 
 # --------------------------------------------------------------------------- lights
