@@ -14,6 +14,15 @@ last distance the intensity tends to the beam's far-field profile, which is
 exact for a far receiver whatever the apex. The table is computed per source
 from the exact trace (about 0.25 s; remembered per ``(D/R, n)``).
 
+The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
+has a row on the receiver's plane (right past the lens the beam changes by tens
+of per cent within a row), its texels inside the lens filled from outside (the
+texture blends them into the points just outside), and a second channel: the
+rays' mean slope per texel. A receiver tilted against the axis (a marble resting
+on a table, lit from the side) takes each ray's light by the ray's own slope,
+not the apex's; with the receiver's normal the node tree corrects for that
+(`_slope_table`, `tilted_normal`).
+
 It also carries a one-dimensional angular profile (``angular``): the best
 distance-independent profile about its own apex (a per-angle weighted median
 over the receivers, which minimises the L1 error averaged over them): usable as

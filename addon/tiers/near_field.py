@@ -14,7 +14,9 @@ light on it:
   receiver, ``(z_img − Z)·tan θ``, with its flux kept (:func:`pulled_in_cone`).
 
 EXACT_PROFILE needs none of this: its apex is the lens centre and its table
-covers every plane the beam reaches.
+covers every plane the beam reaches (with a row on the receiver, and a tilt
+correction where `planning.receiver_distance` found the receiver's plane:
+:class:`ReceiverDistance`).
 """
 
 from __future__ import annotations
