@@ -17,6 +17,7 @@ import pytest
 from addon import exact_optics as xo
 from addon import reference as ref
 from addon.phase1 import compute_phase1
+from addon.planning import receiver_distance
 from addon.scene import Light, Scene, Sphere, Surface
 from addon.tiers import PrimaryLight, make_blender_light
 from addon.tiers.near_field import ReceiverDistance, rim_plane_normal
@@ -233,3 +234,33 @@ def test_near_field_profile_on_a_tilted_table_against_the_reference():
     l1 = np.abs(got - truth)[region].sum() / truth[region].sum()
     flux = got[region].sum() / truth[region].sum()
     assert l1 < 0.11 and flux == pytest.approx(1.0, abs=0.05), (l1, flux)
+
+
+class _Plane:
+    """`occluders.first_hit` against the plane {x : n·x = d}."""
+
+    def __init__(self, normal, d):
+        self.n, self.d = np.asarray(normal, float), float(d)
+
+    def first_hit(self, origins, direction, limit):
+        t = (self.d - np.asarray(origins) @ self.n) / (self.n @ np.asarray(direction, float))
+        return np.where((t > 1e-12) & (t <= limit), t, np.inf)
+
+
+def test_receiver_distance_carries_the_tilted_tables_normal():
+    """A table tilted 30° under a resting marble (axis −z): R / cos 30° along the
+    axis (as before) and the table's normal (sin 30°, 0, cos 30°) up to sign; a
+    table square to the axis: its normal ±z, which the Exact profile leaves
+    uncorrected."""
+    R = 0.01
+    src = _marble_source(1.0, R)
+    nrm = (math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0)))
+    got = receiver_distance(_Plane(nrm, -R), src, 3.0)
+    assert got == pytest.approx(R / math.cos(math.radians(30.0)))
+    assert abs(float(np.dot(got.normal, nrm))) == pytest.approx(1.0, abs=1e-9)
+    flat = receiver_distance(_Plane((0.0, 0.0, 1.0), -R), src, 3.0)
+    assert flat == pytest.approx(R) and abs(flat.normal[2]) == pytest.approx(1.0)
+    light = make_blender_light(
+        src, PrimaryLight(4.0 * math.pi), "EXACT_PROFILE", scene_size=2.0, receiver_distance=flat
+    )
+    assert "receiver_normal" not in light.profile
