@@ -242,11 +242,13 @@ def exact_profile(
     receivers=FIT_RECEIVERS,
     near: bool = False,
     receiver: float | None = None,
+    slope: bool = False,
 ) -> BeamProfile:
     """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
     near field's, its apex at the lens centre (`table_geometry`); `receiver` (R
     from the centre, nearer than ``NEAR_RECEIVER``): the near field's with a row
-    on that plane."""
+    on that plane; `slope` (near field): with the rays' slopes (`_slope_table`, for
+    a tilted receiver; as long again to compute)."""
     beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
@@ -261,7 +263,7 @@ def exact_profile(
     for j, h in enumerate(prof.distances):
         rf = beam.receiver(apex + h)
         prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
-    if apex < 1.0:
+    if apex < 1.0 and slope:
         prof.slope = _slope_table(prof, float(D_over_R), n, absorption, n_fan, g_edges)
         _fill_inside_lens(prof, g_edges)
     # 1-D profile: best apex among candidates, per-bin weighted median over receivers
@@ -291,13 +293,17 @@ def exact_profile(
 
 @functools.lru_cache(maxsize=128)
 def _cached_profile(
-    D_over_R: float, n: float, near: bool = False, receiver: float | None = None
+    D_over_R: float,
+    n: float,
+    near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
 ) -> BeamProfile:
     """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
     lenses and lights (frame changes, re-runs) pays once.  Do not modify the
     returned table."""
     M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
-    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M)
+    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -486,12 +492,14 @@ def make_profile_light(
 
         def maker():
             return _profile_dict(
-                _cached_profile(*key, near, z_near),
+                _cached_profile(*key, near, z_near, normal is not None),
                 t_ref,
                 R,
                 center,
                 axis,
-                f"D/R {key[0]:.9g} n {key[1]:.9g}" + (f" near {z_near:.6g}" if near else ""),
+                f"D/R {key[0]:.9g} n {key[1]:.9g}"
+                + (f" near {z_near:.6g}" if near else "")
+                + (" tilted" if normal is not None else ""),
                 normal,
             )
 
