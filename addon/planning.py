@@ -146,7 +146,9 @@ def receiver_distance(occluders, source, scene_size):
     (`tiers.near_field`). Rays along the axis from four points just outside the
     lens's rim (a table the lens rests on, a wall beside it) and from just past
     the back vertex; a pair of rim rays on opposite sides gives the plane's
-    distance on the axis by its mean (exact for a plane, tilted or not)."""
+    distance on the axis by its mean (exact for a plane, tilted or not). A
+    `near_field.ReceiverDistance`: a float, with the plane's `normal` where the
+    four rim rays found one plane at that distance (else None)."""
     u = np.asarray(source.axis, dtype=float)
     u = u / np.linalg.norm(u)
     c = np.asarray(source.lens_center, dtype=float)
@@ -178,7 +180,8 @@ def receiver_distance(occluders, source, scene_size):
     if not found:
         return None
     # with the plane's normal where the four rim rays found one (a tilted table)
-    return ReceiverDistance(max(min(found), r), rim_plane_normal(origins, u, hits, r))
+    z = max(min(found), r)
+    return ReceiverDistance(z, rim_plane_normal(origins, u, hits, r, distance=z))
 
 
 # --------------------------------------------------------------------------- lights

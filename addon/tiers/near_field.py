@@ -135,15 +135,21 @@ class ReceiverDistance(float):
         return (ReceiverDistance, (float(self), self.normal))
 
 
-def rim_plane_normal(origins, axis, hits, radius: float, tolerance: float = 1e-3):
+def rim_plane_normal(
+    origins, axis, hits, radius: float, tolerance: float = 1e-3, distance: float | None = None
+):
     """The unit normal of the plane that the rim rays `origins[0..3]` (two opposite
-    pairs, cast along `axis`) hit at distances `hits[0..3]`, or None when a ray
-    missed or the two pairs do not agree on the plane's distance on the axis
-    (within `tolerance` × `radius`: not one plane)."""
+    pairs, cast along `axis` from the plane through the lens centre square to it)
+    hit at distances `hits[0..3]`, or None when a ray missed, the two pairs do not
+    agree on the plane's distance on the axis (within `tolerance` × `radius`: not
+    one plane), or that distance is not `distance` (another surface is nearer)."""
     hits = np.asarray(hits, dtype=float)[:4]
     if hits.size < 4 or not np.all(np.isfinite(hits)):
         return None
-    if abs(0.5 * (hits[0] + hits[1]) - 0.5 * (hits[2] + hits[3])) > tolerance * radius:
+    mean = 0.5 * (hits[0] + hits[1])
+    if abs(mean - 0.5 * (hits[2] + hits[3])) > tolerance * radius:
+        return None
+    if distance is not None and abs(mean - float(distance)) > tolerance * radius:
         return None
     u = np.asarray(axis, dtype=float)
     u = u / np.linalg.norm(u)
