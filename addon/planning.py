@@ -36,6 +36,7 @@ from .tiers import (
     BlenderLight,
     make_blender_light,
 )
+from .tiers.near_field import ReceiverDistance, rim_plane_normal
 from .tiers.paraxial import is_beyond_scene
 
 #: A beam's spot stays this share of the free distance behind the lens.
@@ -145,7 +146,9 @@ def receiver_distance(occluders, source, scene_size):
     (`tiers.near_field`). Rays along the axis from four points just outside the
     lens's rim (a table the lens rests on, a wall beside it) and from just past
     the back vertex; a pair of rim rays on opposite sides gives the plane's
-    distance on the axis by its mean (exact for a plane, tilted or not)."""
+    distance on the axis by its mean (exact for a plane, tilted or not). A
+    `near_field.ReceiverDistance`: a float, with the plane's `normal` where the
+    four rim rays found one plane at that distance (else None)."""
     u = np.asarray(source.axis, dtype=float)
     u = u / np.linalg.norm(u)
     c = np.asarray(source.lens_center, dtype=float)
@@ -174,7 +177,11 @@ def receiver_distance(occluders, source, scene_size):
             found.append(min(ha, hb))
     if np.isfinite(hits[4]):
         found.append(r * (1.0 + 1e-6) + float(hits[4]))
-    return max(min(found), r) if found else None
+    if not found:
+        return None
+    # with the plane's normal where the four rim rays found one (a tilted table)
+    z = max(min(found), r)
+    return ReceiverDistance(z, rim_plane_normal(origins, u, hits, r, distance=z))
 
 
 # --------------------------------------------------------------------------- lights

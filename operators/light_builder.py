@@ -124,6 +124,8 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img.use_half_precision = False
     rgba = np.ones((H, K, 4), dtype=np.float32)
     rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    if profile.get("slope") is not None:  # near field: the rays' mean slope, green
+        rgba[..., 1] = np.asarray(profile["slope"], dtype=np.float32)
     img.pixels.foreach_set(rgba.ravel())
     img.update()
     img.pack()  # kept in the .blend (as OpenEXR)
@@ -136,18 +138,19 @@ def build_profile_nodes(data, profile: dict, image):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
     ignores light nodes): emission strength = texture(u, v) × strength_scale, with
     u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
-    Normal) and v = ln(h / h_min) / ln(h_max / h_min) (h: distance along the axis,
-    Light Path ▸ Ray Length × cos γ); the image (`profile_image`) read with linear
-    interpolation, EXTEND. With the light's energy twice the beam's flux, the
-    intensity toward (γ, h) is energy/(4π) × texture."""
+    Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
+    distance along the axis, Light Path ▸ Ray Length × cos γ); the image
+    (`profile_image`) read with linear interpolation, EXTEND. With the light's
+    energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
+    texture."""
     data.use_nodes = True
     nt = data.node_tree
     nt.nodes.clear()
 
-    def math_node(op, a, b=None):
+    def math_node(op, a, b=None, c=None):
         n = nt.nodes.new("ShaderNodeMath")
         n.operation = op
-        for k, v in enumerate((a, b)):
+        for k, v in enumerate((a, b, c)):
             if v is None:
                 continue
             if isinstance(v, (int, float)):
@@ -160,7 +163,12 @@ def build_profile_nodes(data, profile: dict, image):
     sep = nt.nodes.new("ShaderNodeSeparateXYZ")
     nt.links.new(tc.outputs["Normal"], sep.inputs[0])
     cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
-    gam = math_node("ARCCOSINE", math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0))
+    # γ = atan2(sin γ, cos γ), not acos(cos γ): in 32-bit floats acos quantises the
+    # angles below ~0.02° (cos γ = 1 − γ²/2 rounds), which read the axial caustic's
+    # first texels far out from the axis (a 4× hot pixel at a sun's caustic centre)
+    x2 = math_node("MULTIPLY", sep.outputs["X"], sep.outputs["X"])
+    sin_g = math_node("SQRT", math_node("MULTIPLY_ADD", sep.outputs["Y"], sep.outputs["Y"], x2))
+    gam = math_node("ARCTAN2", sin_g, math_node("MAXIMUM", cosg, 0.0))
     u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(profile["gamma_max_deg"])))
     lp = nt.nodes.new("ShaderNodeLightPath")
     h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
@@ -175,15 +183,47 @@ def build_profile_nodes(data, profile: dict, image):
     tex.interpolation = "Linear"
     tex.extension = "EXTEND"
     nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+    rgb = nt.nodes.new("ShaderNodeSeparateColor")  # red: the intensity
+    nt.links.new(tex.outputs["Color"], rgb.inputs[0])
+    strength = math_node("MULTIPLY", rgb.outputs[0], float(profile["strength_scale"]))
+    if profile.get("receiver_normal") is not None:
+        strength = math_node("MULTIPLY", strength, _tilt_factor(profile, sep, sin_g, cosg, rgb))
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    nt.links.new(
-        math_node("MULTIPLY", tex.outputs["Color"], float(profile["strength_scale"])),
-        em.inputs["Strength"],
-    )
+    nt.links.new(strength, em.inputs["Strength"])
     out = nt.nodes.new("ShaderNodeOutputLight")
     nt.links.new(em.outputs[0], out.inputs["Surface"])
     return nt
+
+
+def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
+    """Near field, a receiver tilted against the axis (normal n along the beam,
+    `profile["receiver_normal"]`): the light's rays come from its apex (slope
+    tan γ), the beam's from the lens (mean slope T, the image's green channel), and
+    a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so the intensity is
+    scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω: the Normal
+    coordinate, a = −Z, in the light's frame as `create_light` turns it)."""
+    nt = sep.id_data
+    q = Vector(profile["axis"]).to_track_quat("-Z", "Y")
+    nx, ny, nz = q.inverted() @ Vector(profile["receiver_normal"])
+
+    def op(kind, *args):
+        n = nt.nodes.new("ShaderNodeMath")
+        n.operation = kind
+        for k, v in enumerate(args):
+            if isinstance(v, (int, float)):
+                n.inputs[k].default_value = float(v)
+            else:
+                nt.links.new(v, n.inputs[k])
+        return n.outputs[0]
+
+    x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
+    q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
+    n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
+    rho_n = op("DIVIDE", q_xy, op("MAXIMUM", sin_g, 1e-6))
+    beam = op("MULTIPLY_ADD", rgb.outputs[1], rho_n, -nz)  # n·a + T ρ̂·n
+    factor = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
+    return op("MINIMUM", op("MAXIMUM", factor, 0.0), 8.0)
 
 
 def create_light(

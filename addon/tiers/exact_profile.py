@@ -14,6 +14,15 @@ last distance the intensity tends to the beam's far-field profile, which is
 exact for a far receiver whatever the apex. The table is computed per source
 from the exact trace (about 0.25 s; remembered per ``(D/R, n)``).
 
+The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
+has a row on the receiver's plane (right past the lens the beam changes by tens
+of per cent within a row), its texels inside the lens filled from outside (the
+texture blends them into the points just outside), and a second channel: the
+rays' mean slope per texel. A receiver tilted against the axis (a marble resting
+on a table, lit from the side) takes each ray's light by the ray's own slope,
+not the apex's; with the receiver's normal the node tree corrects for that
+(`_slope_table`, `tilted_normal`).
+
 It also carries a one-dimensional angular profile (``angular``): the best
 distance-independent profile about its own apex (a per-angle weighted median
 over the receivers, which minimises the L1 error averaged over them): usable as
@@ -33,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import beam_error as acc
+from .. import exact_optics as xo
 from .base import (
     CUTOFF_FACTOR,
     CYCLES,
@@ -73,15 +83,33 @@ PROFILE_APEX = 1.0 + PROFILE_OFFSET
 #: farther: its rows are sparser near the lens (mean L1 0.044 instead of 0.024).
 NEAR_APEX = 0.0
 NEAR_H_MIN, NEAR_H_MAX = 0.25, 31.0
+#: The near table's rows: twice the far table's (a tilted receiver crosses many
+#: rows right past the lens, where the beam changes fastest: bench real_scenes'
+#: marble at 60°, L1 0.14 → 0.08 with the tilt correction).
+NEAR_DISTANCES = 512
+#: Fan intervals per exact-trace interval for the near table's slope channel.
+SLOPE_SUBDIVISION = 4
 NEAR_RECEIVER = PROFILE_APEX + PROFILE_H_MIN
 
 
-def table_geometry(receiver: float | None) -> tuple[float, float, float]:
+def table_geometry(
+    receiver: float | None, rows: int = PROFILE_DISTANCES, *, on_row: bool = False
+) -> tuple[float, float, float]:
     """(apex, h_min, h_max) in R for a receiver `receiver` R from the centre (None:
-    unknown)."""
-    if receiver is not None and receiver < NEAR_RECEIVER:
+    unknown). With `on_row`, a near field's rows are shifted (by under half a row)
+    so that one of the `rows` row centres lies on the receiver: right past the
+    lens's surface the beam changes by tens of per cent within one row (the
+    crossing marginal rays: +50 % on the axis from 1.000 R to 1.017 R for
+    D = 100 R, n = 1.5), and a plane between two rows would read their blend."""
+    if receiver is None or receiver >= NEAR_RECEIVER:
+        return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+    if not on_row:
         return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
-    return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+    span = math.log(NEAR_H_MAX / NEAR_H_MIN)
+    h = max(float(receiver) - NEAR_APEX, 1e-9)
+    y = math.log(h / NEAR_H_MIN) / span * rows - 0.5
+    shift = math.exp((y - round(y)) * span / rows)
+    return NEAR_APEX, NEAR_H_MIN * shift, NEAR_H_MAX * shift
 
 
 #: Largest angle from the axis the table covers (degrees).
@@ -111,6 +139,9 @@ class BeamProfile:
     flux: float = 0.0  # the beam's flux (W per W/sr of the primary)
     angular_apex: float = 0.0
     angular: np.ndarray = field(default=None, repr=False)  # (K,)
+    #: near field: the flux-weighted mean of tan(ray angle to the axis), signed
+    #: outward, of the rays through each texel (M, K) (`_slope_table`)
+    slope: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -151,6 +182,55 @@ def _profile_nodes(intensity_bins: np.ndarray) -> np.ndarray:
     return out
 
 
+def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
+    """Texels whose angular bin reaches inside the lens (apex inside it: the near
+    field) get the value of their column's first texel wholly outside. No
+    receiver lies inside the lens, but the texture's linear interpolation blends
+    those texels into the points just outside: left as traced (no light yet, or
+    only part of the bin) they darken the caustic around the contact point of a
+    resting lens (a dark disc of about 4° at the back pole)."""
+    h = prof.distances[:, None]
+    inside = (prof.apex + h) ** 2 + (h * np.tan(g_edges[:-1])) ** 2 < 1.0
+    for i in np.flatnonzero(inside.any(axis=0)):
+        first = int(np.flatnonzero(inside[:, i]).max()) + 1
+        if first < prof.table.shape[0]:
+            prof.table[:first, i] = prof.table[first, i]
+            if prof.slope is not None:
+                prof.slope[:first, i] = prof.slope[first, i]
+
+
+def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
+    """The flux-weighted mean of ``tan α`` over the rays through each texel of the
+    table (``α``: the ray's angle to the axis, positive away from it): on a receiver
+    tilted against the axis the irradiance is ``E_perp (n·a + tan α ρ̂·n)`` per ray
+    (``n`` its normal, ``a`` the axis, ``ρ̂`` outward), linear in ``tan α``, so this
+    mean gives the exact tilted irradiance from the table's (`build_profile_nodes`'s
+    tilt correction). The apex's own rays have ``tan γ``: where no ray passes,
+    that (no correction)."""
+    M, K = prof.table.shape
+    iota = np.linspace(0.0, 0.5 * np.pi, int(n_fan) * SLOPE_SUBDIVISION + 1)
+    fan = xo.trace_rays_iota(iota, float(D_over_R), 1.0, float(n), float(absorption))
+    w = fan.transmission * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
+    c = np.cos(fan.theta_exit)
+    tan_exit = np.tan(fan.theta_exit)  # toward the axis: the signed height falls
+    z_exit = -np.cos(fan.exit_polar)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b_over_c = fan.b / c
+    out = np.tile(np.tan(np.radians(prof.angles_deg)), (M, 1))
+    for j, h in enumerate(prof.distances):
+        Z = prof.apex + h
+        height = b_over_c - Z * tan_exit
+        ok = (c > 0.0) & (Z >= z_exit) & np.isfinite(height) & (w > 0.0)
+        k = np.searchsorted(g_edges, np.arctan2(np.abs(height[ok]), h), side="right") - 1
+        keep = k < K
+        k, wk = k[keep], w[ok][keep]
+        tan_out = (-np.sign(height[ok]) * tan_exit[ok])[keep]
+        W = np.bincount(k, wk, K)
+        S = np.bincount(k, wk * tan_out, K)
+        out[j] = np.where(W > 0.0, S / np.where(W > 0.0, W, 1.0), out[j])
+    return out
+
+
 def exact_profile(
     D_over_R: float,
     n: float,
@@ -161,20 +241,31 @@ def exact_profile(
     M: int = PROFILE_DISTANCES,
     receivers=FIT_RECEIVERS,
     near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
 ) -> BeamProfile:
     """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
-    near field's, its apex at the lens centre (`table_geometry`)."""
+    near field's, its apex at the lens centre (`table_geometry`); `receiver` (R
+    from the centre, nearer than ``NEAR_RECEIVER``): the near field's with a row
+    on that plane; `slope` (near field): with the rays' slopes (`_slope_table`, for
+    a tilted receiver; as long again to compute)."""
     beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
-    apex, h_min, h_max = table_geometry(0.0 if near else None)
+    if receiver is not None:
+        apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
+    else:
+        apex, h_min, h_max = table_geometry(0.0 if near else None)
     prof = BeamProfile(
         apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)), flux=beam.lens_flux
     )
     for j, h in enumerate(prof.distances):
         rf = beam.receiver(apex + h)
         prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
+    if apex < 1.0 and slope:
+        prof.slope = _slope_table(prof, float(D_over_R), n, absorption, n_fan, g_edges)
+        _fill_inside_lens(prof, g_edges)
     # 1-D profile: best apex among candidates, per-bin weighted median over receivers
     best = None
     z0 = 1.0 + FIRST_RECEIVER
@@ -201,11 +292,18 @@ def exact_profile(
 
 
 @functools.lru_cache(maxsize=128)
-def _cached_profile(D_over_R: float, n: float, near: bool = False) -> BeamProfile:
+def _cached_profile(
+    D_over_R: float,
+    n: float,
+    near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
+) -> BeamProfile:
     """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
     lenses and lights (frame changes, re-runs) pays once.  Do not modify the
     returned table."""
-    return exact_profile(D_over_R, n, near=near)
+    M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
+    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -285,9 +383,11 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
     return beam.lens_flux, e
 
 
-def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) -> dict:
+def _profile_dict(
+    prof: BeamProfile, t_ref: float, R: float, center, axis, key, normal=None
+) -> dict:
     ang = prof.angular / t_ref
-    return {
+    out = {
         # (height, width), row 0 = v at the bottom
         "pixels": (prof.table / t_ref).astype(np.float32),
         "width": prof.table.shape[1],
@@ -303,6 +403,32 @@ def _profile_dict(prof: BeamProfile, t_ref: float, R: float, center, axis, key) 
         # None for a table passed in.
         "key": key,
     }
+    if prof.slope is not None:
+        out["slope"] = prof.slope.astype(np.float32)  # the image's green channel
+    if normal is not None and prof.slope is not None:
+        # a receiver tilted against the axis: the node tree's tilt correction
+        out["axis"] = tuple(float(v) for v in axis)
+        out["receiver_normal"] = tuple(float(v) for v in normal)
+    return out
+
+
+def tilted_normal(normal, axis, min_tilt_deg: float = 0.5):
+    """The receiver's unit normal turned along the beam (``n·axis > 0``), if it is
+    known and tilted more than `min_tilt_deg` against the axis; else None (a plane
+    square to the axis needs no tilt correction)."""
+    if normal is None:
+        return None
+    nrm = np.asarray(normal, dtype=float)
+    length = float(np.linalg.norm(nrm))
+    if not math.isfinite(length) or length == 0.0:
+        return None
+    nrm = nrm / length
+    c = float(nrm @ axis)
+    if c < 0.0:
+        nrm, c = -nrm, -c
+    if c > math.cos(math.radians(min_tilt_deg)) or c < 1e-3:
+        return None
+    return nrm
 
 
 def make_profile_light(
@@ -343,7 +469,11 @@ def make_profile_light(
         receiver_distance is not None
         and table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
     )
-    apex = profile.apex if profile is not None else table_geometry(0.0 if near else None)[0]
+    # the near table's rows are placed on the receiver (`table_geometry`): its key
+    # carries the receiver (R, to 1e-6: a table per distinct resting height)
+    z_near = round(float(receiver_distance) / R, 6) if near else None
+    apex = profile.apex if profile is not None else table_geometry(z_near)[0]
+    normal = tilted_normal(getattr(receiver_distance, "normal", None), axis) if near else None
     center = np.asarray(source.lens_center, dtype=float)
     location = center + apex * R * axis
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
@@ -355,23 +485,27 @@ def make_profile_light(
     irradiance = primary.intensity * scale * e_ref / R**2
     primary_irr = primary.intensity / D**2
     if profile is not None:
-        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None)
+        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, normal)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
 
         def maker():
             return _profile_dict(
-                _cached_profile(*key, near),
+                _cached_profile(*key, near, z_near, normal is not None),
                 t_ref,
                 R,
                 center,
                 axis,
-                f"D/R {key[0]:.9g} n {key[1]:.9g}" + (" near" if near else ""),
+                f"D/R {key[0]:.9g} n {key[1]:.9g}"
+                + (f" near {z_near:.6g}" if near else "")
+                + (" tilted" if normal is not None else ""),
+                normal,
             )
 
-        shape = (PROFILE_DISTANCES, PROFILE_ANGLES)
-        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(0.0 if near else None)[1:])
+        rows = NEAR_DISTANCES if near else PROFILE_DISTANCES
+        shape = (rows, PROFILE_ANGLES)
+        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, rows, on_row=True)[1:])
     profile_info = {
         "gamma_max_deg": info[0],
         "h_min": info[1] * R,

@@ -14,7 +14,9 @@ light on it:
   receiver, ``(z_img − Z)·tan θ``, with its flux kept (:func:`pulled_in_cone`).
 
 EXACT_PROFILE needs none of this: its apex is the lens centre and its table
-covers every plane the beam reaches.
+covers every plane the beam reaches (with a row on the receiver, and a tilt
+correction where `planning.receiver_distance` found the receiver's plane:
+:class:`ReceiverDistance`).
 """
 
 from __future__ import annotations
@@ -114,3 +116,44 @@ def flux_keeping_factor(old_half: float, new_half: float) -> float:
     half-angle changes (``Ω = 4π sin²(x/2)``, no cancellation)."""
     new = math.sin(0.5 * new_half) ** 2
     return math.sin(0.5 * old_half) ** 2 / new if new > 0 else 0.0
+
+
+class ReceiverDistance(float):
+    """`planning.receiver_distance`'s answer: the distance (a float, as before) and,
+    where the rim rays found one plane, its unit ``normal`` (else None). The
+    EXACT_PROFILE near field corrects its light for a receiver tilted against the
+    axis with it (`exact_profile.tilted_normal`); everything else reads the float."""
+
+    normal: tuple | None
+
+    def __new__(cls, distance: float, normal=None):
+        out = super().__new__(cls, float(distance))
+        out.normal = None if normal is None else tuple(float(v) for v in normal)
+        return out
+
+    def __reduce__(self):
+        return (ReceiverDistance, (float(self), self.normal))
+
+
+def rim_plane_normal(
+    origins, axis, hits, radius: float, tolerance: float = 1e-3, distance: float | None = None
+):
+    """The unit normal of the plane that the rim rays `origins[0..3]` (two opposite
+    pairs, cast along `axis` from the plane through the lens centre square to it)
+    hit at distances `hits[0..3]`, or None when a ray missed, the two pairs do not
+    agree on the plane's distance on the axis (within `tolerance` × `radius`: not
+    one plane), or that distance is not `distance` (another surface is nearer)."""
+    hits = np.asarray(hits, dtype=float)[:4]
+    if hits.size < 4 or not np.all(np.isfinite(hits)):
+        return None
+    mean = 0.5 * (hits[0] + hits[1])
+    if abs(mean - 0.5 * (hits[2] + hits[3])) > tolerance * radius:
+        return None
+    if distance is not None and abs(mean - float(distance)) > tolerance * radius:
+        return None
+    u = np.asarray(axis, dtype=float)
+    u = u / np.linalg.norm(u)
+    pts = np.asarray(origins, dtype=float)[:4] + hits[:, None] * u
+    nrm = np.cross(pts[0] - pts[1], pts[2] - pts[3])
+    length = float(np.linalg.norm(nrm))
+    return None if length == 0.0 else nrm / length
