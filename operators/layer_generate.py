@@ -56,7 +56,7 @@ def prepare(depsgraph, work, options: dict):
         camera,
         total_rays=TOTAL_RAYS,
         max_rays=MAX_RAYS_PER_SOURCE,
-        resolution=raster_resolution(sources, camera),
+        resolution=lambda extents, _pixels: raster_resolution(sources, camera, extents),
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})

@@ -49,6 +49,12 @@ class BeamGrid:
     cell_flux: np.ndarray  # (K, Nr, Na) flux (W) of each grid cell
     valid: np.ndarray  # (K,) False: sample inside the sphere (no beam, zero flux)
     color: np.ndarray  # (3,) light colour × lens tint
+    # Per sample, how its share of an extended emitter turns the beam about the lens
+    # centre: rotation vectors (K, 2, 3) per unit of the share's two axes (a landing
+    # point q, relative to the centre, moves by α × q), a disc or a square of them.
+    rotations: np.ndarray | None = None
+    center: np.ndarray | None = None
+    share_disc: bool = True
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -198,4 +204,23 @@ def trace_beam(
         cell_flux=cell,
         valid=valid,
         color=color,
+        rotations=_share_rotations(samples, lens),
+        center=np.asarray(lens.center, dtype=float),
+        share_disc=samples.share_disc,
     )
+
+
+def _share_rotations(samples: SourceSamples, lens: Lens) -> np.ndarray:
+    """(K, 2, 3) rotation vectors of the beam about the lens centre per unit of each
+    sample's share: the axis u turns by δu (−w/L for a point moved by w at distance L;
+    the direction change itself for a parallel beam), so α = u × δu."""
+    k = len(samples.weights)
+    if samples.shares is None:
+        return np.zeros((k, 2, 3))
+    u = samples.directions[:, None, :]
+    if samples.parallel:
+        du = samples.shares
+    else:
+        dist = np.linalg.norm(np.asarray(lens.center, float) - samples.points, axis=1)
+        du = -samples.shares / np.maximum(dist, lens.radius)[:, None, None]
+    return np.cross(u, du)

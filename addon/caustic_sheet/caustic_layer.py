@@ -267,6 +267,7 @@ def build_layer(
             [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
         )
         cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+        rot, ctr, disc = _cell_shares(members_g)
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
@@ -285,6 +286,12 @@ def build_layer(
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
+            jitter = None
+            if np.any(rot[cidx]):
+                direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
+                jitter = _share_offsets(
+                    point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
+                )
             n_sub += _splat_cells(
                 acc,
                 out_acc,
@@ -298,6 +305,8 @@ def build_layer(
                 max_subdivision,
                 max_subcells,
                 flux_subcells_per_texel,
+                jitter=jitter,
+                jitter_disc=disc[cidx],
             )
         flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
@@ -448,8 +457,15 @@ def _splat_cells(
     max_subcells,
     flux_subcells_per_texel,
     m_free=8,
+    jitter=None,
+    jitter_disc=None,
 ):
-    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
+    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells.
+
+    ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of its source sample's
+    share's two axes (:func:`_share_offsets`); each sub-cell is moved by a point of
+    that share (a disc or a square) from a low-discrepancy sequence, so the K images of
+    an extended source blend into its continuous blur instead of K separate copies."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])  # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
     # sub-cells per side: the quad's extent in local texels at its centre
@@ -476,12 +492,67 @@ def _splat_cells(
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
         px = x[sel] @ bw.T  # (c, q)
         py = y[sel] @ bw.T
+        if jitter is not None:
+            a, b = _share_points(n_sub, px.shape, jitter_disc[sel])
+            j = jitter[sel]
+            px += a * j[:, None, 0, 0] + b * j[:, None, 1, 0]
+            py += a * j[:, None, 0, 1] + b * j[:, None, 1, 1]
         w = dens[sel] @ bw.T
         w *= (flux[sel] / w.sum(axis=1))[:, None]
         sl = np.repeat(slots[sel], len(s))
         _deposit_2d(acc, out_acc, px.reshape(-1), py.reshape(-1), sl, w.reshape(-1), fr, res)
         n_sub += w.size
     return n_sub
+
+
+#: Roberts' R2 sequence (the plastic number): well spread points in the unit square.
+_R2 = 1.0 / np.array([1.32471795724474602596, 1.32471795724474602596**2])
+
+
+def _share_points(start: int, shape, disc) -> tuple[np.ndarray, np.ndarray]:
+    """Points of a sample's share for ``shape`` = (cells, sub-cells) sub-cells numbered
+    from ``start``: the unit disc (equal area) where ``disc`` (per cell), else the
+    square [−½, ½]². Deterministic, so an animation does not flicker."""
+    i = start + np.arange(shape[0] * shape[1], dtype=float).reshape(shape)
+    s = np.modf(0.5 + i * _R2[0])[0]
+    t = np.modf(0.5 + i * _R2[1])[0]
+    r, ang = np.sqrt(s), 2.0 * np.pi * t
+    d = np.asarray(disc, dtype=bool)[:, None]
+    return np.where(d, r * np.cos(ang), s - 0.5), np.where(d, r * np.sin(ang), t - 0.5)
+
+
+def _cell_shares(landed: list[_Landed]):
+    """Per cell of the landed beams: its sample's rotation vectors (C, 2, 3), its lens
+    centre (C, 3) and whether its share is a disc (C,)."""
+    rot, ctr, disc = [], [], []
+    for lb in landed:
+        b = lb.beam
+        k, nr, na = b.shape
+        r = b.rotations if b.rotations is not None else np.zeros((k, 2, 3))
+        rot.append(np.repeat(r, nr * na, axis=0))
+        c = b.center if b.center is not None else np.zeros(3)
+        ctr.append(np.broadcast_to(c, (k * nr * na, 3)))
+        disc.append(np.full(k * nr * na, bool(b.share_disc)))
+    return np.concatenate(rot), np.concatenate(ctr), np.concatenate(disc)
+
+
+def _share_offsets(corner_pts, corner_dirs, rot, centers, slots, fr):
+    """(C, 2, 2): per cell, the plane offsets (u, v) of its landing for a unit step along
+    each axis of its sample's share. The beam turns about the lens centre by α, so the
+    landing q moves by α × q; that move is carried back onto the receiver's plane along
+    the cell's ray direction (a grazing receiver stretches it, at most 20×)."""
+    au, av = fr["au"][slots], fr["av"][slots]
+    nrm = np.cross(au, av)
+    q = corner_pts.mean(axis=1) - centers
+    d = corner_dirs.mean(axis=1)
+    d /= np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    delta = np.cross(rot, q[:, None, :])  # (C, 2, 3)
+    dn = np.einsum("ci,ci->c", d, nrm)
+    dn = np.where(dn >= 0.0, 1.0, -1.0) * np.maximum(np.abs(dn), 0.05)
+    delta = delta - d[:, None, :] * (np.einsum("cki,ci->ck", delta, nrm) / dn[:, None])[..., None]
+    return np.stack(
+        [np.einsum("cki,ci->ck", delta, au), np.einsum("cki,ci->ck", delta, av)], axis=-1
+    )
 
 
 def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):

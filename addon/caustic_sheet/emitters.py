@@ -105,6 +105,11 @@ class SourceSamples:
     directions: np.ndarray  # (K, 3) unit
     weights: np.ndarray  # (K,)
     emitter: object = field(repr=False, default=None)
+    # What each sample stands for: its share of the emitter, spanned by two vectors
+    # (K, 2, 3) about it (point samples: displacements of the point; parallel: changes
+    # of the direction), a disc (``share_disc``) or a square of that span (zero: none).
+    shares: np.ndarray | None = None
+    share_disc: bool = True
 
 
 def perpendicular_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -138,7 +143,8 @@ def source_samples(emitter, lens: Lens, k: int = 1) -> SourceSamples:
         dirs = d + t * (disc[:, :1] * e1 + disc[:, 1:] * e2)
         dirs /= np.linalg.norm(dirs, axis=1)[:, None]
         w = np.full(len(dirs), emitter.strength / len(dirs))
-        return SourceSamples(True, c - 4.0 * lens.radius * dirs, dirs, w, emitter)
+        shares = _disc_shares(t * (1.0 if emitter.angle > 0.0 else 0.0), e1, e2, len(dirs))
+        return SourceSamples(True, c - 4.0 * lens.radius * dirs, dirs, w, emitter, shares)
     if isinstance(emitter, (PointLight, SpotLight)):
         p = _vec(emitter.position)
         # The disc faces the lens (a sphere light) or the spot's axis (a disk spot).
@@ -147,19 +153,23 @@ def source_samples(emitter, lens: Lens, k: int = 1) -> SourceSamples:
         disc = vogel_disc(k) if emitter.radius > 0.0 else np.zeros((1, 2))
         pts = p + emitter.radius * (disc[:, :1] * e1 + disc[:, 1:] * e2)
         w = np.full(len(pts), emitter.power / (4.0 * math.pi) / len(pts))
-        return SourceSamples(False, pts, _dirs_to(pts, c), w, emitter)
+        shares = _disc_shares(emitter.radius, e1, e2, len(pts))
+        return SourceSamples(False, pts, _dirs_to(pts, c), w, emitter, shares)
     if isinstance(emitter, AreaLight):
         nrm = _unit(emitter.normal)
         ax = _vec(emitter.axis_x)
         ax = ax - (ax @ nrm) * nrm
         ax /= np.linalg.norm(ax)
         ay = np.cross(nrm, ax)
-        if emitter.shape in ("DISK", "ELLIPSE"):
+        disc = emitter.shape in ("DISK", "ELLIPSE")
+        if disc:
             uv = 0.5 * vogel_disc(k)
+            span = 0.5 / math.sqrt(len(uv))  # the radius of a disc of 1/K of the area
         else:
             m = max(1, int(round(math.sqrt(k))))
             g = (np.arange(m) + 0.5) / m - 0.5
             uv = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+            span = 1.0 / m  # the side of a grid cell
         pts = (
             _vec(emitter.position)
             + uv[:, :1] * emitter.size_x * ax
@@ -167,8 +177,17 @@ def source_samples(emitter, lens: Lens, k: int = 1) -> SourceSamples:
         )
         # radiance P/(πA) × (A/K) per sample: intensity P/(πK) × cos θ (angular_factor)
         w = np.full(len(pts), emitter.power / (math.pi * len(pts)))
-        return SourceSamples(False, pts, _dirs_to(pts, c), w, emitter)
+        axes = np.stack([span * emitter.size_x * ax, span * emitter.size_y * ay])
+        shares = np.broadcast_to(axes, (len(pts), 2, 3)).copy()
+        return SourceSamples(False, pts, _dirs_to(pts, c), w, emitter, shares, disc)
     raise TypeError(f"unknown emitter {type(emitter).__name__}")
+
+
+def _disc_shares(radius: float, e1, e2, k: int) -> np.ndarray:
+    """(k, 2, 3): each of k equal-area samples of a disc of ``radius`` (axes e1, e2)
+    stands for a disc of 1/k of its area: radius ``radius/√k``."""
+    r = radius / math.sqrt(k)
+    return np.broadcast_to(np.stack([r * e1, r * e2]), (k, 2, 3)).copy()
 
 
 def _dirs_to(pts: np.ndarray, c: np.ndarray) -> np.ndarray:
