@@ -22,9 +22,12 @@ from .caustic_sheet.pipeline import Camera, SheetSource
 from .caustic_sheet.ray_budget import layer_resolution, pixel_size
 from .tiers.base import LensOptics, effective_primary, glass_color, unblocked_share
 
-#: Node rays for all sources together, and per source (the ray budget's caps).
+#: Node rays for all sources together, and per source (the ray budget's caps); rays
+#: per pixel² of a caustic's extent on screen (the sub-cells interpolate between them).
 TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
+MIN_RAYS_PER_SOURCE = 256
+RAYS_PER_PIXEL = 0.5
 #: Texels per side of a layer raster at most (faces per layer: its square), and the
 #: faces of all layers together (many lenses: coarser rasters, a fast build).
 MAX_RESOLUTION = 128
@@ -90,9 +93,7 @@ def raster_resolution(sources, camera: Camera, extents=None) -> int:
     if extents is None:
         extents = [2.0 * s.lens.radius for s in sources]
     res = max(
-        layer_resolution(
-            e, pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px)
-        )
+        layer_resolution(e, pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px))
         for s, e in zip(sources, extents, strict=True)
     )
     share = math.isqrt(FACE_BUDGET // max(len(sources), 1))

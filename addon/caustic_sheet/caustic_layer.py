@@ -30,6 +30,7 @@ lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -118,7 +119,7 @@ def cell_corners(shape) -> np.ndarray:
     return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
 
 
-def _weighted_quantile(x, w, q):
+def weighted_quantile(x, w, q):
     o = np.argsort(x)
     cw = np.cumsum(w[o])
     return float(np.interp(q * cw[-1], cw, x[o]))
@@ -178,6 +179,7 @@ def build_layer(
     offset: float | None = None,
     merge_footprints: bool = True,
     own_objects=None,
+    min_texel=None,
 ) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -185,7 +187,10 @@ def build_layer(
     sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
     of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
     own caustics); False: one raster per patch for all beams. ``own_objects``: per beam
-    the object id of its own lens among the receivers (see :func:`land_beams`)."""
+    the object id of its own lens among the receivers (see :func:`land_beams`).
+    ``min_texel``: per beam the smallest texel its raster may have (e.g. half a pixel
+    on screen there): a renderer point-samples the layer a few times per pixel, so
+    texels far below a pixel show as noise, not detail."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -220,7 +225,7 @@ def build_layer(
         boxes = np.array(
             [
                 [
-                    _weighted_quantile(c[a:e], w_here[a:e], q)
+                    weighted_quantile(c[a:e], w_here[a:e], q)
                     for c in (x, y)
                     for q in (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
                 ]
@@ -232,7 +237,10 @@ def build_layer(
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
             beams_here = bid[idx[b_starts[comp]]]
             slot_of[beams_here, p] = len(frames)
-            axes = [_warp_axis(c[sel], w_here[sel], clip_fraction, res, warp) for c in (x, y)]
+            floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
+            axes = [
+                _warp_axis(c[sel], w_here[sel], clip_fraction, res, warp, floor) for c in (x, y)
+            ]
             frames.append((p, n_out, au, av, axes[0], axes[1]))
             members.append(beams_here)
     fr = {
@@ -398,14 +406,29 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
         )
 
 
-def _warp_axis(x, w, clip_fraction, res, warp):
-    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``."""
-    lo = _weighted_quantile(x, w, 0.5 * clip_fraction)
-    hi = _weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
+def _warp_axis(x, w, clip_fraction, res, warp, min_texel=0.0):
+    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``; the
+    warp is flattened (s grown) until the finest texel, s·dξ, is ``min_texel`` (or the
+    texels are uniform)."""
+    lo = weighted_quantile(x, w, 0.5 * clip_fraction)
+    hi = weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
     span = max(hi - lo, 1e-12 * (1.0 + abs(lo) + abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
-    c = _weighted_quantile(x, w, 0.5)
-    s = max(_weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+    c = weighted_quantile(x, w, 0.5)
+    s = max(weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+
+    def finest(s):
+        return s * (math.asinh((hi - c) / s) - math.asinh((lo - c) / s)) / res
+
+    if finest(s) < min_texel:  # grows with s, toward the uniform texel (hi − lo)/res
+        if (hi - lo) / res <= min_texel:
+            s = 1e3 * span
+        else:
+            a, b = s, 1e3 * span
+            for _ in range(60):  # bisection in log s
+                m = math.sqrt(a * b)
+                a, b = (m, b) if finest(m) < min_texel else (a, m)
+            s = b
     xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
     return c, s, xi0, (xi1 - xi0) / res
 

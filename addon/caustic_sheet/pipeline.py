@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .beam_trace import BeamGrid, trace_beam
-from .caustic_layer import CausticLayer, build_layer, land_beams
+from .beam_trace import BeamGrid, trace_beams
+from .caustic_layer import CausticLayer, build_layer, land_beams, weighted_quantile
 from .emitters import Lens
 from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
 from .receiver_bvh import ReceiverMesh
@@ -57,6 +57,8 @@ def bake(
     rays_per_pixel: float = 1.0,
     max_rays: int = 65536,
     total_rays: int = 1_000_000,
+    min_rays: int = 1024,
+    texel_fraction: float = 0.5,
     grid: tuple[int, int] | None = None,
     resolution: int | Callable[[list[float], list[float]], int] | None = None,
 ) -> SheetBake:
@@ -64,15 +66,19 @@ def bake(
     :func:`.ray_budget.allocate` (flux share and caustic extent from a coarse 4 × 16
     trace landed on the receivers, pixel size at the lens from ``camera``) unless
     ``grid`` = (Nr, Na) is given; the raster resolution from :func:`.layer_resolution`
-    of the largest extent, or ``resolution(extents, pixels)`` if a callable."""
+    of the largest extent, or ``resolution(extents, pixels)`` if a callable; no texel
+    finer than ``texel_fraction`` of a pixel (a renderer would only alias it)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
-    extents = [2.0 * s.lens.radius for s in sources]
+    extents = spans = [2.0 * s.lens.radius for s in sources]
     if grid is not None:
         budgets = [RayBudget(int(grid[0]), int(grid[1])) for _ in sources]
         pixels = [math.inf] * len(sources)
     else:
-        coarse = [trace_beam(s.emitter, s.lens, 4, 16) for s in sources]
-        extents = caustic_extents(coarse, index, [s.own_object for s in sources], extents)
+        coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16)
+        own = [s.own_object for s in sources]
+        # the rays go where the bulk of the flux is; the texels span nearly all of it
+        extents = caustic_extents(coarse, index, own, extents, bulk=0.9)
+        spans = caustic_extents(coarse, index, own, spans, bulk=0.99)
         pixels = [
             pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px)
             if camera is not None
@@ -86,41 +92,56 @@ def bake(
             total_rays=total_rays,
             rays_per_pixel=rays_per_pixel,
             max_rays=max_rays,
+            min_rays=min_rays,
             samples=[s.n_source for s in sources],
         )
     if callable(resolution):
-        resolution = resolution(extents, pixels)
+        resolution = resolution(spans, pixels)
     elif resolution is None:
         resolution = max(
-            (layer_resolution(e, p) for e, p in zip(extents, pixels, strict=True)), default=16
+            (layer_resolution(e, p) for e, p in zip(spans, pixels, strict=True)), default=16
         )
-    beams = [
-        trace_beam(s.emitter, s.lens, b.n_radial, b.n_azimuth, s.n_source)
-        for s, b in zip(sources, budgets, strict=True)
-    ]
+    # one vectorised trace per grid shared by several sources
+    beams = [None] * len(sources)
+    groups: dict[tuple[int, int, int], list[int]] = {}
+    for i, (s, b) in enumerate(zip(sources, budgets, strict=True)):
+        groups.setdefault((b.n_radial, b.n_azimuth, s.n_source), []).append(i)
+    for (nr, na, k), ids in groups.items():
+        traced = trace_beams([(sources[i].emitter, sources[i].lens) for i in ids], nr, na, k)
+        for i, beam in zip(ids, traced, strict=True):
+            beams[i] = beam
     own = [s.own_object for s in sources]
     layer = build_layer(
-        beams, index, resolution=resolution, own_objects=own if any(o >= 0 for o in own) else None
+        beams,
+        index,
+        resolution=resolution,
+        own_objects=own if any(o >= 0 for o in own) else None,
+        min_texel=[texel_fraction * p if math.isfinite(p) else 0.0 for p in pixels],
     )
     return SheetBake(layer, budgets, int(resolution))
 
 
 def caustic_extents(
-    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters
+    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters, bulk: float = 0.9
 ) -> list[float]:
     """Per coarse beam, the size of its caustic on the receivers: the lens' diameter,
-    or the span of the landed rays if larger (a grazing receiver stretches the caustic
-    far beyond it). The rim's rays (ι = 90°, grazing the sphere) are left out."""
+    or the span of the bulk of its landed flux if larger (a grazing receiver stretches
+    the caustic far beyond it): per world axis the ``bulk`` central share of the
+    landed nodes' flux."""
     if not coarse:
         return []
     own = list(own_objects)
     landed = land_beams(coarse, index, own if any(o >= 0 for o in own) else None)
     out = []
-    for b, lb, diameter in zip(coarse, landed, diameters, strict=True):
-        rings = b.exit_points.shape[1]
-        keep = (lb.patch >= 0).reshape(b.exit_points.shape[:3])
-        keep[:, rings - 1] = False
-        pts = lb.point[keep.reshape(-1)]
-        span = float(np.ptp(pts, axis=0).max()) if len(pts) > 1 else 0.0
-        out.append(max(span, diameter))
+    lo, hi = 0.5 * (1.0 - bulk), 0.5 * (1.0 + bulk)
+    for lb, diameter in zip(landed, diameters, strict=True):
+        on = lb.patch >= 0
+        span = 0.0
+        if np.count_nonzero(on) > 1 and lb.node_flux[on].sum() > 0.0:
+            pts, w = lb.point[on], lb.node_flux[on]
+            span = max(
+                weighted_quantile(pts[:, a], w, hi) - weighted_quantile(pts[:, a], w, lo)
+                for a in range(3)
+            )
+        out.append(max(span, float(diameter)))
     return out
