@@ -180,6 +180,7 @@ def build_layer(
     merge_footprints: bool = True,
     own_objects=None,
     min_texel=None,
+    blur_shares: bool = True,
 ) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -190,7 +191,9 @@ def build_layer(
     the object id of its own lens among the receivers (see :func:`land_beams`).
     ``min_texel``: per beam the smallest texel its raster may have (e.g. half a pixel
     on screen there): a renderer point-samples the layer a few times per pixel, so
-    texels far below a pixel show as noise, not detail."""
+    texels far below a pixel show as noise, not detail. ``blur_shares``: spread each
+    sample of an extended source over its share (False: K sharp images, for
+    comparison)."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -295,7 +298,7 @@ def build_layer(
         cidx = np.nonzero(same)[0]
         if len(cidx):
             jitter = None
-            if np.any(rot[cidx]):
+            if blur_shares and np.any(rot[cidx]):
                 direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
                 jitter = _share_offsets(
                     point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr

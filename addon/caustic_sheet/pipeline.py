@@ -60,6 +60,7 @@ def bake(
     min_rays: int = 1024,
     texel_fraction: float = 0.5,
     grid: tuple[int, int] | None = None,
+    blur_shares: bool = True,
     resolution: int | Callable[[list[float], list[float]], int] | None = None,
 ) -> SheetBake:
     """Caustic layers of ``sources`` on ``receivers``. The grid per source comes from
@@ -117,6 +118,7 @@ def bake(
         resolution=resolution,
         own_objects=own if any(o >= 0 for o in own) else None,
         min_texel=[texel_fraction * p if math.isfinite(p) else 0.0 for p in pixels],
+        blur_shares=blur_shares,
     )
     return SheetBake(layer, budgets, int(resolution))
 
