@@ -49,12 +49,15 @@ class BeamGrid:
     cell_flux: np.ndarray  # (K, Nr, Na) flux (W) of each grid cell
     valid: np.ndarray  # (K,) False: sample inside the sphere (no beam, zero flux)
     color: np.ndarray  # (3,) light colour × lens tint
-    # Per sample, how its share of an extended emitter turns the beam about the lens
-    # centre: rotation vectors (K, 2, 3) per unit of the share's two axes (a landing
-    # point q, relative to the centre, moves by α × q), a disc or a square of them.
+    # Per sample, how a move across the extended emitter turns the beam about the lens
+    # centre: rotation vectors (K, 2, 3) per unit of the emitter's shape coordinates (a
+    # landing point q, relative to the centre, moves by α × q); each sample's share of
+    # the emitter (`emitters.SourceSamples`): its cell of an m × m grid on the shape.
     rotations: np.ndarray | None = None
     center: np.ndarray | None = None
     share_disc: bool = True
+    share_cells: np.ndarray | None = None
+    share_grid: int = 1
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -308,14 +311,16 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
                 rotations=_share_rotations(sm, lens),
                 center=np.asarray(lens.center, dtype=float),
                 share_disc=sm.share_disc,
+                share_cells=sm.share_cells,
+                share_grid=sm.share_grid,
             )
         )
     return out
 
 
 def _share_rotations(samples: SourceSamples, lens: Lens) -> np.ndarray:
-    """(K, 2, 3) rotation vectors of the beam about the lens centre per unit of each
-    sample's share: the axis u turns by δu (−w/L for a point moved by w at distance L;
+    """(K, 2, 3) rotation vectors of the beam about the lens centre per unit of the
+    emitter's shape coordinates: the axis u turns by δu (−w/L for a point moved by w at distance L;
     the direction change itself for a parallel beam), so α = u × δu."""
     k = len(samples.weights)
     if samples.shares is None:

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .beam_trace import BeamGrid
-from .emitters import perpendicular_frame
+from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
 from .receiver_patches import ReceiverPatch
 
@@ -278,7 +278,7 @@ def build_layer(
             [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
         )
         cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
-        rot, ctr, disc = _cell_shares(members_g)
+        rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
@@ -317,7 +317,7 @@ def build_layer(
                 max_subcells,
                 flux_subcells_per_texel,
                 jitter=jitter,
-                jitter_disc=disc[cidx],
+                shares=(disc[cidx], share_cells[cidx], share_grid[cidx]),
             )
         flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
@@ -484,14 +484,15 @@ def _splat_cells(
     flux_subcells_per_texel,
     m_free=8,
     jitter=None,
-    jitter_disc=None,
+    shares=None,
 ):
     """Spread each cell's flux over its landed quad by m × m bilinear sub-cells.
 
-    ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of its source sample's
-    share's two axes (:func:`_share_offsets`); each sub-cell is moved by a point of
-    that share (a disc or a square) from a low-discrepancy sequence, so the K images of
-    an extended source blend into its continuous blur instead of K separate copies."""
+    ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of a unit step along each
+    axis of the emitter's shape (:func:`_share_offsets`); ``shares``: per cell (disc,
+    grid cell, grid size) of its sample's share. Each sub-cell is moved by a point of
+    that share from a low-discrepancy sequence, so the K images of an extended source
+    blend into its continuous blur instead of K separate copies."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])  # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
     # sub-cells per side: the quad's extent in local texels at its centre
@@ -519,7 +520,7 @@ def _splat_cells(
         px = x[sel] @ bw.T  # (c, q)
         py = y[sel] @ bw.T
         if jitter is not None:
-            a, b = _share_points(n_sub, px.shape, jitter_disc[sel])
+            a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
             j = jitter[sel]
             px += a * j[:, None, 0, 0] + b * j[:, None, 1, 0]
             py += a * j[:, None, 0, 1] + b * j[:, None, 1, 1]
@@ -535,31 +536,40 @@ def _splat_cells(
 _R2 = 1.0 / np.array([1.32471795724474602596, 1.32471795724474602596**2])
 
 
-def _share_points(start: int, shape, disc) -> tuple[np.ndarray, np.ndarray]:
-    """Points of a sample's share for ``shape`` = (cells, sub-cells) sub-cells numbered
-    from ``start``: the unit disc (equal area) where ``disc`` (per cell), else the
-    square [−½, ½]². Deterministic, so an animation does not flicker."""
+def _share_points(start: int, shape, disc, cells, grid) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets (shape coordinates of the emitter) to points of each cell's sample's
+    share for ``shape`` = (cells, sub-cells), the sub-cells numbered from ``start`` along
+    a low-discrepancy sequence. Deterministic, so an animation does not flicker."""
     i = start + np.arange(shape[0] * shape[1], dtype=float).reshape(shape)
     s = np.modf(0.5 + i * _R2[0])[0]
     t = np.modf(0.5 + i * _R2[1])[0]
-    r, ang = np.sqrt(s), 2.0 * np.pi * t
-    d = np.asarray(disc, dtype=bool)[:, None]
-    return np.where(d, r * np.cos(ang), s - 0.5), np.where(d, r * np.sin(ang), t - 0.5)
+    return share_offsets(cells, grid, disc, s, t)
 
 
 def _cell_shares(landed: list[_Landed]):
     """Per cell of the landed beams: its sample's rotation vectors (C, 2, 3), its lens
-    centre (C, 3) and whether its share is a disc (C,)."""
-    rot, ctr, disc = [], [], []
+    centre (C, 3), whether the emitter is a disc (C,), its share's grid cell (C, 2) and
+    the grid's size (C,)."""
+    rot, ctr, disc, cells, grid = [], [], [], [], []
     for lb in landed:
         b = lb.beam
         k, nr, na = b.shape
+        n = nr * na
         r = b.rotations if b.rotations is not None else np.zeros((k, 2, 3))
-        rot.append(np.repeat(r, nr * na, axis=0))
+        rot.append(np.repeat(r, n, axis=0))
         c = b.center if b.center is not None else np.zeros(3)
-        ctr.append(np.broadcast_to(c, (k * nr * na, 3)))
-        disc.append(np.full(k * nr * na, bool(b.share_disc)))
-    return np.concatenate(rot), np.concatenate(ctr), np.concatenate(disc)
+        ctr.append(np.broadcast_to(c, (k * n, 3)))
+        disc.append(np.full(k * n, bool(b.share_disc)))
+        sc = b.share_cells if b.share_cells is not None else np.zeros((k, 2), dtype=np.int64)
+        cells.append(np.repeat(sc, n, axis=0))
+        grid.append(np.full(k * n, int(b.share_grid)))
+    return (
+        np.concatenate(rot),
+        np.concatenate(ctr),
+        np.concatenate(disc),
+        np.concatenate(cells),
+        np.concatenate(grid),
+    )
 
 
 def _share_offsets(corner_pts, corner_dirs, rot, centers, slots, fr):
