@@ -437,7 +437,7 @@ def test_grazing_receiver_gets_rays_and_texels_for_its_stretched_caustic():
         e = math.radians(elev)
         light = _point(lens.center + 30.0 * np.array([-math.cos(e), 0.0, math.sin(e)]))
         coarse = trace_beams([(light, lens)], 4, 16)
-        out[elev] = caustic_extents(coarse, index, [-1], [0.6])[0]
+        out[elev] = caustic_extents(coarse, index, [-1], [0.6])[0][0]
     assert out[90.0] == pytest.approx(0.6)  # the overhead caustic lies within the lens
     assert out[20.0] > 2.0 * 0.6
     cam = Camera(np.array([0.0, -5.0, 5.0]), math.radians(40.0), 800)

@@ -30,6 +30,7 @@ lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -108,7 +109,13 @@ class _Landed:
 
 def cell_corners(shape) -> np.ndarray:
     """Flat node indices (K·Nr·Na, 4) of each cell's corners, in the order
-    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na)."""
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na).
+    Read-only, shared between beams of one shape."""
+    return _cell_corners(tuple(int(n) for n in shape))
+
+
+@functools.lru_cache(maxsize=32)
+def _cell_corners(shape) -> np.ndarray:
     k, nr, na = shape
     kk, ii, jj = np.meshgrid(np.arange(k), np.arange(nr), np.arange(na), indexing="ij")
     jn = (jj + 1) % na
@@ -116,13 +123,34 @@ def cell_corners(shape) -> np.ndarray:
     def flat(i, j):
         return ((kk * (nr + 1) + i) * na + j).reshape(-1)
 
-    return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+    out = np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+    out.setflags(write=False)
+    return out
 
 
 def weighted_quantile(x, w, q):
     o = np.argsort(x)
     cw = np.cumsum(w[o])
     return float(np.interp(q * cw[-1], cw, x[o]))
+
+
+def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+    """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
+    group non-empty): (n_groups, len(qs)), the values where the group's cumulative
+    weight first reaches each share (one sort for all groups)."""
+    o = np.lexsort((x, groups))
+    g, xs, ws = groups[o], x[o], w[o]
+    cw = np.cumsum(ws)
+    total = np.bincount(g, weights=ws, minlength=n_groups)
+    start = np.concatenate([[0.0], np.cumsum(total)[:-1]])
+    share = (cw - start[g]) / np.where(total > 0, total, 1.0)[g]  # (0, 1] per group
+    key = g + np.minimum(share, 1.0 - 1e-12)
+    ends = np.cumsum(np.bincount(g, minlength=n_groups))
+    out = np.empty((n_groups, len(qs)))
+    for j, q in enumerate(qs):
+        i = np.searchsorted(key, np.arange(n_groups) + q * (1.0 - 1e-12))
+        out[:, j] = xs[np.minimum(i, ends - 1)]
+    return out
 
 
 def land_beams(
@@ -225,16 +253,11 @@ def build_layer(
         b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
         b_ends = np.append(b_starts[1:], len(idx))
         w_here = wts[idx]
-        boxes = np.array(
-            [
-                [
-                    weighted_quantile(c[a:e], w_here[a:e], q)
-                    for c in (x, y)
-                    for q in (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
-                ]
-                for a, e in zip(b_starts, b_ends, strict=True)
-            ]
-        )
+        local = np.repeat(np.arange(len(b_starts)), b_ends - b_starts)
+        qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+        boxes = np.concatenate(
+            [grouped_quantiles(c, w_here, local, len(b_starts), qs) for c in (x, y)], axis=1
+        )  # (beams here, 4): u_lo, u_hi, v_lo, v_hi
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])

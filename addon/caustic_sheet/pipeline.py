@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam_trace import BeamGrid, trace_beams
-from .caustic_layer import CausticLayer, build_layer, land_beams, weighted_quantile
+from .caustic_layer import CausticLayer, build_layer, grouped_quantiles, land_beams
 from .emitters import Lens
 from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
 from .receiver_bvh import ReceiverMesh
@@ -78,8 +78,7 @@ def bake(
         coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16)
         own = [s.own_object for s in sources]
         # the rays go where the bulk of the flux is; the texels span nearly all of it
-        extents = caustic_extents(coarse, index, own, extents, bulk=0.9)
-        spans = caustic_extents(coarse, index, own, spans, bulk=0.99)
+        extents, spans = caustic_extents(coarse, index, own, extents, bulks=(0.9, 0.99))
         pixels = [
             pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px)
             if camera is not None
@@ -124,26 +123,32 @@ def bake(
 
 
 def caustic_extents(
-    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters, bulk: float = 0.9
-) -> list[float]:
-    """Per coarse beam, the size of its caustic on the receivers: the lens' diameter,
-    or the span of the bulk of its landed flux if larger (a grazing receiver stretches
-    the caustic far beyond it): per world axis the ``bulk`` central share of the
-    landed nodes' flux."""
+    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters, bulks=(0.9,)
+) -> list[list[float]]:
+    """Per share in ``bulks``, per coarse beam, the size of its caustic on the
+    receivers: the lens' diameter, or the span of that central share of its landed
+    flux if larger (per world axis; a grazing receiver stretches the caustic far beyond
+    the lens)."""
     if not coarse:
-        return []
+        return [[] for _ in bulks]
     own = list(own_objects)
     landed = land_beams(coarse, index, own if any(o >= 0 for o in own) else None)
+    beam = np.concatenate([np.full(len(lb.patch), i) for i, lb in enumerate(landed)])
+    on = np.concatenate([lb.patch >= 0 for lb in landed])
+    pts = np.concatenate([lb.point for lb in landed])[on]
+    w = np.concatenate([lb.node_flux for lb in landed])[on] + 1e-300
+    beam = beam[on]
+    hit = np.bincount(beam, minlength=len(coarse)) > 1
+    # beams with fewer than two landings keep their diameter (a dummy landing each)
+    missing = np.nonzero(~hit)[0]
+    beam = np.concatenate([beam, missing])
+    pts = np.concatenate([pts, np.zeros((len(missing), 3))])
+    w = np.concatenate([w, np.ones(len(missing))])
+    qs = [q for b in bulks for q in (0.5 * (1.0 - b), 0.5 * (1.0 + b))]
+    per_axis = [grouped_quantiles(pts[:, a], w, beam, len(coarse), qs) for a in range(3)]
+    diam = np.asarray(diameters, dtype=float)
     out = []
-    lo, hi = 0.5 * (1.0 - bulk), 0.5 * (1.0 + bulk)
-    for lb, diameter in zip(landed, diameters, strict=True):
-        on = lb.patch >= 0
-        span = 0.0
-        if np.count_nonzero(on) > 1 and lb.node_flux[on].sum() > 0.0:
-            pts, w = lb.point[on], lb.node_flux[on]
-            span = max(
-                weighted_quantile(pts[:, a], w, hi) - weighted_quantile(pts[:, a], w, lo)
-                for a in range(3)
-            )
-        out.append(max(span, float(diameter)))
+    for k in range(len(bulks)):
+        span = np.max([q[:, 2 * k + 1] - q[:, 2 * k] for q in per_axis], axis=0)
+        out.append([float(v) for v in np.maximum(np.where(hit, span, 0.0), diam)])
     return out
