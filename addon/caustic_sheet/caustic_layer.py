@@ -627,7 +627,8 @@ def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
     a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
     coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
     scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
-    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale)
+    # Blender stores UVs in float32: affine to its precision counts as affine
+    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-6 * scale)
 
 
 def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
