@@ -22,13 +22,18 @@ from .caustic_sheet.pipeline import Camera, SheetSource
 from .caustic_sheet.ray_budget import layer_resolution, pixel_size
 from .tiers.base import LensOptics, effective_primary, glass_color, unblocked_share
 
-#: Node rays for all sources together, and per source (the ray budget's caps).
+#: Node rays for all sources together, and per source (the ray budget's caps); rays
+#: per pixel² of a caustic's extent on screen (the sub-cells interpolate between them).
 TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
+MIN_RAYS_PER_SOURCE = 256
+RAYS_PER_PIXEL = 0.5
 #: Texels per side of a layer raster at most (faces per layer: its square), and the
 #: faces of all layers together (many lenses: coarser rasters, a fast build).
 MAX_RESOLUTION = 128
 FACE_BUDGET = 65_536
+#: Samples of an extended primary's disc (they share its ray budget).
+SOURCE_SAMPLES = 16
 #: A receiver this metallic or transmissive is no diffuse surface: a Fitted spot.
 GLOSSY_METALLIC = 0.5
 TRANSPARENT_TRANSMISSION = 0.5
@@ -52,8 +57,9 @@ def sheet_source(planned, primary, optics: LensOptics | None = None) -> SheetSou
         color=tuple(float(c) for c in color),
     )
     lens = Lens(center=center, radius=float(src.lens_radius), ior=float(src.ior))
-    # An extended primary blurs the caustic (SPEC §10): a few samples of its disc.
-    n_source = 1 if eff.radius <= 0.0 else 7
+    # An extended primary blurs the caustic (SPEC §10): samples of its disc, each
+    # image spread over its share (`caustic_layer._splat_cells`).
+    n_source = 1 if eff.radius <= 0.0 else SOURCE_SAMPLES
     return SheetSource(emitter, lens, n_source=n_source)
 
 
@@ -80,15 +86,15 @@ def sheet_camera(camera, width_px: int, ortho_scale: float | None = None, target
     return Camera(pos, fov, max(int(width_px), 16))
 
 
-def raster_resolution(sources, camera: Camera) -> int:
-    """One texel per pixel of the largest lens (`ray_budget.layer_resolution`), at most
-    `MAX_RESOLUTION` and so that all layers keep within `FACE_BUDGET` faces."""
+def raster_resolution(sources, camera: Camera, extents=None) -> int:
+    """One texel per pixel of the largest caustic (`ray_budget.layer_resolution`; its
+    extent per source, by default the lens' diameter), at most `MAX_RESOLUTION` and so
+    that all layers keep within `FACE_BUDGET` faces."""
+    if extents is None:
+        extents = [2.0 * s.lens.radius for s in sources]
     res = max(
-        layer_resolution(
-            2.0 * s.lens.radius,
-            pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px),
-        )
-        for s in sources
+        layer_resolution(e, pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px))
+        for s, e in zip(sources, extents, strict=True)
     )
     share = math.isqrt(FACE_BUDGET // max(len(sources), 1))
     return int(min(res, MAX_RESOLUTION, max(share, 16)))

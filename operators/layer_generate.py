@@ -15,6 +15,8 @@ import time
 from ..addon.caustic_sheet.pipeline import bake
 from ..addon.layer_plan import (
     MAX_RAYS_PER_SOURCE,
+    MIN_RAYS_PER_SOURCE,
+    RAYS_PER_PIXEL,
     TOTAL_RAYS,
     figures_of,
     raster_resolution,
@@ -56,7 +58,9 @@ def prepare(depsgraph, work, options: dict):
         camera,
         total_rays=TOTAL_RAYS,
         max_rays=MAX_RAYS_PER_SOURCE,
-        resolution=raster_resolution(sources, camera),
+        min_rays=MIN_RAYS_PER_SOURCE,
+        rays_per_pixel=RAYS_PER_PIXEL,
+        resolution=lambda extents, _pixels: raster_resolution(sources, camera, extents),
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})

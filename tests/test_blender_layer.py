@@ -126,6 +126,70 @@ def test_textured_receiver_layer_samples_the_receivers_texture(empty_blend):
     assert mix.inputs["A"].links[0].from_node.type == "ATTRIBUTE"
 
 
+#: The checker's two colours (linear RGB): the caustic on each cell is tinted by it.
+LIGHT_CELL = (0.9, 0.6, 0.3)
+DARK_CELL = (0.1, 0.25, 0.05)
+
+
+def _render_rgb(sc, path):
+    sc.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[..., :3]
+
+
+def test_textured_receiver_renders_the_caustic_tinted_by_the_texture_under_it(
+    empty_blend, tmp_path
+):
+    """EEVEE, 32 px: the lamp hidden from the render, so the picture is the layer
+    alone. Rendered once with a two-colour checker on the floor and once with the
+    same image made white: on every pixel well inside a cell the ratio of the two is
+    that cell's colour, per channel (the texture's values, read by Blender)."""
+    from measuring_scene import add_top_camera, new_measuring_scene
+
+    sc = new_measuring_scene("BLENDER_EEVEE", 32)
+    sc.eevee.taa_render_samples = 4
+    basic_scene()
+    cells = 16  # on the floor of size 8: 0.5 m cells, 8 px each in the view below
+    img = bpy.data.images.new("Checker", cells, cells, float_buffer=True)
+    parity = np.indices((cells, cells)).sum(axis=0) % 2  # (row = v, column = u)
+    px = np.ones((cells, cells, 4), dtype=np.float32)
+    px[..., :3] = np.where(parity[..., None] == 1, LIGHT_CELL, DARK_CELL)
+    img.pixels.foreach_set(px.ravel())
+    mat = new_material("Checker floor")
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation = img, "Closest"
+    nt.links.new(tex.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    bpy.data.objects["Floor"].data.materials.append(mat)
+    add_top_camera(0.0, 0.0, 6.0, 2.0)
+    level, message, _ = generate()
+    assert level == "INFO" and layers(), message
+    bpy.data.objects["Lamp"].hide_render = True  # the layer alone
+    bpy.data.objects["Marble"].visible_camera = False  # the floor, not its refraction
+    tinted = _render_rgb(sc, tmp_path / "checker.exr")
+    img.pixels.foreach_set(np.ones(cells * cells * 4, dtype=np.float32))
+    white = _render_rgb(sc, tmp_path / "white.exr")
+
+    # Pixel centres → floor UV (u = x/8 + ½) → the cell and the distance to its edges.
+    c = (np.arange(32) + 0.5) / 32 * 2.0 - 1.0
+    u = c[None, :] / 8.0 + 0.5
+    v = c[:, None] / 8.0 + 0.5
+    fu, fv = u * cells % 1.0, v * cells % 1.0
+    edge = np.minimum(np.minimum(fu, 1 - fu), np.minimum(fv, 1 - fv))  # (32, 32)
+    inside = edge > 2.5 / 8.0  # more than 2.5 px from a cell's edge (the pixel filter)
+    lit = white.mean(axis=2) > 0.05 * white.mean(axis=2).max()
+    light = (np.floor(u * cells) + np.floor(v * cells)) % 2 == 1
+    for mask, colour in ((light, LIGHT_CELL), (~light, DARK_CELL)):
+        sel = inside & lit & mask
+        assert sel.sum() >= 8
+        ratio = tinted[sel] / white[sel]
+        assert np.median(ratio, axis=0) == pytest.approx(colour, rel=0.03)
+        assert np.abs(ratio - colour).max() < 0.1
+
+
 def test_glossy_receiver_gets_a_fitted_spot_for_itself(empty_blend):
     basic_scene()
     floor = bpy.data.objects["Floor"]

@@ -121,9 +121,9 @@ def test_sphere_light_keeps_flux_and_topology_and_samples_its_disc():
     lens = Lens(np.zeros(3), R, N_IOR)
     point = trace_beam(PointLight(np.array([0.0, 0.0, -D]), 10.0), lens, 24, 96)
     sphere = trace_beam(
-        PointLight(np.array([0.0, 0.0, -D]), 10.0, radius=0.3), lens, 24, 96, n_source=12
+        PointLight(np.array([0.0, 0.0, -D]), 10.0, radius=0.3), lens, 24, 96, n_source=16
     )
-    assert sphere.shape == (12, 24, 96)
+    assert sphere.shape == (16, 24, 96)  # a 4 × 4 grid of equal shares of the disc
     # each disc sample sees the lens from a slightly different distance
     assert sphere.total_flux == pytest.approx(point.total_flux, rel=5e-3)
     spread = np.ptp(sphere.exit_dirs[:, 0, 0], axis=0)  # axial rays differ per sample
@@ -139,3 +139,35 @@ def test_topology_is_fixed_and_a_light_inside_gives_an_empty_beam():
         if np.linalg.norm(pos) < R:
             assert not b.valid.any() and b.total_flux == 0.0
     assert len(shapes) == 1
+
+
+def test_many_lenses_in_one_batch_each_carry_their_exact_flux():
+    from addon.caustic_sheet.beam_trace import trace_beams
+
+    lenses = [
+        Lens(np.array([0.0, 0.0, 0.0]), 1.0, 1.5),
+        Lens(np.array([5.0, 1.0, -2.0]), 0.5, 1.7, absorption=0.2),
+        Lens(np.array([-3.0, 4.0, 1.0]), 2.0, 1.4),
+    ]
+    D = (10.0, 3.0, 7.0)
+    pairs = [
+        (PointLight(lens.center + np.array([0.0, 0.0, d]), 4.0 * math.pi), lens)
+        for lens, d in zip(lenses, D, strict=True)
+    ]
+    S = 100.0
+    pairs.append((SunLight(np.array([0.0, 1.0, -1.0]), S), lenses[0]))
+    beams = trace_beams(pairs, 24, 96)
+    for (_, lens), d, beam in zip(pairs, D, beams, strict=False):
+        expected = eo.lens_flux(1.0, d, lens.radius, lens.ior, lens.absorption)
+        assert beam.total_flux == pytest.approx(expected, rel=1e-5)
+    sun = (
+        S
+        * 2
+        * np.pi
+        * _iota_quadrature(lambda i: eo.two_surface_transmission(i, 1.5) * np.sin(i) * np.cos(i))
+    )
+    assert beams[-1].total_flux == pytest.approx(sun, rel=1e-5)
+    # each beam leaves its own sphere
+    for (_, lens), beam in zip(pairs, beams, strict=True):
+        r = np.linalg.norm(beam.exit_points - lens.center, axis=-1)
+        np.testing.assert_allclose(r, lens.radius, rtol=1e-9)

@@ -385,3 +385,79 @@ def test_ray_budget_follows_flux_share_and_screen_size():
     many = allocate([1.0] * 64, [2.0] * 64, [px] * 64, total_rays=200_000)
     assert sum(b.n_rays for b in many) <= 200_000
     assert layer_resolution(2.0, px) == 256 and layer_resolution(1e-3, px) == 16
+
+
+def _ref_rings(emitter, Z, edges, n_rays=600_000):
+    """The reference tracer's ring irradiance on the plane z = Z about the axis."""
+    from addon import reference as ref
+
+    res = ref.trace_irradiance(
+        emitter,
+        ref.GlassSphere((0.0, 0.0, 0.0), R, N_IOR),
+        ref.ReceiverPlane((0.0, 0.0, Z), (0.0, 0.0, -1.0)),  # facing the lens
+        n_rays,
+        seed=5,
+        rings=((0.0, 0.0), edges),
+    )
+    return res.ring_irradiance
+
+
+def test_a_sphere_light_blurs_the_caustic_continuously_like_the_reference():
+    """A big sphere light (r = D/10) near the focus: its samples' images, each spread
+    over its share of the source, match the reference tracer's rings; K sharp images
+    (the former layer) show rings of their own and miss it by more."""
+    from addon import reference as ref
+
+    Z, r_light = 1.6, 1.0
+    edges = np.linspace(0.0, 0.6, 31)
+    truth = _ref_rings(ref.PointLight((0.0, 0.0, -D), 4.0 * math.pi * I0, r_light), Z, edges)
+    index = build_index(rectangle([0, 0, Z], [0, 0, 1], 100.0, 100.0, 2, 2))
+    light = PointLight(np.array([0.0, 0.0, -D]), 4.0 * math.pi * I0, radius=r_light)
+    beams = [trace_beam(light, Lens(np.zeros(3), R, N_IOR), 24, 96, 16)]
+    blurred = _only(build_layer(beams, index, resolution=128))
+    sharp = _only(build_layer(beams, index, resolution=128, blur_shares=False))
+    area = np.diff(edges**2)
+    l1_blur = relative_l1(ring_irradiance(blurred, [0, 0, Z], edges), truth, area)
+    l1_sharp = relative_l1(ring_irradiance(sharp, [0, 0, Z], edges), truth, area)
+    assert l1_blur < 0.04
+    assert l1_blur < 0.2 * l1_sharp
+    assert blurred.flux == pytest.approx(sharp.flux, rel=0.01)
+
+
+def test_grazing_receiver_gets_rays_and_texels_for_its_stretched_caustic():
+    """At 20° elevation the caustic on the floor is stretched by about 1/sin 20° = 2.9:
+    the extent the budget sees grows beyond the lens' diameter, and so do the texels."""
+    from addon.caustic_sheet.beam_trace import trace_beams
+    from addon.caustic_sheet.pipeline import caustic_extents
+
+    lens = Lens(np.array([0.0, 0.0, 0.3]), 0.3, N_IOR)
+    index = build_index(rectangle([0, 0, 0], [0, 0, 1], 100.0, 100.0, 2, 2))
+    out = {}
+    for elev in (90.0, 20.0):
+        e = math.radians(elev)
+        light = _point(lens.center + 30.0 * np.array([-math.cos(e), 0.0, math.sin(e)]))
+        coarse = trace_beams([(light, lens)], 4, 16)
+        out[elev] = caustic_extents(coarse, index, [-1], [0.6])[0][0]
+    assert out[90.0] == pytest.approx(0.6)  # the overhead caustic lies within the lens
+    assert out[20.0] > 2.0 * 0.6
+    cam = Camera(np.array([0.0, -5.0, 5.0]), math.radians(40.0), 800)
+    grazing = _point(lens.center + 30.0 * np.array([-math.cos(0.35), 0.0, math.sin(0.35)]))
+    b = bake([SheetSource(grazing, lens)], index, cam)
+    px = pixel_size(cam.position, lens.center, cam.fov, cam.width_px)
+    assert b.resolution > layer_resolution(0.6, px)
+
+
+def test_no_texel_finer_than_the_floor_it_is_given():
+    lens = Lens(np.zeros(3), R, N_IOR)
+    index = build_index(rectangle([0, 0, 1.0], [0, 0, 1], 100.0, 100.0, 2, 2))
+    beam = trace_beam(_point([0, 0, -D]), lens, 32, 128)
+    free = _only(build_layer([beam], index, resolution=96))
+    finest = min(np.diff(free.edges_u).min(), np.diff(free.edges_v).min())
+    uniform = (free.edges_u[-1] - free.edges_u[0]) / 96  # the same span, even texels
+    floor = math.sqrt(finest * uniform)  # between the two
+    held = _only(build_layer([beam], index, resolution=96, min_texel=[floor]))
+    assert min(np.diff(held.edges_u).min(), np.diff(held.edges_v).min()) >= floor * (1 - 1e-6)
+    assert held.flux == pytest.approx(free.flux, rel=1e-6)
+    # a floor above the even texel: even texels, the best the resolution allows
+    flat = _only(build_layer([beam], index, resolution=96, min_texel=[2.0 * uniform]))
+    np.testing.assert_allclose(np.diff(flat.edges_u), uniform, rtol=1e-2)

@@ -30,13 +30,15 @@ lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo
 
 from __future__ import annotations
 
+import functools
+import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .beam_trace import BeamGrid
-from .emitters import perpendicular_frame
+from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
 from .receiver_patches import ReceiverPatch
 
@@ -107,7 +109,13 @@ class _Landed:
 
 def cell_corners(shape) -> np.ndarray:
     """Flat node indices (K·Nr·Na, 4) of each cell's corners, in the order
-    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na)."""
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na).
+    Read-only, shared between beams of one shape."""
+    return _cell_corners(tuple(int(n) for n in shape))
+
+
+@functools.lru_cache(maxsize=32)
+def _cell_corners(shape) -> np.ndarray:
     k, nr, na = shape
     kk, ii, jj = np.meshgrid(np.arange(k), np.arange(nr), np.arange(na), indexing="ij")
     jn = (jj + 1) % na
@@ -115,13 +123,34 @@ def cell_corners(shape) -> np.ndarray:
     def flat(i, j):
         return ((kk * (nr + 1) + i) * na + j).reshape(-1)
 
-    return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+    out = np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+    out.setflags(write=False)
+    return out
 
 
-def _weighted_quantile(x, w, q):
+def weighted_quantile(x, w, q):
     o = np.argsort(x)
     cw = np.cumsum(w[o])
     return float(np.interp(q * cw[-1], cw, x[o]))
+
+
+def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+    """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
+    group non-empty): (n_groups, len(qs)), the values where the group's cumulative
+    weight first reaches each share (one sort for all groups)."""
+    o = np.lexsort((x, groups))
+    g, xs, ws = groups[o], x[o], w[o]
+    cw = np.cumsum(ws)
+    total = np.bincount(g, weights=ws, minlength=n_groups)
+    start = np.concatenate([[0.0], np.cumsum(total)[:-1]])
+    share = (cw - start[g]) / np.where(total > 0, total, 1.0)[g]  # (0, 1] per group
+    key = g + np.minimum(share, 1.0 - 1e-12)
+    ends = np.cumsum(np.bincount(g, minlength=n_groups))
+    out = np.empty((n_groups, len(qs)))
+    for j, q in enumerate(qs):
+        i = np.searchsorted(key, np.arange(n_groups) + q * (1.0 - 1e-12))
+        out[:, j] = xs[np.minimum(i, ends - 1)]
+    return out
 
 
 def land_beams(
@@ -178,6 +207,8 @@ def build_layer(
     offset: float | None = None,
     merge_footprints: bool = True,
     own_objects=None,
+    min_texel=None,
+    blur_shares: bool = True,
 ) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -185,7 +216,12 @@ def build_layer(
     sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
     of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
     own caustics); False: one raster per patch for all beams. ``own_objects``: per beam
-    the object id of its own lens among the receivers (see :func:`land_beams`)."""
+    the object id of its own lens among the receivers (see :func:`land_beams`).
+    ``min_texel``: per beam the smallest texel its raster may have (e.g. half a pixel
+    on screen there): a renderer point-samples the layer a few times per pixel, so
+    texels far below a pixel show as noise, not detail. ``blur_shares``: spread each
+    sample of an extended source over its share (False: K sharp images, for
+    comparison)."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -217,22 +253,20 @@ def build_layer(
         b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
         b_ends = np.append(b_starts[1:], len(idx))
         w_here = wts[idx]
-        boxes = np.array(
-            [
-                [
-                    _weighted_quantile(c[a:e], w_here[a:e], q)
-                    for c in (x, y)
-                    for q in (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
-                ]
-                for a, e in zip(b_starts, b_ends, strict=True)
-            ]
-        )
+        local = np.repeat(np.arange(len(b_starts)), b_ends - b_starts)
+        qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+        boxes = np.concatenate(
+            [grouped_quantiles(c, w_here, local, len(b_starts), qs) for c in (x, y)], axis=1
+        )  # (beams here, 4): u_lo, u_hi, v_lo, v_hi
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
             beams_here = bid[idx[b_starts[comp]]]
             slot_of[beams_here, p] = len(frames)
-            axes = [_warp_axis(c[sel], w_here[sel], clip_fraction, res, warp) for c in (x, y)]
+            floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
+            axes = [
+                _warp_axis(c[sel], w_here[sel], clip_fraction, res, warp, floor) for c in (x, y)
+            ]
             frames.append((p, n_out, au, av, axes[0], axes[1]))
             members.append(beams_here)
     fr = {
@@ -267,6 +301,7 @@ def build_layer(
             [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
         )
         cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+        rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
@@ -285,6 +320,12 @@ def build_layer(
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
+            jitter = None
+            if blur_shares and np.any(rot[cidx]):
+                direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
+                jitter = _share_offsets(
+                    point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
+                )
             n_sub += _splat_cells(
                 acc,
                 out_acc,
@@ -298,6 +339,8 @@ def build_layer(
                 max_subdivision,
                 max_subcells,
                 flux_subcells_per_texel,
+                jitter=jitter,
+                shares=(disc[cidx], share_cells[cidx], share_grid[cidx]),
             )
         flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
@@ -389,14 +432,29 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
         )
 
 
-def _warp_axis(x, w, clip_fraction, res, warp):
-    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``."""
-    lo = _weighted_quantile(x, w, 0.5 * clip_fraction)
-    hi = _weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
+def _warp_axis(x, w, clip_fraction, res, warp, min_texel=0.0):
+    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``; the
+    warp is flattened (s grown) until the finest texel, s·dξ, is ``min_texel`` (or the
+    texels are uniform)."""
+    lo = weighted_quantile(x, w, 0.5 * clip_fraction)
+    hi = weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
     span = max(hi - lo, 1e-12 * (1.0 + abs(lo) + abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
-    c = _weighted_quantile(x, w, 0.5)
-    s = max(_weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+    c = weighted_quantile(x, w, 0.5)
+    s = max(weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+
+    def finest(s):
+        return s * (math.asinh((hi - c) / s) - math.asinh((lo - c) / s)) / res
+
+    if finest(s) < min_texel:  # grows with s, toward the uniform texel (hi − lo)/res
+        if (hi - lo) / res <= min_texel:
+            s = 1e3 * span
+        else:
+            a, b = s, 1e3 * span
+            for _ in range(60):  # bisection in log s
+                m = math.sqrt(a * b)
+                a, b = (m, b) if finest(m) < min_texel else (a, m)
+            s = b
     xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
     return c, s, xi0, (xi1 - xi0) / res
 
@@ -448,8 +506,16 @@ def _splat_cells(
     max_subcells,
     flux_subcells_per_texel,
     m_free=8,
+    jitter=None,
+    shares=None,
 ):
-    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells."""
+    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells.
+
+    ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of a unit step along each
+    axis of the emitter's shape (:func:`_share_offsets`); ``shares``: per cell (disc,
+    grid cell, grid size) of its sample's share. Each sub-cell is moved by a point of
+    that share from a low-discrepancy sequence, so the K images of an extended source
+    blend into its continuous blur instead of K separate copies."""
     x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])  # (C, 4)
     y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
     # sub-cells per side: the quad's extent in local texels at its centre
@@ -476,12 +542,76 @@ def _splat_cells(
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
         px = x[sel] @ bw.T  # (c, q)
         py = y[sel] @ bw.T
+        if jitter is not None:
+            a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
+            j = jitter[sel]
+            px += a * j[:, None, 0, 0] + b * j[:, None, 1, 0]
+            py += a * j[:, None, 0, 1] + b * j[:, None, 1, 1]
         w = dens[sel] @ bw.T
         w *= (flux[sel] / w.sum(axis=1))[:, None]
         sl = np.repeat(slots[sel], len(s))
         _deposit_2d(acc, out_acc, px.reshape(-1), py.reshape(-1), sl, w.reshape(-1), fr, res)
         n_sub += w.size
     return n_sub
+
+
+#: Roberts' R2 sequence (the plastic number): well spread points in the unit square.
+_R2 = 1.0 / np.array([1.32471795724474602596, 1.32471795724474602596**2])
+
+
+def _share_points(start: int, shape, disc, cells, grid) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets (shape coordinates of the emitter) to points of each cell's sample's
+    share for ``shape`` = (cells, sub-cells), the sub-cells numbered from ``start`` along
+    a low-discrepancy sequence. Deterministic, so an animation does not flicker."""
+    i = start + np.arange(shape[0] * shape[1], dtype=float).reshape(shape)
+    s = np.modf(0.5 + i * _R2[0])[0]
+    t = np.modf(0.5 + i * _R2[1])[0]
+    return share_offsets(cells, grid, disc, s, t)
+
+
+def _cell_shares(landed: list[_Landed]):
+    """Per cell of the landed beams: its sample's rotation vectors (C, 2, 3), its lens
+    centre (C, 3), whether the emitter is a disc (C,), its share's grid cell (C, 2) and
+    the grid's size (C,)."""
+    rot, ctr, disc, cells, grid = [], [], [], [], []
+    for lb in landed:
+        b = lb.beam
+        k, nr, na = b.shape
+        n = nr * na
+        r = b.rotations if b.rotations is not None else np.zeros((k, 2, 3))
+        rot.append(np.repeat(r, n, axis=0))
+        c = b.center if b.center is not None else np.zeros(3)
+        ctr.append(np.broadcast_to(c, (k * n, 3)))
+        disc.append(np.full(k * n, bool(b.share_disc)))
+        sc = b.share_cells if b.share_cells is not None else np.zeros((k, 2), dtype=np.int64)
+        cells.append(np.repeat(sc, n, axis=0))
+        grid.append(np.full(k * n, int(b.share_grid)))
+    return (
+        np.concatenate(rot),
+        np.concatenate(ctr),
+        np.concatenate(disc),
+        np.concatenate(cells),
+        np.concatenate(grid),
+    )
+
+
+def _share_offsets(corner_pts, corner_dirs, rot, centers, slots, fr):
+    """(C, 2, 2): per cell, the plane offsets (u, v) of its landing for a unit step along
+    each axis of its sample's share. The beam turns about the lens centre by α, so the
+    landing q moves by α × q; that move is carried back onto the receiver's plane along
+    the cell's ray direction (a grazing receiver stretches it, at most 20×)."""
+    au, av = fr["au"][slots], fr["av"][slots]
+    nrm = np.cross(au, av)
+    q = corner_pts.mean(axis=1) - centers
+    d = corner_dirs.mean(axis=1)
+    d /= np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    delta = np.cross(rot, q[:, None, :])  # (C, 2, 3)
+    dn = np.einsum("ci,ci->c", d, nrm)
+    dn = np.where(dn >= 0.0, 1.0, -1.0) * np.maximum(np.abs(dn), 0.05)
+    delta = delta - d[:, None, :] * (np.einsum("cki,ci->ck", delta, nrm) / dn[:, None])[..., None]
+    return np.stack(
+        [np.einsum("cki,ci->ck", delta, au), np.einsum("cki,ci->ck", delta, av)], axis=-1
+    )
 
 
 def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
@@ -497,7 +627,8 @@ def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
     a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
     coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
     scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
-    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-9 * scale)
+    # Blender stores UVs in float32: affine to its precision counts as affine
+    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-6 * scale)
 
 
 def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):

@@ -41,26 +41,36 @@ def ray_budget(
     rays_per_pixel: float = 1.0,
     min_rays: int = 1024,
     max_rays: int = 65536,
+    samples: int = 1,
+    min_rays_per_sample: int = 256,
 ) -> RayBudget:
     """Grid for one source. ``flux_share``: its flux over the brightest source's (0..1];
     ``extent``: the caustic's size on the receiver (e.g. the lens' diameter, or the last
-    layer's core); ``pixel``: :func:`pixel_size` there."""
+    layer's core); ``pixel``: :func:`pixel_size` there. An extended source's
+    ``samples`` share the budget (each one's image is blurred by its share of the
+    source, so a coarser grid per sample suffices), down to ``min_rays_per_sample``."""
     px = max(extent, 0.0) / max(pixel, 1e-300)
     want = rays_per_pixel * px * px * min(max(flux_share, 0.0), 1.0)
-    n = float(np.clip(want, min_rays, max_rays))
+    n = float(np.clip(want, min_rays, max_rays)) / max(int(samples), 1)
+    n = max(n, float(min_rays_per_sample) if samples > 1 else n)
     nr = max(2, int(round(math.sqrt(n / 4.0))))
     return RayBudget(nr, 4 * nr)
 
 
-def allocate(fluxes, extents, pixels, total_rays: int = 1_000_000, **kwargs) -> list[RayBudget]:
-    """Budgets for many sources: :func:`ray_budget` each, then scaled down together
-    (keeping each source's ``min_rays``) if the sum exceeds ``total_rays``."""
+def allocate(
+    fluxes, extents, pixels, total_rays: int = 1_000_000, samples=None, **kwargs
+) -> list[RayBudget]:
+    """Budgets for many sources: :func:`ray_budget` each (``samples``: per source, the
+    samples of an extended emitter sharing it), then scaled down together if the sum
+    of all samples' rays exceeds ``total_rays``."""
     fluxes = np.asarray(fluxes, dtype=float)
     top = fluxes.max() if len(fluxes) and fluxes.max() > 0 else 1.0
+    ks = [1] * len(fluxes) if samples is None else [max(int(k), 1) for k in samples]
     out = [
-        ray_budget(f / top, e, p, **kwargs) for f, e, p in zip(fluxes, extents, pixels, strict=True)
+        ray_budget(f / top, e, p, samples=k, **kwargs)
+        for f, e, p, k in zip(fluxes, extents, pixels, ks, strict=True)
     ]
-    total = sum(b.n_rays for b in out)
+    total = sum(b.n_rays * k for b, k in zip(out, ks, strict=True))
     if total > total_rays:
         k = math.sqrt(total_rays / total)
         out = [RayBudget(max(2, int(b.n_radial * k)), 4 * max(2, int(b.n_radial * k))) for b in out]

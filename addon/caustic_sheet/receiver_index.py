@@ -161,13 +161,39 @@ def _intersect_planes(g: PlaneGrids, o, d, t_min, t_max):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = gap / nd
     ok = (nd != 0.0) & (t > t_min[:, None]) & (t <= t_max[:, None])
-    ray, pl = np.nonzero(ok)
-    t = t[ray, pl]
-    p = o[ray] + t[:, None] * d[ray]
+    t = np.where(ok, t, np.inf)
+    out_tri, out_t, out_u, out_v = no_hits(n)
+    # Nearest plane first: most rays stop on their first plane (a table above a floor),
+    # only the misses (a hole, the table's edge) try the next one.
+    order = np.argsort(t, axis=1) if t.shape[1] > 1 else np.zeros((n, 1), dtype=np.int64)
+    todo = np.arange(n)
+    for rank in range(t.shape[1]):
+        pl = order[todo, rank]
+        tt = t[todo, pl]
+        keep = np.isfinite(tt)
+        todo, pl, tt = todo[keep], pl[keep], tt[keep]
+        if not len(todo):
+            break
+        tri, u, v = _locate(g, o[todo], d[todo], pl, tt)
+        hit = tri >= 0
+        r = todo[hit]
+        out_tri[r], out_t[r], out_u[r], out_v[r] = tri[hit], tt[hit], u[hit], v[hit]
+        todo = todo[~hit]
+    return out_tri, out_t, out_u, out_v
+
+
+def _locate(g: PlaneGrids, o, d, pl, t):
+    """The triangle of plane ``pl`` (per ray) under each ray's hit at ``t`` (−1: none)
+    and its barycentric (u, v), through the plane's 2-D grid."""
+    m = len(o)
+    tri_out = np.full(m, -1, dtype=np.int64)
+    u_out, v_out = np.zeros(m), np.zeros(m)
+    p = o + t[:, None] * d
     xy = np.stack([np.einsum("ij,ij->i", p, g.au[pl]), np.einsum("ij,ij->i", p, g.av[pl])], 1)
     cij = np.floor((xy - g.lo[pl]) / g.cell[pl]).astype(np.int64)
     inside = np.all((cij >= 0) & (cij < g.dims[pl]), axis=1)
-    ray, pl, t, xy, cij = ray[inside], pl[inside], t[inside], xy[inside], cij[inside]
+    ray = np.nonzero(inside)[0]
+    pl, xy, cij = pl[inside], xy[inside], cij[inside]
     cid = g.base[pl] + cij[:, 0] * g.dims[pl, 1] + cij[:, 1]
     s0, s1 = g.cell_start[cid], g.cell_start[cid + 1]
     cnt = s1 - s0
@@ -179,12 +205,7 @@ def _intersect_planes(g: PlaneGrids, o, d, t_min, t_max):
     eps = 1e-12
     hit = (uv[:, 0] >= -eps) & (uv[:, 1] >= -eps) & (uv.sum(axis=1) <= 1.0 + eps)
     q, tri, uv = q[hit], tri[hit], uv[hit]
-    first = np.lexsort((t[q], ray[q]))
-    q, tri, uv = q[first], tri[first], uv[first]
-    head = np.ones(len(q), dtype=bool)
-    head[1:] = ray[q][1:] != ray[q][:-1]
-    out_tri, out_t, out_u, out_v = no_hits(n)
-    r = ray[q[head]]
-    out_tri[r], out_t[r] = tri[head], t[q[head]]
-    out_u[r], out_v[r] = uv[head, 0], uv[head, 1]
-    return out_tri, out_t, out_u, out_v
+    # a point on a shared edge lies in two triangles: either will do (same plane, same t)
+    r = ray[q]
+    tri_out[r], u_out[r], v_out[r] = tri, uv[:, 0], uv[:, 1]
+    return tri_out, u_out, v_out
