@@ -330,10 +330,12 @@ def _reprs(values) -> list[str]:
     import numpy as np
 
     v = np.ascontiguousarray(values, dtype=float).ravel()
-    if v.size > 64 and np.unique(v[:64]).size <= 16:
+    if v.size > 64:
+        # A sort costs far less than printing: worth it if a third of the values repeat.
         bits, inverse = np.unique(v.view(np.int64), return_inverse=True)
-        texts = list(map(repr, bits.view(float).tolist()))
-        return list(map(texts.__getitem__, inverse.tolist()))
+        if 3 * bits.size <= 2 * v.size:
+            texts = list(map(repr, bits.view(float).tolist()))
+            return list(map(texts.__getitem__, inverse.tolist()))
     return list(map(repr, v.tolist()))
 
 
