@@ -200,6 +200,39 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     return row
 
 
+#: Where Generate's time goes on many separate objects: profiles (cProfile around
+#: `bpy.ops.lens_lights.generate()`) of 2026-12-01, on a machine with load 9-12.
+ATTRIBUTION = [
+    "## Where the time goes on collection-instance empties",
+    "",
+    "Profiled on 2026-12-01 (cProfile around `bpy.ops.lens_lights.generate()`, "
+    "20 164 empties, load average 9–12, so every figure is inflated about 3–5× against "
+    "the lightly loaded runs of the first round: 28.9 s for 100 489 empties then, of "
+    "which probe 11.7 s, outside 11.0 s, read 1.3 s, phase 1 4.6 s):",
+    "",
+    "* **Blender's:** the probe render itself (scene copy, render pipeline, the render "
+    "depsgraph's evaluation of every object: 9.9 s of 33 s in the profile, in C, "
+    "`render_probe._probe`'s own time) and, outside the operator, the undo push of a "
+    "file with one object per sphere (5.9 s at 20 k, 11 s at 100 k in the first "
+    "round; it grows with the objects, not with what Generate made). Before the "
+    "operator runs, the scene's first viewport evaluation (9.1 s at 20 k under this "
+    "load) is paid by the first Generate after the scene is built (the first-run "
+    "column). Without these, 100 000 empties would fit in 15 s; with them they do not, "
+    "whatever Generate does: the probe is the only way Python gets the render "
+    "depsgraph (`operators/render_probe.py`, not changed here).",
+    "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`; "
+    "per instance a few RNA reads and its matrix copied: `np.array(matrix_world)` is "
+    "6.7 µs, half of it; depsgraph instances have no `foreach_get`, and a copied "
+    "`Matrix` turned into numpy later costs more, 11 µs); phase 1 on the grid "
+    "(a dense case for the broad phase: `reports/scale.md`'s dense grid); the plan. "
+    "Together about a fifth of the total at 100 k.",
+    "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake "
+    "(beams traced, landed and splatted: 16.8 s of 33 s in the profile at 20 k), "
+    "about constant in the number of spheres (it works on the 4 × maximum strongest "
+    "sources); `--energy-model FITTED` measures the lights alone.",
+]
+
+
 def write_report(rows, args):
     lines = [
         "# Generate on many instanced spheres",
@@ -252,7 +285,7 @@ def write_report(rows, args):
             f"{r['build']:.2f} | "
             f"{r['other']:.2f} |"
         )
-    lines += ["", "Reports of the runs:", ""]
+    lines += ["", *ATTRIBUTION, "", "Reports of the runs:", ""]
     for r in rows:
         lines.append(f"* {r['kind']}, {r['layout']}, {r['spheres']}: {r['report']}")
     REPORT.parent.mkdir(exist_ok=True)
