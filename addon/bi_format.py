@@ -652,7 +652,7 @@ def _arrays_in_layout(text: str, path: str):
     if len(tokens) != _SPHERE_TOKENS * count:
         return None
     for k in _KEY_COLUMNS:
-        if tokens[k::_SPHERE_TOKENS] != [_SPHERE_KEYS[k]] * count:
+        if tokens[k::_SPHERE_TOKENS].count(_SPHERE_KEYS[k]) != count:
             return None
     v = np.empty((len(_SPHERE_NUMBERS), count))
     for row, k in enumerate(_SPHERE_NUMBERS):
@@ -701,7 +701,10 @@ def _number_column(tokens: list[str], out) -> bool:
             if not _FLOAT_RE.fullmatch(t):
                 return False
             memo[t] = float(t)
-        out[:] = list(map(memo.__getitem__, tokens))
+        if len(memo) == 1:  # one material for all: one value
+            out[:] = memo.popitem()[1]
+        else:
+            out[:] = list(map(memo.__getitem__, tokens))
         return True
     if _NOT_NUMBER_CHAR.search("\n".join(tokens)):
         return False
