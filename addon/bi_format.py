@@ -66,7 +66,7 @@ from typing import Union
 
 from .scene import Camera, Light, Scene, Sphere, Surface
 
-__all__ = ["BiFormatError", "read_bi", "parse_bi", "write_bi", "format_bi"]
+__all__ = ["BiFormatError", "read_bi", "read_bi_arrays", "parse_bi", "write_bi", "format_bi"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -153,6 +153,19 @@ class _Line:
 
 def _strip_comments(text: str, path: str) -> str:
     """Replace every /* ... */ by a blank, keeping its newlines (line numbers)."""
+    pieces = text.split("/*")
+    if len(pieces) == 1:
+        return text
+    # The common case, comments within one line: piece k > 0 follows a "/*" and
+    # its first "*/" ends that comment (the loop below finds the same ends).
+    kept = [pieces[0]]
+    for piece in pieces[1:]:
+        end = piece.find("*/")
+        if end < 0 or "\n" in piece[:end]:
+            break
+        kept.append(piece[end + 2 :])
+    else:
+        return " ".join(kept)
     parts = []
     pos = 0
     while True:
@@ -271,7 +284,8 @@ class _Reader:
         self.colors.append((tokens, store))
 
     # -- blocks ----------------------------------------------------------------
-    def scene(self) -> Scene:
+    def head(self) -> tuple[int, int, Camera, list[Light], int]:
+        """The records before the objects: viewport, camera, lights, object count."""
         width, height = self.ints(VIEWPORT)
         camera = self.camera()
         (n_lights,) = self.ints(N_LIGHTS)
@@ -281,6 +295,10 @@ class _Reader:
         while len(lights) < n_lights:
             lights.append(self.light(len(lights) + 1, n_lights))
         (n_objects,) = self.ints(N_OBJECTS)
+        return width, height, camera, lights, n_objects
+
+    def scene(self) -> Scene:
+        width, height, camera, lights, n_objects = self.head()
         objects = _bulk_spheres(self, n_objects) or []
         while len(objects) < n_objects:
             objects.append(self.sphere(len(objects) + 1, n_objects))
@@ -555,15 +573,143 @@ def _decode(data: bytes, path: str) -> str:
         ) from exc
 
 
-def read_bi(path: PathLike) -> Scene:
-    """Read a `.bi` file. A file that cannot be opened is a BiFormatError too."""
+def _read_text(path: PathLike) -> tuple[str, str]:
     name = os.fspath(path)
     try:
         with open(name, "rb") as f:
             data = f.read()
     except OSError as exc:
         raise BiFormatError(name, None, f"cannot read the file: {exc.strerror or exc}") from exc
-    return parse_bi(_decode(data, name), name)
+    return _decode(data, name), name
+
+
+def read_bi(path: PathLike) -> Scene:
+    """Read a `.bi` file. A file that cannot be opened is a BiFormatError too."""
+    text, name = _read_text(path)
+    return parse_bi(text, name)
+
+
+def read_bi_arrays(path: PathLike):
+    """What phase 1 needs of a `.bi` file (`phase1.SceneArrays`): the very numbers
+    of `SceneArrays.from_scene(read_bi(path))`, read as columns without a Python
+    object per sphere when the spheres are written one record a line (as
+    `format_bi` writes them). Anything else, and every error, goes through
+    `read_bi`'s record reader: the same scene, the same messages."""
+    text, name = _read_text(path)
+    return parse_bi_arrays(text, name)
+
+
+def parse_bi_arrays(text: str, path: str = "<string>"):
+    """`read_bi_arrays` on the text of a file."""
+    try:
+        arrays = _arrays_in_layout(text, path)
+    except Exception:  # unusual text: the record reader decides (and names the line)
+        arrays = None
+    if arrays is None:
+        from .phase1 import SceneArrays
+
+        arrays = SceneArrays.from_scene(parse_bi(text, path))
+    return arrays
+
+
+#: The objects' count record: the only key "O" (none of the records before it has it).
+_OBJECTS_LINE = re.compile(r"^[^\S\n]*O(?:[^\S\n][^\n]*)?$", re.MULTILINE)
+#: First character of each record of a sphere, in the written order.
+_SPHERE_LINE_STARTS = "TCRS" + "#" * 7
+_SPHERE_LINES = len(_SPHERE_LINE_STARTS)
+
+
+def _arrays_in_layout(text: str, path: str):
+    """The `SceneArrays` of a file whose spheres are one record a line, or None.
+
+    The records before the objects go through the record reader (a few lines).
+    The spheres' lines: one per record (each non-blank line starts with the key
+    of the record due there, the keys stand where the layout puts them: then no
+    line holds two records or a part of one), values checked as the reader does
+    (the number syntax, finite, the ranges), converted per column."""
+    import numpy as np
+
+    from .phase1 import SceneArrays
+
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    text = _strip_comments(text, path)
+    m = _OBJECTS_LINE.search(text)
+    if m is None:
+        return None
+    head = _Reader(text[: m.end()], path)
+    _, _, _, lights, count = head.head()
+    if head.peek() is not None:
+        return None
+    lines = list(filter(None, map(str.strip, text[m.end() :].split("\n"))))
+    if len(lines) != _SPHERE_LINES * count:
+        return None
+    if "".join([line[0] for line in lines]) != _SPHERE_LINE_STARTS * count:
+        return None
+    # Each line starts with a key's first character, no number does (checked
+    # below), and there are as many lines as keys: each line is one record.
+    tokens = " ".join(lines).split()
+    if len(tokens) != _SPHERE_TOKENS * count:
+        return None
+    for k in _KEY_COLUMNS:
+        if tokens[k::_SPHERE_TOKENS].count(_SPHERE_KEYS[k]) != count:
+            return None
+    v = np.empty((len(_SPHERE_NUMBERS), count))
+    for row, k in enumerate(_SPHERE_NUMBERS):
+        if not _number_column(tokens[k::_SPHERE_TOKENS], v[row]):
+            return None
+    center, radius, color = v[0:3].T, v[3], v[4:7]
+    ka, kd, ks, kt, ex, ior = v[7], v[8], v[9], v[10], v[11], v[12]
+    ok = (
+        np.all(np.isfinite(v))
+        and np.all(radius > 0)
+        and np.all(color >= 0)
+        and np.all(ka >= 0)
+        and np.all(kd >= 0)
+        and np.all(ks >= 0)
+        and np.all((kt >= 0) & (kt <= 1))
+        and np.all(ex >= 0)
+        and np.all(ior > 0)
+    )
+    if not ok:
+        return None
+    light_tokens = [tokens for tokens, _ in head.colors]
+    above_one = bool(np.any(color > 1.0)) or any(float(t) > 1.0 for c in light_tokens for t in c)
+    scale = 255.0 if above_one else 1.0
+    n = len(lights)
+    return SceneArrays(
+        light_position=np.array([lt.position for lt in lights], dtype=float).reshape(n, 3),
+        light_brightness=np.array([lt.brightness for lt in lights], dtype=float).reshape(n),
+        light_color=np.array(
+            [[_color_from_text(t, scale) for t in c] for c in light_tokens], dtype=float
+        ).reshape(n, 3),
+        center=np.ascontiguousarray(center),
+        radius=radius.copy(),
+        ior=ior.copy(),
+        kt=kt.copy(),
+    )
+
+
+def _number_column(tokens: list[str], out) -> bool:
+    """Convert a column of number tokens into `out`; False if one is not a number.
+    A column of few distinct tokens (a material shared by many spheres) converts
+    each distinct token once."""
+    # A column of distinct numbers (centres, radii) is told by its first tokens.
+    if len(set(tokens[:64])) <= 16 and 4 * len(distinct := set(tokens)) <= len(tokens):
+        memo = {}
+        for t in distinct:
+            if not _FLOAT_RE.fullmatch(t):
+                return False
+            memo[t] = float(t)
+        if len(memo) == 1:  # one material for all: one value
+            out[:] = memo.popitem()[1]
+        else:
+            out[:] = list(map(memo.__getitem__, tokens))
+        return True
+    if _NOT_NUMBER_CHAR.search("\n".join(tokens)):
+        return False
+    out[:] = list(map(float, tokens))  # ValueError for a malformed one: the caller falls back
+    return True
 
 
 # --------------------------------------------------------------------------- #

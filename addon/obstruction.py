@@ -182,20 +182,14 @@ def _cell_keys(w, rho, cell):
     dims = int(math.ceil(2.5 / cell)) + 2
     lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
     hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
+    base = (lo[:, 0] * dims + lo[:, 1]) * dims + lo[:, 2]
+    # Which axes the box spans two cells on (bits as the corners'): corner d is
+    # touched iff its bits are among them.
+    spans = (hi > lo).astype(np.uint8) @ np.array([4, 2, 1], dtype=np.uint8)
     keys, idx, bits = [], [], []
-    for d in (
-        (0, 0, 0),
-        (0, 0, 1),
-        (0, 1, 0),
-        (0, 1, 1),
-        (1, 0, 0),
-        (1, 0, 1),
-        (1, 1, 0),
-        (1, 1, 1),
-    ):
-        c = lo + d
-        ok = np.all(c <= hi, axis=1)
-        keys.append((c[ok, 0] * dims + c[ok, 1]) * dims + c[ok, 2])
-        idx.append(np.flatnonzero(ok))
-        bits.append(np.full(idx[-1].size, 4 * d[0] + 2 * d[1] + d[2], dtype=np.uint8))
+    for d in range(8):
+        ok = np.flatnonzero((spans & d) == d)
+        keys.append(base[ok] + ((d >> 2) * dims + ((d >> 1) & 1)) * dims + (d & 1))
+        idx.append(ok)
+        bits.append(np.full(ok.size, d, dtype=np.uint8))
     return np.concatenate(keys), np.concatenate(idx), np.concatenate(bits)

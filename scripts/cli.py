@@ -317,19 +317,34 @@ def write_phase1_json(
 #: %r is the text `json.dumps` writes; R_C, image distance and magnification come
 #: as text ("null" where the source has none).
 _SOURCE_ROW = (
-    '{"light":%d,"lens":%d,"kind":"%s","position":[%r,%r,%r],"axis":[%r,%r,%r],'
-    '"spread_deg":%r,"cylinder_radius":%s,"intensity":%r,"color":[%r,%r,%r],"full":%s,'
-    '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%r,'
-    '"unblocked_fraction":%r,"blender_light":{"type":"SPOT","energy_w":%r,'
-    '"spot_size_deg":%r,"spot_blend":%r,"radius":%r}}'
+    '{"light":%d,"lens":%d,"kind":"%s","position":[%s,%s,%s],"axis":[%s,%s,%s],'
+    '"spread_deg":%s,"cylinder_radius":%s,"intensity":%s,"color":[%s,%s,%s],"full":%s,'
+    '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%s,'
+    '"unblocked_fraction":%s,"blender_light":{"type":"SPOT","energy_w":%s,'
+    '"spot_size_deg":%s,"spot_blend":%s,"radius":%s}}'
 )
+
+
+def _reprs(values) -> list[str]:
+    """repr of each (finite) value, the text `json.dumps` writes for it. Printing
+    a double is most of the JSON's cost: a column of few distinct values (a
+    colour, a material's factor) prints each distinct one once (told apart by
+    their bits, so -0.0 stays -0.0)."""
+    import numpy as np
+
+    v = np.ascontiguousarray(values, dtype=float).ravel()
+    if v.size > 64:
+        # A sort costs far less than printing: worth it if a third of the values repeat.
+        bits, inverse = np.unique(v.view(np.int64), return_inverse=True)
+        if 3 * bits.size <= 2 * v.size:
+            texts = list(map(repr, bits.view(float).tolist()))
+            return list(map(texts.__getitem__, inverse.tolist()))
+    return list(map(repr, v.tolist()))
 
 
 def _texts(values, present) -> list[str]:
     """repr of each value where `present`, else "null" (JSON's None)."""
-    return [
-        repr(v) if p else "null" for v, p in zip(values.tolist(), present.tolist(), strict=True)
-    ]
+    return [t if p else "null" for t, p in zip(_reprs(values), present.tolist(), strict=True)]
 
 
 def phase1_compact_json(result, lights, model: str):
@@ -374,22 +389,22 @@ def phase1_compact_json(result, lights, model: str):
         t.light.tolist(),
         t.lens.tolist(),
         np.asarray(t.KINDS)[t.kind].tolist(),
-        *t.position.T.tolist(),
-        *t.axis.T.tolist(),
-        np.degrees(t.spread).tolist(),
+        *map(_reprs, t.position.T),
+        *map(_reprs, t.axis.T),
+        _reprs(np.degrees(t.spread)),
         _texts(t.cylinder_radius, col),
-        t.intensity.tolist(),
-        *t.color.T.tolist(),
+        _reprs(t.intensity),
+        *map(_reprs, t.color.T),
         full,
         shadow,
         _texts(image, ~col),
         _texts(magnification, ~col),
-        t.brightness_factor.tolist(),
-        t.unblocked_fraction.tolist(),
-        lights.energy_w.tolist(),
-        lights.spot_size_deg.tolist(),
-        lights.spot_blend.tolist(),
-        lights.radius.tolist(),
+        _reprs(t.brightness_factor),
+        _reprs(t.unblocked_fraction),
+        _reprs(lights.energy_w),
+        _reprs(lights.spot_size_deg),
+        _reprs(lights.spot_blend),
+        _reprs(lights.radius),
     ]
     rows = list(zip(*columns, strict=True))
     reasons = _skip_reasons(result)
@@ -416,17 +431,19 @@ def phase1_compact_json(result, lights, model: str):
 
 
 def cmd_phase1(args) -> int:
-    from addon.bi_format import BiFormatError, read_bi
+    from addon.bi_format import BiFormatError, read_bi_arrays
     from addon.phase1 import compute_phase1
 
     try:
-        scene = read_bi(args.scene)
+        # Columns straight from the file: no Python object per sphere.
+        arrays = read_bi_arrays(args.scene)
     except BiFormatError as e:
         return _fail(str(e))
     except OSError as e:
         return _fail(f"{args.scene}: {e.strerror or e}")
-    result = compute_phase1(scene)
-    lights = phase1_light_table(scene, result, args.model)
+    result = compute_phase1(arrays)
+    # A `.bi` light has no radius: point lights, as `phase1_light_table` makes them.
+    lights = bi_scene_light_table(arrays, result.table, args.model)
     if args.json:
         chunks = (
             phase1_compact_json(result, lights, args.model.upper()) if args.indent is None else None

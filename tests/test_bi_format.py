@@ -713,3 +713,191 @@ def test_bulk_sphere_path_leaves_anything_else_to_the_record_reader(edit, monkey
         assert str(err.value) == want
     else:
         assert got == want
+
+
+# --------------------------------------------------------------------------- #
+# `read_bi_arrays`: the columns phase 1 reads, the fast path against the record
+# reader (`SceneArrays.from_scene(parse_bi(...))`), on the same text.
+
+
+def arrays_of_record_reader(text):
+    from addon.phase1 import SceneArrays
+
+    return SceneArrays.from_scene(parse_bi(text, "x.bi"))
+
+
+def assert_same_arrays(fast, slow):
+    for name in ("light_position", "light_brightness", "light_color", "center", "radius"):
+        a, b = getattr(fast, name), getattr(slow, name)
+        assert a.dtype == b.dtype and a.shape == b.shape, name
+        assert a.tobytes() == b.tobytes(), name  # bit for bit (-0.0, the last digit)
+    for name in ("ior", "kt"):
+        assert getattr(fast, name).tobytes() == getattr(slow, name).tobytes(), name
+
+
+def assert_same_outcome(text):
+    """parse_bi_arrays gives the record reader's arrays, or its very error."""
+    from addon.bi_format import parse_bi_arrays
+
+    try:
+        slow = arrays_of_record_reader(text)
+    except BiFormatError as err:
+        with pytest.raises(BiFormatError) as info:
+            parse_bi_arrays(text, "x.bi")
+        assert str(info.value) == str(err)
+        return None
+    fast = parse_bi_arrays(text, "x.bi")
+    assert_same_arrays(fast, slow)
+    return fast
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes)
+def test_arrays_fast_path_reads_written_files_like_the_record_reader(scene):
+    from addon.bi_format import _arrays_in_layout
+
+    text = format_bi(scene)
+    fast = _arrays_in_layout(text, "x.bi")
+    assert fast is not None  # the writer's layout is the fast path's
+    assert_same_arrays(fast, arrays_of_record_reader(text))
+
+
+#: Edits of one line of a written file: some keep it valid in another layout (the
+#: fast path must then give up or agree), the others make the reader refuse it.
+EDITS = [
+    lambda line: line.replace(" ", "\t"),
+    lambda line: line.replace(" ", "  "),
+    lambda line: "  " + line,
+    lambda line: line + " /* a\ncomment */",
+    lambda line: "/* x */" + line,
+    lambda line: line.replace(" ", "\n", 1),  # a record split over two lines
+    lambda line: line + "\n",
+    lambda line: line + " 1",
+    lambda line: line.rsplit(" ", 1)[0],
+    lambda line: line.replace("1", "nan"),
+    lambda line: line.replace("0.", "1e999"),
+    lambda line: line.replace("1", "-1"),
+    lambda line: line.replace(".", ".5.", 1),
+    lambda line: line.replace("5", "\u0665"),  # an Arabic-Indic digit
+    lambda line: line + "/*",
+    lambda line: line.replace("C", "c"),
+    lambda line: line.replace("0", "1_0"),
+    lambda line: "",
+]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    scenes,
+    st.lists(st.tuples(st.integers(0, 10**6), st.sampled_from(range(len(EDITS)))), max_size=3),
+    st.booleans(),
+)
+def test_arrays_fast_and_record_reader_agree_on_edited_files(scene, edits, join):
+    lines = format_bi(scene).split("\n")
+    for where, edit in edits:
+        k = where % len(lines)
+        lines[k] = EDITS[edit](lines[k])
+    text = "\n".join(lines)
+    if join and len(lines) > 2:  # two records on one line
+        text = text.replace("\nR ", " R ", 1).replace("\n#A", " #A", 1)
+    assert_same_outcome(text)
+
+
+def droplets(n, seed=0, shared=True):
+    """n spheres, enough for the per-column conversions (shared materials)."""
+    import random
+
+    rng = random.Random(seed)
+    surface = Surface(color=(0.9, 0.95, 1.0), transmission=0.95, ior=1.33)
+    objects = [
+        Sphere(
+            center=(rng.uniform(-9, 9), rng.uniform(-9, 9), rng.uniform(0, 1)),
+            radius=rng.uniform(0.05, 0.3),
+            surface=surface
+            if shared
+            else Surface(color=(rng.random(), 0.5, 1.0), transmission=rng.random(), ior=1.5),
+        )
+        for _ in range(n)
+    ]
+    lights = [Light(position=(1.0, 2.0, 9.0), color=(1.0, 0.5, 0.25), brightness=2.0)]
+    return Scene(lights=lights, objects=objects)
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_arrays_of_a_large_file_and_its_edits(shared):
+    from addon.bi_format import _arrays_in_layout
+
+    text = format_bi(droplets(300, shared=shared))
+    assert _arrays_in_layout(text, "x.bi") is not None
+    fast = assert_same_outcome(text)
+    assert fast.radius.shape == (300,)
+    lines = text.split("\n")
+    for k in (40, 1000, len(lines) - 3):
+        for edit in EDITS:
+            edited = lines.copy()
+            edited[k] = edit(edited[k])
+            assert_same_outcome("\n".join(edited))
+
+
+def test_arrays_colour_scale_from_a_sphere_colour(tmp_path):
+    """A surface colour above 1 puts the whole file in 0-255: the light colour is
+    divided by 255 too (the fast path never makes a Surface, yet must know)."""
+    from addon.bi_format import read_bi_arrays
+
+    lines = format_bi(droplets(100)).split("\n")
+    k = [i for i, line in enumerate(lines) if line.startswith("#C ")][57]
+    lines[k] = "#C 200 1 1"
+    path = tmp_path / "s.bi"
+    path.write_text("\n".join(lines))
+    arrays = read_bi_arrays(path)
+    assert arrays.light_color.tolist() == [[1 / 255, 0.5 / 255, 0.25 / 255]]
+    assert_same_arrays(arrays, arrays_of_record_reader(path.read_text()))
+
+
+def test_arrays_errors_name_the_line(tmp_path):
+    from addon.bi_format import read_bi_arrays
+
+    text = format_bi(droplets(100)).split("\n")
+    k = next(i for i, line in enumerate(text) if line.startswith("R ")) + 20 * 13
+    text[k] = "R -0.5"
+    path = tmp_path / "bad.bi"
+    path.write_text("\n".join(text))
+    with pytest.raises(BiFormatError) as info:
+        read_bi_arrays(path)
+    assert info.value.line == k + 1 and "radius" in info.value.message
+    with pytest.raises(BiFormatError):
+        read_bi_arrays(tmp_path / "missing.bi")
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "a /* b */ c /* d */\n",
+        "a /* b\n */ c /* d */\n",
+        "/**/ /*/ */ x\n",
+        "a /*/*/ b\n",
+        "a */ /* b */*/ c\n",
+        "a /* b /* c */ d */\n",
+        "/* never closed\n x\n",
+    ],
+)
+def test_comment_stripping_matches_the_rule(text):
+    """One-line comments are cut by a split; the result is the loop's."""
+    import re
+
+    from addon.bi_format import _strip_comments
+
+    try:
+        got = _strip_comments(text, "x.bi")
+    except BiFormatError:
+        assert "*/" not in text.split("/*", 1)[1]
+        return
+    # The rule: the first "/*", then the first "*/" after it, is one comment.
+    want, pos = [], 0
+    while (start := text.find("/*", pos)) >= 0:
+        end = text.find("*/", start + 2)
+        want += [text[pos:start], " " + "\n" * text.count("\n", start, end)]
+        pos = end + 2
+    want.append(text[pos:])
+    assert got == "".join(want)
+    assert re.sub(r"\s+", " ", got) == re.sub(r"\s+", " ", "".join(want))

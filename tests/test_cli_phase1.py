@@ -267,3 +267,43 @@ def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, mon
         return
     assert {s["kind"] for s in sources} == {"real", "virtual", "collimated"}
     assert "".join(chunks) == json.dumps(whole, separators=(",", ":")) + "\n"
+
+
+def test_reprs_of_a_column_are_python_reprs():
+    """Columns of few distinct values print each once: the texts are still each
+    value's repr (json.dumps' text), -0.0 and 0.0 apart."""
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import cli
+
+    rng = np.random.default_rng(5)
+    few = rng.choice([0.1, -0.0, 0.0, 1e-300, 2.5, 1 / 3], size=500)
+    many = rng.normal(size=500)
+    for values in (few, many, few[:10], np.concatenate([few[:100], many])):
+        assert cli._reprs(values) == [repr(float(v)) for v in values]
+
+
+def test_compact_json_of_many_sources_is_json_dumps_text(monkeypatch):
+    """Hundreds of sources sharing lights and materials (the repeated-value path)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cli
+    from random_scenes import random_scene
+
+    from addon.phase1 import compute_phase1
+
+    scene = random_scene(4, n_lights=4, n_spheres=120)
+    result = compute_phase1(scene)
+    assert len(result.table) > 100
+    lights = cli.phase1_light_table(scene, result, "fitted")
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    monkeypatch.setattr(cli, "JSON_CHUNK", 50)
+    text = "".join(cli.phase1_compact_json(result, lights, "FITTED"))
+    whole = {"model": "FITTED", "sources": sources, "skipped": skipped}
+    assert text == json.dumps(whole, separators=(",", ":")) + "\n"
+    assert json.loads(text) == whole
