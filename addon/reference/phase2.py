@@ -24,7 +24,7 @@ import numpy as np
 from .emitters import PointLight
 from .scene import GlassSphere, ReceiverPlane
 from .tracer import blocker_transmission
-from .vectors import fresnel_sp, frame, refract, sphere_hits, unit
+from .vectors import frame, fresnel_sp, refract, sphere_hits, unit
 
 __all__ = ["Phase2Rays", "Phase2Irradiance", "phase2_rays", "phase2_irradiance"]
 
