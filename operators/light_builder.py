@@ -39,6 +39,7 @@ import math
 import bpy
 from mathutils import Vector
 
+from . import mask_nodes
 from .properties import COLLECTION_MARK
 
 COLLECTION_NAME = "Lens Lights"
@@ -230,9 +231,10 @@ def create_light(
     return ob
 
 
-def build(scene, plan, lens_objects, progress=None):
+def build(scene, plan, lens_objects, progress=None, arrays=None):
     """Create the planned lights; `lens_objects[i]`: original object of sphere i.
-    `progress(k)` is called with the number of lights made so far."""
+    `progress(k)` is called with the number of lights made so far. `arrays`: phase 1's
+    `SceneArrays` (a profile light of a non-full source gets its shadow mask)."""
     collection = lights_collection(scene)
     cache: dict = {}
     images: dict = {}
@@ -248,6 +250,7 @@ def build(scene, plan, lens_objects, progress=None):
                 image_cache=images,
             )
         )
+        mask_nodes.add_shadow_mask(made[-1], planned, arrays)
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made
