@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exact_optics import two_surface_transmission
+from . import shadow
 from .emitters import (
     Lens,
     SourceSamples,
@@ -156,12 +157,18 @@ def _density(samples, lens, iota, phi):
 
 
 def trace_beam(
-    emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1
+    emitter,
+    lens: Lens,
+    n_radial: int = 64,
+    n_azimuth: int = 256,
+    n_source: int = 1,
+    blockers=None,
 ) -> BeamGrid:
     """Trace the beam of ``emitter`` (a :mod:`.emitters` light) through ``lens``.
 
     ``n_radial`` × ``n_azimuth`` cells per source sample, ``n_source`` samples of an
-    extended emitter (ignored for a point light of radius 0 or a sun of angle 0)."""
+    extended emitter (ignored for a point light of radius 0 or a sun of angle 0).
+    ``blockers``: the source's `shadow.ShadowList` (its shadow drawn in the beam)."""
     samples = source_samples(emitter, lens, n_source)
     R = lens.radius
     nr, na = int(n_radial), int(n_azimuth)
@@ -186,6 +193,7 @@ def trace_beam(
     else:
         q = _density(samples, lens, qi, qp).reshape(len(valid), nr, 3, na, 3)
         cell = np.einsum("kijab,j,b->kia", q, _GL_W, _GL_W) * 0.25 * di * dp
+    cell, dens = shadow.apply(cell, dens, origins, dirs, lens, blockers, samples.parallel)
     cell = np.where(valid[:, None, None], cell, 0.0)
     dens = np.where(valid[:, None, None], dens, 0.0)
     color = np.asarray(getattr(emitter, "color", (1.0, 1.0, 1.0)), dtype=float) * np.asarray(

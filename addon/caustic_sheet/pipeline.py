@@ -30,6 +30,7 @@ class SheetSource:
     lens: Lens
     n_source: int = 1
     own_object: int = -1
+    blockers: object = None  # shadow.ShadowList: the shadow list drawn in the beam
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,7 @@ def bake(
             default=16,
         )
     beams = [
-        trace_beam(s.emitter, s.lens, b.n_radial, b.n_azimuth, s.n_source)
+        trace_beam(s.emitter, s.lens, b.n_radial, b.n_azimuth, s.n_source, s.blockers)
         for s, b in zip(sources, budgets, strict=True)
     ]
     own = [s.own_object for s in sources]
