@@ -37,8 +37,10 @@ class ShadowList:
     def of(cls, source, arrays) -> ShadowList | None:
         """The shadow list of a phase-1 `SecondarySource` over the `SceneArrays` it
         indexes (None: a full source)."""
-        k = np.asarray(list(source.shadow_list), dtype=np.int64)
-        if k.size == 0 or arrays is None:
+        if arrays is None:
+            return None
+        k = np.asarray(list(getattr(source, "shadow_list", ())), dtype=np.int64)
+        if k.size == 0:
             return None
         return cls(
             np.asarray(arrays.center, dtype=float)[k],
