@@ -2,18 +2,23 @@
 over the lens' lit cap, and a glass blocker's Fresnel transmission.
 
 Phase 1 finds the partial blockers of a lens (spheres nearer the light whose angular
-disc overlaps the lens'). One opaque blocker is exact in closed form
-(`geometry.cap_overlap_fraction`); several overlap, so their shares cannot be multiplied
-(a direction behind two blockers would count twice), and a glass blocker passes part of
-the light. Here each blocker's meeting with the lens' cap is sampled by a deterministic
-grid of directions equal in solid angle over the smaller of the two caps (rings uniform
-in 1 − cos θ × azimuths; a direction inside several blockers' caps counts once in all),
-and each direction is passed by the product of its blockers' shares: 0 behind an opaque
-one (so opaque blockers block the union of their shadows), kt² T(ι) behind a glass one,
-where T is the unpolarised two-surface Fresnel transmission at the ray's actual angle of
-incidence ι (sin ι = sin θ_k / sin β_k for a direction θ_k from the blocker's centre,
-β_k its radial angle). The glass blocker's own focusing (it deflects what it passes: a
-tertiary source) is out of scope: what passes is counted as if undeflected.
+disc overlaps the lens'). An opaque blocker's share is exact in closed form
+(`geometry.cap_overlap_fraction`). Shares of several cannot be multiplied: blockers whose
+caps are disjoint block the sum of their shares, and where caps overlap a direction
+behind two blockers must count once. A glass blocker passes kt² T(ι), T the unpolarised
+two-surface Fresnel transmission at the ray's actual angle of incidence ι (sin ι =
+sin θ_k / sin β_k for a direction θ_k from the blocker's centre, β_k its radial angle),
+averaged over what it covers of the lens' cap by a 1-D quadrature (`glass_passed`).
+Rows whose blockers' caps overlap are sampled (`_sampled_blocked`): each blocker's
+meeting with the lens' cap on a deterministic grid of directions equal in solid angle
+over the smaller of the two caps (rings uniform in 1 − cos θ × azimuths, anti-aliased
+edges; a direction inside several blockers' caps counts once in all), each direction
+passed by the product of its blockers' shares (0 behind an opaque one). The glass
+blocker's own focusing (it deflects what it passes: a tertiary source) is out of scope:
+what passes is counted as if undeflected.
+
+`ray_passes` tells what blockers pass of given rays (the Exact profile's mask,
+`emission_mask.py`, and the caustic layer's beam, `caustic_sheet/shadow.py`).
 
 Each grid's azimuth starts toward the other cap, so the result does not depend on how
 the scene is turned or in which order its spheres come.
@@ -21,16 +26,18 @@ the scene is turned or in which order its spheres come.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .exact_optics import fresnel_transmittance
+from .ranges import concat_ranges
 
 #: Directions per lens cap (rings × 2·rings): at most, and at least for crowded views.
-MAX_SAMPLES, MIN_SAMPLES = 192 * 384, 24 * 48
+MAX_SAMPLES, MIN_SAMPLES = 192 * 384, 16 * 32
 #: Sample × blocker evaluations per call before the grid gets coarser (memory, time).
-BUDGET = 4_000_000
+BUDGET = 1_000_000
+#: Blocker pairs (of rows with overlapping blockers) per call beyond which the overlaps
+#: are not sampled but taken as independent (a crowded view: time, see README Limits).
+MAX_INTERACTIONS = 4_000
 
 
 def is_glass(ior, kt) -> np.ndarray:
@@ -80,7 +87,7 @@ def _ramp_width(a, nr, na):
     the rim, where two touching caps meet: a sliver of overlap stays a sliver)."""
     omc = 2.0 * np.sin(0.5 * a) ** 2
     v = ((np.arange(nr) + 0.5) / nr)[None, :] * omc[:, None]
-    ring = (omc / nr)[:, None] / np.sqrt(v * (2.0 - v))  # dθ = dv / sin θ
+    ring = (omc / nr)[:, None] / np.maximum(np.sqrt(v * (2.0 - v)), 1e-300)  # dθ = dv/sin θ
     mean = (2.0 * np.sqrt(np.pi / (nr * na)) * np.sin(0.5 * a))[:, None]
     return np.repeat(np.minimum(ring, mean), na, axis=1)
 
@@ -97,14 +104,17 @@ def coverage(chord2, radius, h) -> np.ndarray:
 
 
 def passed_share(chord2, beta, glass, ior, kt, h):
-    """What one blocker passes of the directions at chord² ``chord2`` (…, N) from its
+    """What each blocker passes of the directions at chord² ``chord2`` (B, N) from its
     centre direction that go through it (radial angle ``beta``, glass or not, index, kt
-    per blocker (…,)), and how much of each sample's cell its cap covers
+    per blocker (B,)), and how much of each sample's cell its cap covers
     (:func:`coverage`)."""
-    half = 0.5 * np.sqrt(np.minimum(chord2, 4.0))
-    sin_theta = 2.0 * half * np.sqrt(np.maximum(1.0 - half * half, 0.0))  # sin(2 asin(c/2))
-    sin_iota = sin_theta / np.sin(beta)[..., None]
-    share = np.where(glass[..., None], glass_share(sin_iota, ior[..., None], kt[..., None]), 0.0)
+    share = np.zeros(chord2.shape)
+    g = np.flatnonzero(glass)  # Fresnel only for the glass ones' rows
+    if g.size:
+        half = 0.5 * np.sqrt(np.minimum(chord2[g], 4.0))
+        sin_theta = 2.0 * half * np.sqrt(np.maximum(1.0 - half * half, 0.0))  # sin 2asin(c/2)
+        sin_iota = sin_theta / np.sin(beta[g])[:, None]
+        share[g] = glass_share(sin_iota, ior[g][:, None], kt[g][:, None])
     return share, coverage(chord2, beta, h)
 
 
@@ -113,9 +123,13 @@ def union_unblocked(
 ) -> np.ndarray:
     """The unblocked share of every lens row (``len(lens_rows)``), from its partial
     blockers: pairs (``rows``, ``obst``) sorted by row, ``cover`` each pair's closed-form
-    cap overlap. A row with one opaque blocker keeps 1 − cover (exact); a row with
-    several, or with a glass one (``ior``, ``kt`` per sphere; None: all opaque), gets
-    the union (and glass transmission) over its sampled cap."""
+    cap overlap (share of the lens' cap), ``ior``, ``kt`` per sphere (None: all opaque).
+
+    Where the blockers' caps do not overlap one another the union is the sum:
+    1 − Σ cover_k (1 − ⟨passed⟩_k), ⟨passed⟩ 0 for an opaque blocker and, for a glass
+    one, its Fresnel share averaged over what it covers of the lens' cap
+    (:func:`glass_passed`, 1-D). Rows whose blockers overlap are sampled
+    (:func:`_sampled_blocked`)."""
     n_rows = len(lens_rows)
     unblocked = np.ones(n_rows)
     rows, obst = np.asarray(rows, dtype=np.int64), np.asarray(obst, dtype=np.int64)
@@ -128,97 +142,216 @@ def union_unblocked(
     else:
         glass = is_glass(ior, kt)
         ior_a, kt_a = np.asarray(ior, dtype=float), np.asarray(kt, dtype=float)
-    any_glass = np.zeros(n_rows, dtype=bool)
-    np.logical_or.at(any_glass, rows, glass[obst])
-    simple = (count[rows] == 1) & ~any_glass[rows]
-    unblocked[rows[simple]] = 1.0 - cover[simple]
-    sampled = np.flatnonzero((count > 1) | any_glass)
-    if sampled.size == 0:
-        return unblocked
-    work = int((count[sampled] ** 2).sum())  # each cap's samples meet every blocker
-    n = int(np.clip(BUDGET // max(work, 1), MIN_SAMPLES, n_samples))
-    nr, na = _rings(n)
-    starts = np.concatenate([[0], np.cumsum(count)])
-    per_chunk = max(BUDGET // (nr * na * max(int(count[sampled].max()), 1) ** 2), 1)
-    for lo in range(0, sampled.size, per_chunk):
-        chunk = sampled[lo : lo + per_chunk]
-        unblocked[chunk] = _sampled_rows(
-            chunk, starts, obst, lens_rows, direction, ang, glass, ior_a, kt_a, nr, na
+    lens = lens_rows[rows]
+    beta, alpha = ang[obst], ang[lens]
+    g = glass[obst]
+    hard = _overlapping_rows(rows, obst, count, direction, ang, n_rows)
+    passed = np.zeros(rows.size)  # the glass blockers' share of their blocked directions
+    if g.any():
+        gamma = _angle(direction[lens[g]], direction[obst[g]])
+        passed[g] = glass_passed(alpha[g], beta[g], gamma, ior_a[obst[g]], kt_a[obst[g]])
+    blocked = np.zeros(n_rows)
+    np.add.at(blocked, rows, cover * (1.0 - passed))  # disjoint: the union is the sum
+    unblocked = np.clip(1.0 - blocked, 0.0, 1.0)
+    if hard.any() and int((count[hard] ** 2).sum()) > MAX_INTERACTIONS:
+        # a crowded view: overlapping blockers as independent (the product), not sampled
+        prod = np.ones(n_rows)
+        np.multiply.at(prod, rows, 1.0 - cover * (1.0 - passed))
+        unblocked[hard] = prod[hard]
+    elif hard.any():
+        sampled = _sampled_blocked(
+            rows, obst, count, hard, lens_rows, direction, ang, glass, ior_a, kt_a, n_samples
         )
+        unblocked[hard] = np.clip(1.0 - sampled[hard], 0.0, 1.0)
     return unblocked
 
 
-def _sampled_rows(chunk, starts, obst, lens_rows, direction, ang, glass, ior, kt, nr, na):
-    """Unblocked shares of the rows ``chunk``: 1 − Σ_k ∫ over blocker k's cap ∩ the
+def _angle(a, b):
+    """Angles between unit rows (atan2 of |a × b| and a · b: no acos)."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.einsum("...i,...i->...", a, b))
+
+
+def _overlapping_rows(rows, obst, count, direction, ang, n_rows):
+    """Rows with two blockers whose caps overlap (their union is no sum)."""
+    out = np.zeros(n_rows, dtype=bool)
+    multi = count[rows] > 1
+    if not multi.any():
+        return out
+    starts = np.concatenate([[0], np.cumsum(count)])
+    p = np.flatnonzero(multi)  # each pair with every pair of its row after it
+    after = starts[rows[p] + 1] - p - 1
+    q = concat_ranges(p + 1, after)
+    p = np.repeat(p, after)
+    gap = _angle(direction[obst[p]], direction[obst[q]])
+    out[rows[p[gap < ang[obst[p]] + ang[obst[q]]]]] = True
+    return out
+
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(32)
+
+
+def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
+    """What a glass blocker (angular radius ``beta``, ``gamma`` off the lens' axis, cap
+    ``alpha``) passes of the lens' directions it covers: kt² T(ι) (sin ι = sin θ /
+    sin β at θ from its centre) averaged over its cap ∩ the lens' cap. 1-D in θ: the
+    share of the circle θ inside the lens' cap is an arc (cos φ ≥ c, c from the
+    half-angle forms, no cancellation), Gauss–Legendre between the kinks |α − γ|, α + γ."""
+    cuts = np.sort(
+        np.stack(
+            [
+                np.zeros_like(beta),
+                np.minimum(np.abs(alpha - gamma), beta),
+                np.minimum(alpha + gamma, beta),
+                beta,
+            ],
+            axis=1,
+        ),
+        axis=1,
+    )
+    lo, hi = cuts[:, :-1, None], cuts[:, 1:, None]  # (G, 3, 1): three pieces
+    theta = (0.5 * (lo + hi) + 0.5 * (hi - lo) * _GL_X).reshape(beta.size, -1)
+    wts = (0.5 * (hi - lo) * _GL_W).reshape(beta.size, -1) * np.sin(theta)
+    a, gm = alpha[:, None], gamma[:, None]
+    sg = np.sin(gm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = 1.0 - 2.0 * np.sin(0.5 * (a + theta - gm)) * np.sin(0.5 * (a - theta + gm)) / (
+            np.sin(theta) * sg
+        )
+    c = np.where(sg > 0.0, c, np.where(theta <= a, -1.0, 1.0))
+    c = np.clip(np.nan_to_num(c, nan=1.0), -1.0, 1.0)
+    frac = np.arctan2(np.sqrt((1.0 - c) * (1.0 + c)), c) / np.pi  # arccos(c)/π
+    share = glass_share(np.sin(theta) / np.sin(beta)[:, None], ior[:, None], kt[:, None])
+    num, den = (share * frac * wts).sum(axis=1), (frac * wts).sum(axis=1)
+    return np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
+
+
+def _sampled_blocked(rows, obst, count, sampled, lens_rows, direction, ang, glass, ior, kt, n_max):
+    """Blocked share of the rows ``sampled``: 1 − Σ_k ∫ over blocker k's cap ∩ the
     lens' cap of (1 − ∏_j passed_j) / (how many blockers' caps hold the direction),
-    over the lens' solid angle; each term on a grid over the smaller of the two caps
-    (a small blocker's own disc is covered exactly, a lens inside a big blocker's disc
-    is resolved: only the union's edges are sampled)."""
-    lens = lens_rows[chunk]
-    first, last = starts[chunk], starts[chunk + 1]
-    k_max = int((last - first).max())
-    # pad every row's blockers to k_max (padding: flagged off by `real`)
-    idx = first[:, None] + np.arange(k_max)[None, :]
-    real = idx < last[:, None]
-    blk = obst[np.where(real, idx, first[:, None])]
-    beta = np.where(real, ang[blk], 0.0)
-    w = direction[lens]
-    alpha = ang[lens]
-    blocked = np.zeros(chunk.size)
-    for k in range(k_max):
-        bk = blk[:, k]
-        # sample the smaller of the two caps (blocker k's, the lens'): their meeting
-        # is all that counts, and the smaller one's grid resolves it
-        own = (beta[:, k] <= alpha)[:, None]
-        wd = np.where(own, direction[bk], w)
-        ad = np.where(own[:, 0], beta[:, k], alpha)
-        off = cap_offsets(
-            wd, ad, _azimuth_ref(wd, own, w, direction[bk], blk, real, beta, direction), nr, na
-        )  # s − wd
-        h = _ramp_width(ad, nr, na)
-        d_lens = (wd - w)[:, None, :] + off
-        in_lens = np.where(own, coverage(np.einsum("pni,pni->pn", d_lens, d_lens), alpha, h), 1.0)
-        passed = np.ones(off.shape[:2])
-        holders = np.zeros(off.shape[:2])
-        in_k = np.ones(off.shape[:2])
-        for j in range(k_max):
-            bj = blk[:, j]
-            diff = (wd - direction[bj])[:, None, :] + off
-            chord2 = np.einsum("pni,pni->pn", diff, diff)
-            bj_beta = np.maximum(beta[:, j], 1e-300)
-            share, cover = passed_share(chord2, bj_beta, glass[bj], ior[bj], kt[bj], h)
-            if j == k:  # its own grid lies wholly inside it
-                cover = np.where(own, 1.0, cover)
-                in_k = cover
-            passed *= np.where(real[:, j, None], 1.0 - cover * (1.0 - share), 1.0)
-            holders += np.where(real[:, j, None], cover, 0.0)
-        term = in_lens * in_k * (1.0 - passed) / np.maximum(holders, 1e-12)
-        ratio = (np.sin(0.5 * ad) / np.sin(0.5 * alpha)) ** 2
-        blocked += np.where(real[:, k], ratio * term.mean(axis=1), 0.0)
-    return np.clip(1.0 - blocked, 0.0, 1.0)
+    over the lens' solid angle. Each term (row, k) on a grid over the smaller of the two
+    caps (a small blocker's own disc is covered exactly, a lens inside a big blocker's
+    disc is resolved: only the union's edges are sampled), meeting only the row's
+    blockers whose caps reach that grid; vectorised over all terms at once."""
+    starts = np.concatenate([[0], np.cumsum(count)])
+    t_pair = np.flatnonzero(sampled[rows])  # one term per pair of a sampled row
+    t_row, t_blk = rows[t_pair], obst[t_pair]
+    lens = lens_rows[t_row]
+    w, alpha = direction[lens], ang[lens]
+    bk = ang[t_blk]
+    own = bk <= alpha
+    wd = np.where(own[:, None], direction[t_blk], w)
+    ad = np.where(own, bk, alpha)
+    ref = np.where(own[:, None], w, direction[t_blk])
+    # interactions: (term, a blocker of its row whose cap reaches the term's grid)
+    it_term = np.repeat(np.arange(t_pair.size), count[t_row])
+    it_pair = concat_ranges(starts[t_row], count[t_row])
+    it_blk = obst[it_pair]
+    wj = direction[it_blk]
+    cross = np.cross(wd[it_term], wj)
+    gamma = np.arctan2(np.linalg.norm(cross, axis=1), np.einsum("ij,ij->i", wd[it_term], wj))
+    is_self = it_pair == t_pair[it_term]
+    keep = is_self | (gamma < (ad[it_term] + ang[it_blk]) * (1.0 + 1e-9) + 1e-12)
+    it_term, it_blk, is_self, gamma = it_term[keep], it_blk[keep], is_self[keep], gamma[keep]
+    ref = _azimuth_ref(ref, wd, it_term, it_blk, gamma, direction, ang)
+    n = int(np.clip(BUDGET // max(it_term.size, 1), MIN_SAMPLES, n_max))
+    nr, na = _rings(n)
+    n = nr * na
+    first = np.searchsorted(it_term, np.arange(t_pair.size + 1))  # each term's interactions
+    value = np.zeros(t_pair.size)
+    lo = 0
+    while lo < t_pair.size:  # chunks of terms: interactions × samples within the budget
+        hi = int(np.searchsorted(first, first[lo] + BUDGET // n, side="right")) - 1
+        hi = min(max(hi, lo + 1), t_pair.size)
+        value[lo:hi] = _terms(
+            slice(lo, hi),
+            slice(first[lo], first[hi]),
+            it_term,
+            it_blk,
+            is_self,
+            wd,
+            ad,
+            ref,
+            own,
+            w,
+            alpha,
+            direction,
+            ang,
+            glass,
+            ior,
+            kt,
+            nr,
+            na,
+        )
+        lo = hi
+    blocked = np.zeros(len(lens_rows))
+    np.add.at(blocked, t_row, value)
+    return blocked
 
 
-def _azimuth_ref(wd, own, w, wk, blk, real, beta, direction):
+def _terms(
+    ts,
+    its,
+    it_term,
+    it_blk,
+    is_self,
+    wd,
+    ad,
+    ref,
+    own,
+    w,
+    alpha,
+    direction,
+    ang,
+    glass,
+    ior,
+    kt,
+    nr,
+    na,
+):
+    """The blocked share (over the lens' cap) of the terms ``ts`` with their
+    interactions ``its`` (sorted by term)."""
+    wd, ad, own, w, alpha = wd[ts], ad[ts], own[ts], w[ts], alpha[ts]
+    off = cap_offsets(wd, ad, ref[ts], nr, na)  # s − wd, (T, N, 3)
+    h = _ramp_width(ad, nr, na)
+    d_lens = (wd - w)[:, None, :] + off
+    in_lens = np.where(
+        own[:, None], coverage(np.einsum("pni,pni->pn", d_lens, d_lens), alpha, h), 1.0
+    )
+    lt = it_term[its] - ts.start  # each interaction's term, local
+    blk, me = it_blk[its], is_self[its]
+    diff = (wd[lt] - direction[blk])[:, None, :] + off[lt]
+    chord2 = np.einsum("pni,pni->pn", diff, diff)
+    share, cover = passed_share(
+        chord2, np.maximum(ang[blk], 1e-300), glass[blk], ior[blk], kt[blk], h[lt]
+    )
+    cover = np.where((me & own[lt])[:, None], 1.0, cover)  # its own grid lies inside it
+    passed = 1.0 - cover * (1.0 - share)
+    starts = np.flatnonzero(np.r_[True, lt[1:] != lt[:-1]])
+    with np.errstate(divide="ignore"):
+        log_passed = np.add.reduceat(np.log(passed), starts, axis=0)
+    holders = np.add.reduceat(cover, starts, axis=0)
+    in_k = cover[me]  # one self interaction per term, in term order
+    term = in_lens * in_k * (1.0 - np.exp(log_passed)) / np.maximum(holders, 1e-12)
+    ratio = (np.sin(0.5 * ad) / np.sin(0.5 * alpha)) ** 2
+    return ratio * term.mean(axis=1)
+
+
+def _azimuth_ref(ref, wd, it_term, it_blk, gamma, direction, ang):
     """Where each grid's azimuth starts: toward the other cap (the lens', or blocker k's);
     if that one is centred on the grid, toward the widest blocker that is not (every
     cap centred: anything will do, the whole is symmetric). Never the world's axes, so
     turning the scene does not move the grid against the caps."""
-    ref = np.where(own, w, wk)
-
-    def off_axis(v):
-        perp = v - np.einsum("pi,pi->p", v, wd)[:, None] * wd
-        return np.linalg.norm(perp, axis=1) > 1e-9
-
-    bad = ~off_axis(ref)
-    if not bad.any():
+    perp = ref - np.einsum("pi,pi->p", ref, wd)[:, None] * wd
+    bad = np.flatnonzero(np.linalg.norm(perp, axis=1) <= 1e-9)
+    if bad.size == 0:
         return ref
-    best, score = ref.copy(), np.full(wd.shape[0], -1.0)
-    for j in range(blk.shape[1]):
-        dj = direction[blk[:, j]]
-        better = bad & real[:, j] & off_axis(dj) & (beta[:, j] > score)
-        best = np.where(better[:, None], dj, best)
-        score = np.where(better, beta[:, j], score)
-    return best
+    ref = ref.copy()
+    for t in bad:
+        mine = (it_term == t) & (gamma > 1e-9)
+        if mine.any():
+            k = np.flatnonzero(mine)
+            ref[t] = direction[it_blk[k[np.argmax(ang[it_blk[k]])]]]
+    return ref
 
 
 def ray_passes(origins, dirs, t_end, centers, radii, ior=None, kt=None) -> np.ndarray:
@@ -248,113 +381,3 @@ def ray_passes(origins, dirs, t_end, centers, radii, ior=None, kt=None) -> np.nd
             share = 0.0
         out = np.where(hit, out * share, out)
     return out
-
-
-# --------------------------------------------------------------------------- the mask
-
-
-@dataclass
-class EmissionMask:
-    """What share of a lens light's beam its shadow list lets through, over the
-    directions the light emits in: ``pixels[j, i]`` at the light's local direction
-    components ``x = −s_max + (2i + 1) s_max / size`` (its local X) and ``y`` likewise
-    (row j, its local Y); 1 where no ray goes. ``passed``: the share of the beam's
-    flux that passes (the tiers' `unblocked_fraction` weighs the cap by solid angle,
-    this by the flux through the lens)."""
-
-    pixels: np.ndarray  # (size, size) float32, row 0 = most negative y
-    s_max: float
-    passed: float
-
-    @property
-    def size(self) -> int:
-        return int(self.pixels.shape[0])
-
-
-def _refract(d, nrm, eta):
-    cos_i = np.clip(-np.einsum("...i,...i->...", d, nrm), 0.0, 1.0)
-    k = np.maximum(1.0 - eta * eta * (1.0 - cos_i) * (1.0 + cos_i), 0.0)
-    t = eta * d + (eta * cos_i - np.sqrt(k))[..., None] * nrm
-    return t / np.linalg.norm(t, axis=-1)[..., None]
-
-
-def emission_mask(
-    light_position,
-    lens_center,
-    lens_radius: float,
-    ior: float,
-    blockers,
-    apex,
-    ex,
-    ey,
-    receiver: float | None = None,
-    size: int = 128,
-    n_radial: int = 384,
-    n_azimuth: int = 768,
-) -> EmissionMask:
-    """The mask of a point light's beam through a lens (centre, radius, index) behind
-    ``blockers`` = (centres (B, 3), radii (B,), indices (B,), kt (B,)), for a lens
-    light at ``apex`` whose local X and Y axes are ``ex``, ``ey`` (world).
-
-    Exact ray paths: a grid over where the rays enter the lens (ι × φ, as in the
-    caustic layer's beam), each weighted by its flux through the lens (solid angle ×
-    two-surface Fresnel) and by what the blockers pass of it on its way there
-    (:func:`ray_passes`), landed on the plane across the axis ``receiver`` from the
-    lens' centre (None: far away, the exit directions), and binned by the direction
-    from ``apex`` to where it lands. The mask is exact on that plane (to its texels)
-    and a fair guess elsewhere beyond the focus."""
-    P = np.asarray(light_position, dtype=float)
-    C = np.asarray(lens_center, dtype=float)
-    A = np.asarray(apex, dtype=float)
-    ex, ey = np.asarray(ex, dtype=float), np.asarray(ey, dtype=float)
-    R, n = float(lens_radius), float(ior)
-    to_c = C - P
-    D = float(np.linalg.norm(to_c))
-    if not (D > R and R > 0 and n > 0):
-        raise ValueError("the light must lie outside the lens (radius > 0, index > 0)")
-    u = to_c / D
-    e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
-    d_iota = 0.5 * np.pi / n_radial
-    iota = (np.arange(n_radial) + 0.5) * d_iota
-    phi = 2.0 * np.pi * (np.arange(n_azimuth) + 0.5) / n_azimuth
-    sin_i, cos_i = np.sin(iota), np.cos(iota)
-    sin_psi = (R / D) * sin_i
-    cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
-    radial = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
-    d = cos_psi[:, None, None] * u + sin_psi[:, None, None] * radial[None]  # (I, P, 3)
-    t1 = D * cos_psi - R * cos_i  # to the entry point
-    p1 = P + t1[:, None, None] * d
-    d2 = _refract(d, (p1 - C) / R, 1.0 / n)
-    cos_r = np.sqrt(np.maximum(1.0 - (sin_i / n) ** 2, 0.0))
-    p2 = p1 + (2.0 * R * cos_r)[:, None, None] * d2
-    d3 = _refract(d2, -(p2 - C) / R, n)
-    t_s, t_p = fresnel_transmittance(cos_i, 1.0, n)
-    flux = sin_i * cos_i / cos_psi * 0.5 * (t_s * t_s + t_p * t_p)
-    w = np.broadcast_to(flux[:, None], d.shape[:2])
-    centers, radii, b_ior, b_kt = blockers
-    passed = ray_passes(P, d, t1[:, None], centers, radii, b_ior, b_kt)
-    if receiver is None:
-        to = d3
-    else:
-        plane = C + float(receiver) * u
-        along = np.einsum("...i,i->...", d3, u)
-        t = np.einsum("...i,i->...", plane - p2, u) / np.where(along > 0, along, 1.0)
-        to = p2 + np.maximum(t, 0.0)[..., None] * d3 - A
-        w = np.where(along > 0, w, 0.0)
-    to = to / np.linalg.norm(to, axis=-1)[..., None]
-    x, y = to @ ex, to @ ey
-    w = np.where(np.einsum("...i,i->...", to, u) > 0, w, 0.0)
-    # the texels span the directions of 99 % of the flux (beyond: the edge texels)
-    rho = np.hypot(x, y).ravel()
-    order = np.argsort(rho)
-    cum = np.cumsum(w.ravel()[order])
-    reach = rho[order][min(np.searchsorted(cum, 0.99 * cum[-1]), rho.size - 1)] if cum[-1] else 1
-    s_max = float(min(1.05 * reach, 1.0)) or 1.0
-    edges = np.linspace(-s_max, s_max, int(size) + 1)
-    both = np.histogram2d(y.ravel(), x.ravel(), bins=(edges, edges), weights=(w * passed).ravel())
-    total = np.histogram2d(y.ravel(), x.ravel(), bins=(edges, edges), weights=w.ravel())[0]
-    pixels = np.where(total > 0, both[0] / np.where(total > 0, total, 1.0), 1.0)
-    share = float((w * passed).sum() / w.sum()) if w.sum() > 0 else 1.0
-    return EmissionMask(pixels.astype(np.float32), s_max, share)

@@ -2,7 +2,7 @@
 inside the caustic, not only the light dimmed.
 
 A lens light whose source has a shadow list (phase 1's partial blockers) gets a mask
-over its emission directions (`addon.shadow_mask.emission_mask`: exact rays light →
+over its emission directions (`addon.emission_mask.emission_mask`: exact rays light →
 blockers → lens, landed on the receiver behind the lens), stored as a small 32-bit
 float, Non-Color, packed image "Lens mask <light>" (marked like the profile images, so
 `light_builder.clear` removes it once unused) and multiplied into the emission strength
@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..addon.shadow_mask import emission_mask
+from ..addon.emission_mask import emission_mask
 from .properties import COLLECTION_MARK
 
 MASK_PREFIX = "Lens mask "

@@ -1,4 +1,4 @@
-"""The Exact profile's shadow mask (`addon.shadow_mask.emission_mask`) against phase 2's
+"""The Exact profile's shadow mask (`addon.emission_mask.emission_mask`) against phase 2's
 reference (addon/reference/phase2.py): the unblocked beam's irradiance times the mask,
 looked up in the direction from the light's apex, is the blocked beam's, and the mask
 passes the flux the reference passes (half the lens blocked, a centred blocker, a glass
@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from addon.emission_mask import emission_mask
 from addon.reference import Blocker, GlassSphere, PointLight, ReceiverPlane
 from addon.reference.phase2 import phase2_irradiance
-from addon.shadow_mask import emission_mask
 
 LIGHT = PointLight((0.0, 0.0, 3.0), 100.0)
 LENS = GlassSphere((0.0, 0.0, 0.0), 0.5, 1.5)

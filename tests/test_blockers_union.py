@@ -169,3 +169,26 @@ def test_phase1_uses_the_union_and_is_unchanged_by_turning_and_reordering():
     turned = [(tuple(rot @ np.array(c)), r, kt) for c, r, kt in (b2, lens, b1)]
     other = [s for s in compute_phase1(_scene(turned)).sources if s.lens == 1][0]
     assert other.unblocked_fraction == pytest.approx(src.unblocked_fraction, rel=1e-9)
+
+
+def test_a_glass_blocker_across_the_rim_passes_its_fresnel_share_of_what_it_covers():
+    """Blocked = ∫ over the glass cap ∩ the lens' cap of (1 − T), by a brute-force
+    midpoint grid over the glass cap in its own polar angles (hand Fresnel)."""
+    alpha, beta, gamma = 0.1, 0.05, 0.09
+    got = share(alpha, [(beta, gamma, 0.0)], glass=[True])
+    n = 1500
+    t = (np.arange(n) + 0.5) * beta / n
+    p = (np.arange(2 * n) + 0.5) * math.pi / n
+    T, P = np.meshgrid(t, p, indexing="ij")
+    # direction θ from the blocker's centre (at γ on the x side), azimuth φ about it
+    cos_d = np.cos(T) * math.cos(gamma) - np.sin(T) * math.sin(gamma) * np.cos(P)
+    in_lens = cos_d >= math.cos(alpha)
+    x = np.sin(T) / math.sin(beta)
+    c_i = np.sqrt(1 - x * x)
+    c_t = np.sqrt(1 - (x / N_GLASS) ** 2)
+    ts = 1 - ((c_i - N_GLASS * c_t) / (c_i + N_GLASS * c_t)) ** 2
+    tp = 1 - ((c_t - N_GLASS * c_i) / (c_t + N_GLASS * c_i)) ** 2
+    trans = 0.5 * (ts * ts + tp * tp)
+    d_omega = np.sin(T) * (beta / n) * (math.pi / n)
+    blocked = float(((1 - trans) * in_lens * d_omega).sum())
+    assert got == pytest.approx(1.0 - blocked / cap(alpha), abs=2e-4)
