@@ -9,8 +9,9 @@ source, out of scope). A cell gets the mean of its four corners (a soft edge one
 wide). The emitter's power already carries phase 1's unblocked share (over the lens'
 cap), so the weights are divided by it: the layer's flux becomes what passes.
 
-A sun (parallel rays) keeps the dimming: its rays start just before the lens, and its
-blockers are found by another test (`phase1_primaries.sun_blockers`).
+The add-on hands every primary to the layer as a point light (a sun at its equivalent
+distance, `layer_plan`); a sun given as parallel rays keeps the dimming (its rays start
+just before the lens).
 """
 
 from __future__ import annotations
