@@ -34,7 +34,7 @@ from .ranges import concat_ranges
 #: Directions per lens cap (rings × 2·rings): at most, and at least for crowded views.
 MAX_SAMPLES, MIN_SAMPLES = 192 * 384, 16 * 32
 #: Sample × blocker evaluations per call before the grid gets coarser (memory, time).
-BUDGET = 1_000_000
+BUDGET = 250_000
 #: Blocker pairs (of rows with overlapping blockers) per call beyond which the overlaps
 #: are not sampled but taken as independent (a crowded view: time, see README Limits).
 MAX_INTERACTIONS = 4_000
