@@ -20,6 +20,7 @@ import numpy as np
 from .caustic_sheet.emitters import Lens, PointLight
 from .caustic_sheet.pipeline import Camera, SheetSource
 from .caustic_sheet.ray_budget import layer_resolution, pixel_size
+from .caustic_sheet.shadow import ShadowList
 from .tiers.base import LensOptics, effective_primary, glass_color, unblocked_share
 
 #: Node rays for all sources together, and per source (the ray budget's caps); rays
@@ -39,8 +40,9 @@ GLOSSY_METALLIC = 0.5
 TRANSPARENT_TRANSMISSION = 0.5
 
 
-def sheet_source(planned, primary, optics: LensOptics | None = None) -> SheetSource:
-    """The caustic-sheet source of one `planning.PlannedLight`."""
+def sheet_source(planned, primary, optics: LensOptics | None = None, arrays=None) -> SheetSource:
+    """The caustic-sheet source of one `planning.PlannedLight` (`arrays`: phase 1's
+    `SceneArrays`, for the shadow list drawn in the beam)."""
     src = planned.source
     optics = optics or LensOptics()
     eff = effective_primary(src, primary)
@@ -60,13 +62,16 @@ def sheet_source(planned, primary, optics: LensOptics | None = None) -> SheetSou
     # An extended primary blurs the caustic (SPEC §10): samples of its disc, each
     # image spread over its share (`caustic_layer._splat_cells`).
     n_source = 1 if eff.radius <= 0.0 else SOURCE_SAMPLES
-    return SheetSource(emitter, lens, n_source=n_source)
+    return SheetSource(emitter, lens, n_source=n_source, blockers=ShadowList.of(src, arrays))
 
 
-def sheet_sources(planned_lights, primaries, lens_optics=None) -> list[SheetSource]:
+def sheet_sources(planned_lights, primaries, lens_optics=None, arrays=None) -> list[SheetSource]:
     return [
         sheet_source(
-            p, primaries[p.source.light], lens_optics[p.source.lens] if lens_optics else None
+            p,
+            primaries[p.source.light],
+            lens_optics[p.source.lens] if lens_optics else None,
+            arrays,
         )
         for p in planned_lights
     ]

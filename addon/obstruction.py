@@ -15,6 +15,7 @@ import numpy as np
 
 from .geometry import cap_overlap_fraction
 from .ranges import concat_ranges
+from .shadow_mask import union_unblocked
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
@@ -36,6 +37,8 @@ def find_blockers(
     ang: np.ndarray,
     tlen: np.ndarray,
     obstacle: np.ndarray,
+    ior: np.ndarray | None = None,
+    kt: np.ndarray | None = None,
 ) -> Blockers:
     """The thesis' obstruction tests for the lenses `lens_rows` of one light.
 
@@ -43,7 +46,9 @@ def find_blockers(
     (α of a lens, β of an obstacle); tlen (S,): tangent length R_T; obstacle (S,):
     spheres that can block (valid, light outside them). Sphere k blocks (part of)
     lens i iff R_T,k < R_T,i and α_i + β_k ≥ γ_ik; all of it iff β_k ≥ γ_ik + α_i.
-    The unblocked fraction treats partial blockers as independent: ∏(1 − cover_k).
+    The unblocked fraction is the union of the partial blockers' shadows over the
+    lens' cap, a glass one (`ior`, `kt` per sphere) passing its Fresnel share
+    (`shadow_mask.union_unblocked`).
     """
     n_rows = lens_rows.size
     row_of = np.full(direction.shape[0], -1, dtype=np.int64)
@@ -75,8 +80,7 @@ def find_blockers(
     order = np.lexsort((obst, rows))
     rows, obst = rows[order], obst[order]
     cover = cap_overlap_fraction(alpha[order], beta[order], gamma[order])
-    unblocked = np.ones(n_rows)
-    np.multiply.at(unblocked, rows, 1.0 - cover)
+    unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt)
     unblocked[total_blocker >= 0] = 0.0
     offsets = np.zeros(n_rows + 1, dtype=np.int64)
     np.add.at(offsets, rows + 1, 1)

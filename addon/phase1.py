@@ -429,7 +429,7 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
         lens[:] = False
     lenses = np.flatnonzero(lens)
 
-    blk = find_blockers(lenses, direction, ang, tlen, outside)
+    blk = find_blockers(lenses, direction, ang, tlen, outside, a.ior, a.kt)
     total = blk.total_blocker >= 0
     if total.any():
         skips.append(

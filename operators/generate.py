@@ -155,6 +155,7 @@ def generate(context):
                     plan,
                     work.read.sphere_objects,
                     progress=lambda k: progress(60 + 40 * k / total),
+                    arrays=work.read.arrays,
                 )
             caustics_note = cycles_caustics.after_build(scene, plan, work.read, len(made))
         except Exception as exc:  # whatever failed: remove what was made, report it

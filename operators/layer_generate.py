@@ -44,7 +44,7 @@ def prepare(depsgraph, work, options: dict):
     if not len(work.receivers.mesh.triangles):
         return work  # nothing to lay a caustic on
     t = time.perf_counter()
-    sources = sheet_sources(work.plan.lights, read.primaries, read.lens_optics)
+    sources = sheet_sources(work.plan.lights, read.primaries, read.lens_optics, read.arrays)
     cam = depsgraph.scene.camera
     ortho = (
         cam.data.ortho_scale

@@ -42,6 +42,7 @@ import math
 import bpy
 from mathutils import Vector
 
+from . import mask_nodes
 from .properties import COLLECTION_MARK
 
 COLLECTION_NAME = "Lens Lights"
@@ -310,9 +311,10 @@ def apply_light(ob, planned, image_cache=None):
     _put(meta, "note", bl.note)
 
 
-def build(scene, plan, lens_objects, progress=None):
+def build(scene, plan, lens_objects, progress=None, arrays=None):
     """Create the planned lights; `lens_objects[i]`: original object of sphere i.
-    `progress(k)` is called with the number of lights made so far."""
+    `progress(k)` is called with the number of lights made so far. `arrays`: phase 1's
+    `SceneArrays` (a profile light of a non-full source gets its shadow mask)."""
     collection = lights_collection(scene)
     cache: dict = {}
     images: dict = {}
@@ -328,6 +330,7 @@ def build(scene, plan, lens_objects, progress=None):
                 image_cache=images,
             )
         )
+        mask_nodes.add_shadow_mask(made[-1], planned, arrays)
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made

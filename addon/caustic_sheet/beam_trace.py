@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exact_optics import two_surface_transmission
+from . import shadow
 from .emitters import (
     Lens,
     SourceSamples,
@@ -246,18 +247,25 @@ def _density(bt: _Batch, iota, phi, frames=None, dirs=None):
 
 
 def trace_beam(
-    emitter, lens: Lens, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1
+    emitter,
+    lens: Lens,
+    n_radial: int = 64,
+    n_azimuth: int = 256,
+    n_source: int = 1,
+    blockers=None,
 ) -> BeamGrid:
     """Trace the beam of ``emitter`` (a :mod:`.emitters` light) through ``lens``.
 
     ``n_radial`` × ``n_azimuth`` cells per source sample, ``n_source`` samples of an
-    extended emitter (ignored for a point light of radius 0 or a sun of angle 0)."""
-    return trace_beams([(emitter, lens)], n_radial, n_azimuth, n_source)[0]
+    extended emitter (ignored for a point light of radius 0 or a sun of angle 0).
+    ``blockers``: the source's `shadow.ShadowList` (its shadow drawn in the beam)."""
+    return trace_beams([(emitter, lens)], n_radial, n_azimuth, n_source, [blockers])[0]
 
 
-def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1):
+def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1, blockers=None):
     """:func:`trace_beam` of many (emitter, lens) pairs sharing one grid, in one
-    vectorised pass (many lenses cost one set of array operations, not one each)."""
+    vectorised pass (many lenses cost one set of array operations, not one each).
+    ``blockers``: one `shadow.ShadowList` (or None) per pair."""
     if not pairs:
         return []
     bt = _batch(pairs, n_source)
@@ -294,6 +302,12 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
                 setattr(sub, name, getattr(bt, name)[a:b])
             q = _density(sub, qi, qp, frames[a:b]).reshape(b - a, nr, 3, na, 3)
             cell[a:b] = np.einsum("kijab,j,b->kia", q, _GL_W, _GL_W) * 0.25 * di * dp
+    for k, (sl, sm) in enumerate(zip(blockers or [None] * len(pairs), bt.samples, strict=True)):
+        if sl is not None:
+            a, b = bt.starts[k], bt.starts[k + 1]
+            cell[a:b], dens[a:b] = shadow.apply(
+                cell[a:b], dens[a:b], origins[a:b], dirs[a:b], pairs[k][1], sl, sm.parallel
+            )
     cell = np.where(bt.valid[:, None, None], cell, 0.0)
     dens = np.where(bt.valid[:, None, None], dens, 0.0)
     out = []

@@ -31,6 +31,7 @@ class SheetSource:
     lens: Lens
     n_source: int = 1
     own_object: int = -1
+    blockers: object = None  # shadow.ShadowList: the shadow list drawn in the beam
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,13 @@ def bake(
     for i, (s, b) in enumerate(zip(sources, budgets, strict=True)):
         groups.setdefault((b.n_radial, b.n_azimuth, s.n_source), []).append(i)
     for (nr, na, k), ids in groups.items():
-        traced = trace_beams([(sources[i].emitter, sources[i].lens) for i in ids], nr, na, k)
+        traced = trace_beams(
+            [(sources[i].emitter, sources[i].lens) for i in ids],
+            nr,
+            na,
+            k,
+            [sources[i].blockers for i in ids],
+        )
         for i, beam in zip(ids, traced, strict=True):
             beams[i] = beam
     own = [s.own_object for s in sources]

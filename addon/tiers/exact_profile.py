@@ -355,6 +355,7 @@ class ProfileLight(BlenderLight):
     ``profile_info`` (its sizes and distances) is known at once."""
 
     profile_info: dict | None = None
+    receiver_distance: float | None = None  # from the lens centre, where known (shadow mask)
     _profile: dict | None = field(default=None, repr=False)
     _profile_maker: object = field(default=None, repr=False, compare=False)
 
@@ -532,6 +533,7 @@ def make_profile_light(
         reference_irradiance=float(irradiance),
         relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
         profile_info=profile_info,
+        receiver_distance=None if receiver_distance is None else float(receiver_distance),
         _profile_maker=maker,
         inside_lens=bool(apex < 1.0),
     )
