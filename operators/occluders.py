@@ -26,7 +26,13 @@ import math
 
 import numpy as np
 
-from ..addon.ray_hits import box_entries, sphere_hits
+from ..addon.ray_hits import (
+    BATCH_CELLS,
+    box_entries,
+    box_entries_bundles,
+    sphere_hits,
+    sphere_hits_bundles,
+)
 
 #: Hits nearer than this share of the scene size to the ray's origin are ignored
 #: (the surface a ray starts on).
@@ -126,6 +132,71 @@ class Occluders:
                     if t < best[k]:
                         best[k] = t
         return np.where(best <= limit, best, np.inf)
+
+    def first_hits(self, origins, directions, limit) -> np.ndarray:
+        """`first_hit` of many bundles at once: `origins` (B × k × 3), one unit
+        direction per bundle (B × 3) → (B × k). Spheres for all bundles in one
+        numpy pass; the boxes likewise; then only the meshes whose box a ray
+        enters nearer than its best hit so far, each transformed in numpy and cast
+        against the mesh's BVH (the same hits as `first_hit` bundle by bundle)."""
+        origins = np.asarray(origins, dtype=float)
+        B, k = origins.shape[:2]
+        d = np.asarray(directions, dtype=float).reshape(-1, 3)
+        d = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
+        best = sphere_hits_bundles(self.centers, self.radii, origins, d)
+        N = len(self.source_index)
+        if N and B:
+            step = max(1, BATCH_CELLS // (k * N))
+            rays, boxes, enters = [], [], []
+            for b0 in range(0, B, step):
+                enter, hit = box_entries_bundles(
+                    self.box_lo, self.box_hi, origins[b0 : b0 + step], d[b0 : b0 + step], limit
+                )
+                e = np.maximum(enter, 0.0)
+                bi, ki, ni = np.nonzero(hit & (e < best[b0 : b0 + step, :, None]))
+                rays.append((b0 + bi) * k + ki)
+                boxes.append(ni)
+                enters.append(e[bi, ki, ni])
+            ray, box, enter = (np.concatenate(x) for x in (rays, boxes, enters))
+            if ray.size:
+                flat = best.reshape(-1)
+                self._mesh_hits(ray, box, enter, origins.reshape(-1, 3), d, k, flat)
+                best = flat.reshape(B, k)
+        return np.where(best <= limit, best, np.inf)
+
+    def _mesh_hits(self, ray, box, enter, origins, d, k, best):
+        """Lower `best` (per ray) by the meshes `box` that `ray` enters at `enter`,
+        nearest box first per ray, skipping boxes entered beyond the best hit."""
+        from mathutils import Vector
+
+        order = np.lexsort((enter, ray))
+        ray, box, enter = ray[order], box[order], enter[order]
+        if self._inverse is None:
+            self._inverse = np.linalg.pinv(self.matrices)
+        inv = self._inverse[box]
+        dirs = d[ray // k]
+        o = np.einsum("pij,pj->pi", inv[:, :3, :3], origins[ray]) + inv[:, :3, 3]
+        v = np.einsum("pij,pj->pi", inv[:, :3, :3], dirs)
+        ok = np.all(np.isfinite(o), axis=1) & (np.sqrt(np.sum(v * v, axis=1)) > 0)
+        trees = {}
+        for p, (r, n, e) in enumerate(zip(ray.tolist(), box.tolist(), enter.tolist(), strict=True)):
+            if e >= best[r] or not ok[p]:
+                continue
+            s = int(self.source_index[n])
+            tree = trees.get(s)
+            if tree is None:
+                tree = trees[s] = self.sources[s].tree()
+            if not tree:
+                continue
+            loc = tree.ray_cast(Vector(o[p]), Vector(v[p]))[0]
+            if loc is None:
+                continue
+            # world distance along the ray, as `_mesh_hit`
+            m = self.matrices[n]
+            t = float((m[:3, :3] @ np.asarray(loc) + m[:3, 3] - origins[r]) @ dirs[p])
+            if 0 < t < best[r]:
+                best[r] = t
+        return best
 
     def _mesh_hit(self, n, origin, d) -> float:
         from mathutils import Vector
