@@ -166,7 +166,9 @@ class Occluders:
 
     def _mesh_hits(self, ray, box, enter, origins, d, k, best):
         """Lower `best` (per ray) by the meshes `box` that `ray` enters at `enter`,
-        nearest box first per ray, skipping boxes entered beyond the best hit."""
+        nearest box first per ray, skipping boxes entered beyond the best hit so far
+        (told by the BVH's own distance); the hits' world distances as `_mesh_hit`'s,
+        in numpy at the end."""
         from mathutils import Vector
 
         order = np.lexsort((enter, ray))
@@ -177,10 +179,23 @@ class Occluders:
         dirs = d[ray // k]
         o = np.einsum("pij,pj->pi", inv[:, :3, :3], origins[ray]) + inv[:, :3, 3]
         v = np.einsum("pij,pj->pi", inv[:, :3, :3], dirs)
-        ok = np.all(np.isfinite(o), axis=1) & (np.sqrt(np.sum(v * v, axis=1)) > 0)
+        vlen = np.sqrt(np.sum(v * v, axis=1))
+        ok = (np.all(np.isfinite(o), axis=1) & (vlen > 0)).tolist()
+        near = best.tolist()  # the running best, for skipping boxes
         trees = {}
-        for p, (r, n, e) in enumerate(zip(ray.tolist(), box.tolist(), enter.tolist(), strict=True)):
-            if e >= best[r] or not ok[p]:
+        hit_pairs, hit_locs = [], []
+        for p, (r, n, e, lo, lv, ln) in enumerate(
+            zip(
+                ray.tolist(),
+                box.tolist(),
+                enter.tolist(),
+                o.tolist(),
+                v.tolist(),
+                vlen.tolist(),
+                strict=True,
+            )
+        ):
+            if e >= near[r] or not ok[p]:
                 continue
             s = int(self.source_index[n])
             tree = trees.get(s)
@@ -188,14 +203,18 @@ class Occluders:
                 tree = trees[s] = self.sources[s].tree()
             if not tree:
                 continue
-            loc = tree.ray_cast(Vector(o[p]), Vector(v[p]))[0]
+            loc, _normal, _index, dist = tree.ray_cast(Vector(lo), Vector(lv))
             if loc is None:
                 continue
-            # world distance along the ray, as `_mesh_hit`
-            m = self.matrices[n]
-            t = float((m[:3, :3] @ np.asarray(loc) + m[:3, 3] - origins[r]) @ dirs[p])
-            if 0 < t < best[r]:
-                best[r] = t
+            hit_pairs.append(p)
+            hit_locs.append(tuple(loc))
+            near[r] = min(near[r], dist / ln)
+        if hit_pairs:
+            p = np.asarray(hit_pairs)
+            m = self.matrices[box[p]]
+            w = np.einsum("pij,pj->pi", m[:, :3, :3], np.asarray(hit_locs)) + m[:, :3, 3]
+            t = np.einsum("pj,pj->p", w - origins[ray[p]], dirs[p])
+            np.minimum.at(best, ray[p], np.where(t > 0, t, np.inf))
         return best
 
     def _mesh_hit(self, n, origin, d) -> float:
