@@ -86,18 +86,30 @@ def sphere_hits_bundles(
     ref = origins[:, 0]  # (B, 3)
     o = origins - ref[:, None]  # (B, k, 3), small
     reach = np.sqrt(np.einsum("bkj,bkj->bk", o, o)).max(axis=1)  # (B,)
+    # The line test in world coordinates by matrix products (fast), widened by far
+    # more than its rounding; the kept pairs are then computed as `sphere_hits` does.
+    dw = np.einsum("bj,bj->b", ref, d)
+    c2, r2w = np.einsum("sj,sj->s", centers, centers), np.einsum("bj,bj->b", ref, ref)
     step = max(1, BATCH_CELLS // max(radii.size, 1))
     for b0 in range(0, B, step):
         b1 = min(B, b0 + step)
-        c = centers[None] - ref[b0:b1, None]  # (b, S, 3)
-        cd = np.einsum("bsj,bj->bs", c, d[b0:b1])
-        cc = np.einsum("bsj,bsj->bs", c, c)
-        rr = radii[None] + reach[b0:b1, None]
-        near_line = (cd + rr > 0) & (cc - cd * cd <= rr**2)
-        bi, si = np.nonzero(near_line)
+        sl = slice(b0, b1)
+        cd = centers @ d[sl].T - dw[None, sl]  # (S, b): (centre − ref)·d
+        cc = c2[:, None] - 2.0 * (centers @ ref[sl].T) + r2w[None, sl]  # |centre − ref|²
+        rr = radii[:, None] + reach[None, sl]
+        scale = np.sqrt(c2)[:, None] + np.sqrt(r2w[sl])[None]
+        tol = 1e-9 * scale
+        near_line = (cd + rr + tol > 0) & (cc - cd * cd <= rr**2 + tol * (scale + rr))
+        si, bi = np.nonzero(near_line)
         if bi.size == 0:
             continue
-        cp, cdp, ccp = c[bi, si], cd[bi, si], cc[bi, si]  # (P, 3), (P,), (P,)
+        c = centers[si] - ref[b0 + bi]  # (P, 3), relative as in `sphere_hits`
+        cdp = np.einsum("pj,pj->p", c, d[b0 + bi])
+        ccp = np.einsum("pj,pj->p", c, c)
+        keep = (cdp + radii[si] + reach[b0 + bi] > 0) & (
+            ccp - cdp * cdp <= (radii[si] + reach[b0 + bi]) ** 2
+        )
+        si, bi, cp, cdp, ccp = si[keep], bi[keep], c[keep], cdp[keep], ccp[keep]
         op = o[b0 + bi]  # (P, k, 3)
         b = cdp[:, None] - np.einsum("pkj,pj->pk", op, d[b0 + bi])
         oc2 = (
