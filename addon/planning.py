@@ -10,7 +10,11 @@
 * `may_be_beam` / `free_distance_behind`: whether a spot may sit behind its lens,
   and how far it can without geometry in the way; `receiver_distance`: where the
   surface the caustic falls on lies (no lens light at or behind it);
-* `plan_result`: all of it for phase 1's result on a scene read.
+* `plan_result`: all of it for phase 1's result on a scene read, on columns (the
+  tiers' table makers; every kept source's rays in one batched cast:
+  `free_distances`, `receiver_rays`); `plan_result_per_source` is the same source by
+  source (`plan_lights`, `free_distance_behind`, `receiver_distance`), kept as the
+  reference the columns path is tested against.
 
 Every pair left without a light is a `skip_reasons.SkippedPair` (code + details).
 """
