@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from random_scenes import random_scene
 
+from addon.budget import take
 from addon.phase1 import Phase1Result, SceneArrays, compute_phase1
 from addon.planning import plan_result, plan_result_per_source
 from addon.ray_hits import box_entries, box_entries_bundles, sphere_hits, sphere_hits_bundles
@@ -224,3 +225,26 @@ def test_batched_sphere_and_box_hits_equal_the_per_bundle_ones():
         np.testing.assert_allclose(enter[b][h], e[h], rtol=1e-12)
     assert sphere_hits_bundles(C, R, np.zeros((0, 5, 3)), np.zeros((0, 3))).shape == (0, 5)
     assert math.isinf(sphere_hits_bundles(C[:0], R[:0], origins[:1], d[:1]).min())
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_nothing_kept_is_planned_alike(model):
+    """Every source under the cut-off, a maximum of 0 lights, no source at all."""
+    for seed, min_brightness, max_lights in ((0, 1e9, 5), (1, 0.0, 0)):
+        options = dict(
+            energy_model=model,
+            spot_blend=0.3,
+            min_brightness=min_brightness,
+            max_lights=max_lights,
+            merge_distance=None,
+        )
+        read, result = make_read(seed, Batched)
+        want = plan_result_per_source(read, result, options)
+        read, result = make_read(seed, Batched)
+        got = plan_result(read, result, options)
+        assert_same_work(got, want, f"{model} cut-off {min_brightness} max {max_lights}")
+        assert got.plan.skipped
+    read, result = make_read(0, Batched)
+    none = Phase1Result(take(result.table, np.zeros(0, dtype=np.int64)), result.skip_table, None)
+    got = plan_result(read, none, options)
+    assert got.plan.lights == [] and got.plan.skipped == [] and read.occluders.released
