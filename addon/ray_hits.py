@@ -64,3 +64,81 @@ def box_entries(
     leave = np.maximum(t0, t1).min(axis=2)
     hit = (leave >= np.maximum(enter, 0.0)) & (enter <= limit)
     return enter, hit
+
+
+#: Bundles × spheres (or boxes) tested at once in the batched forms (memory bound).
+BATCH_CELLS = 1 << 20
+
+
+def sphere_hits_bundles(
+    centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, d: np.ndarray
+) -> np.ndarray:
+    """`sphere_hits` of many bundles at once: `origins` (B × k × 3), one unit
+    direction per bundle `d` (B × 3) → (B × k). The same arithmetic per bundle
+    (relative to its first origin, spheres off its line skipped), vectorised over
+    the (bundle, sphere) pairs the line test keeps."""
+    origins = np.asarray(origins, dtype=float)
+    d = np.asarray(d, dtype=float).reshape(-1, 3)
+    B, k = origins.shape[:2]
+    out = np.full((B, k), np.inf)
+    if radii.size == 0 or B == 0:
+        return out
+    ref = origins[:, 0]  # (B, 3)
+    o = origins - ref[:, None]  # (B, k, 3), small
+    reach = np.sqrt(np.einsum("bkj,bkj->bk", o, o)).max(axis=1)  # (B,)
+    # The line test in world coordinates by matrix products (fast), widened by far
+    # more than its rounding; the kept pairs are then computed as `sphere_hits` does.
+    dw = np.einsum("bj,bj->b", ref, d)
+    c2, r2w = np.einsum("sj,sj->s", centers, centers), np.einsum("bj,bj->b", ref, ref)
+    step = max(1, BATCH_CELLS // max(radii.size, 1))
+    for b0 in range(0, B, step):
+        b1 = min(B, b0 + step)
+        sl = slice(b0, b1)
+        cd = centers @ d[sl].T - dw[None, sl]  # (S, b): (centre − ref)·d
+        cc = c2[:, None] - 2.0 * (centers @ ref[sl].T) + r2w[None, sl]  # |centre − ref|²
+        rr = radii[:, None] + reach[None, sl]
+        scale = np.sqrt(c2)[:, None] + np.sqrt(r2w[sl])[None]
+        tol = 1e-9 * scale
+        near_line = (cd + rr + tol > 0) & (cc - cd * cd <= rr**2 + tol * (scale + rr))
+        si, bi = np.nonzero(near_line)
+        if bi.size == 0:
+            continue
+        c = centers[si] - ref[b0 + bi]  # (P, 3), relative as in `sphere_hits`
+        cdp = np.einsum("pj,pj->p", c, d[b0 + bi])
+        ccp = np.einsum("pj,pj->p", c, c)
+        keep = (cdp + radii[si] + reach[b0 + bi] > 0) & (
+            ccp - cdp * cdp <= (radii[si] + reach[b0 + bi]) ** 2
+        )
+        si, bi, cp, cdp, ccp = si[keep], bi[keep], c[keep], cdp[keep], ccp[keep]
+        op = o[b0 + bi]  # (P, k, 3)
+        b = cdp[:, None] - np.einsum("pkj,pj->pk", op, d[b0 + bi])
+        oc2 = (
+            ccp[:, None] - 2.0 * np.einsum("pkj,pj->pk", op, cp) + np.einsum("pkj,pkj->pk", op, op)
+        )
+        disc = b * b - (oc2 - (radii[si] ** 2)[:, None])
+        with np.errstate(invalid="ignore"):
+            root = np.sqrt(disc)
+            near, far = b - root, b + root
+            t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
+        t = np.where(disc >= 0, t, np.inf)
+        np.minimum.at(out, b0 + bi, t)
+    return out
+
+
+def box_entries_bundles(
+    box_lo: np.ndarray, box_hi: np.ndarray, origins: np.ndarray, d: np.ndarray, limit: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """`box_entries` of many bundles at once (`origins` B × k × 3, `d` B × 3):
+    (enter, hit), each B × k × N."""
+    origins = np.asarray(origins, dtype=float)
+    d = np.asarray(d, dtype=float).reshape(-1, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(d != 0, 1.0 / d, np.inf)[:, None, None, :]  # (B, 1, 1, 3)
+        t0 = (box_lo[None, None] - origins[:, :, None]) * inv  # (B, k, N, 3)
+        t1 = (box_hi[None, None] - origins[:, :, None]) * inv
+        t0 = np.where(np.isnan(t0), -np.inf, t0)
+        t1 = np.where(np.isnan(t1), np.inf, t1)
+    enter = np.minimum(t0, t1).max(axis=3)
+    leave = np.maximum(t0, t1).min(axis=3)
+    hit = (leave >= np.maximum(enter, 0.0)) & (enter <= limit)
+    return enter, hit

@@ -207,14 +207,17 @@ def write_report(rows, args):
         "",
         "Where the time goes (the steps below): `read` walks the viewport depsgraph "
         "(per object: it grows with separate objects), `phase1` and `budget` are "
-        "vectorised, `plan` makes every planned source's light one at a time in Python "
-        "(the tier's maker, and for the kept ones the rays that find the free distance "
-        "and the receiver behind the lens) twice (pre-selection, then the kept ones), "
-        "`bake` is the Caustic layer's trace. Writing the Blender lights (**apply**) is "
-        "small. The Exact profile's **apply** includes its profile tables (made lazily "
-        "on first use): one per new D/R, so every frame a light moves relative to a lens "
-        "costs a table for that pair. Frames whose inputs equal the last update's are "
-        "not planned at all (not measured here: a light moves on every frame).",
+        "vectorised, `plan first` is the pre-selection's lights as columns (the tier's "
+        "table maker), `plan` (which includes it) adds the kept sources' rays (the free "
+        "distance and the receiver behind each lens, every kept source in one batched "
+        "cast) and their lights (columns for Fitted and the Caustic layer, the "
+        "per-source maker for the other tiers; a Fitted near-field fit is remembered "
+        "per distinct geometry), `bake` is the Caustic layer's trace. **apply** writes "
+        "the Blender lights. The Exact profile's **apply** includes its profile tables "
+        "(made lazily on first use): one per new D/R, so every frame a light moves "
+        "relative to a lens costs a table for that pair. Frames whose inputs equal the "
+        "last update's are not planned at all (not measured here: a light moves on "
+        "every frame).",
         "",
         "Steps of the update (median ms):",
         "",

@@ -26,7 +26,13 @@ import math
 
 import numpy as np
 
-from ..addon.ray_hits import box_entries, sphere_hits
+from ..addon.ray_hits import (
+    BATCH_CELLS,
+    box_entries,
+    box_entries_bundles,
+    sphere_hits,
+    sphere_hits_bundles,
+)
 
 #: Hits nearer than this share of the scene size to the ray's origin are ignored
 #: (the surface a ray starts on).
@@ -126,6 +132,90 @@ class Occluders:
                     if t < best[k]:
                         best[k] = t
         return np.where(best <= limit, best, np.inf)
+
+    def first_hits(self, origins, directions, limit) -> np.ndarray:
+        """`first_hit` of many bundles at once: `origins` (B × k × 3), one unit
+        direction per bundle (B × 3) → (B × k). Spheres for all bundles in one
+        numpy pass; the boxes likewise; then only the meshes whose box a ray
+        enters nearer than its best hit so far, each transformed in numpy and cast
+        against the mesh's BVH (the same hits as `first_hit` bundle by bundle)."""
+        origins = np.asarray(origins, dtype=float)
+        B, k = origins.shape[:2]
+        d = np.asarray(directions, dtype=float).reshape(-1, 3)
+        d = d / np.sqrt(np.sum(d * d, axis=1))[:, None]
+        best = sphere_hits_bundles(self.centers, self.radii, origins, d)
+        N = len(self.source_index)
+        if N and B:
+            step = max(1, BATCH_CELLS // (k * N))
+            rays, boxes, enters = [], [], []
+            for b0 in range(0, B, step):
+                enter, hit = box_entries_bundles(
+                    self.box_lo, self.box_hi, origins[b0 : b0 + step], d[b0 : b0 + step], limit
+                )
+                e = np.maximum(enter, 0.0)
+                bi, ki, ni = np.nonzero(hit & (e < best[b0 : b0 + step, :, None]))
+                rays.append((b0 + bi) * k + ki)
+                boxes.append(ni)
+                enters.append(e[bi, ki, ni])
+            ray, box, enter = (np.concatenate(x) for x in (rays, boxes, enters))
+            if ray.size:
+                flat = best.reshape(-1)
+                self._mesh_hits(ray, box, enter, origins.reshape(-1, 3), d, k, flat)
+                best = flat.reshape(B, k)
+        return np.where(best <= limit, best, np.inf)
+
+    def _mesh_hits(self, ray, box, enter, origins, d, k, best):
+        """Lower `best` (per ray) by the meshes `box` that `ray` enters at `enter`,
+        nearest box first per ray, skipping boxes entered beyond the best hit so far
+        (told by the BVH's own distance); the hits' world distances as `_mesh_hit`'s,
+        in numpy at the end."""
+        from mathutils import Vector
+
+        order = np.lexsort((enter, ray))
+        ray, box, enter = ray[order], box[order], enter[order]
+        if self._inverse is None:
+            self._inverse = np.linalg.pinv(self.matrices)
+        inv = self._inverse[box]
+        dirs = d[ray // k]
+        o = np.einsum("pij,pj->pi", inv[:, :3, :3], origins[ray]) + inv[:, :3, 3]
+        v = np.einsum("pij,pj->pi", inv[:, :3, :3], dirs)
+        vlen = np.sqrt(np.sum(v * v, axis=1))
+        ok = (np.all(np.isfinite(o), axis=1) & (vlen > 0)).tolist()
+        near = best.tolist()  # the running best, for skipping boxes
+        trees = {}
+        hit_pairs, hit_locs = [], []
+        for p, (r, n, e, lo, lv, ln) in enumerate(
+            zip(
+                ray.tolist(),
+                box.tolist(),
+                enter.tolist(),
+                o.tolist(),
+                v.tolist(),
+                vlen.tolist(),
+                strict=True,
+            )
+        ):
+            if e >= near[r] or not ok[p]:
+                continue
+            s = int(self.source_index[n])
+            tree = trees.get(s)
+            if tree is None:
+                tree = trees[s] = self.sources[s].tree()
+            if not tree:
+                continue
+            loc, _normal, _index, dist = tree.ray_cast(Vector(lo), Vector(lv))
+            if loc is None:
+                continue
+            hit_pairs.append(p)
+            hit_locs.append(tuple(loc))
+            near[r] = min(near[r], dist / ln)
+        if hit_pairs:
+            p = np.asarray(hit_pairs)
+            m = self.matrices[box[p]]
+            w = np.einsum("pij,pj->pi", m[:, :3, :3], np.asarray(hit_locs)) + m[:, :3, 3]
+            t = np.einsum("pj,pj->p", w - origins[ray[p]], dirs[p])
+            np.minimum.at(best, ray[p], np.where(t > 0, t, np.inf))
+        return best
 
     def _mesh_hit(self, n, origin, d) -> float:
         from mathutils import Vector

@@ -47,7 +47,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .near_field import is_near, receiver_fit
+from .near_field import APEX_CLEARANCE, NEAR_FIELD, is_near, receiver_fit
 from .spot_fit import (
     FIRST_RECEIVER,
     FIT_RECEIVERS,
@@ -315,28 +315,65 @@ def make_table(
     p: Primaries,
     *,
     scene_size: float = 1.0,
-    collimated_distance: float | None = None,
+    collimated_distance=None,
+    receiver_distance=None,
     **_ignored,
 ) -> LightTable:
-    """:func:`make_light` for every source of a `phase1.SourceTable` at once (the
-    table lookup, no receiver known: no near-field fits)."""
+    """:func:`make_light` for every source of a `phase1.SourceTable` at once.
+    `collimated_distance`: a number or one per source (None or 0: the default);
+    `receiver_distance`: None (no receiver known: no near-field fits) or one per
+    source (NaN: unknown), the near-field rows fitted one distinct geometry at a
+    time (:func:`.near_field.receiver_fit`, remembered)."""
     axis = unit_rows(table.axis)
     R, D = table.lens_radius, table.distance
     unblocked, full = unblocked_columns(table)
     scale = np.clip(p.transmission_weight, 0.0, 1.0) ** 2 * unblocked
     spots = fitted_spots(D / R, table.ior)
-    far = collimated_distance or COLLIMATED_DISTANCE_FACTOR * scene_size
-    pulled, apex, intensity, half = pull_in_columns(
-        spots.apex, spots.intensity, spots.half_angle_deg, float(far) / R
+    default = COLLIMATED_DISTANCE_FACTOR * scene_size
+    far = (
+        default
+        if collimated_distance is None
+        else np.where(
+            np.asarray(collimated_distance, dtype=float) == 0.0, default, collimated_distance
+        )
     )
+    pulled, apex, intensity, half = pull_in_columns(
+        spots.apex, spots.intensity, spots.half_angle_deg, far / R
+    )
+    pulled_apex, blend = apex, spots.blend
+    z_recv = np.full(len(table), np.nan)
+    near = np.zeros(len(table), dtype=bool)
+    if receiver_distance is not None:
+        rd = np.asarray(receiver_distance, dtype=float)
+        z_recv = np.where(rd != 0.0, rd / R, np.nan)
+        with np.errstate(invalid="ignore"):
+            near = np.isfinite(z_recv) & ((z_recv <= NEAR_FIELD) | (apex > z_recv - APEX_CLEARANCE))
+        if near.any():
+            apex, intensity, half, blend = (
+                np.array(x, dtype=float) for x in (apex, intensity, half, blend)
+            )
+            DR, n = D / R, table.ior
+            for t in np.flatnonzero(near).tolist():
+                fit = receiver_fit(
+                    round(float(DR[t]), 6), round(float(n[t]), 6), round(float(z_recv[t]), 3)
+                )
+                apex[t], intensity[t] = fit.apex, fit.intensity
+                half[t], blend[t] = fit.half_angle_deg, fit.blend
 
     def pull_note(t):
         return (
             ""
             if not pulled[t]
             else f"spot pulled in from {float((1.0 - spots.apex[t]) * R[t]):.4g} to "
-            f"{float((1.0 - apex[t]) * R[t]):.4g} behind the back vertex "
+            f"{float((1.0 - pulled_apex[t]) * R[t]):.4g} behind the back vertex "
             "(geometry behind the lens)"
+        )
+
+    def near_note(t):
+        return (
+            f"near field: fitted to the receiver {float(z_recv[t]):.4g} R from the lens centre"
+            if near[t]
+            else ""
         )
 
     shape = cone_shapes(half)
@@ -347,8 +384,14 @@ def make_table(
         kind=table.kind,
         energy_w=p.power_w * intensity * scale,
         spot_size_deg=shape.spot_size_deg,
-        spot_blend=np.clip(spots.blend, 0.0, 1.0),
-        radius=lens_light_radii(p.radius, D, table.vergence, scene_size),
+        spot_blend=np.clip(blend, 0.0, 1.0),
+        radius=lens_light_radii(
+            p.radius,
+            D,
+            table.vergence,
+            scene_size,
+            math.nan if receiver_distance is None else receiver_distance,
+        ),
         location=table.lens_center + (apex * R)[:, None] * axis,
         direction=axis,
         color=glass_colors(R, p.color, p.tint, p.absorption),
@@ -358,7 +401,7 @@ def make_table(
         reference_irradiance=irradiance,
         relative_brightness=relative_brightness(irradiance, p.intensity / D**2),
         inside_lens=apex < 1.0,
-        note_parts=[non_full_notes(unblocked, full), spots.note, pull_note, shape.note],
+        note_parts=[non_full_notes(unblocked, full), spots.note, pull_note, near_note, shape.note],
     )
 
 
