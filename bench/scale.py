@@ -213,7 +213,7 @@ def end_to_end(n_lights, n_spheres, folder: Path, repeat: int) -> dict:
     )
     lights = cli.bi_scene_light_table(scene, result.table, "fitted")
     stage["JSON"] = best_of(
-        lambda: "".join(cli.phase1_compact_json(result, lights, "FITTED")), repeat
+        lambda: b"".join(cli.phase1_compact_json(result, lights, "FITTED")), repeat
     )
     one = SceneArrays(
         a.light_position[:1],
