@@ -49,23 +49,25 @@ def find_blockers(
     row_of = np.full(direction.shape[0], -1, dtype=np.int64)
     row_of[lens_rows] = np.arange(n_rows)
 
-    # Totally blocked lenses first (a point-in-disc search): they need no partial
-    # blockers, and in a crowded view they are most of the pairs. They still
-    # block the spheres behind them (as obstacles below).
-    total_blocker = _total_blockers(lens_rows, direction, ang, tlen, obstacle)
-    open_lens = np.zeros(direction.shape[0], dtype=bool)
-    open_lens[lens_rows[total_blocker < 0]] = True
-
-    a, b = _candidate_pairs(direction, ang, obstacle, open_lens, tlen)
+    a, b = _candidate_pairs(direction, ang, obstacle, row_of >= 0)
     # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
     far_a = tlen[a] > tlen[b]
     lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
-    keep = open_lens[lens] & obstacle[obst] & (tlen[obst] < tlen[lens])
+    keep = (row_of[lens] >= 0) & obstacle[obst] & (tlen[obst] < tlen[lens])
     lens, obst = lens[keep], obst[keep]
     alpha, beta = ang[lens], ang[obst]
     gamma = _angle_between_rows(direction, lens, obst)
     blocks = alpha + beta >= gamma
     lens, obst, alpha, beta, gamma = (x[blocks] for x in (lens, obst, alpha, beta, gamma))
+    total = beta >= gamma + alpha
+
+    total_blocker = np.full(n_rows, -1, dtype=np.int64)
+    if np.any(total):
+        tl, to = lens[total], obst[total]
+        order = np.lexsort((to, tlen[to], tl))  # per lens: nearest, then lowest index
+        tl, to = tl[order], to[order]
+        first = np.r_[True, tl[1:] != tl[:-1]]
+        total_blocker[row_of[tl[first]]] = to[first]
 
     partial = total_blocker[row_of[lens]] < 0
     rows = row_of[lens[partial]]
@@ -81,83 +83,6 @@ def find_blockers(
     return Blockers(total_blocker, np.cumsum(offsets), obst, unblocked)
 
 
-def _total_blockers(lens_rows, direction, ang, tlen, obstacle) -> np.ndarray:
-    """Per lens row, the nearest sphere (then the lowest index) that blocks all of
-    it (R_T,k < R_T,i, α_i + β_k ≥ γ_ik and β_k ≥ γ_ik + α_i: the thesis' tests,
-    bit for bit as `find_blockers` makes them), or −1.
-
-    Such a disc holds the lens's centre direction well inside it: chord(w_i, w_k)
-    ≤ γ ≤ β_k − α_i. The lenses go by size class ℓ (α_i > a_ℓ, a power of two
-    less a margin for rounding); for each class the obstacles' boxes shrunk by
-    a_ℓ, [w − (ρ − a_ℓ), w + (ρ − a_ℓ)], go in a hierarchy of grids (each box at
-    most 8 cells of the level whose cells are at least its width) and each lens
-    looks up the one cell of each level its centre is in. Each (lens, obstacle)
-    pair meets at most once; shrinking keeps the meetings close to the answers
-    in a crowded view (equal discs contain each other only when nearly aligned)."""
-    n_rows = lens_rows.size
-    total_blocker = np.full(n_rows, -1, dtype=np.int64)
-    owners_all = np.flatnonzero(obstacle)
-    if n_rows == 0 or owners_all.size == 0:
-        return total_blocker
-    rho = ang * (1.0 + 1e-12) + 1e-15
-    c0 = max(2.0 * float(np.quantile(rho[owners_all], 0.05)), _MIN_CELL)
-
-    def levels(r):
-        return np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * r / c0, 1.0)))).astype(np.int64)
-
-    # Size classes of the lenses: α_i ≥ ang_i > a_ℓ = c0·2^(ℓ−2)·0.9 for ℓ ≥ 1.
-    size = levels(rho[lens_rows])
-    x, y, z = (np.ascontiguousarray(direction[:, k]) for k in range(3))
-    found_lens, found_obst = [], []
-    for cls in np.unique(size):
-        queries = lens_rows[size == cls]
-        a_min = 0.9 * c0 * 2.0 ** (cls - 2) if cls >= 1 else 0.0
-        owners = owners_all[rho[owners_all] > a_min]
-        shrunk = rho[owners] - a_min
-        lev = levels(shrunk)
-        for lvl in np.unique(lev):
-            cell = c0 * 2.0**lvl
-            sel = lev == lvl
-            e_keys, e_idx, _ = _cell_keys(direction[owners[sel]], shrunk[sel], cell)
-            order = np.argsort(e_keys, kind="stable")
-            ek, eo = e_keys[order], owners[sel][e_idx[order]]
-            q_keys = _point_keys(direction[queries], cell)
-            lo = np.searchsorted(ek, q_keys, side="left")
-            count = np.searchsorted(ek, q_keys, side="right") - lo
-            if not count.any():
-                continue
-            i, k = np.repeat(queries, count), eo[concat_ranges(lo, count)]
-            # Cheap necessary conditions first: nearer, no smaller, centre in its disc.
-            ok = (tlen[k] < tlen[i]) & (rho[k] >= rho[i])
-            i, k = i[ok], k[ok]
-            chord2 = (x[i] - x[k]) ** 2 + (y[i] - y[k]) ** 2 + (z[i] - z[k]) ** 2
-            ok = chord2 <= (rho[k] - a_min) ** 2  # chord ≤ γ ≤ β_k − α_i < ρ_k − a_ℓ
-            i, k = i[ok], k[ok]
-            alpha, beta = ang[i], ang[k]
-            gamma = _angle_between_rows(direction, i, k)
-            total = (alpha + beta >= gamma) & (beta >= gamma + alpha)
-            found_lens.append(i[total])
-            found_obst.append(k[total])
-    if not found_lens:
-        return total_blocker
-    tl, to = np.concatenate(found_lens), np.concatenate(found_obst)
-    if tl.size:
-        order = np.lexsort((to, tlen[to], tl))  # per lens: nearest, then lowest index
-        tl, to = tl[order], to[order]
-        first = np.r_[True, tl[1:] != tl[:-1]]
-        row_of = np.full(direction.shape[0], -1, dtype=np.int64)
-        row_of[lens_rows] = np.arange(n_rows)
-        total_blocker[row_of[tl[first]]] = to[first]
-    return total_blocker
-
-
-def _point_keys(w, cell):
-    """The key of the cell (of `_cell_keys`' grid of size `cell`) holding each point."""
-    dims = int(math.ceil(2.5 / cell)) + 2
-    c = np.floor((w + 1.25) / cell).astype(np.int64)
-    return (c[:, 0] * dims + c[:, 1]) * dims + c[:, 2]
-
-
 def _angle_between_rows(direction, i, k):
     """`geometry.angle_between(direction[i], direction[k])`, bit for bit, from the
     columns (no (N, 3) gathers and no `np.cross` overhead: it is most of the
@@ -168,11 +93,8 @@ def _angle_between_rows(direction, i, k):
     return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
 
 
-def _candidate_pairs(direction, ang, obstacle, lens_mask, tlen=None):
-    """Unordered pairs (a, b), each once, of spheres whose angular discs may
-    overlap, at least one of them in `lens_mask` (the other in it or `obstacle`);
-    given `tlen`, only those whose farther sphere is in `lens_mask` and nearer
-    one in `obstacle` (the pairs where one may block the other).
+def _candidate_pairs(direction, ang, obstacle, lens_mask):
+    """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
     distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect
@@ -196,9 +118,6 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask, tlen=None):
         return empty, empty
     w = direction[active]
     rho = ang[active] * (1.0 + 1e-12) + 1e-15
-    is_lens = lens_mask[active]
-    is_obstacle = obstacle[active]
-    far = None if tlen is None else tlen[active]
     c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
     level = np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * rho / c0, 1.0)))).astype(np.int64)
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
@@ -222,10 +141,6 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask, tlen=None):
             ok = (level[q] < lvl) | (q < e)  # within a level both orders come up
             if qb is not None:
                 ok &= (np.repeat(qb, count) & eb[at]) == 0
-            if far is not None:  # the farther one a lens, the nearer an obstacle
-                q_far = far[q] > far[e]
-                ok &= np.where(q_far, is_lens[q] & is_obstacle[e], is_lens[e] & is_obstacle[q])
-                ok &= far[q] != far[e]
             q, e = q[ok], e[ok]
             # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
             chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
@@ -233,34 +148,24 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask, tlen=None):
             pa.append(q[near])
             pb.append(e[near])
 
-        def join(qk, qi, qb, ek, eo, eb):
-            """`meet` of these queries and owners, crowded cells split by corner."""
-            if not qk.size or not ek.size:
-                return
-            order = np.argsort(ek, kind="stable")
-            ek, eo, eb = ek[order], eo[order], eb[order]
-            lo = np.searchsorted(ek, qk, side="left")
-            count = np.searchsorted(ek, qk, side="right") - lo
-            if int(count.sum()) <= 4 * qk.size:
-                meet(qk, qi, qb, ek, eo, eb, lo=lo, count=count)
-                return
-            # Crowded: split the owners by corner, so that a query's cell at corner bq
-            # is searched only among owners at corners be with bq & be == 0 (above),
-            # and a pair's other meetings are never expanded.
-            by_corner = [np.flatnonzero(eb == be) for be in range(8)]
-            for bq in range(8):
-                sel = np.flatnonzero(qb == bq)
-                for be in range(8):
-                    if sel.size and not bq & be and by_corner[be].size:
-                        k = by_corner[be]
-                        meet(qk[sel], qi[sel], None, ek[k], eo[k], None)
-
-        # Only pairs with a lens of `lens_mask` in them: lens queries meet every
-        # owner, the other queries only lens owners (each pair still once).
-        e_lens, q_lens = is_lens[owners[e_idx]], is_lens[queries[q_idx]]
-        eo, qi = owners[e_idx], queries[q_idx]
-        for qs, es in ((q_lens, slice(None)), (~q_lens, e_lens)):
-            join(q_keys[qs], qi[qs], q_bits[qs], e_keys[es], eo[es], e_bits[es])
+        order = np.argsort(e_keys, kind="stable")
+        ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
+        qi = queries[q_idx]
+        lo = np.searchsorted(ek, q_keys, side="left")
+        count = np.searchsorted(ek, q_keys, side="right") - lo
+        if int(count.sum()) <= 4 * q_keys.size:
+            meet(q_keys, qi, q_bits, ek, eo, eb, lo=lo, count=count)
+            continue
+        # Crowded: split the owners by corner, so that a query's cell at corner bq
+        # is searched only among owners at corners be with bq & be == 0 (above),
+        # and a pair's other meetings are never expanded.
+        by_corner = [np.flatnonzero(eb == be) for be in range(8)]
+        for bq in range(8):
+            sel = np.flatnonzero(q_bits == bq)
+            for be in range(8):
+                if sel.size and not bq & be and by_corner[be].size:
+                    k = by_corner[be]
+                    meet(q_keys[sel], qi[sel], None, ek[k], eo[k], None)
     if not pa:
         return empty, empty
     return active[np.concatenate(pa)], active[np.concatenate(pb)]

@@ -223,10 +223,9 @@ def light_view(a: SceneArrays, j=0):
 )
 def test_dense_grid_blockers_equal_every_pair_bit_for_bit(light, seed):
     """A crowded grid seen from close, radii and materials mixed (spheres that are
-    no lens still block): the totally blocked lenses found first (a point-in-disc
-    search), the partial blockers of the others, and the unblocked share are
-    exactly every-pair's, with many lenses totally blocked by ones that are
-    themselves totally blocked."""
+    no lens still block): the total blockers, the partial blockers of the others
+    and the unblocked share are exactly every-pair's, and lenses totally blocked
+    still block part of the lenses behind them."""
     from addon.obstruction import find_blockers
 
     rng = np.random.default_rng(seed)
@@ -254,8 +253,8 @@ def test_dense_grid_blockers_equal_every_pair_bit_for_bit(light, seed):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_blockers_of_discs_of_every_size_equal_every_pair(seed):
-    """Random spheres with a few huge ones and some tiny far ones (size classes
-    far apart: the point search's shrunken boxes at every level)."""
+    """Random spheres with a few huge ones and some tiny ones (discs of sizes far
+    apart: boxes at every level of the grids)."""
     from addon.obstruction import find_blockers
 
     rng = np.random.default_rng(seed)
@@ -272,41 +271,3 @@ def test_blockers_of_discs_of_every_size_equal_every_pair(seed):
     ] == lists
     np.testing.assert_allclose(got.unblocked_fraction, unblocked, rtol=1e-12, atol=0)
     assert any(t >= 0 for t in total)
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_candidate_pairs_with_a_farther_lens_each_once(seed):
-    """Given the tangent lengths, the broad phase hands over each overlapping pair
-    whose farther sphere is a lens of the mask and nearer one an obstacle, once
-    (and no pair of two spheres outside the mask)."""
-    from addon.geometry import angle_between, radial_angle
-    from addon.obstruction import _candidate_pairs
-
-    rng = np.random.default_rng(seed)
-    a = random_scene(rng, 300, 1, outliers=seed % 2 == 1)
-    v = a.center - a.light_position[0]
-    d = np.linalg.norm(v, axis=1)
-    keep = d > a.radius
-    w, rho = v / d[:, None], np.where(keep, radial_angle(d, a.radius), 0.0)
-    tlen = np.where(keep, np.sqrt(np.maximum(d * d - a.radius**2, 0.0)), 0.0)
-    obstacle = keep & (rng.uniform(size=len(d)) < 0.8)
-    lens = keep & (rng.uniform(size=len(d)) < 0.4)
-    for t in (None, tlen):
-        p, q = _candidate_pairs(w, rho, obstacle, lens, t)
-        pairs = list(zip(np.minimum(p, q).tolist(), np.maximum(p, q).tolist(), strict=True))
-        assert len(pairs) == len(set(pairs))
-        assert np.all(lens[p] | lens[q])
-        i, k = np.triu_indices(len(d), 1)
-        i, k = np.r_[i, k], np.r_[k, i]  # i the farther, k the nearer
-        want = lens[i] & obstacle[k] & (tlen[i] > tlen[k])
-        i, k = i[want], k[want]
-        overlap = rho[i] + rho[k] >= angle_between(w[i], w[k])
-        need = {
-            (min(x, y), max(x, y))
-            for x, y in zip(i[overlap].tolist(), k[overlap].tolist(), strict=True)
-        }
-        assert need <= set(pairs)
-        if t is not None:
-            far = np.where(tlen[p] > tlen[q], p, q)
-            near = np.where(tlen[p] > tlen[q], q, p)
-            assert np.all(lens[far] & obstacle[near] & (tlen[p] != tlen[q]))
