@@ -133,10 +133,11 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
         q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
 
-        def meet(qk, qi, qb, ek, eo, eb, lvl=lvl):
+        def meet(qk, qi, qb, ek, eo, eb, lvl=lvl, lo=None, count=None):
             """Pairs (query, owner) sharing a cell, in their home cell only, near."""
-            lo = np.searchsorted(ek, qk, side="left")
-            count = np.searchsorted(ek, qk, side="right") - lo
+            if lo is None:
+                lo = np.searchsorted(ek, qk, side="left")
+                count = np.searchsorted(ek, qk, side="right") - lo
             if not count.any():
                 return
             at = concat_ranges(lo, count)
@@ -154,13 +155,10 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         order = np.argsort(e_keys, kind="stable")
         ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
         qi = queries[q_idx]
-        raw = int(
-            (
-                np.searchsorted(ek, q_keys, side="right") - np.searchsorted(ek, q_keys, side="left")
-            ).sum()
-        )
-        if raw <= 4 * q_keys.size:
-            meet(q_keys, qi, q_bits, ek, eo, eb)
+        lo = np.searchsorted(ek, q_keys, side="left")
+        count = np.searchsorted(ek, q_keys, side="right") - lo
+        if int(count.sum()) <= 4 * q_keys.size:
+            meet(q_keys, qi, q_bits, ek, eo, eb, lo=lo, count=count)
             continue
         # Crowded: split the owners by corner, so that a query's cell at corner bq
         # is searched only among owners at corners be with bq & be == 0 (above),

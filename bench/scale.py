@@ -213,7 +213,7 @@ def end_to_end(n_lights, n_spheres, folder: Path, repeat: int) -> dict:
     )
     lights = cli.bi_scene_light_table(scene, result.table, "fitted")
     stage["JSON"] = best_of(
-        lambda: "".join(cli.phase1_compact_json(result, lights, "FITTED")), repeat
+        lambda: b"".join(cli.phase1_compact_json(result, lights, "FITTED")), repeat
     )
     one = SceneArrays(
         a.light_position[:1],
@@ -265,38 +265,53 @@ def dense_grid(n_lights: int = 1) -> SceneArrays:
     )
 
 
+#: What was tried on the dense grid beyond this bench's run (its figures measured then).
+DENSE_NOTE = (
+    "Tried in the third round and dropped (branch scale2, commit a62af14): finding the "
+    "totally blocked lenses first (each lens's centre looked up among the nearer discs' "
+    "boxes, shrunk by the lens's size class) and then pairing only the lenses left "
+    "open, with the farther sphere of a pair the open lens. It is exact (the every-pair "
+    "tests pass) and cuts the grid's comparisons from 15.2 M to 8.7 M and the candidate "
+    "pairs from 2.0 M to 1.2 M, but building the second search's grids costs more "
+    "than it saves: phase 1 per light 2.5–2.9 s against 2.1–2.3 s for the one pass "
+    "(same runs, same load), and the sparse droplet scenes lost 0.3–0.4 s. Most of "
+    "the remaining time is the grid itself (cell keys, sorts and searches per level, "
+    "about 1.2 s), then the exact angles and cap overlaps of 2 M pairs (0.4 s)."
+)
+
+
 def dense_case(repeat: int) -> dict:
     from addon import obstruction
     from addon.phase1 import TOTALLY_BLOCKED
 
     a = dense_grid()
     t = best_of(lambda: compute_phase1(a), repeat)
-    counted = {}
-    original = obstruction._candidate_pairs
+    counted = {"pairs": 0, "pairs s": 0.0}
+    originals = {n: getattr(obstruction, n) for n in ("_candidate_pairs",)}
 
-    def counting(*args):
-        pairs = original(*args)
-        counted["pairs"] = pairs
-        return pairs
+    def timed(name, key):
+        def run(*args):
+            t0 = cpu_time()
+            out = originals[name](*args)
+            counted[key] += cpu_time() - t0
+            if name == "_candidate_pairs":
+                counted["pairs"] += int(out[0].size)
+            return out
 
-    obstruction._candidate_pairs = counting
+        return run
+
+    obstruction._candidate_pairs = timed("_candidate_pairs", "pairs s")
     try:
         r = compute_phase1(a)
     finally:
-        obstruction._candidate_pairs = original
+        for n, f in originals.items():
+            setattr(obstruction, n, f)
     blocks = int(r.table.shadow_spheres.size + np.sum(r.skip_table.code == TOTALLY_BLOCKED))
-    # Where the candidates go: the farther sphere of a pair is the lens it may block.
-    p, q = counted["pairs"]
-    d = np.linalg.norm(a.center - a.light_position[0], axis=1)
-    tlen = np.sqrt(d * d - a.radius**2)
-    far = np.where(tlen[p] > tlen[q], p, q)
-    hidden = np.zeros(len(a.radius), dtype=bool)
-    hidden[r.skip_table.lens[r.skip_table.code == TOTALLY_BLOCKED]] = True
     return dict(
         time=t,
-        pairs=int(p.size),
-        hidden_pairs=int(np.sum(hidden[far])),
-        hidden=int(hidden.sum()),
+        pairs=counted["pairs"],
+        pairs_s=counted["pairs s"],
+        hidden=int(np.sum(r.skip_table.code == TOTALLY_BLOCKED)),
         blocks=blocks,
         sources=len(r.table),
     )
@@ -394,11 +409,12 @@ def main(argv=None) -> int:
         "grid 2.7 s per light. After the first round (columnar tier lights, compact "
         "streamed JSON, spheres read in bulk into `Scene` objects; CPU, load 2.4–4.8): "
         "1 × 100 000 7.54 s, 16 × 10 000 5.69 s, the reader 0.42 M lines/s, dense grid "
-        "2.14 s. Since: the file is read straight into columns (`bi_format.read_bi_arrays`: "
-        "one record a line checked and converted per column, the record reader for "
-        "anything else and every error) and the JSON prints each distinct value of a "
-        "column once. Printing the doubles (`repr`, the shortest text that reads back) "
-        "is now most of the JSON stage: about 11 distinct numbers per source.",
+        "2.14 s. Second round: the file read straight into columns "
+        "(`bi_format.read_bi_arrays`), the JSON's doubles printed by `repr` once per "
+        "distinct value (1 × 100 000 5.50 s, 16 × 10 000 7.30 s, JSON 3.1–4.6 s of it; "
+        "dense grid 2.17 s). Now (third round): the compact JSON is printed by orjson "
+        "straight from the numpy columns and its rows gathered by numpy "
+        "(`cli.phase1_compact_json`, no Python object per number).",
         "",
         "| lights × spheres | file lines | sources | JSON (MB) | read (via `Scene`) | phase 1 "
         "| tier lights | JSON | end to end: CPU (wall) (s) | goal | thesis loop (s) | speed-up |",
@@ -455,20 +471,16 @@ def main(argv=None) -> int:
             "light 2 above the top layer near the middle (`dense_grid`): near discs are "
             "huge, far ones tiny and stacked many deep at grazing angles. The broad phase "
             "(`obstruction._candidate_pairs`) hands each candidate pair to the exact tests "
-            "once; blocks = shadow-list entries + total blockers.",
+            "once; blocks = shadow-list entries + total blockers. The broad phase's CPU "
+            "time is from one more run (in it, not the best).",
             "",
-            "| phase 1 per light (CPU s) | candidate pairs | of which the lens is totally "
-            "blocked | blocks | lenses totally blocked | sources |",
+            "| phase 1 per light (CPU s) | broad phase (s) | candidate pairs | blocks | "
+            "lenses totally blocked | sources |",
             "| ---: | ---: | ---: | ---: | ---: | ---: |",
-            f"| **{dense['time']:.2f}** | {dense['pairs']:,} | {dense['hidden_pairs']:,} | "
+            f"| **{dense['time']:.2f}** | {dense['pairs_s']:.2f} | {dense['pairs']:,} | "
             f"{dense['blocks']:,} | {dense['hidden']:,} | {dense['sources']:,} |",
             "",
-            "Nearly every candidate pair overlaps (the broad phase is tight on what it "
-            "hands over), but most of them have a farther sphere that turns out totally "
-            "blocked, whose partial blockers are then dropped; the pairs the grid compares "
-            "before its chord test are several times more again (15.2 M measured for this "
-            "scene). What remains to win is there: finding the totally blocked lenses "
-            "before pairing them (they still block the spheres behind them).",
+            DENSE_NOTE,
         ]
     lines += ["", "## Goals", ""]
     for r in e2e:

@@ -216,9 +216,23 @@ def _skip_reasons(result) -> list[tuple[int, int, str]]:
     ]
 
 
+def _floats(values) -> list:
+    """`values.tolist()` with None (JSON's null) for each non-finite number."""
+    import numpy as np
+
+    v = np.asarray(values, dtype=float)
+    bad = ~np.isfinite(v)
+    if not bad.any():
+        return v.tolist()
+    v = v.astype(object)
+    v[bad] = None
+    return v.tolist()
+
+
 def phase1_json_rows(result, lights):
     """The JSON of each source (with its Blender light) and of each skipped pair,
-    made from the columns: every array becomes a list once."""
+    made from the columns: every array becomes a list once; a non-finite number
+    becomes None (null), as in the compact writer."""
     import numpy as np
 
     t = result.table
@@ -228,9 +242,11 @@ def phase1_json_rows(result, lights):
         magnification = np.where(col, np.nan, -1.0 / (t.vergence * t.distance))
 
     def maybe(values, when):  # None where `when`
-        return [None if c else v for v, c in zip(values.tolist(), when.tolist(), strict=True)]
+        return _floats(np.where(when, np.nan, values))
 
     bl = lights.json_columns()
+    for k in ("energy_w", "spot_size_deg", "spot_blend", "radius"):
+        bl[k] = _floats(getattr(lights, k))
     bl_keys = list(bl)
     blender = [dict(zip(bl_keys, row, strict=True)) for row in zip(*bl.values(), strict=True)]
     shadow = _split(t.shadow_spheres.tolist(), t.shadow_offsets.tolist())
@@ -258,17 +274,17 @@ def phase1_json_rows(result, lights):
             t.light.tolist(),
             t.lens.tolist(),
             kinds,
-            t.position.tolist(),
-            t.axis.tolist(),
-            np.degrees(t.spread).tolist(),
+            _floats(t.position),
+            _floats(t.axis),
+            _floats(np.degrees(t.spread)),
             maybe(t.cylinder_radius, ~col),
-            t.intensity.tolist(),
-            t.color.tolist(),
+            _floats(t.intensity),
+            _floats(t.color),
             shadow,
             maybe(image, col),
             maybe(magnification, col),
-            t.brightness_factor.tolist(),
-            t.unblocked_fraction.tolist(),
+            _floats(t.brightness_factor),
+            _floats(t.unblocked_fraction),
             blender,
             strict=True,
         )
@@ -287,16 +303,17 @@ def write_phase1_json(
     """`{"model": …, "sources": […], "skipped": […]}` to `out`, streamed in chunks
     of rows, each encoded by the C encoder at once. `indent`: as `json.dump`'s
     (the text is the same as `json.dump` of the whole object would write); None:
-    compact, no blanks."""
+    compact, no blanks. Never NaN or Infinity (`allow_nan=False`: the rows carry
+    None there)."""
     seps = (",", ":") if indent is None else (",", ": ")
     nl = "" if indent is None else "\n"
     pad = "" if indent is None else " " * indent
 
     def rows(items, depth):
         for start in range(0, len(items), JSON_CHUNK):
-            text = json.dumps(items[start : start + JSON_CHUNK], indent=indent, separators=seps)[
-                1:-1
-            ]
+            text = json.dumps(
+                items[start : start + JSON_CHUNK], indent=indent, separators=seps, allow_nan=False
+            )[1:-1]
             if indent is not None:  # "\n  row,\n  row\n", one level deeper
                 text = text[:-1].replace("\n", "\n" + pad * (depth - 1))[1:]
             yield ("," + nl if start else "") + text
@@ -313,119 +330,187 @@ def write_phase1_json(
     out.write("}\n")
 
 
-#: One source of compact JSON, `%`-formatted from a flat row: a finite float by
-#: %r is the text `json.dumps` writes; R_C, image distance and magnification come
-#: as text ("null" where the source has none).
-_SOURCE_ROW = (
-    '{"light":%d,"lens":%d,"kind":"%s","position":[%s,%s,%s],"axis":[%s,%s,%s],'
-    '"spread_deg":%s,"cylinder_radius":%s,"intensity":%s,"color":[%s,%s,%s],"full":%s,'
-    '"shadow_list":[%s],"image_distance":%s,"magnification":%s,"brightness_factor":%s,'
-    '"unblocked_fraction":%s,"blender_light":{"type":"SPOT","energy_w":%s,'
-    '"spot_size_deg":%s,"spot_blend":%s,"radius":%s}}'
-)
+class _Pieces:
+    """Texts of JSON values in one byte buffer, one per row: row r's text is
+    buf[start[r] : start[r] + length[r]]. Built by numpy from orjson's output,
+    so that no Python object is made per value."""
+
+    def __init__(self, buf: bytes, start, length):
+        import numpy as np
+
+        self.buf = np.frombuffer(buf, dtype=np.uint8)
+        self.start = np.asarray(start, dtype=np.int64)
+        self.length = np.asarray(length, dtype=np.int64)
+
+    @classmethod
+    def constant(cls, text: str, n: int) -> _Pieces:
+        import numpy as np
+
+        return cls(text.encode(), np.zeros(n), np.full(n, len(text.encode())))
+
+    @classmethod
+    def choice(cls, texts: list[str], which) -> _Pieces:
+        """texts[which[r]] for each row."""
+        import numpy as np
+
+        raw = [t.encode() for t in texts]
+        lengths = np.array([len(t) for t in raw], dtype=np.int64)
+        which = np.asarray(which, dtype=np.int64)
+        return cls(b"".join(raw), (np.cumsum(lengths) - lengths)[which], lengths[which])
+
+    @classmethod
+    def numbers(cls, values, null=None) -> _Pieces:
+        """The JSON text of each number of a 1-D numpy column, printed by orjson
+        straight from the array; null where `null` (and orjson's null for a
+        non-finite float: never NaN or Infinity)."""
+        import numpy as np
+        import orjson
+
+        values = np.ascontiguousarray(values)
+        buf = orjson.dumps(values, option=orjson.OPT_SERIALIZE_NUMPY) + b"null"
+        commas = np.flatnonzero(np.frombuffer(buf, dtype=np.uint8) == ord(","))
+        if not values.size:
+            commas = commas[:0]
+        start = np.r_[1, commas + 1] if values.size else np.zeros(0, dtype=np.int64)
+        end = np.r_[commas, len(buf) - 5] if values.size else np.zeros(0, dtype=np.int64)
+        pieces = cls(buf, start, end - start)
+        if null is not None:
+            pieces.start[null] = len(buf) - 4
+            pieces.length[null] = 4
+        return pieces
+
+    @classmethod
+    def lists(cls, values, offsets) -> _Pieces:
+        """The numbers values[offsets[r] : offsets[r + 1]] of each row, comma
+        separated (the text inside a JSON list)."""
+        import numpy as np
+
+        items = cls.numbers(values)
+        first, last = offsets[:-1], offsets[1:] - 1
+        full = last >= first
+        start = np.zeros(first.size, dtype=np.int64)
+        length = np.zeros(first.size, dtype=np.int64)
+        start[full] = items.start[first[full]]
+        length[full] = items.start[last[full]] + items.length[last[full]] - start[full]
+        return cls(items.buf.tobytes(), start, length)
 
 
-def _reprs(values) -> list[str]:
-    """repr of each (finite) value, the text `json.dumps` writes for it. Printing
-    a double is most of the JSON's cost: a column of few distinct values (a
-    colour, a material's factor) prints each distinct one once (told apart by
-    their bits, so -0.0 stays -0.0)."""
+def _join_rows(fields: list[_Pieces]) -> bytes:
+    """Row by row, each field's text in turn: one gather of bytes (a chunk
+    fitting the caches: the gather is the writer's main cost)."""
     import numpy as np
 
-    v = np.ascontiguousarray(values, dtype=float).ravel()
-    if v.size > 64:
-        # A sort costs far less than printing: worth it if a third of the values repeat.
-        bits, inverse = np.unique(v.view(np.int64), return_inverse=True)
-        if 3 * bits.size <= 2 * v.size:
-            texts = list(map(repr, bits.view(float).tolist()))
-            return list(map(texts.__getitem__, inverse.tolist()))
-    return list(map(repr, v.tolist()))
+    base = np.cumsum([0] + [f.buf.size for f in fields])
+    big = np.concatenate([f.buf for f in fields])
+    start = np.stack([f.start + b for f, b in zip(fields, base[:-1], strict=True)], axis=1)
+    length = np.stack([f.length for f in fields], axis=1).ravel()
+    first = np.cumsum(length) - length  # where each piece begins in the output
+    idx = np.repeat(start.ravel() - first, length)
+    idx += np.arange(idx.size)
+    return big[idx].tobytes()
 
 
-def _texts(values, present) -> list[str]:
-    """repr of each value where `present`, else "null" (JSON's None)."""
-    return [t if p else "null" for t, p in zip(_reprs(values), present.tolist(), strict=True)]
+#: Sources per chunk of the compact writer (about 0.6 kB of text each).
+COMPACT_CHUNK = 8192
 
 
 def phase1_compact_json(result, lights, model: str):
-    """The compact JSON of `phase1 --json` as chunks of text, formatted straight
-    from the columns (no dict per row): the same text as `write_phase1_json`.
-    None when a row needs `json.dumps`' care (a non-finite number, a light with
-    a profile table)."""
+    """The compact JSON of `phase1 --json` as chunks of bytes (one document,
+    streamed COMPACT_CHUNK sources at a time), printed by orjson straight from the
+    columns and assembled by numpy: no dict and no Python object per source or
+    per number (each field's texts are ranges of one orjson output; a row is
+    the template's constant pieces and its fields' ranges, gathered at once).
+
+    The same JSON content as `write_phase1_json` of `phase1_json_rows` (the
+    json module's writer, kept for `--indent`), with one difference in form and
+    one in contract: orjson prints a float as the shortest text that reads back
+    to the same double, like Python's repr, but spells exponents without
+    padding (1e-7 where repr says 1e-07; 1e+16 like repr); and a non-finite
+    number (an image at infinity, a NaN from a degenerate input) is written as
+    null, so the output is always valid JSON (never NaN or Infinity)."""
     import numpy as np
+    import orjson
 
     t = result.table
-    if lights.profile_info is not None:
-        return None
     col = t.kind == 2
     with np.errstate(divide="ignore", invalid="ignore"):
-        image = np.where(col, 0.0, 1.0 / t.vergence)
-        magnification = np.where(col, 0.0, -1.0 / (t.vergence * t.distance))
-    floats = [
-        t.position,
-        t.axis,
-        t.spread,
-        t.intensity,
-        t.color,
-        t.brightness_factor,
-        t.unblocked_fraction,
-        lights.energy_w,
-        lights.spot_size_deg,
-        lights.spot_blend,
-        lights.radius,
-        image,
-        magnification,
-        np.where(col, t.cylinder_radius, 0.0),
+        image = 1.0 / t.vergence
+        magnification = -1.0 / (t.vergence * t.distance)
+    kinds = [orjson.dumps(k).decode() for k in t.KINDS]
+    profiles = None
+    if lights.profile_info is not None:
+        profiles = [
+            orjson.dumps(p, option=orjson.OPT_SERIALIZE_NUMPY)
+            for p in lights.json_columns()["profile"]
+        ]
+    offsets = t.shadow_offsets
+    num = _Pieces.numbers
+    # (the text before a field, the field's texts for the rows a:b)
+    fields = [
+        (',{"light":', lambda a, b: num(t.light[a:b])),
+        (',"lens":', lambda a, b: num(t.lens[a:b])),
+        (',"kind":', lambda a, b: _Pieces.choice(kinds, t.kind[a:b])),
+        *[
+            (pre + "[" if c == 0 else ",", lambda a, b, x=x, c=c: num(x[a:b, c]))
+            for pre, x in ((',"position":', t.position), ('],"axis":', t.axis))
+            for c in range(3)
+        ],
+        ('],"spread_deg":', lambda a, b: num(np.degrees(t.spread[a:b]))),
+        (',"cylinder_radius":', lambda a, b: num(t.cylinder_radius[a:b], ~col[a:b])),
+        (',"intensity":', lambda a, b: num(t.intensity[a:b])),
+        *[
+            (',"color":[' if c == 0 else ",", lambda a, b, c=c: num(t.color[a:b, c]))
+            for c in range(3)
+        ],
+        (
+            '],"full":',
+            lambda a, b: _Pieces.choice(["false", "true"], offsets[a + 1 : b + 1] == offsets[a:b]),
+        ),
+        (
+            ',"shadow_list":[',
+            lambda a, b: _Pieces.lists(
+                t.shadow_spheres[offsets[a] : offsets[b]], offsets[a : b + 1] - offsets[a]
+            ),
+        ),
+        ('],"image_distance":', lambda a, b: num(image[a:b], col[a:b])),
+        (',"magnification":', lambda a, b: num(magnification[a:b], col[a:b])),
+        (',"brightness_factor":', lambda a, b: num(t.brightness_factor[a:b])),
+        (',"unblocked_fraction":', lambda a, b: num(t.unblocked_fraction[a:b])),
+        (
+            ',"blender_light":{"type":"SPOT","energy_w":',
+            lambda a, b: num(lights.energy_w[a:b]),
+        ),
+        (',"spot_size_deg":', lambda a, b: num(lights.spot_size_deg[a:b])),
+        (',"spot_blend":', lambda a, b: num(lights.spot_blend[a:b])),
+        (',"radius":', lambda a, b: num(lights.radius[a:b])),
     ]
-    if not all(np.all(np.isfinite(f)) for f in floats):
-        return None
-    offsets, flat = t.shadow_offsets.tolist(), t.shadow_spheres.tolist()
-    shadow = [
-        ",".join(map(str, flat[a:b])) if b > a else ""
-        for a, b in zip(offsets[:-1], offsets[1:], strict=True)
-    ]
-    full = np.where(np.diff(t.shadow_offsets) == 0, "true", "false").tolist()
-    columns = [
-        t.light.tolist(),
-        t.lens.tolist(),
-        np.asarray(t.KINDS)[t.kind].tolist(),
-        *map(_reprs, t.position.T),
-        *map(_reprs, t.axis.T),
-        _reprs(np.degrees(t.spread)),
-        _texts(t.cylinder_radius, col),
-        _reprs(t.intensity),
-        *map(_reprs, t.color.T),
-        full,
-        shadow,
-        _texts(image, ~col),
-        _texts(magnification, ~col),
-        _reprs(t.brightness_factor),
-        _reprs(t.unblocked_fraction),
-        _reprs(lights.energy_w),
-        _reprs(lights.spot_size_deg),
-        _reprs(lights.spot_blend),
-        _reprs(lights.radius),
-    ]
-    rows = list(zip(*columns, strict=True))
+    if profiles is not None:
+
+        def profile_texts(a, b):
+            lengths = np.array([len(p) for p in profiles[a:b]], dtype=np.int64)
+            return _Pieces(b"".join(profiles[a:b]), np.cumsum(lengths) - lengths, lengths)
+
+        fields.append((',"profile":', profile_texts))
+    fields.append(("}}", None))
     reasons = _skip_reasons(result)
 
     def chunks():
-        yield '{"model":' + json.dumps(model) + ',"sources":['
-        for start in range(0, len(rows), JSON_CHUNK):
-            yield ("," if start else "") + ",".join(
-                [_SOURCE_ROW % row for row in rows[start : start + JSON_CHUNK]]
-            )
-        yield '],"skipped":['
-        texts: dict[str, str] = {}
-        for start in range(0, len(reasons), JSON_CHUNK):
-            yield ("," if start else "") + ",".join(
-                [
-                    f'{{"light":{j},"lens":{i},"reason":'
-                    f"{texts.get(r) or texts.setdefault(r, json.dumps(r))}}}"
-                    for j, i, r in reasons[start : start + JSON_CHUNK]
-                ]
-            )
-        yield "]}\n"
+        yield b'{"model":' + orjson.dumps(model) + b',"sources":['
+        n = len(t)
+        for a in range(0, n, COMPACT_CHUNK):
+            b = min(a + COMPACT_CHUNK, n)
+            pieces = []
+            for before, texts in fields:
+                pieces.append(_Pieces.constant(before, b - a))
+                if texts is not None:
+                    pieces.append(texts(a, b))
+            text = _join_rows(pieces)
+            yield text[1:] if a == 0 else text  # no comma before the first row
+        yield b'],"skipped":['
+        for a in range(0, len(reasons), JSON_CHUNK):
+            rows = [{"light": j, "lens": i, "reason": r} for j, i, r in reasons[a : a + JSON_CHUNK]]
+            yield (b"," if a else b"") + orjson.dumps(rows)[1:-1]
+        yield b"]}\n"
 
     return chunks()
 
@@ -445,12 +530,10 @@ def cmd_phase1(args) -> int:
     # A `.bi` light has no radius: point lights, as `phase1_light_table` makes them.
     lights = bi_scene_light_table(arrays, result.table, args.model)
     if args.json:
-        chunks = (
-            phase1_compact_json(result, lights, args.model.upper()) if args.indent is None else None
-        )
-        if chunks is not None:
-            for text in chunks:
-                sys.stdout.write(text)
+        if args.indent is None:
+            sys.stdout.flush()
+            for text in phase1_compact_json(result, lights, args.model.upper()):
+                sys.stdout.buffer.write(text)
         else:
             sources, skipped = phase1_json_rows(result, lights)
             write_phase1_json(sys.stdout, args.model.upper(), sources, skipped, args.indent)

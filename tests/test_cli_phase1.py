@@ -7,6 +7,7 @@ import math
 import subprocess
 from pathlib import Path
 
+import orjson
 import pytest
 
 from addon.bi_format import read_bi
@@ -198,8 +199,8 @@ def test_json_is_compact_by_default_and_indent_is_for_people():
     compact = phase1(FIG3, "--json")
     assert compact.returncode == 0, compact.stderr
     out = json.loads(compact.stdout)
-    # One line, no blanks between tokens: what json.dumps writes with the tightest separators.
-    assert compact.stdout == json.dumps(out, separators=(",", ":")) + "\n"
+    # One line, no blanks between tokens: what orjson writes of the same content.
+    assert compact.stdout == orjson.dumps(out).decode() + "\n"
     for n in (2, 4):
         people = phase1(FIG3, "--json", "--indent", str(n))
         assert people.returncode == 0, people.stderr
@@ -240,11 +241,54 @@ def test_json_streamed_in_chunks_is_one_json_document(indent, monkeypatch):
     assert [r["reason"] for r in skipped] == [k.reason for k in result.skipped]
 
 
+def _same(a, b) -> bool:
+    """Equal JSON content, floats bit for bit (-0.0 is not 0.0, 1 is not 1.0)."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, dict):
+        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float):
+        return a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
+    return a == b
+
+
+def _reference_json(result, lights, model) -> str:
+    """The previous compact writer's text: json.dumps of the rows (the json
+    module's shortest round-trip floats), never NaN (allow_nan=False)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import cli
+
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    whole = {"model": model, "sources": sources, "skipped": skipped}
+    return json.dumps(whole, separators=(",", ":"), allow_nan=False) + "\n"
+
+
+def _no_constants(name):
+    raise AssertionError(f"{name} in the JSON")
+
+
+def _compact(result, lights, model) -> str:
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import cli
+
+    text = b"".join(cli.phase1_compact_json(result, lights, model)).decode()
+    # Valid JSON: no NaN, Infinity or -Infinity.
+    json.loads(text, parse_constant=_no_constants)
+    return text
+
+
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("model", MODELS)
-def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, monkeypatch):
-    """The fast compact writer (a `%` template per row) writes exactly the text
-    `json.dumps` makes of the rows, for every kind of source and skip reason."""
+def test_compact_json_is_the_json_modules_content(seed, model, monkeypatch):
+    """The orjson writer (numbers printed from the columns, rows gathered by
+    numpy, in chunks) writes the same content as json.dumps of the rows, every
+    float bit for bit, for every kind of source, skip reason and tier."""
     import sys
 
     sys.path.insert(0, str(ROOT / "scripts"))
@@ -258,20 +302,20 @@ def test_compact_json_formatted_from_columns_is_json_dumps_text(seed, model, mon
     scene.objects[0].radius = -1.0  # a skip reason that names a number
     result = compute_phase1(scene)
     lights = cli.phase1_light_table(scene, result, model)
-    sources, skipped = cli.phase1_json_rows(result, lights)
-    monkeypatch.setattr(cli, "JSON_CHUNK", 7)
-    chunks = cli.phase1_compact_json(result, lights, model.upper())
-    whole = {"model": model.upper(), "sources": sources, "skipped": skipped}
-    if model == "exact_profile":
-        assert chunks is None  # its profile goes through json.dumps
-        return
-    assert {s["kind"] for s in sources} == {"real", "virtual", "collimated"}
-    assert "".join(chunks) == json.dumps(whole, separators=(",", ":")) + "\n"
+    monkeypatch.setattr(cli, "COMPACT_CHUNK", 7)
+    monkeypatch.setattr(cli, "JSON_CHUNK", 3)
+    text = _compact(result, lights, model.upper())
+    want = json.loads(_reference_json(result, lights, model.upper()))
+    assert {s["kind"] for s in want["sources"]} == {"real", "virtual", "collimated"}
+    assert want["skipped"]
+    assert _same(json.loads(text), want)
+    assert text.count("\n") == 1 and text.endswith("\n")
 
 
-def test_reprs_of_a_column_are_python_reprs():
-    """Columns of few distinct values print each once: the texts are still each
-    value's repr (json.dumps' text), -0.0 and 0.0 apart."""
+def test_compact_json_numbers_read_back_bit_for_bit():
+    """Each number's text (orjson's, from the numpy column) reads back to the
+    same double, -0.0, subnormals and huge exponents included; ints stay ints;
+    a non-finite number or a row marked null is null."""
     import sys
 
     import numpy as np
@@ -280,14 +324,80 @@ def test_reprs_of_a_column_are_python_reprs():
     import cli
 
     rng = np.random.default_rng(5)
-    few = rng.choice([0.1, -0.0, 0.0, 1e-300, 2.5, 1 / 3], size=500)
-    many = rng.normal(size=500)
-    for values in (few, many, few[:10], np.concatenate([few[:100], many])):
-        assert cli._reprs(values) == [repr(float(v)) for v in values]
+    special = [-0.0, 0.0, 5e-324, 2.2250738585072014e-308, 1e-300, 1e-7, 1e-5, 0.1, 1 / 3]
+    special += [1e15, 1e16, 1.2345678901234568e17, 1e300, 1.7976931348623157e308]
+    values = np.array(
+        special
+        + [-v for v in special]
+        + (rng.normal(size=200) * 10.0 ** rng.integers(-300, 300, 200)).tolist()
+    )
+    pieces = cli._Pieces.numbers(values)
+    texts = [
+        pieces.buf[a : a + n].tobytes().decode()
+        for a, n in zip(pieces.start.tolist(), pieces.length.tolist(), strict=True)
+    ]
+    assert len(texts) == values.size
+    for text, v in zip(texts, values.tolist(), strict=True):
+        assert _same(json.loads(text), v), (text, v)
+    bad = np.array([np.nan, np.inf, -np.inf, 2.5, 1.0])
+    null = np.array([False, False, False, False, True])
+    pieces = cli._Pieces.numbers(bad, null)
+    texts = [
+        pieces.buf[a : a + n].tobytes().decode()
+        for a, n in zip(pieces.start.tolist(), pieces.length.tolist(), strict=True)
+    ]
+    assert texts == ["null", "null", "null", "2.5", "null"]
+    ints = cli._Pieces.numbers(np.array([0, -3, 2**40], dtype=np.int64))
+    assert json.loads(b"[" + ints.buf[1:-5].tobytes() + b"]") == [0, -3, 2**40]
 
 
-def test_compact_json_of_many_sources_is_json_dumps_text(monkeypatch):
-    """Hundreds of sources sharing lights and materials (the repeated-value path)."""
+@pytest.mark.parametrize("indent", [None, 2])
+def test_json_never_writes_nan_or_infinity(indent, monkeypatch):
+    """A non-finite number (an image at infinity, a NaN from degenerate input)
+    is null in both writers: the output stays valid JSON, and the rest of the
+    content is unchanged."""
+    import io
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cli
+    from random_scenes import random_scene
+
+    from addon.phase1 import compute_phase1
+
+    scene = random_scene(2)
+    result = compute_phase1(scene)
+    lights = cli.phase1_light_table(scene, result, "fitted")
+    clean = json.loads(_reference_json(result, lights, "FITTED"))
+    t = result.table
+    real = int(np.flatnonzero(t.kind == 0)[0])
+    t.intensity[0] = np.nan
+    t.position[1, 2] = -np.inf
+    t.vergence[real] = 0.0  # image at infinity: 1/0
+    lights.energy_w[2] = np.inf
+    if indent is None:
+        monkeypatch.setattr(cli, "COMPACT_CHUNK", 2)
+        got = json.loads(_compact(result, lights, "FITTED"))
+    else:
+        sources, skipped = cli.phase1_json_rows(result, lights)
+        out = io.StringIO()
+        cli.write_phase1_json(out, "FITTED", sources, skipped, indent)
+        assert "NaN" not in out.getvalue() and "Infinity" not in out.getvalue()
+        got = json.loads(out.getvalue(), parse_constant=_no_constants)
+    want = clean
+    want["sources"][0]["intensity"] = None
+    want["sources"][1]["position"][2] = None
+    want["sources"][real]["image_distance"] = None
+    want["sources"][real]["magnification"] = None
+    want["sources"][2]["blender_light"]["energy_w"] = None
+    assert _same(got, want)
+
+
+def test_compact_json_of_many_sources_is_the_json_modules_content(monkeypatch):
+    """Hundreds of sources sharing lights and materials, across many chunks."""
     import sys
 
     sys.path.insert(0, str(ROOT / "scripts"))
@@ -301,9 +411,6 @@ def test_compact_json_of_many_sources_is_json_dumps_text(monkeypatch):
     result = compute_phase1(scene)
     assert len(result.table) > 100
     lights = cli.phase1_light_table(scene, result, "fitted")
-    sources, skipped = cli.phase1_json_rows(result, lights)
-    monkeypatch.setattr(cli, "JSON_CHUNK", 50)
-    text = "".join(cli.phase1_compact_json(result, lights, "FITTED"))
-    whole = {"model": "FITTED", "sources": sources, "skipped": skipped}
-    assert text == json.dumps(whole, separators=(",", ":")) + "\n"
-    assert json.loads(text) == whole
+    monkeypatch.setattr(cli, "COMPACT_CHUNK", 50)
+    text = _compact(result, lights, "FITTED")
+    assert _same(json.loads(text), json.loads(_reference_json(result, lights, "FITTED")))

@@ -153,7 +153,7 @@ def test_candidate_pairs_are_each_overlapping_pair_once(seed):
     d = np.linalg.norm(v, axis=1)
     keep = d > a.radius
     w, rho = v / d[:, None], np.where(keep, radial_angle(d, a.radius), 0.0)
-    p, q = _candidate_pairs(w, rho, keep, np.zeros(len(d), dtype=bool))
+    p, q = _candidate_pairs(w, rho, keep, keep)
     pairs = list(zip(np.minimum(p, q).tolist(), np.maximum(p, q).tolist(), strict=True))
     assert len(pairs) == len(set(pairs))  # each once
     i, k = np.triu_indices(len(d), 1)
@@ -174,3 +174,100 @@ def test_angle_from_columns_is_geometry_angle_between_bit_for_bit():
     i, k = rng.integers(0, 5000, 20000), rng.integers(0, 5000, 20000)
     i[:50], k[:50] = np.arange(50), np.arange(50, 100)
     assert np.array_equal(_angle_between_rows(w, i, k), angle_between(w[i], w[k]))
+
+
+def brute_force_blockers(lens_rows, direction, ang, tlen, obstacle):
+    """`find_blockers`' answer by every lens against every sphere, with the same
+    floating-point tests (angles by `geometry.angle_between`, which the column
+    version equals bit for bit) and the product of the partial shares."""
+    from addon.geometry import angle_between, cap_overlap_fraction
+
+    total, lists, unblocked = [], [], []
+    for i in lens_rows.tolist():
+        k = np.flatnonzero(obstacle & (tlen < tlen[i]))
+        k = k[k != i]
+        alpha, beta = ang[i], ang[k]
+        gamma = angle_between(np.broadcast_to(direction[i], (k.size, 3)), direction[k])
+        blocks = alpha + beta >= gamma
+        full = blocks & (beta >= gamma + alpha)
+        if full.any():
+            kk = k[full]
+            near = kk[tlen[kk] == tlen[kk].min()].min()
+            total.append(int(near))
+            lists.append([])
+            unblocked.append(0.0)
+        else:
+            total.append(-1)
+            lists.append(k[blocks].tolist())
+            cover = cap_overlap_fraction(np.full(blocks.sum(), alpha), beta[blocks], gamma[blocks])
+            unblocked.append(float(np.prod(1.0 - cover)))
+    return total, lists, unblocked
+
+
+def light_view(a: SceneArrays, j=0):
+    """The per-light columns `find_blockers` takes, as phase 1 makes them."""
+    from addon.geometry import radial_angle
+
+    v = a.center - a.light_position[j]
+    d = np.linalg.norm(v, axis=1)
+    outside = d > a.radius
+    ang = np.where(outside, radial_angle(d, a.radius), 0.0)
+    tlen = np.where(outside, np.sqrt(np.maximum(d * d - a.radius**2, 0.0)), 0.0)
+    lenses = np.flatnonzero(outside & (a.kt > 0) & (a.ior > 1))
+    return lenses, v / d[:, None], ang, tlen, outside
+
+
+@pytest.mark.parametrize(
+    "light, seed",
+    [((4.7, 4.3, 4.2), 0), ((-0.5, 3.0, 1.0), 1), ((2.2, 2.6, 5.5), 2), ((9.0, -3.0, 0.3), 3)],
+)
+def test_dense_grid_blockers_equal_every_pair_bit_for_bit(light, seed):
+    """A crowded grid seen from close, radii and materials mixed (spheres that are
+    no lens still block): the total blockers, the partial blockers of the others
+    and the unblocked share are exactly every-pair's, and lenses totally blocked
+    still block part of the lenses behind them."""
+    from addon.obstruction import find_blockers
+
+    rng = np.random.default_rng(seed)
+    a = dense_grid(9, 8, 5, light)
+    n = len(a.radius)
+    a.radius = rng.uniform(0.15, 0.49, n)
+    a.kt = rng.choice([0.0, 0.9, 1.0], n)
+    a.ior = rng.choice([1.0, 1.5], n)
+    lenses, w, ang, tlen, outside = light_view(a)
+    got = find_blockers(lenses, w, ang, tlen, outside)
+    total, lists, unblocked = brute_force_blockers(lenses, w, ang, tlen, outside)
+    assert got.total_blocker.tolist() == total
+    offsets = got.shadow_offsets.tolist()
+    got_lists = [
+        got.shadow_spheres[a:b].tolist() for a, b in zip(offsets, offsets[1:], strict=False)
+    ]
+    assert got_lists == lists
+    np.testing.assert_allclose(got.unblocked_fraction, unblocked, rtol=1e-12, atol=0)
+    hidden = set(lenses[np.array(total) >= 0].tolist())
+    assert len(hidden) >= 10
+    # Lenses totally blocked still block part of the lenses behind them.
+    assert any(k in hidden for blockers in lists for k in blockers)
+    assert sum(map(len, lists)) > 50
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_blockers_of_discs_of_every_size_equal_every_pair(seed):
+    """Random spheres with a few huge ones and some tiny ones (discs of sizes far
+    apart: boxes at every level of the grids)."""
+    from addon.obstruction import find_blockers
+
+    rng = np.random.default_rng(seed)
+    a = random_scene(rng, 400, 1, outliers=True)
+    tiny = rng.choice(400, 40, replace=False)
+    a.radius[tiny] *= 1e-3
+    lenses, w, ang, tlen, outside = light_view(a)
+    got = find_blockers(lenses, w, ang, tlen, outside)
+    total, lists, unblocked = brute_force_blockers(lenses, w, ang, tlen, outside)
+    assert got.total_blocker.tolist() == total
+    offsets = got.shadow_offsets.tolist()
+    assert [
+        got.shadow_spheres[a:b].tolist() for a, b in zip(offsets, offsets[1:], strict=False)
+    ] == lists
+    np.testing.assert_allclose(got.unblocked_fraction, unblocked, rtol=1e-12, atol=0)
+    assert any(t >= 0 for t in total)
