@@ -115,7 +115,11 @@ def main():
         )
         src = compute_phase1(scene).sources[0]
         light = make_blender_light(
-            src, PrimaryLight(4.0 * math.pi), "EXACT_PROFILE", scene_size=2.0, receiver_distance=z * R
+            src,
+            PrimaryLight(4.0 * math.pi),
+            "EXACT_PROFILE",
+            scene_size=2.0,
+            receiver_distance=z * R,
         )
         want = xo.irradiance_on_plane(1.0, D, R, N, z * R, EDGES_R * R, n_psi=100_000)
         info = light.profile_info
