@@ -20,7 +20,10 @@ columns, and the Exact profile's one table per lens for all frames.
   (lens, n, near) groups, whatever the number of frames. The near field's table
   has a row on the receiver (`tiers.exact_profile.table_geometry`): a near track's
   slices are tabulated for its median receiver distance (`near_receiver`), its
-  keyed h_min that table's (`slice_h_min`).
+  keyed h_min that table's (`slice_h_min`). Exact for a receiver at one distance
+  over the frames; a frame whose receiver is off the median reads rows placed for
+  another plane (−48 % at the caustic's centre for +0.5 %, −9 % for +2 %:
+  reports/bake_near_field.md).
 * **Frame ranges** of the command line (`parse_frames`, `frame_path`).
 """
 

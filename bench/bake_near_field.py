@@ -9,8 +9,10 @@ contact point, as tests/test_near_field_profile.py) of
 * "bake": the slices the bake tabulates now (`bake_plan.profile_slice_table` with
   the receiver's row, h_min `bake_plan.slice_h_min`), blended at the frame's slice
   coordinate, as `light_builder.build_profile_nodes(slices=)` reads them;
-* "bake, median receiver +2 %": the slices made for a receiver 2 % farther (the
-  track's median receiver distance off this frame's);
+* "bake, median receiver +x %": the slices made for a receiver x % farther (the
+  track's median receiver distance off this frame's), their rows unscaled (h_min the
+  table's) or scaled so that the receiver's row lies on the frame's receiver (what
+  the bake keys);
 * "bake before": the receiver-less near slices the bake used before (256 rows from
   0.25 R, no row on the receiver);
 * "generate": Generate's own table for that D/R and receiver;
@@ -127,15 +129,20 @@ def main():
         bake = table_lookup(
             tables, s, bake_plan.slice_h_min(z) * R, info["h_max"], info["gamma_max_deg"]
         )
-        # a track whose median receiver is 2 % farther than this frame's
-        z_off = round(z * 1.02, 6)
-        off = table_lookup(
-            [bake_plan.profile_slice_table(g, N, True, z_off) for g in grid],
-            s,
-            bake_plan.slice_h_min(z_off) * R,
-            info["h_max"] * bake_plan.slice_h_min(z_off) / bake_plan.slice_h_min(z),
-            info["gamma_max_deg"],
-        )
+        # a track whose median receiver is 0.5, 1 or 2 % farther than this frame's
+        offs = []
+        for pct, scaled in ((0.5, False), (2.0, False), (0.5, True), (2.0, True), (10.0, True)):
+            z_off = round(z * (1 + pct / 100), 6)
+            scale = z / z_off if scaled else 1.0
+            f_off = table_lookup(
+                [bake_plan.profile_slice_table(g, N, True, z_off) for g in grid],
+                s,
+                bake_plan.slice_h_min(z_off) * R * scale,
+                info["h_max"] * bake_plan.slice_h_min(z_off) / bake_plan.slice_h_min(z) * scale,
+                info["gamma_max_deg"],
+            )
+            how = "rows scaled to the frame's receiver" if scaled else "rows unscaled"
+            offs.append((f"bake, median receiver +{pct:g} %, {how}", f_off))
         old_profiles = [_cached_profile(round(float(g), 9), N, True) for g in grid]
         old_tables = [
             p.table / (p.flux / (2 * math.pi)) for p in old_profiles
@@ -152,7 +159,7 @@ def main():
         )
         kinds = (
             ("bake", bake),
-            ("bake, median receiver +2 %", off),
+            *offs,
             ("bake before", before),
             ("generate", gen),
         )

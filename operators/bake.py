@@ -356,12 +356,13 @@ class Baker:
             info = self.firsts[track.key][0].light.profile_info
             nt = light_builder.build_profile_nodes(data, info, image, slices=(len(grid), rows))
             s = bake_plan.slice_coordinate(track.d_over_r, grid)
-            # the near field: the table's rows sit on the track's receiver, not the frame's
-            h_min = (
-                bake_plan.slice_h_min(z) * v["lens_radius"][:, 0]
-                if z is not None
-                else v["h_min"][:, 0]
-            )
+            # the near field: the slices' rows are placed on the track's (median)
+            # receiver z; its h_min, not the frame's. (Scaling the rows to the frame's
+            # receiver is worse: reports/bake_near_field.md.)
+            if z is not None:
+                h_min = bake_plan.slice_h_min(z) * v["lens_radius"][:, 0]
+            else:
+                h_min = v["h_min"][:, 0]
             path = 'nodes["{}"].outputs[0].default_value'
             key_column(nt, path.format(SLICE_NODE), -1, frames, s)
             key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)
