@@ -19,11 +19,9 @@ columns, and the Exact profile's one table per lens for all frames.
   neighbouring slices (`slice_coordinate`). The number of images is the number of
   (lens, n, near) groups, whatever the number of frames. The near field's table
   has a row on the receiver (`tiers.exact_profile.table_geometry`): a near track's
-  slices are tabulated for its median receiver distance (`near_receiver`), its
-  keyed h_min that table's (`slice_h_min`). Exact for a receiver at one distance
-  over the frames; a frame whose receiver is off the median reads rows placed for
-  another plane (−48 % at the caustic's centre for +0.5 %, −9 % for +2 %:
-  reports/bake_near_field.md).
+  slices are one per receiver distance its frames take (`near_slices`; a plane
+  even half a row off the table's receiver row reads −48 % at the caustic's
+  centre, reports/bake_near_field.md), its keyed h_min the slice's (`slice_h_min`).
 * **Frame ranges** of the command line (`parse_frames`, `frame_path`).
 """
 
@@ -264,11 +262,36 @@ def slice_row(v: float, slice_index: int, slices: int, rows: int) -> float:
     return (slice_index + min(max(v, half), 1.0 - half)) / slices
 
 
-def near_receiver(track) -> float:
-    """A near-field track's receiver distance (R from the lens centre) for its
-    slices: the median over its present frames, to 1e-6 (as Generate rounds it)."""
-    z = track.values["receiver"][track.present, 0]
-    return round(float(np.median(z)), 6)
+def near_slices(track, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES):
+    """A near-field track's slices: ([(D/R, receiver)], s). Per distinct receiver
+    distance of its frames (R from the lens centre, to 1e-6, as Generate keys its
+    table: the table's rows are placed on it, and a plane even half a row off reads
+    a row inside the lens) a block of slices over the D/R grid of the frames at that
+    distance (`slice_grid`), blocks stacked; more distinct distances than
+    `max_slices`: that many quantiles, each frame its nearest, and the blocks share
+    `max_slices` (a block of one: the median D/R). `s`: each frame's slice
+    coordinate (its block's first slice + its D/R's coordinate in the block; the
+    node tree blends within a block only, as s is whole at a block's end)."""
+    z = np.round(track.values["receiver"][:, 0], 6)
+    present = np.asarray(track.present, dtype=bool)
+    nodes = np.unique(z[present])
+    if len(nodes) > max_slices:
+        nodes = np.unique(np.round(np.quantile(z[present], np.linspace(0, 1, max_slices)), 6))
+    idx = np.abs(z[:, None] - nodes[None, :]).argmin(axis=1)
+    dr = np.asarray(track.d_over_r, dtype=float)
+    budget = max(max_slices // len(nodes), 1)
+    out, s = [], np.zeros(len(z))
+    for k, zk in enumerate(nodes):
+        at = idx == k
+        values = dr[present & at] if (present & at).any() else dr[present]
+        grid = (
+            slice_grid(values, ratio, budget)
+            if budget > 1
+            else np.array([float(np.median(_clamped(values)))])
+        )
+        s[at] = len(out) + slice_coordinate(dr[at], grid)
+        out.extend((float(g), float(zk)) for g in grid)
+    return out, s
 
 
 def slice_h_min(receiver: float | None) -> float:

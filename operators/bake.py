@@ -21,8 +21,8 @@ scene as it was:
      blend and radius (light data action) keyed on every frame, LINEAR; on frames
      without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
    * Exact profile: per (lens, n, near field[, receiver]) one image of stacked D/R
-     slices (`bake_plan.slice_grid`; the near field's with their row on the
-     track's median receiver distance, `bake_plan.near_receiver`), and Generate's
+     slices (`bake_plan.slice_grid`; the near field: per track, a block of D/R
+     slices per receiver distance, `bake_plan.near_slices`), and Generate's
      node tree in its slices mode (`light_builder.build_profile_nodes(slices=)`)
      whose slice coordinate and first table distance are keyed Value nodes
      (node-tree action): the number of images does not grow with the frames. Not
@@ -46,6 +46,7 @@ import time
 import traceback
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
 from ..addon import bake_plan
@@ -159,23 +160,39 @@ def compact_profile_image(key: str, pixels):
 
 
 def _profile_images(tracks, ratio) -> dict:
-    """Per Exact profile track key: (image, grid, rows), the image stacking its
-    group's D/R slices (`bake_plan.profile_groups`)."""
+    """Per Exact profile track key: (image, slices, rows, slice coordinate per
+    frame, h_min per frame in world units). Far field: the image stacks its group's
+    D/R slices (`bake_plan.profile_groups`); near field: the track's own image, a
+    block of D/R slices per receiver distance (`bake_plan.near_slices`)."""
     out = {}
-    for t in tracks:  # the near field: a group per receiver distance
-        if t.profile_group is not None and t.profile_group[2]:
-            t.profile_group = (*t.profile_group[:3], bake_plan.near_receiver(t))
-    for group, (keys, grid) in bake_plan.profile_groups(tracks, ratio).items():
-        lens, n, near = group[:3]
-        z = group[3] if near else None
-        tables = [bake_plan.profile_slice_table(g, n, near, z) for g in grid]
-        pixels = bake_plan.stack_slices(tables)
-        key = f"bake {lens} n {n:.9g}{f' near {z:.6g}' if near else ''} D/R " + " ".join(
-            f"{g:.9g}" for g in grid
-        )
-        image = compact_profile_image(key, pixels)
+    far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
+    groups = bake_plan.profile_groups(far, ratio)
+    by_key = {t.key: t for t in tracks}
+    for group, (keys, grid) in groups.items():
+        lens, n = group[:2]
+        tables = [bake_plan.profile_slice_table(g, n, False) for g in grid]
+        key = f"bake {lens} n {n:.9g} D/R " + " ".join(f"{g:.9g}" for g in grid)
+        image = compact_profile_image(key, bake_plan.stack_slices(tables))
         for k in keys:
-            out[k] = (image, grid, tables[0].shape[0], z)
+            t = by_key[k]
+            s = bake_plan.slice_coordinate(t.d_over_r, grid)
+            out[k] = (image, len(grid), tables[0].shape[0], s, t.values["h_min"][:, 0])
+    for t in tracks:
+        if t.profile_group is None or not t.profile_group[2]:
+            continue
+        lens, n = t.profile_group[:2]
+        nodes, s = bake_plan.near_slices(t, ratio)
+        tables = [bake_plan.profile_slice_table(d, n, True, z) for d, z in nodes]
+        key = f"bake {lens} n {n:.9g} near " + " ".join(f"{d:.9g} {z:.6g}" for d, z in nodes)
+        image = compact_profile_image(key, bake_plan.stack_slices(tables))
+        h_min = np.array([bake_plan.slice_h_min(nodes[int(math.floor(k))][1]) for k in s])
+        out[t.key] = (
+            image,
+            len(nodes),
+            tables[0].shape[0],
+            s,
+            h_min * t.values["lens_radius"][:, 0],
+        )
     return out
 
 
@@ -352,17 +369,9 @@ class Baker:
         key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
         key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
         if track.profile_group is not None:
-            image, grid, rows, z = images[track.key]
+            image, count, rows, s, h_min = images[track.key]
             info = self.firsts[track.key][0].light.profile_info
-            nt = light_builder.build_profile_nodes(data, info, image, slices=(len(grid), rows))
-            s = bake_plan.slice_coordinate(track.d_over_r, grid)
-            # the near field: the slices' rows are placed on the track's (median)
-            # receiver z; its h_min, not the frame's. (Scaling the rows to the frame's
-            # receiver is worse: reports/bake_near_field.md.)
-            if z is not None:
-                h_min = bake_plan.slice_h_min(z) * v["lens_radius"][:, 0]
-            else:
-                h_min = v["h_min"][:, 0]
+            nt = light_builder.build_profile_nodes(data, info, image, slices=(count, rows))
             path = 'nodes["{}"].outputs[0].default_value'
             key_column(nt, path.format(SLICE_NODE), -1, frames, s)
             key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)

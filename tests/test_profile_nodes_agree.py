@@ -1,10 +1,10 @@
 """One Exact-profile node tree (`light_builder.build_profile_nodes`) for Generate,
 live update and the bake: a baked profile light and the light Generate makes on the
 same frame give the same emission toward the same directions, far field and near
-field (a marble resting on a table: the baked slices carry their row on the
-receiver). The trees are evaluated node by node in numpy (the image texture as
-Blender reads it: texels at (i + ½)/K, bilinear, EXTEND), from the images' pixels;
-the lens' D/R sits on the bake's slice grid (1.04^k) on each frame, so the baked
+field (a marble resting on a table, then the table lowered: the baked slices carry
+their row on each frame's receiver). The trees are evaluated node by node in numpy
+(the image texture as Blender reads it: texels at (i + ½)/K, bilinear, EXTEND),
+from the images' pixels; the lens' D/R sits on the bake's slice grid (1.04^k) on each frame, so the baked
 slices are Generate's tables. And live update keeps a non-full source's shadow mask
 when it rebuilds a profile light's tree."""
 
@@ -181,11 +181,19 @@ def test_baked_near_field_tree_agrees_with_generate(empty_blend):
     sc.lens_lights.energy_model = "EXACT_PROFILE"
     add_sphere("Marble", (0.0, 0.0, R), radius=R, material=glass_material())
     bpy.ops.mesh.primitive_plane_add(size=20)
+    floor = bpy.context.object
     lamp = add_point_light("Lamp", (0.0, 0.0, 4.0))
-    _lamp_keys(lamp, R, [60.0, 61.0])
-    baked = _bake_agrees_with_generate([60.0, 61.0])
+    _lamp_keys(lamp, R, [60.0, 61.0, 62.0])
+    # the table resting, then 2 % of R lower on frame 3 (still the near field): the
+    # near field's rows lie on each frame's receiver
+    bpy.context.preferences.edit.keyframe_new_interpolation_type = "CONSTANT"
+    for f, z in ((1, 0.0), (2, 0.0), (3, -0.02 * R)):
+        floor.location.z = z
+        floor.keyframe_insert("location", index=2, frame=f)
+    baked = _bake_agrees_with_generate([60.0, 61.0, 62.0])
     (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
-    assert " near 1 " in img.name  # the near slices for a receiver 1 R away
+    # a slice per receiver distance, 1 R and 1.02 R away
+    assert " near " in img.name and " 1 " in img.name and " 1.02" in img.name
     assert tuple(baked.location) == pytest.approx((0.0, 0.0, R), abs=1e-6)  # the centre
 
 
