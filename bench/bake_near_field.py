@@ -9,10 +9,11 @@ contact point, as tests/test_near_field_profile.py) of
 * "bake": the slices the bake tabulates now (`bake_plan.profile_slice_table` with
   the receiver's row, h_min `bake_plan.slice_h_min`), blended at the frame's slice
   coordinate, as `light_builder.build_profile_nodes(slices=)` reads them;
-* "bake, median receiver +x %": the slices made for a receiver x % farther (the
-  track's median receiver distance off this frame's), their rows unscaled (h_min the
-  table's) or scaled so that the receiver's row lies on the frame's receiver (what
-  the bake keys);
+* "bake, receiver +x %": slices made for a receiver x % farther than the frame's
+  (what a track with more distinct receiver distances than slices reads: its
+  nearest quantile's, `bake_plan.near_slices`), their rows as made (h_min the
+  table's: what the bake keys) or scaled so that the table's receiver row lies on
+  the frame's receiver (not done: worse);
 * "bake before": the receiver-less near slices the bake used before (256 rows from
   0.25 R, no row on the receiver);
 * "generate": Generate's own table for that D/R and receiver;
@@ -129,7 +130,7 @@ def main():
         bake = table_lookup(
             tables, s, bake_plan.slice_h_min(z) * R, info["h_max"], info["gamma_max_deg"]
         )
-        # a track whose median receiver is 0.5, 1 or 2 % farther than this frame's
+        # slices made for a receiver 0.5, 2 or 10 % farther than this frame's
         offs = []
         for pct, scaled in ((0.5, False), (2.0, False), (0.5, True), (2.0, True), (10.0, True)):
             z_off = round(z * (1 + pct / 100), 6)
@@ -141,8 +142,8 @@ def main():
                 info["h_max"] * bake_plan.slice_h_min(z_off) / bake_plan.slice_h_min(z) * scale,
                 info["gamma_max_deg"],
             )
-            how = "rows scaled to the frame's receiver" if scaled else "rows unscaled"
-            offs.append((f"bake, median receiver +{pct:g} %, {how}", f_off))
+            how = "rows scaled to the frame's receiver" if scaled else "rows as made"
+            offs.append((f"bake, receiver +{pct:g} %, {how}", f_off))
         old_profiles = [_cached_profile(round(float(g), 9), N, True) for g in grid]
         old_tables = [
             p.table / (p.flux / (2 * math.pi)) for p in old_profiles
