@@ -3,9 +3,9 @@
 columns, and the Exact profile's one table per lens for all frames.
 
 * **Keys.** A lens light keeps its Blender object over the frames when its key is
-  equal: the primary light's name, the lens' (object or instance) name, the source's
-  kind (real, virtual, collimated) and a variant (the Exact profile's near field has
-  another table geometry). `bake_key` makes it.
+  equal: live update's `light_keys.LightKey` (the primary light's name, the lens'
+  (object or instance) name, the source's kind, the tier, an occurrence number) with
+  a variant (the Exact profile's near field has another table geometry).
 * **Tracks.** Per key, one row per frame of every keyed value (`Track`); a frame
   without the key holds its nearest present values (so nothing jumps in or out
   between keys) and is keyed hidden. Quaternions are made continuous (q and −q are
@@ -17,7 +17,11 @@ columns, and the Exact profile's one table per lens for all frames.
   takes, stacks the grid's tables in one image (slice k: rows k·M … (k+1)·M − 1)
   and keys a fractional slice coordinate per frame: the node tree blends the two
   neighbouring slices (`slice_coordinate`). The number of images is the number of
-  (lens, n, near) groups, whatever the number of frames.
+  (lens, n, near) groups, whatever the number of frames. The near field's table
+  has a row on the receiver (`tiers.exact_profile.table_geometry`): a near track's
+  slices are one per receiver distance its frames take (`near_slices`; a plane
+  even half a row off the table's receiver row reads −48 % at the caustic's
+  centre, reports/bake_near_field.md), its keyed h_min the slice's (`slice_h_min`).
 * **Frame ranges** of the command line (`parse_frames`, `frame_path`).
 """
 
@@ -48,19 +52,16 @@ CHANNELS = {
     "radius": 1,
     "slice": 1,  # Exact profile: the fractional slice coordinate
     "h_min": 1,  # Exact profile: the table's first distance (world units)
+    "receiver": 1,  # Exact profile, near field: the receiver's distance (R); not keyed
+    "lens_radius": 1,  # Exact profile: R (world units); not keyed
 }
-
-
-def bake_key(light_name: str, lens_name: str, kind: str, variant: str = "") -> str:
-    """The stable identity of a lens light across frames."""
-    return " | ".join((light_name, lens_name, kind) + ((variant,) if variant else ()))
 
 
 @dataclass
 class FrameLight:
     """One lens light on one frame (world units; angles in radians)."""
 
-    key: str
+    key: object  # hashable: a `light_keys.LightKey`
     values: dict  # channel name → float or sequence (see CHANNELS); missing: 0
     #: Exact profile: (lens name, n, near) of its table group, and its D/R.
     profile_group: tuple | None = None
@@ -71,7 +72,7 @@ class FrameLight:
 class Track:
     """One key over the bake's frames."""
 
-    key: str
+    key: object
     frames: np.ndarray  # (F,) int
     present: np.ndarray  # (F,) bool
     values: dict = field(default_factory=dict)  # channel → (F, components)
@@ -110,7 +111,7 @@ def build_tracks(frames, per_frame) -> list[Track]:
     frames = np.asarray(list(frames), dtype=np.int64)
     if len(frames) != len(per_frame):
         raise ValueError(f"{len(frames)} frames but {len(per_frame)} frame plans")
-    order: dict[str, int] = {}
+    order: dict = {}
     rows: list[dict[int, FrameLight]] = []
     for i, lights in enumerate(per_frame):
         for fl in lights:
@@ -261,12 +262,59 @@ def slice_row(v: float, slice_index: int, slices: int, rows: int) -> float:
     return (slice_index + min(max(v, half), 1.0 - half)) / slices
 
 
-def profile_slice_table(d_over_r: float, n: float, near: bool) -> np.ndarray:
-    """The Exact profile's table for one D/R, normalised as Generate normalises it
-    (intensity over energy/(4π), `tiers.exact_profile.make_profile_light`)."""
+def near_slices(track, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES):
+    """A near-field track's slices: ([(D/R, receiver)], s). Per distinct receiver
+    distance of its frames (R from the lens centre, to 1e-6, as Generate keys its
+    table: the table's rows are placed on it, and a plane even half a row off reads
+    a row inside the lens) a block of slices over the D/R grid of the frames at that
+    distance (`slice_grid`), blocks stacked; more distinct distances than
+    `max_slices`: that many quantiles, each frame its nearest, and the blocks share
+    `max_slices` (a block of one: the median D/R). `s`: each frame's slice
+    coordinate (its block's first slice + its D/R's coordinate in the block; the
+    node tree blends within a block only, as s is whole at a block's end)."""
+    z = np.round(track.values["receiver"][:, 0], 6)
+    present = np.asarray(track.present, dtype=bool)
+    nodes = np.unique(z[present])
+    if len(nodes) > max_slices:
+        nodes = np.unique(np.round(np.quantile(z[present], np.linspace(0, 1, max_slices)), 6))
+    idx = np.abs(z[:, None] - nodes[None, :]).argmin(axis=1)
+    dr = np.asarray(track.d_over_r, dtype=float)
+    budget = max(max_slices // len(nodes), 1)
+    out, s = [], np.zeros(len(z))
+    for k, zk in enumerate(nodes):
+        at = idx == k
+        values = dr[present & at] if (present & at).any() else dr[present]
+        grid = (
+            slice_grid(values, ratio, budget)
+            if budget > 1
+            else np.array([float(np.median(_clamped(values)))])
+        )
+        s[at] = len(out) + slice_coordinate(dr[at], grid)
+        out.extend((float(g), float(zk)) for g in grid)
+    return out, s
+
+
+def slice_h_min(receiver: float | None) -> float:
+    """The first distance (R) of the table `profile_slice_table` makes for
+    `receiver` (None: the far table)."""
+    from .tiers.exact_profile import NEAR_DISTANCES, table_geometry
+
+    return table_geometry(receiver, NEAR_DISTANCES, on_row=True)[1]
+
+
+def profile_slice_table(
+    d_over_r: float, n: float, near: bool, receiver: float | None = None
+) -> np.ndarray:
+    """The Exact profile's table for one D/R (near field: with its row on the
+    receiver `receiver` R from the lens centre, as Generate makes it), normalised as
+    Generate normalises it (intensity over energy/(4π),
+    `tiers.exact_profile.make_profile_light`)."""
     from .tiers.exact_profile import _cached_profile
 
-    prof = _cached_profile(round(float(d_over_r), 9), round(float(n), 9), bool(near))
+    if near and receiver is None:
+        raise ValueError("a near-field slice needs its receiver distance")
+    z = round(float(receiver), 6) if near else None
+    prof = _cached_profile(round(float(d_over_r), 9), round(float(n), 9), bool(near), z)
     t_ref = prof.flux / (2.0 * math.pi) if prof.flux > 0 else 1.0
     return (prof.table / t_ref).astype(np.float32)
 

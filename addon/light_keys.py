@@ -3,7 +3,9 @@
 A lens light's key is what it was made from: its primary light's name, its lens'
 object or instance name, its kind (real, virtual, collimated) and the tier it was
 built with, plus an occurrence number for the rare repeats of one such tuple (counted
-in order: plan order for the planned lights, creation order for the existing ones).
+in order: plan order for the planned lights, creation order for the existing ones)
+and a variant (the bake's Exact profile near field, another table geometry:
+`operators/bake.py` keys its tracks with these too).
 `match` pairs the existing lights with the planned ones by key: those are updated
 in place (the Blender object is kept, so selection, undo and the user's edits of
 other properties survive), planned keys without a light are created, and lights
@@ -21,12 +23,13 @@ class LightKey:
     lens: str
     kind: str
     model: str
-    index: int = 0  # the k-th light with the same (light, lens, kind, model)
+    index: int = 0  # the k-th light with the same (light, lens, kind, model, variant)
+    variant: str = ""
 
 
 def keys_of(items) -> list[LightKey | None]:
-    """Keys of `items` ((light, lens, kind, model) tuples, or None for an object
-    that has none), numbering repeats in order."""
+    """Keys of `items` ((light, lens, kind, model[, variant]) tuples, or None for an
+    object that has none), numbering repeats in order."""
     seen: dict = {}
     out: list[LightKey | None] = []
     for item in items:
@@ -36,7 +39,7 @@ def keys_of(items) -> list[LightKey | None]:
         base = tuple(item)
         k = seen.get(base, 0)
         seen[base] = k + 1
-        out.append(LightKey(*base, index=k))
+        out.append(LightKey(*base[:4], index=k, variant=base[4] if len(base) > 4 else ""))
     return out
 
 

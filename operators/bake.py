@@ -13,16 +13,20 @@ scene as it was:
    probe render (`render_probe.rendered_depsgraph`; `use_viewport=True`: the
    viewport depsgraph with the render rules, faster, for scenes where render and
    viewport agree). Each frame's lights become `addon.bake_plan.FrameLight`s keyed
-   by `bake_plan.bake_key` (primary, lens, kind).
+   by live update's `addon.light_keys.LightKey` (primary, lens, kind, tier,
+   occurrence; variant "near" for the Exact profile's near field).
 2. **Build**: Clear (the previous lens lights, baked or not), then
    * light tiers: one Blender object per key (`light_builder.create_light` from the
      key's first frame), its transform (object action), energy, colour, cone,
      blend and radius (light data action) keyed on every frame, LINEAR; on frames
      without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
-   * Exact profile: per (lens, n, near field) one image of stacked D/R slices
-     (`bake_plan.slice_grid`), and a node tree (`build_sliced_profile_nodes`) whose
-     slice coordinate and first table distance are keyed Value nodes (node-tree
-     action): the number of images does not grow with the frames;
+   * Exact profile: per (lens, n, near field[, receiver]) one image of stacked D/R
+     slices (`bake_plan.slice_grid`; the near field: per track, a block of D/R
+     slices per receiver distance, `bake_plan.near_slices`), and Generate's
+     node tree in its slices mode (`light_builder.build_profile_nodes(slices=)`)
+     whose slice coordinate and first table distance are keyed Value nodes
+     (node-tree action): the number of images does not grow with the frames. Not
+     baked: the tilt correction and the shadow mask (both depend on the frame);
    * Caustic layer: each frame's layer meshes (`layer_builder`), each object keyed
      visible on its own frame only (the meshes grow with the frames: one set per
      frame).
@@ -42,9 +46,11 @@ import time
 import traceback
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
 from ..addon import bake_plan
+from ..addon.light_keys import keys_of
 from ..addon.report import error_text
 from ..addon.tiers import EXACT_PROFILE, builds_layer
 from . import cycles_caustics, layer_generate, light_builder
@@ -53,7 +59,7 @@ from .properties import COLLECTION_MARK
 from .scene_reader import rendered_depsgraph
 
 BAKE_MARK = "bake"
-SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+SLICE_NODE, H_MIN_NODE = light_builder.SLICE_NODE, light_builder.H_MIN_NODE
 #: The figures of the last bake (seconds per stage, counts).
 LAST_BAKE: dict = {}
 
@@ -102,82 +108,6 @@ def key_visibility(ob, keys):
 
 
 # --------------------------------------------------------------------------- profile
-
-
-def build_sliced_profile_nodes(data, info: dict, image, slices: int, rows: int):
-    """`light_builder.build_profile_nodes` for a baked light: the same u (angle) and
-    v (distance) coordinates, with v read in slice `s` of the stacked image
-    (`bake_plan.slice_row`), `s` and the table's first distance `h_min` being Value
-    nodes keyed per frame; two slices blended by the fractional part of `s`."""
-    if bpy.app.version < (5, 0, 0) or data.node_tree is None:
-        data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
-    nt = data.node_tree
-    nt.nodes.clear()
-
-    def math_node(op, a, b=None, c=None):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = op
-        for k, v in enumerate((a, b, c)):
-            if v is None:
-                continue
-            if isinstance(v, (int, float)):
-                n.inputs[k].default_value = float(v)
-            else:
-                nt.links.new(v, n.inputs[k])
-        return n.outputs[0]
-
-    def value_node(name):
-        n = nt.nodes.new("ShaderNodeValue")
-        n.name = n.label = name
-        return n
-
-    s_node, h_node = value_node(SLICE_NODE), value_node(H_MIN_NODE)
-    tc = nt.nodes.new("ShaderNodeTexCoord")
-    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
-    nt.links.new(tc.outputs["Normal"], sep.inputs[0])
-    cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
-    gam = math_node("ARCCOSINE", math_node("MAXIMUM", math_node("MINIMUM", cosg, 1.0), 0.0))
-    u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(info["gamma_max_deg"])))
-    lp = nt.nodes.new("ShaderNodeLightPath")
-    h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
-    h_min = h_node.outputs[0]
-    ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
-    log_range = math.log(float(info["h_max"]) / float(info["h_min"]))
-    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
-    half = 0.5 / rows
-    v = math_node("MAXIMUM", math_node("MINIMUM", v, 1.0 - half), half)
-    s = s_node.outputs[0]
-    base = math_node("MINIMUM", math_node("FLOOR", s), max(slices - 2, 0))
-    frac = math_node("SUBTRACT", s, base)
-
-    def lookup(offset):
-        row = math_node(
-            "DIVIDE", math_node("ADD", math_node("ADD", base, float(offset)), v), slices
-        )
-        comb = nt.nodes.new("ShaderNodeCombineXYZ")
-        nt.links.new(u, comb.inputs["X"])
-        nt.links.new(row, comb.inputs["Y"])
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = image
-        tex.interpolation = "Linear"
-        tex.extension = "EXTEND"
-        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
-        return tex.outputs["Color"]
-
-    if slices > 1:
-        a = math_node("MULTIPLY", lookup(0), math_node("SUBTRACT", 1.0, frac))
-        strength = math_node("ADD", a, math_node("MULTIPLY", lookup(1), frac))
-    else:
-        strength = math_node("MULTIPLY", lookup(0), 1.0)
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    nt.links.new(
-        math_node("MULTIPLY", strength, float(info.get("strength_scale", 1.0))),
-        em.inputs["Strength"],
-    )
-    out = nt.nodes.new("ShaderNodeOutputLight")
-    nt.links.new(em.outputs[0], out.inputs["Surface"])
-    return nt
 
 
 def compact_profile_image(key: str, pixels):
@@ -230,19 +160,39 @@ def compact_profile_image(key: str, pixels):
 
 
 def _profile_images(tracks, ratio) -> dict:
-    """Per Exact profile track key: (image, grid, rows), the image stacking its
-    group's D/R slices (`bake_plan.profile_groups`)."""
+    """Per Exact profile track key: (image, slices, rows, slice coordinate per
+    frame, h_min per frame in world units). Far field: the image stacks its group's
+    D/R slices (`bake_plan.profile_groups`); near field: the track's own image, a
+    block of D/R slices per receiver distance (`bake_plan.near_slices`)."""
     out = {}
-    for group, (keys, grid) in bake_plan.profile_groups(tracks, ratio).items():
-        lens, n, near = group[:3]
-        tables = [bake_plan.profile_slice_table(g, n, near) for g in grid]
-        pixels = bake_plan.stack_slices(tables)
-        key = f"bake {lens} n {n:.9g}{' near' if near else ''} D/R " + " ".join(
-            f"{g:.9g}" for g in grid
-        )
-        image = compact_profile_image(key, pixels)
+    far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
+    groups = bake_plan.profile_groups(far, ratio)
+    by_key = {t.key: t for t in tracks}
+    for group, (keys, grid) in groups.items():
+        lens, n = group[:2]
+        tables = [bake_plan.profile_slice_table(g, n, False) for g in grid]
+        key = f"bake {lens} n {n:.9g} D/R " + " ".join(f"{g:.9g}" for g in grid)
+        image = compact_profile_image(key, bake_plan.stack_slices(tables))
         for k in keys:
-            out[k] = (image, grid, tables[0].shape[0])
+            t = by_key[k]
+            s = bake_plan.slice_coordinate(t.d_over_r, grid)
+            out[k] = (image, len(grid), tables[0].shape[0], s, t.values["h_min"][:, 0])
+    for t in tracks:
+        if t.profile_group is None or not t.profile_group[2]:
+            continue
+        lens, n = t.profile_group[:2]
+        nodes, s = bake_plan.near_slices(t, ratio)
+        tables = [bake_plan.profile_slice_table(d, n, True, z) for d, z in nodes]
+        key = f"bake {lens} n {n:.9g} near " + " ".join(f"{d:.9g} {z:.6g}" for d, z in nodes)
+        image = compact_profile_image(key, bake_plan.stack_slices(tables))
+        h_min = np.array([bake_plan.slice_h_min(nodes[int(math.floor(k))][1]) for k in s])
+        out[t.key] = (
+            image,
+            len(nodes),
+            tables[0].shape[0],
+            s,
+            h_min * t.values["lens_radius"][:, 0],
+        )
     return out
 
 
@@ -253,11 +203,21 @@ def _frame_lights(work, firsts: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
     (PlannedLight, lens object)."""
     out = []
-    for p in work.plan.lights:
+    nears = [
+        bool(
+            p.light.model == EXACT_PROFILE
+            and getattr(p.light, "profile_info", None) is not None
+            and p.light.inside_lens
+        )
+        for p in work.plan.lights
+    ]
+    keys = keys_of(
+        (p.light_name, p.lens_name, p.light.kind, p.light.model, "near" if near else "")
+        for p, near in zip(work.plan.lights, nears, strict=True)
+    )
+    for p, near, key in zip(work.plan.lights, nears, keys, strict=True):
         bl = p.light
         profile = bl.model == EXACT_PROFILE and getattr(bl, "profile_info", None) is not None
-        near = bool(profile and bl.inside_lens)
-        key = bake_plan.bake_key(p.light_name, p.lens_name, bl.kind, "near" if near else "")
         q = Vector(bl.direction).to_track_quat("-Z", "Y")
         values = dict(
             location=bl.location,
@@ -275,6 +235,9 @@ def _frame_lights(work, firsts: dict) -> list:
             fl.profile_group = (p.lens_name, round(float(src.ior), 9), near)
             fl.d_over_r = float(src.distance) / float(src.lens_radius)
             values["h_min"] = float(bl.profile_info["h_min"])
+            values["lens_radius"] = float(src.lens_radius)
+            if near:
+                values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
         if key not in firsts:
             firsts[key] = (p, work.read.sphere_objects[p.source.lens])
         out.append(fl)
@@ -406,13 +369,12 @@ class Baker:
         key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
         key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
         if track.profile_group is not None:
-            image, grid, rows = images[track.key]
+            image, count, rows, s, h_min = images[track.key]
             info = self.firsts[track.key][0].light.profile_info
-            nt = build_sliced_profile_nodes(data, info, image, len(grid), rows)
-            s = bake_plan.slice_coordinate(track.d_over_r, grid)
+            nt = light_builder.build_profile_nodes(data, info, image, slices=(count, rows))
             path = 'nodes["{}"].outputs[0].default_value'
             key_column(nt, path.format(SLICE_NODE), -1, frames, s)
-            key_column(nt, path.format(H_MIN_NODE), -1, frames, v["h_min"][:, 0])
+            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)
         key_visibility(ob, bake_plan.visibility_keys(frames, track.present))
 
     def _build_layers(self) -> dict:

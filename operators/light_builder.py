@@ -135,16 +135,30 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     return img
 
 
-def build_profile_nodes(data, profile: dict, image):
+#: A baked profile light's keyed Value nodes (`operators/bake.py`): the slice
+#: coordinate and the table's first distance.
+SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+
+
+def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | None = None):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
-    ignores light nodes): emission strength = texture(u, v) × strength_scale, with
-    u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
+    ignores light nodes), the one description Generate, live update and the bake
+    share: emission strength = red(texture(u, v)) × strength_scale [× tilt factor],
+    with u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
     Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
     distance along the axis, Light Path ▸ Ray Length × cos γ); the image
     (`profile_image`) read with linear interpolation, EXTEND. With the light's
     energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
-    texture."""
-    data.use_nodes = True
+    texture. The tilt factor (`_tilt_factor`) when the profile has a
+    ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
+
+    `slices` = (count, rows): the baked light's stacked image (`bake_plan`): v read
+    in slice s of `count` slices of `rows` rows each (clamped to the slice's first
+    and last row centres, `bake_plan.slice_row`), two neighbouring slices blended by
+    the fractional part of s; s and h_min are Value nodes (`SLICE_NODE`,
+    `H_MIN_NODE`) the bake keys per frame."""
+    if bpy.app.version < (5, 0, 0) or data.node_tree is None:
+        data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
     nt = data.node_tree
     nt.nodes.clear()
 
@@ -174,19 +188,50 @@ def build_profile_nodes(data, profile: dict, image):
     lp = nt.nodes.new("ShaderNodeLightPath")
     h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
     h_min, h_max = float(profile["h_min"]), float(profile["h_max"])
+    log_range = math.log(h_max / h_min)
+    if slices is not None:
+        h_node = nt.nodes.new("ShaderNodeValue")
+        h_node.name = h_node.label = H_MIN_NODE
+        h_node.outputs[0].default_value = h_min
+        h_min = h_node.outputs[0]
     ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
-    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), math.log(h_max / h_min))
-    comb = nt.nodes.new("ShaderNodeCombineXYZ")
-    nt.links.new(u, comb.inputs["X"])
-    nt.links.new(v, comb.inputs["Y"])
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = image
-    tex.interpolation = "Linear"
-    tex.extension = "EXTEND"
-    nt.links.new(comb.outputs[0], tex.inputs["Vector"])
-    rgb = nt.nodes.new("ShaderNodeSeparateColor")  # red: the intensity
-    nt.links.new(tex.outputs["Color"], rgb.inputs[0])
-    strength = math_node("MULTIPLY", rgb.outputs[0], float(profile["strength_scale"]))
+    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
+
+    def lookup(v):
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(v, comb.inputs["Y"])
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        tex.interpolation = "Linear"
+        tex.extension = "EXTEND"
+        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+        rgb = nt.nodes.new("ShaderNodeSeparateColor")  # red: the intensity
+        nt.links.new(tex.outputs["Color"], rgb.inputs[0])
+        return rgb
+
+    if slices is None:
+        rgb = lookup(v)
+        texel = rgb.outputs[0]
+    else:
+        count, rows = int(slices[0]), int(slices[1])
+        s_node = nt.nodes.new("ShaderNodeValue")
+        s_node.name = s_node.label = SLICE_NODE
+        s = s_node.outputs[0]
+        half = 0.5 / rows
+        v = math_node("MAXIMUM", math_node("MINIMUM", v, 1.0 - half), half)
+        base = math_node("MINIMUM", math_node("FLOOR", s), max(count - 2, 0))
+
+        def row(offset):
+            return math_node("DIVIDE", math_node("ADD", math_node("ADD", base, offset), v), count)
+
+        rgb = lookup(row(0.0))
+        texel = rgb.outputs[0]
+        if count > 1:
+            frac = math_node("SUBTRACT", s, base)
+            second = lookup(row(1.0)).outputs[0]
+            texel = math_node("MULTIPLY_ADD", math_node("SUBTRACT", second, texel), frac, texel)
+    strength = math_node("MULTIPLY", texel, float(profile.get("strength_scale", 1.0)))
     if profile.get("receiver_normal") is not None:
         strength = math_node("MULTIPLY", strength, _tilt_factor(profile, sep, sin_g, cosg, rgb))
     em = nt.nodes.new("ShaderNodeEmission")
@@ -228,15 +273,23 @@ def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
 
 
 def create_light(
-    scene, planned, lens_object, collection, link_cache, model_name="", image_cache=None
+    scene,
+    planned,
+    lens_object,
+    collection,
+    link_cache,
+    model_name="",
+    image_cache=None,
+    arrays=None,
 ):
     """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
-    tree; `image_cache` shares profile images within a run)."""
+    tree, and its shadow mask given phase 1's `arrays`; `image_cache` shares
+    profile images within a run)."""
     name = f"Lens light {planned.light_name} > {planned.lens_name}"
     data = bpy.data.lights.new(name, "SPOT")
     ob = bpy.data.objects.new(name, data)
     try:
-        apply_light(ob, planned, image_cache)
+        apply_light(ob, planned, image_cache, arrays)
     except Exception:
         bpy.data.objects.remove(ob)  # not registered yet: clear would miss them
         bpy.data.lights.remove(data)
@@ -273,15 +326,20 @@ def _put(owner, attr, value):
         setattr(owner, attr, value)
 
 
-#: Custom property of a profile light's data: what its node tree was built from.
+#: Custom properties of a profile light's data: what its node tree was built from,
+#: and whether it ends with a shadow mask.
 PROFILE_SIGNATURE = "lens_lights_profile_signature"
+MASKED = "lens_lights_masked"
 
 
-def apply_light(ob, planned, image_cache=None):
+def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
     """Put a `PlannedLight`'s values on the lens light `ob` (new, or kept by live
     update): transform, energy, colour, cone, blend, radius, distance, the origin
     notes, and for EXACT_PROFILE its node tree (rebuilt only when the profile
-    differs from the one it was built from). Writes only what changed."""
+    differs from the one it was built from), ending with the shadow mask of a
+    source with a shadow list (`mask_nodes.add_shadow_mask`; `arrays`: phase 1's
+    `SceneArrays`; the mask depends on the blockers' places, so such a tree is
+    rebuilt on every call). Writes only what changed; True if the tree was rebuilt."""
     bl = planned.light
     data = ob.data
     _put(data, "energy", bl.energy_w)
@@ -297,9 +355,17 @@ def apply_light(ob, planned, image_cache=None):
             [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
             + [profile.get(k) for k in ("h_max", "strength_scale")]
         )
-        if profile.get("key") is None or data.get(PROFILE_SIGNATURE) != signature:
+        masked = arrays is not None and len(planned.source.shadow_list) > 0
+        rebuilt = (
+            masked
+            or profile.get("key") is None
+            or data.get(PROFILE_SIGNATURE) != signature
+            or data.get(MASKED, False)
+        )
+        if rebuilt:
             build_profile_nodes(data, profile, profile_image(profile, image_cache))
             data[PROFILE_SIGNATURE] = signature
+            data[MASKED] = bool(masked and mask_nodes.add_shadow_mask(ob, planned, arrays))
     _put(ob, "location", bl.location)
     _put(ob, "rotation_mode", "QUATERNION")
     _put(ob, "rotation_quaternion", Vector(bl.direction).to_track_quat("-Z", "Y"))
@@ -309,6 +375,7 @@ def apply_light(ob, planned, image_cache=None):
     _put(meta, "unblocked_fraction", float(planned.source.unblocked_fraction))
     _put(meta, "relative_brightness", bl.relative_brightness)
     _put(meta, "note", bl.note)
+    return profile is not None and rebuilt
 
 
 def build(scene, plan, lens_objects, progress=None, arrays=None):
@@ -328,9 +395,9 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
                 collection,
                 cache,
                 image_cache=images,
+                arrays=arrays,
             )
         )
-        mask_nodes.add_shadow_mask(made[-1], planned, arrays)
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made

@@ -237,7 +237,8 @@ def update(scene, depsgraph, force=False) -> dict:
         m = match(old_keys, new_keys)
         images: dict = {}
         for i, j in m.update:
-            light_builder.apply_light(existing[i], plan.lights[j], images)
+            # with phase 1's arrays: a non-full source's profile light keeps its mask
+            light_builder.apply_light(existing[i], plan.lights[j], images, read.arrays)
         if m.remove:
             _remove(scene, [existing[i] for i in m.remove])
         if m.create:
@@ -252,6 +253,7 @@ def update(scene, depsgraph, force=False) -> dict:
                     collection,
                     links,
                     image_cache=images,
+                    arrays=read.arrays,
                 )
         if images:  # a profile's node tree was rebuilt: its old image may be unused
             light_builder.remove_unused_profile_images()

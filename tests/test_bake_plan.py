@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from addon import bake_plan as bp
+from addon.light_keys import LightKey, keys_of
 
 
 def fl(key, x, energy=1.0, q=(1.0, 0.0, 0.0, 0.0), d_over_r=math.nan, group=None):
@@ -19,12 +20,61 @@ def fl(key, x, energy=1.0, q=(1.0, 0.0, 0.0, 0.0), d_over_r=math.nan, group=None
     )
 
 
-def test_key_names_light_lens_kind_and_variant():
-    assert bp.bake_key("Lamp", "Marble", "real") == "Lamp | Marble | real"
-    assert bp.bake_key("Lamp", "Grid/Ball#2", "virtual", "near") == (
-        "Lamp | Grid/Ball#2 | virtual | near"
+def test_bake_keys_are_live_updates_keys_with_a_variant():
+    # the bake keys its tracks with `light_keys.LightKey` (one identity for both)
+    items = [
+        ("Lamp", "Marble", "real", "EXACT_PROFILE", ""),
+        ("Lamp", "Marble", "real", "EXACT_PROFILE", "near"),
+        ("Lamp", "Marble", "real", "EXACT_PROFILE", ""),
+        ("Lamp", "Marble", "virtual", "EXACT_PROFILE", ""),
+        ("Lamp", "Grid/Ball#2", "real", "EXACT_PROFILE", ""),
+    ]
+    a, near, again, virtual, other = keys_of(items)
+    assert a == LightKey("Lamp", "Marble", "real", "EXACT_PROFILE")
+    assert near == LightKey("Lamp", "Marble", "real", "EXACT_PROFILE", variant="near")
+    assert near != a and virtual != a and other != a
+    assert again == LightKey("Lamp", "Marble", "real", "EXACT_PROFILE", index=1)  # a repeat
+    # the next frame's keys equal this frame's: one track per key
+    per_frame = [[fl(k, float(i)) for i, k in enumerate(keys_of(items))] for _ in range(2)]
+    tracks = bp.build_tracks([1, 2], per_frame)
+    assert [t.key for t in tracks] == [a, near, again, virtual, other]
+    assert all(t.present.all() for t in tracks)
+    # four-tuples (live update's existing lights) get the empty variant
+    assert keys_of([("Lamp", "Marble", "real", "EXACT_PROFILE")]) == [a]
+
+
+def test_near_slices_put_a_row_on_the_receiver():
+    # the near table (512 rows, 0.25 … 31 R shifted) has a row centre on the
+    # receiver: (M ln(z/h_min)/ln(h_max/h_min) − 0.5) is an integer
+    z = 1.0 + 0.5 * 0.37  # a receiver 1.185 R from the lens centre
+    h_min = bp.slice_h_min(z)
+    y = 512 * math.log(z / h_min) / math.log(31.0 / 0.25) - 0.5
+    assert y == pytest.approx(round(y), abs=1e-6)
+    assert 0.25 / 1.01 < h_min < 0.25 * 1.01  # shifted by under a row (0.95 %)
+    assert bp.slice_h_min(None) == pytest.approx(0.2)  # the far table's
+    with pytest.raises(ValueError, match="receiver"):
+        bp.profile_slice_table(4.0, 1.5, True)
+    # per receiver distance of the present frames a block of D/R slices (the grid
+    # 1.04^k of the frames at that distance); each frame its block's coordinate (an
+    # absent frame holds its nearest present one's values)
+    q = 1.04
+    t = bp.Track(
+        "k",
+        np.arange(5),
+        np.array([True, True, False, True, True]),
+        values={"receiver": np.array([[1.1], [1.3], [1.3], [1.1], [1.1000001]])},
+        d_over_r=np.array([q**60, q**50, q**50, q**60, q**61]),
     )
-    assert bp.bake_key("A", "B", "real") != bp.bake_key("A", "B", "virtual")
+    nodes, s = bp.near_slices(t)
+    assert np.allclose(nodes, [(q**60, 1.1), (q**61, 1.1), (q**50, 1.3)])  # 1.1000001: 1.1
+    assert s == pytest.approx([0.0, 2.0, 2.0, 0.0, 1.0])
+    # more distances than slices: that many quantiles, each frame the nearest, the
+    # blocks sharing the slices (here one each: the median D/R)
+    t.values["receiver"] = np.array([[1.0], [1.1], [1.1], [1.15], [1.4]])
+    t.d_over_r = np.full(5, 8.0)
+    nodes, s = bp.near_slices(t, max_slices=2)
+    assert nodes == [(8.0, 1.0), (8.0, 1.4)]
+    assert s.tolist() == [0.0, 0.0, 0.0, 0.0, 1.0]
 
 
 def test_tracks_hold_the_nearest_present_values_and_mark_absence():

@@ -1,0 +1,182 @@
+"""The baked Exact profile's near field (a marble resting on a table, the lamp moving)
+against the exact optics: what the bake's node tree gives on the table around the
+contact point, the lens' D/R between two slices of the bake's grid.
+
+    $PY bench/bake_near_field.py        # about a minute, one core
+
+For each D/R: the ring-mean irradiance on the table (rings 0–0.15 R around the
+contact point, as tests/test_near_field_profile.py) of
+* "bake": the slices the bake tabulates now (`bake_plan.profile_slice_table` with
+  the receiver's row, h_min `bake_plan.slice_h_min`), blended at the frame's slice
+  coordinate, as `light_builder.build_profile_nodes(slices=)` reads them;
+* "bake, receiver +x %": slices made for a receiver x % farther than the frame's
+  (what a track with more distinct receiver distances than slices reads: its
+  nearest quantile's, `bake_plan.near_slices`), their rows as made (h_min the
+  table's: what the bake keys) or scaled so that the table's receiver row lies on
+  the frame's receiver (not done: worse);
+* "bake before": the receiver-less near slices the bake used before (256 rows from
+  0.25 R, no row on the receiver);
+* "generate": Generate's own table for that D/R and receiver;
+each over the exact optics' (`exact_optics.irradiance_on_plane`). Writes
+reports/bake_near_field.md.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from addon import bake_plan  # noqa: E402
+from addon import exact_optics as xo  # noqa: E402
+from addon.phase1 import compute_phase1  # noqa: E402
+from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
+from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
+from addon.tiers.exact_profile import _cached_profile  # noqa: E402
+
+N, R = 1.5, 0.01
+EDGES_R = np.array([0.0, 0.02, 0.04, 0.06, 0.1, 0.15])
+
+
+def texture(pixels, u, v):
+    """Blender's Linear, EXTEND image texture (texels at (i + ½)/K)."""
+    M, K = pixels.shape
+
+    def corners(c, n):
+        x = np.asarray(c, float) * n - 0.5
+        i = np.floor(x).astype(int)
+        return np.clip(i, 0, n - 1), np.clip(i + 1, 0, n - 1), x - i
+
+    i0, i1, s = corners(u, K)
+    j0, j1, t = corners(v, M)
+    return (1 - t) * ((1 - s) * pixels[j0, i0] + s * pixels[j0, i1]) + t * (
+        (1 - s) * pixels[j1, i0] + s * pixels[j1, i1]
+    )
+
+
+def ring_irradiance(energy, lookup, z_table, n_phi=8, n_sub=40):
+    """Ring means on the plane z = −z_table of a light at the origin looking down −z
+    whose intensity is energy/(4π) × lookup(γ, h)."""
+    out = []
+    edges = EDGES_R * R
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        rho = np.sqrt(a * a + (b * b - a * a) * (np.arange(n_sub) + 0.5) / n_sub)
+        rho = np.repeat(rho[:, None], n_phi, axis=1)
+        dist = np.hypot(rho, z_table)
+        gamma = np.arctan2(rho, z_table)
+        intensity = energy / (4 * math.pi) * lookup(gamma, np.full_like(rho, z_table))
+        out.append(float(np.mean(intensity * (z_table / dist) / dist**2)))
+    return np.array(out)
+
+
+def table_lookup(tables, s, h_min, h_max, gamma_max):
+    """The node tree's read of stacked slices at slice coordinate s (one table: s = 0)."""
+    count, rows = len(tables), tables[0].shape[0]
+    stacked = np.concatenate(tables)
+    base = min(math.floor(s), max(count - 2, 0))
+    frac = s - base
+
+    def f(gamma, h):
+        u = np.sqrt(gamma / math.radians(gamma_max))
+        v = np.log(np.maximum(h, h_min) / h_min) / math.log(h_max / h_min)
+        v = np.clip(v, 0.5 / rows, 1 - 0.5 / rows)
+        first = texture(stacked, u, (base + v) / count)
+        if count == 1:
+            return first
+        second = texture(stacked, u, (base + 1 + v) / count)
+        return first + (second - first) * frac
+
+    return f
+
+
+def main():
+    lines = [
+        "# Baked near field: a marble resting on a table (R 1 cm, n 1.5)",
+        "",
+        "Ring-mean irradiance on the table over the exact optics', rings in R around the",
+        "contact point; the lens' D/R between two bake slices (ratio 1.04).",
+        "Reproduce: `$PY bench/bake_near_field.py`.",
+        "",
+        "| D/R | slices | s | kind | "
+        + " | ".join(f"{a:g}–{b:g}" for a, b in zip(EDGES_R[:-1], EDGES_R[1:], strict=True))
+        + " | max abs err |",
+        "|---|---|---|---|" + "---|" * (len(EDGES_R) - 1) + "---|",
+    ]
+    z = 1.0  # resting: the table 1 R from the centre
+    for d_over_r in (20.0, 100.0, 1000.0):
+        grid = bake_plan.slice_grid([d_over_r / 1.02, d_over_r * 1.02])
+        s = float(bake_plan.slice_coordinate([d_over_r], grid)[0])
+        D = d_over_r * R
+        scene = Scene(
+            lights=[Light((0.0, 0.0, D))],
+            objects=[Sphere((0.0, 0.0, 0.0), R, Surface(transmission=1.0, ior=N))],
+        )
+        src = compute_phase1(scene).sources[0]
+        light = make_blender_light(
+            src,
+            PrimaryLight(4.0 * math.pi),
+            "EXACT_PROFILE",
+            scene_size=2.0,
+            receiver_distance=z * R,
+        )
+        want = xo.irradiance_on_plane(1.0, D, R, N, z * R, EDGES_R * R, n_psi=100_000)
+        info = light.profile_info
+        tables = [bake_plan.profile_slice_table(g, N, True, z) for g in grid]
+        bake = table_lookup(
+            tables, s, bake_plan.slice_h_min(z) * R, info["h_max"], info["gamma_max_deg"]
+        )
+        # slices made for a receiver 0.5, 2 or 10 % farther than this frame's
+        offs = []
+        for pct, scaled in ((0.5, False), (2.0, False), (0.5, True), (2.0, True), (10.0, True)):
+            z_off = round(z * (1 + pct / 100), 6)
+            scale = z / z_off if scaled else 1.0
+            f_off = table_lookup(
+                [bake_plan.profile_slice_table(g, N, True, z_off) for g in grid],
+                s,
+                bake_plan.slice_h_min(z_off) * R * scale,
+                info["h_max"] * bake_plan.slice_h_min(z_off) / bake_plan.slice_h_min(z) * scale,
+                info["gamma_max_deg"],
+            )
+            how = "rows scaled to the frame's receiver" if scaled else "rows as made"
+            offs.append((f"bake, receiver +{pct:g} %, {how}", f_off))
+        old_profiles = [_cached_profile(round(float(g), 9), N, True) for g in grid]
+        old_tables = [
+            p.table / (p.flux / (2 * math.pi)) for p in old_profiles
+        ]  # as the bake normalised them
+        p0 = old_profiles[0]
+        before = table_lookup(old_tables, s, p0.h_min * R, p0.h_max * R, p0.gamma_max_deg)
+        prof = light.profile
+        gen = table_lookup(
+            [np.asarray(prof["pixels"], float)],
+            0.0,
+            prof["h_min"],
+            prof["h_max"],
+            prof["gamma_max_deg"],
+        )
+        kinds = (
+            ("bake", bake),
+            *offs,
+            ("bake before", before),
+            ("generate", gen),
+        )
+        for name, f in kinds:
+            ratio = ring_irradiance(light.energy_w, f, z * R) / want
+            err = float(np.max(np.abs(ratio - 1)))
+            lines.append(
+                f"| {d_over_r:g} | {len(grid)} | {s:.3f} | {name} | "
+                + " | ".join(f"{r:.3f}" for r in ratio)
+                + f" | {err:.3f} |"
+            )
+            print(lines[-1], flush=True)
+    out = ROOT / "reports" / "bake_near_field.md"
+    out.write_text("\n".join(lines) + "\n")
+    print("wrote", out)
+
+
+if __name__ == "__main__":
+    main()
