@@ -5,8 +5,8 @@ field (a marble resting on a table, then the table lowered: the baked slices car
 their row on each frame's receiver). The trees are evaluated node by node in numpy
 (the image texture as Blender reads it: texels at (i + ½)/K, bilinear, EXTEND),
 from the images' pixels; the lens' D/R sits on the bake's slice grid (1.04^k) on
-each frame, so the baked slices are Generate's tables. And live update keeps a non-full source's shadow mask
-when it rebuilds a profile light's tree."""
+each frame, so the baked slices are Generate's tables. And live update keeps a
+non-full source's shadow mask when it rebuilds a profile light's tree."""
 
 import math
 
