@@ -179,11 +179,15 @@ def test_angle_from_columns_is_geometry_angle_between_bit_for_bit():
 def brute_force_blockers(lens_rows, direction, ang, tlen, obstacle):
     """`find_blockers`' answer by every lens against every sphere, with the same
     floating-point tests (angles by `geometry.angle_between`, which the column
-    version equals bit for bit) and the product of the partial shares."""
+    version equals bit for bit); the partial blockers' shares are combined by
+    `shadow_mask.union_unblocked` (tested on its own in tests/test_blockers_union.py)
+    from these pairs, so that what is compared here is the broad phase."""
     from addon.geometry import angle_between, cap_overlap_fraction
+    from addon.shadow_mask import union_unblocked
 
-    total, lists, unblocked = [], [], []
-    for i in lens_rows.tolist():
+    total, lists = [], []
+    pair_rows, pair_obst, pair_cover = [], [], []
+    for row, i in enumerate(lens_rows.tolist()):
         k = np.flatnonzero(obstacle & (tlen < tlen[i]))
         k = k[k != i]
         alpha, beta = ang[i], ang[k]
@@ -195,13 +199,23 @@ def brute_force_blockers(lens_rows, direction, ang, tlen, obstacle):
             near = kk[tlen[kk] == tlen[kk].min()].min()
             total.append(int(near))
             lists.append([])
-            unblocked.append(0.0)
         else:
             total.append(-1)
             lists.append(k[blocks].tolist())
             cover = cap_overlap_fraction(np.full(blocks.sum(), alpha), beta[blocks], gamma[blocks])
-            unblocked.append(float(np.prod(1.0 - cover)))
-    return total, lists, unblocked
+            pair_rows += [row] * int(blocks.sum())
+            pair_obst += k[blocks].tolist()
+            pair_cover += cover.tolist()
+    unblocked = union_unblocked(
+        np.array(pair_rows, dtype=np.int64),
+        np.array(pair_obst, dtype=np.int64),
+        np.array(pair_cover, dtype=float),
+        lens_rows,
+        direction,
+        ang,
+    )
+    unblocked[np.array(total) >= 0] = 0.0
+    return total, lists, unblocked.tolist()
 
 
 def light_view(a: SceneArrays, j=0):
