@@ -138,6 +138,24 @@ def linking_note(version: tuple, engine: str, inside: int) -> str:
     return ""
 
 
+#: Light-linking sets Blender keeps per scene (its message: "Maximum number of light
+#: linking sets (64) exceeded"); a lens's linking collection is one set.
+MAX_LINKING_SETS = 64
+
+
+def linking_sets_note(lenses: int) -> str:
+    """The warning when more lenses have lens lights than Blender has light-linking
+    sets: the lights of the lenses beyond them are not excluded from their own lens."""
+    if lenses <= MAX_LINKING_SETS:
+        return ""
+    return (
+        f"{plural(lenses, 'lens', 'lenses')} have lens lights but Blender keeps {MAX_LINKING_SETS} "
+        f"light-linking sets per scene: the lights of {lenses - MAX_LINKING_SETS} of them "
+        "are not excluded from their own lens, which can shadow them (lower Maximum "
+        "Lights, or use fewer lenses)"
+    )
+
+
 def error_text(stage, exc):
     """'Lens Lights could not <stage>: <error> (<file>:<line>)'."""
     where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None

@@ -40,7 +40,7 @@ import bpy
 from ..addon.cycles_caustics import describe as describe_caustics
 from ..addon.phase1_primaries import compute_phase1_primaries
 from ..addon.planning import PRESELECT_FACTOR, plan_result
-from ..addon.report import error_text, linking_note, report_message
+from ..addon.report import error_text, linking_note, linking_sets_note, report_message
 from ..addon.tiers import builds_layer, resolve_energy_model
 from . import cycles_caustics, layer_generate, light_builder
 from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
@@ -192,6 +192,10 @@ def generate(context):
     if eevee_note:
         level = "WARNING" if level == "INFO" else level
         message = f"{message}; {eevee_note}"
+    sets_note = linking_sets_note(light_builder.linking_sets(scene))
+    if sets_note:
+        level = "WARNING" if level == "INFO" else level
+        message = f"{message}; {sets_note}"
     if caustics_note:
         message = f"{message}; {caustics_note}"
         if caustics_note.startswith("Cycles' refractive caustics are on"):

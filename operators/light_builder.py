@@ -87,6 +87,16 @@ def link_collection(scene, lens_object, cache):
     return coll
 
 
+def linking_sets(scene) -> int:
+    """How many lens-linking collections this extension keeps in `scene` (each is
+    one of Blender's light-linking sets)."""
+    return sum(
+        1
+        for item in scene.lens_lights.created_collections
+        if item.collection is not None and item.collection.get(COLLECTION_MARK) == "link"
+    )
+
+
 def _is_profile_image(img) -> bool:
     return img.get(COLLECTION_MARK) == "profile"
 

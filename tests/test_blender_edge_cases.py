@@ -479,6 +479,22 @@ def test_hundreds_of_lights(empty_blend):
     # (Its time is a benchmark's business, not a test's: bench/operator_scale.py.)
 
 
+def test_more_lenses_than_light_linking_sets_warns(empty_blend):
+    """66 lit lenses need 66 linking collections; Blender keeps 64 light-linking sets."""
+    glass = glass_material()
+    for k in range(66):
+        add_sphere(
+            f"Ball {k:02d}", (1.2 * (k % 11), 1.2 * (k // 11), 1), radius=0.3, material=glass
+        )
+    floor()
+    add_point_light("Lamp", (6, 3, 12), energy=1000.0)
+    bpy.context.scene.lens_lights.max_lights = 100
+    level, message, figures = generate()
+    assert figures["created"] == 66
+    assert level == "WARNING"
+    assert "66 lenses have lens lights but Blender keeps 64 light-linking sets" in message
+
+
 # --------------------------------------------------------------------------- failures
 
 

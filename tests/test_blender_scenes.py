@@ -218,3 +218,13 @@ def test_eevee_before_4_3_names_the_lens_lights_inside_their_lens():
     assert linking_note((4, 3, 0), "BLENDER_EEVEE_NEXT", 1) == ""
     assert linking_note((4, 2, 23), "CYCLES", 1) == ""
     assert linking_note((4, 2, 23), "BLENDER_EEVEE_NEXT", 0) == ""
+
+
+def test_more_lenses_than_light_linking_sets_are_reported():
+    """Blender keeps 64 light-linking sets per scene ("Maximum number of light linking
+    sets (64) exceeded"): 65 lenses with lens lights leave one lens' lights unlinked."""
+    from lens_lights.addon.report import linking_sets_note
+
+    assert linking_sets_note(64) == ""
+    note = linking_sets_note(65)
+    assert note.startswith("65 lenses have lens lights") and "the lights of 1 of them" in note
