@@ -145,13 +145,13 @@ MAX_LINKING_SETS = 64
 
 def linking_sets_note(lenses: int) -> str:
     """The warning when more lenses have lens lights than Blender has light-linking
-    sets: the lights of the lenses beyond them are not excluded from their own lens."""
+    sets: the lights of the lenses beyond them may not be excluded from their own lens."""
     if lenses <= MAX_LINKING_SETS:
         return ""
     return (
         f"{plural(lenses, 'lens', 'lenses')} have lens lights but Blender keeps {MAX_LINKING_SETS} "
         f"light-linking sets per scene: the lights of {lenses - MAX_LINKING_SETS} of them "
-        "are not excluded from their own lens, which can shadow them (lower Maximum "
+        "may not be excluded from their own lens, which can shadow them (lower Maximum "
         "Lights, or use fewer lenses)"
     )
 
