@@ -203,7 +203,11 @@ def bake_and_check(tmp, center_mid, light_mid):
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
     facts, with_, without = stock_render(blend, tmp, 2)
     assert facts == dict(registered=False, operators=False)
+    check_caustic(with_, without, center_mid, light_mid, "baked frame 2")
 
+
+def check_caustic(with_, without, center_mid, light_mid, label):
+    """The caustic (`with_` − `without`) against the exact optics of that geometry."""
     hit, radiance = expected(center_mid, light_mid)
     diff = with_ - without
     x, y = pixel_xy(hit)
@@ -217,7 +221,7 @@ def bake_and_check(tmp, center_mid, light_mid):
     error = math.hypot(cx - ex, cy - ey)
     patch = np.hypot(x - hit[0], y - hit[1]) <= PATCH_PX * VIEW / PX
     ratio = float(diff[patch].mean()) / radiance
-    print(f"\nbaked frame 2: centroid {error:.4f} from the exact one, brightness ratio {ratio:.4f}")
+    print(f"\n{label}: centroid {error:.4f} from the exact one, brightness ratio {ratio:.4f}")
     assert error <= POSITION_TOL
     assert abs(ratio - 1) <= BRIGHTNESS_TOL
 
@@ -238,3 +242,29 @@ def test_baked_moving_lens_renders_without_extension(extension, tmp_path):
     built, _ = make_scene(mid, light)
     animate(built.ball, [first, mid, last])
     bake_and_check(tmp_path, mid, light)
+
+
+def test_live_update_still_render_matches_the_frame(extension, tmp_path):
+    """Live update on, `frame_set(2)`, then a still render (F12): the caustic is frame
+    2's, by the same measure as the baked frame."""
+    center = (0.0, 0.0, 2.5)
+    first, last = np.array([-0.45, 0.0, 4.45]), np.array([-1.1, 0.0, 4.6])
+    mid = 0.5 * (first + last)
+    built, _ = make_scene(center, mid)
+    animate(built.lamp, [first, mid, last])
+    scene = built.scene
+    scene.frame_set(1)
+    scene.lens_lights.live_update = True
+    scene.frame_set(2)
+
+    def render(name):
+        scene.render.filepath = str(tmp_path / name)
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        bpy.ops.render.render(write_still=True)
+        return load(tmp_path / name)
+
+    with_ = render("live.exr")
+    scene.lens_lights.live_update = False
+    bpy.data.collections["Lens Lights"].hide_render = True
+    without = render("without.exr")
+    check_caustic(with_, without, center, mid, "live update, frame 2")
