@@ -437,6 +437,24 @@ _KEY_INSIDE_LINE = re.compile(r"[^\S\n][TCRS#]")
 _NOT_NUMBER_CHAR = re.compile(r"[^0-9.eE+\-\n]")
 
 
+def _spheres_in_range(v, radius, color, ka, kd, ks, kt, ex, ior) -> bool:
+    """Whether every sphere column of a fast path is finite and within the grammar's
+    ranges (anything else goes to the record reader, which names the line)."""
+    import numpy as np
+
+    return bool(
+        np.all(np.isfinite(v))
+        and np.all(radius > 0)
+        and np.all(color >= 0)
+        and np.all(ka >= 0)
+        and np.all(kd >= 0)
+        and np.all(ks >= 0)
+        and np.all((kt >= 0) & (kt <= 1))
+        and np.all(ex >= 0)
+        and np.all(ior > 0)
+    )
+
+
 def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
     """The `count` spheres that end the file, read at once, or None (then the
     record by record reader goes on from the same place)."""
@@ -468,18 +486,7 @@ def _bulk_spheres(reader: _Reader, count: int) -> list[Sphere] | None:
         return None
     center, radius, color = v[:, 0:3], v[:, 3], v[:, 4:7]
     ka, kd, ks, kt, ex, ior = v[:, 7], v[:, 8], v[:, 9], v[:, 10], v[:, 11], v[:, 12]
-    ok = (
-        np.all(np.isfinite(v))
-        and np.all(radius > 0)
-        and np.all(color >= 0)
-        and np.all(ka >= 0)
-        and np.all(kd >= 0)
-        and np.all(ks >= 0)
-        and np.all((kt >= 0) & (kt <= 1))
-        and np.all(ex >= 0)
-        and np.all(ior > 0)
-    )
-    if not ok:
+    if not _spheres_in_range(v, radius, color, ka, kd, ks, kt, ex, ior):
         return None
     reader.pos, reader.next = len(reader.lines), None
     spheres = [
@@ -660,18 +667,7 @@ def _arrays_in_layout(text: str, path: str):
             return None
     center, radius, color = v[0:3].T, v[3], v[4:7]
     ka, kd, ks, kt, ex, ior = v[7], v[8], v[9], v[10], v[11], v[12]
-    ok = (
-        np.all(np.isfinite(v))
-        and np.all(radius > 0)
-        and np.all(color >= 0)
-        and np.all(ka >= 0)
-        and np.all(kd >= 0)
-        and np.all(ks >= 0)
-        and np.all((kt >= 0) & (kt <= 1))
-        and np.all(ex >= 0)
-        and np.all(ior > 0)
-    )
-    if not ok:
+    if not _spheres_in_range(v, radius, color, ka, kd, ks, kt, ex, ior):
         return None
     light_tokens = [tokens for tokens, _ in head.colors]
     above_one = bool(np.any(color > 1.0)) or any(float(t) > 1.0 for c in light_tokens for t in c)
