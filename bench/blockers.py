@@ -38,7 +38,13 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 from dev_extension import load_extension  # noqa: E402
 from image_strip import GLYPH_H, text_mask, write_png  # noqa: E402
-from measuring_scene import add_glass_ball, build_measuring_scene, new_material  # noqa: E402
+from measuring_scene import (  # noqa: E402
+    add_glass_ball,
+    build_measuring_scene,
+    direct_light_only,
+    new_material,
+    render_grey,
+)
 
 from addon.reference import Blocker, GlassSphere, PointLight, ReceiverPlane  # noqa: E402
 from addon.reference.phase2 import phase2_irradiance  # noqa: E402
@@ -79,24 +85,14 @@ def build(engine, px, samples, blockers):
             add_glass_ball(radius, center, ior=ior, name=f"Glass blocker {k}")
     sc = built.scene
     if engine == "CYCLES":
-        sc.cycles.samples = samples
-        sc.cycles.max_bounces = 0
-        sc.cycles.use_denoising = False
-        sc.cycles.caustics_refractive = False
-        sc.cycles.caustics_reflective = False
-        sc.cycles.seed = 1
+        direct_light_only(sc, samples)
     else:
         sc.eevee.taa_render_samples = 4
     return sc
 
 
 def render(sc, path):
-    sc.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2) * math.pi / ALBEDO  # irradiance, rows from the bottom
+    return render_grey(sc, path) * math.pi / ALBEDO  # irradiance, rows from the bottom
 
 
 def reference(px, blockers):

@@ -4,10 +4,12 @@ light above it; no world light, Standard view transform, exposure 0, linear
 32-bit OpenEXR output, so that a pixel is the floor's radiance
 ``albedo · E / π`` (E the irradiance in W/m²).
 
-Used by tests/test_blender_render.py, bench/render_compare.py and
-bench/blender_light_check.py (import it with `scripts/` on `sys.path`, as
+Used by the render tests and benches (tests/test_blender_render.py,
+tests/test_blockers_render.py, bench/render_compare.py, bench/blockers.py,
+bench/blender_light_check.py …; import it with `scripts/` on `sys.path`, as
 tests/conftest.py puts it). The samplers (Cycles' bounces, samples, pixel filter,
-EEVEE's options) differ between them and stay with each caller.
+EEVEE's options) differ between them and stay with each caller, but for
+`direct_light_only`, which most Cycles checks share.
 """
 
 from __future__ import annotations
@@ -177,3 +179,29 @@ def build_measuring_scene(
     lamp_ob = add_point_light(**lamp) if lamp is not None else None
     camera = add_top_camera(camera_xy[0], camera_xy[1], camera_height, view, clip_end)
     return MeasuringScene(sc, floor, ball_ob, lamp_ob, camera)
+
+
+def direct_light_only(sc, samples: int) -> None:
+    """Cycles renders direct light alone: no bounce, no caustic of its own, no
+    denoiser, a fixed seed (what the analytic references model)."""
+    c = sc.cycles
+    c.samples = samples
+    c.max_bounces = 0
+    c.use_denoising = False
+    c.caustics_refractive = False
+    c.caustics_reflective = False
+    c.seed = 1
+
+
+def render_grey(sc, path):
+    """Renders `sc` to `path` and returns the mean of the RGB channels per pixel
+    (rows from the bottom, as Blender's images store them)."""
+    import bpy
+    import numpy as np
+
+    sc.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[..., :3].mean(axis=2)

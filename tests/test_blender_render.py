@@ -52,8 +52,10 @@ import pytest
 from measuring_scene import (
     add_top_camera,
     build_measuring_scene,
+    direct_light_only,
     new_material,
     new_measuring_scene,
+    render_grey,
 )
 
 from addon import exact_optics
@@ -106,24 +108,14 @@ def build_scene(engine, tmp, light_distance=D):
     )
     sc = built.scene
     if engine == "CYCLES":
-        sc.cycles.samples = 64
-        sc.cycles.max_bounces = 0
-        sc.cycles.use_denoising = False
-        sc.cycles.caustics_refractive = False
-        sc.cycles.caustics_reflective = False
-        sc.cycles.seed = 1
+        direct_light_only(sc, 64)
     else:
         sc.eevee.taa_render_samples = 4
     return sc, built.lamp
 
 
 def render(sc, path):
-    sc.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2)  # grey floor: channels agree
+    return render_grey(sc, path)  # grey floor: channels agree
 
 
 def pixel_xy():

@@ -20,7 +20,12 @@ import math
 import bpy
 import numpy as np
 import pytest
-from measuring_scene import build_measuring_scene, new_material
+from measuring_scene import (
+    build_measuring_scene,
+    direct_light_only,
+    new_material,
+    render_grey,
+)
 
 from addon.reference import Blocker, GlassSphere, PointLight, ReceiverPlane
 from addon.reference.phase2 import phase2_irradiance
@@ -51,22 +56,12 @@ def build(tmp):
     blocker.data.materials.append(new_material("Opaque"))  # Principled, no transmission
     blocker.visible_camera = False
     sc = built.scene
-    sc.cycles.samples = 64
-    sc.cycles.max_bounces = 0
-    sc.cycles.use_denoising = False
-    sc.cycles.caustics_refractive = False
-    sc.cycles.caustics_reflective = False
-    sc.cycles.seed = 1
+    direct_light_only(sc, 64)
     return sc
 
 
 def render(sc, path):
-    sc.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2)  # (rows = y from the bottom, columns = x)
+    return render_grey(sc, path)  # (rows = y from the bottom, columns = x)
 
 
 def reference_image():
