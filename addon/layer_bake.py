@@ -182,9 +182,7 @@ def bake_frames(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tupl
         here = [s for s in segs if i in s.members]
         if not here:
             continue
-        given = [
-            RasterFrame(s.members[i][0], s.members[i][1], *s.plane, s.axes) for s in here
-        ]
+        given = [RasterFrame(s.members[i][0], s.members[i][1], *s.plane, s.axes) for s in here]
         again = sheet_bake(
             fl.sources,
             fl.sheet.index,

@@ -418,9 +418,7 @@ class Baker:
         self.timings["layer re-landing"] = time.perf_counter() - t
         infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
         collection = light_builder.lights_collection(scene)
-        objects, keyed, images = layer_bake_builder.build(
-            scene, segments, res, infos, collection
-        )
+        objects, keyed, images = layer_bake_builder.build(scene, segments, res, infos, collection)
         frames = np.asarray(self.frames)
         path = 'nodes["{}"].outputs[0].default_value'
         for seg, ob, (mat, slices, scales, colours) in zip(segments, objects, keyed, strict=True):

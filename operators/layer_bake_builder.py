@@ -150,7 +150,8 @@ def baked_layer(scene, seg, info, collection, material, k: int):
     if me.uv_layers.get(layer_builder.UV_NAME) is not None:
         me.uv_layers.active = me.uv_layers[layer_builder.UV_NAME]
     ob.lens_lights.note = (
-        f"baked caustic layer: {res}² faces over {len(seg.frames)} frames "
+        f"baked caustic layer: {res}² faces over {len(seg.frames)} "
+        f"frame{'s' if len(seg.frames) != 1 else ''} "
         f"(texels at most {seg.coarsening:.2f}× Generate's at the caustic's core)"
     )
     return ob
