@@ -28,6 +28,7 @@ frame would be needed. The bake instead keeps one mesh per **segment**:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -272,9 +273,35 @@ def split_colour(slices, rel_tol: float = 1e-5):
     return images, scales, colours, mono
 
 
-def raster_uvs(res: int) -> np.ndarray:
-    """((res+1)², 2) the raster UV (u, v in 0…1) of a layer's vertex grid (vertex
-    (i, j) = i·(res+1) + j, row i along v): face (iy, ix) covers texel (iy, ix)."""
-    g = np.arange(res + 1, dtype=float) / res
-    u, v = np.meshgrid(g, g)
-    return np.stack([u.ravel(), v.ravel()], axis=1)
+def raster_coordinate(points, axes, axis_u, axis_v, res: int) -> np.ndarray:
+    """(N, 2) the raster coordinate (u, v in 0…1 over the raster, texel (iy, ix) at
+    [ix, ix + 1)/res × [iy, iy + 1)/res) of world `points` on a segment's plane: the
+    inverse of its texel lines' warp, x = c + s·sinh(ξ0 + t·res·dξ), what the baked
+    material computes from the object's coordinates (asinh as sign · ln(|x| + √(x²+1)),
+    exact in float32 far from the core too)."""
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    out = []
+    for axis, a in zip(axes, (axis_u, axis_v), strict=True):
+        c, s, xi0, dxi = (float(x) for x in axis)
+        x = (p @ np.asarray(a, dtype=float) - c) / s
+        xi = np.sign(x) * np.log(np.abs(x) + np.sqrt(x * x + 1.0))
+        out.append((xi - xi0) / (res * dxi))
+    return np.stack(out, axis=1)
+
+
+def baked_mesh(layer: PatchLayer) -> PatchLayer:
+    """The mesh a segment needs: the material finds each point's texel from its
+    position (`raster_coordinate`), so where the receiver's UVs are affine over the
+    plane (`uv_inside` None) one quad over the raster's corners carries them exactly;
+    else Generate's vertex grid (its UVs interpolated per vertex)."""
+    if layer.uv_inside is not None:
+        return layer
+    res = layer.resolution
+    corners = [0, res, (res + 1) * res, (res + 1) * (res + 1) - 1]
+    return dataclasses.replace(
+        layer,
+        vertices=np.asarray(layer.vertices)[corners],
+        faces=np.array([[0, 1, 3, 2]]),
+        uvs=None if layer.uvs is None else np.asarray(layer.uvs)[corners],
+        irradiance=np.zeros((1, 1, 3)),
+    )

@@ -432,8 +432,12 @@ class Baker:
             present = np.zeros(len(frames), dtype=bool)
             present[seg.frames] = True
             key_visibility(ob, bake_plan.visibility_keys(frames, present))
-        self.layer_segments = segments
-        return dict(objects=len(objects) + spots, images=images, layer_resolution=res)
+        return dict(
+            objects=len(objects) + spots,
+            images=images,
+            layer_resolution=res,
+            layer_segments=[(len(s.frames), s.coarsening) for s in segments],
+        )
 
 
 def remove_unused_bake_actions() -> int:

@@ -2,11 +2,11 @@
 `operators/bake.py` keys it): per segment one mesh object whose topology is fixed
 over its frames, and per bake one atlas image of every frame's irradiance.
 
-* **Mesh.** Generate's layer mesh (`layer_builder.create_layer`: the raster's
-  vertices lifted off the receiver, the receiver's UVs in "UVMap") of the segment's
-  raster, without the per-face irradiance attribute, plus a second UV map
-  (`RASTER_UV`): the raster coordinate (0…1) of each vertex, so face (iy, ix) covers
-  texel (iy, ix) of a slice.
+* **Mesh.** `layer_builder.create_layer`'s mesh (lifted off the receiver, the
+  receiver's UVs in "UVMap") of `layer_bake.baked_mesh`: one quad over the
+  segment's raster where the receiver's UVs are affine (a floor, a wall), else
+  Generate's vertex grid; no per-face irradiance attribute. Its size does not
+  depend on the raster's resolution.
 * **Image.** The slices as tiles of one packed half-float OpenEXR (ZIP; one channel
   when every slice is one colour times a scalar), each normalised to its maximum,
   Non-Color; marked (`properties.COLLECTION_MARK` = "bake") and removed by Clear
@@ -14,9 +14,10 @@ over its frames, and per bake one atlas image of every frame's irradiance.
 * **Material.** Generate's layer material for that receiver (`layer_builder.
   layer_material`: irradiance × the receiver's colour or texture / π, added to a
   transparent BSDF), its irradiance read from the image instead of the face
-  attribute: the tile of the keyed slice index (`SLICE_NODE`), texel centres clamped
-  inside the tile, Closest interpolation (one texel per face, as the attribute), times
-  the keyed scale (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it
+  attribute: each point's texel from its object coordinates through the inverse of
+  the raster's warp (`layer_bake.raster_coordinate`), in the tile of the keyed slice
+  index (`SLICE_NODE`), clamped inside the tile, Closest interpolation (a texel's
+  value over its whole area, as the face attribute), times the keyed scale (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it
   alike.
 """
 
@@ -32,9 +33,10 @@ from ..addon import layer_bake
 from . import layer_builder
 from .properties import COLLECTION_MARK
 
-RASTER_UV = "LensRaster"
 SLICE_NODE, SCALE_NODE, COLOUR_NODE = "Lens layer slice", "Lens layer scale", "Lens layer colour"
 IMAGE_PREFIX = "Lens caustic bake "
+#: Object property: (c, s, ξ0, dξ) along u, along v, then axis_u, axis_v (world).
+RASTER_PROP = "lens_lights_raster"
 BAKE_MARK = "bake"
 
 
@@ -71,39 +73,55 @@ def packed_exr(name: str, pixels) -> object:
     return img
 
 
-def _image_reader(nt, image, cols: int, rows: int, res: int):
-    """Nodes reading slice `SLICE_NODE` of the atlas at the raster UV; returns the
-    socket of irradiance / (scale × colour)."""
+def _math(nt, op, a, b=None, c=None):
+    n = nt.nodes.new("ShaderNodeMath")
+    n.operation = op
+    for k, v in enumerate((a, b, c)):
+        if v is None:
+            continue
+        if isinstance(v, (int, float)):
+            n.inputs[k].default_value = float(v)
+        else:
+            nt.links.new(v, n.inputs[k])
+    return n.outputs[0]
 
-    def math_node(op, a, b=None):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = op
-        for k, v in enumerate((a, b)):
-            if v is None:
-                continue
-            if isinstance(v, (int, float)):
-                n.inputs[k].default_value = float(v)
-            else:
-                nt.links.new(v, n.inputs[k])
-        return n.outputs[0]
 
+def _raster_coordinate(nt, position, axis, direction, res: int):
+    """Nodes of `layer_bake.raster_coordinate` along one axis: t = (asinh((p·a −
+    c)/s) − ξ0) / (res·dξ), asinh as sign · ln(|x| + √(x² + 1))."""
+    c, s, xi0, dxi = (float(x) for x in axis)
+    dot = nt.nodes.new("ShaderNodeVectorMath")
+    dot.operation = "DOT_PRODUCT"
+    nt.links.new(position, dot.inputs[0])
+    dot.inputs[1].default_value = tuple(float(x) for x in direction)
+    x = _math(nt, "DIVIDE", _math(nt, "SUBTRACT", dot.outputs["Value"], c), s)
+    root = _math(nt, "SQRT", _math(nt, "MULTIPLY_ADD", x, x, 1.0))
+    ln = _math(nt, "LOGARITHM", _math(nt, "ADD", _math(nt, "ABSOLUTE", x), root), 2.718281828459045)
+    xi = _math(nt, "MULTIPLY", _math(nt, "SIGN", x), ln)
+    return _math(nt, "DIVIDE", _math(nt, "SUBTRACT", xi, xi0), res * dxi)
+
+
+def _image_reader(nt, image, cols: int, rows: int, seg):
+    """Nodes reading slice `SLICE_NODE` of the atlas at each point's texel (from its
+    object coordinates: the layer's vertices are in world space at the identity);
+    returns the socket of irradiance / (scale × colour)."""
+    res = seg.layer.resolution
     s = nt.nodes.new("ShaderNodeValue")
     s.name = s.label = SLICE_NODE
-    row = math_node("FLOOR", math_node("DIVIDE", math_node("ADD", s.outputs[0], 0.5), cols))
-    col = math_node("SUBTRACT", s.outputs[0], math_node("MULTIPLY", row, cols))
-    uv = nt.nodes.new("ShaderNodeUVMap")
-    uv.uv_map = RASTER_UV
-    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
-    nt.links.new(uv.outputs["UV"], sep.inputs[0])
+    row = _math(nt, "FLOOR", _math(nt, "DIVIDE", _math(nt, "ADD", s.outputs[0], 0.5), cols))
+    col = _math(nt, "SUBTRACT", s.outputs[0], _math(nt, "MULTIPLY", row, cols))
+    coords = nt.nodes.new("ShaderNodeTexCoord")
     half = 0.5 / res  # the tile's first and last texel centres: never a neighbour tile
 
-    def within(x, tile, count):
-        inside = math_node("MINIMUM", math_node("MAXIMUM", x, half), 1.0 - half)
-        return math_node("DIVIDE", math_node("ADD", tile, inside), count)
+    def within(axis, direction, tile, count):
+        t = _raster_coordinate(nt, coords.outputs["Object"], axis, direction, res)
+        inside = _math(nt, "MINIMUM", _math(nt, "MAXIMUM", t, half), 1.0 - half)
+        return _math(nt, "DIVIDE", _math(nt, "ADD", tile, inside), count)
 
     comb = nt.nodes.new("ShaderNodeCombineXYZ")
-    nt.links.new(within(sep.outputs["X"], col, cols), comb.inputs["X"])
-    nt.links.new(within(sep.outputs["Y"], row, rows), comb.inputs["Y"])
+    _n, axis_u, axis_v = seg.plane
+    nt.links.new(within(seg.axes[0], axis_u, col, cols), comb.inputs["X"])
+    nt.links.new(within(seg.axes[1], axis_v, row, rows), comb.inputs["Y"])
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = image
     tex.interpolation = "Closest"  # one texel per face, as Generate's face attribute
@@ -112,14 +130,14 @@ def _image_reader(nt, image, cols: int, rows: int, res: int):
     return tex.outputs["Color"]
 
 
-def baked_material(info, image, cols: int, rows: int, res: int):
+def baked_material(info, image, cols: int, rows: int, seg):
     """Generate's layer material for receiver `info`, reading the atlas."""
     mat = layer_builder.layer_material(info, {})
     nt = mat.node_tree
     attr = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeAttribute")
     target = attr.outputs["Color"].links[0].to_socket
     nt.nodes.remove(attr)
-    texel = _image_reader(nt, image, cols, rows, res)
+    texel = _image_reader(nt, image, cols, rows, seg)
     colour = nt.nodes.new("ShaderNodeRGB")
     colour.name = colour.label = COLOUR_NODE
     scale = nt.nodes.new("ShaderNodeValue")
@@ -137,20 +155,19 @@ def baked_material(info, image, cols: int, rows: int, res: int):
 
 
 def baked_layer(scene, seg, info, collection, material, k: int):
-    """The segment's layer object: Generate's mesh of its raster, the irradiance
-    attribute dropped, the raster UV added; `material` instead of Generate's."""
+    """The segment's layer object: `layer_bake.baked_mesh` of its raster (one quad
+    where the receiver's UVs are affine), without the irradiance attribute, with
+    `material` instead of Generate's."""
     key = (info.name, info.image.name if info.image is not None else None)
-    ob = layer_builder.create_layer(scene, seg.layer, info, collection, {key: material}, k)
-    me = ob.data
-    me.attributes.remove(me.attributes[layer_builder.IRRADIANCE])
+    mesh = layer_bake.baked_mesh(seg.layer)
+    ob = layer_builder.create_layer(scene, mesh, info, collection, {key: material}, k)
+    ob.data.attributes.remove(ob.data.attributes[layer_builder.IRRADIANCE])
     res = seg.layer.resolution
-    uv = me.uv_layers.new(name=RASTER_UV)
-    corners = layer_bake.raster_uvs(res)[np.asarray(seg.layer.faces)]
-    uv.data.foreach_set("uv", corners.astype(np.float32).ravel())
-    if me.uv_layers.get(layer_builder.UV_NAME) is not None:
-        me.uv_layers.active = me.uv_layers[layer_builder.UV_NAME]
+    # the raster, for whoever reads the image back: texel lines x = c + s·sinh(ξ0 + i·dξ)
+    # along axis_u (u) and axis_v (v), i = 0…res
+    ob[RASTER_PROP] = [float(x) for x in (*seg.axes[0], *seg.axes[1], *seg.plane[1], *seg.plane[2])]
     ob.lens_lights.note = (
-        f"baked caustic layer: {res}² faces over {len(seg.frames)} "
+        f"baked caustic layer: a {res}² raster over {len(seg.frames)} "
         f"frame{'s' if len(seg.frames) != 1 else ''} "
         f"(texels at most {seg.coarsening:.2f}× Generate's at the caustic's core)"
     )
@@ -185,7 +202,7 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
         k = 0
         for i in g:
             s, info = segments[i], infos[i]
-            mat = baked_material(info, image, cols, rows, res)
+            mat = baked_material(info, image, cols, rows, s)
             ob = baked_layer(scene, s, info, collection, mat, len(objects))
             objects.append(ob)
             m = len(s.slices)

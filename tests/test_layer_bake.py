@@ -154,10 +154,27 @@ def test_one_colour_slices_need_one_channel_and_mixed_ones_keep_rgb():
     np.testing.assert_allclose(images[0] * scales[0], mixed[0], rtol=1e-6)
 
 
-def test_raster_uvs_put_each_face_over_its_texel():
-    uv = lb.raster_uvs(4)
-    a = (np.arange(4)[:, None] * 5 + np.arange(4)[None, :]).reshape(-1)
-    faces = np.stack([a, a + 1, a + 6, a + 5], axis=1)
-    centre = uv[faces].mean(axis=1)  # face (iy, ix) = texel (iy, ix)
-    iy, ix = np.divmod(np.arange(16), 4)
-    np.testing.assert_allclose(centre, np.stack([(ix + 0.5) / 4, (iy + 0.5) / 4], axis=1))
+def test_raster_coordinate_finds_each_texel_of_a_warped_raster_from_its_position():
+    frames = [frame(0.0), frame(0.3)]
+    segs, res = lb.plan_segments(frames)
+    (seg,) = segs
+    pl = lb.bake_frames(frames)[0][0].layer
+    t = lb.raster_coordinate(pl.texel_centers().reshape(-1, 3), seg.axes, *seg.plane[1:], res)
+    iy, ix = np.divmod(np.arange(res * res), res)
+    # each texel's centre (mid-way between its lines) lies inside that texel
+    assert np.array_equal(np.floor(t * res).astype(int), np.stack([ix, iy], axis=1))
+    # the vertices (lifted off the plane) at the texel corners
+    corners = lb.raster_coordinate(pl.vertices, seg.axes, *seg.plane[1:], res)
+    g = np.arange(res + 1) / res
+    np.testing.assert_allclose(corners[:, 0], np.tile(g, res + 1), atol=1e-9)
+    np.testing.assert_allclose(corners[:, 1], np.repeat(g, res + 1), atol=1e-9)
+
+
+def test_an_affine_uv_receiver_needs_one_quad_with_the_uvs_at_its_corners():
+    pl = lb.bake_frames([frame(0.0)])[0][0].layer
+    assert pl.uv_inside is None and pl.uvs is not None
+    quad = lb.baked_mesh(pl)
+    assert quad.vertices.shape == (4, 3) and quad.faces.tolist() == [[0, 1, 3, 2]]
+    for k, v in enumerate((0, RES, (RES + 1) * RES, (RES + 1) ** 2 - 1)):
+        assert np.array_equal(quad.vertices[k], pl.vertices[v])
+        assert np.array_equal(quad.uvs[k], pl.uvs[v])
