@@ -17,8 +17,9 @@ over its frames, and per bake one atlas image of every frame's irradiance.
   attribute: each point's texel from its object coordinates through the inverse of
   the raster's warp (`layer_bake.raster_coordinate`), in the tile of the keyed slice
   index (`SLICE_NODE`), clamped inside the tile, Closest interpolation (a texel's
-  value over its whole area, as the face attribute), times the keyed scale (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it
-  alike.
+  value over its whole area, as the face attribute), times the keyed scale
+  (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it alike. The
+  object keeps its raster (`RASTER_PROP`).
 """
 
 from __future__ import annotations
