@@ -67,7 +67,7 @@ class Segment:
     plane: tuple  # (normal, axis_u, axis_v)
     members: dict = field(default_factory=dict)  # frame index → (patch, beams) on it
     layer: PatchLayer | None = None  # re-landed on its first frame (the mesh)
-    slices: list = field(default_factory=list)  # (res, res, 3) irradiance per frame
+    slices: list = field(default_factory=list)  # (res, res, 3) float32 irradiance per frame
     flux: list = field(default_factory=list)  # W in the raster per frame
 
 
@@ -194,7 +194,7 @@ def bake_frames(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tupl
         for s, pl in zip(here, again.layer.patches, strict=True):
             if s.layer is None:
                 s.layer = pl
-            s.slices.append(np.asarray(pl.irradiance, dtype=float))
+            s.slices.append(np.asarray(pl.irradiance, dtype=np.float32))  # (the image: half)
             s.flux.append(float(pl.flux))
     return segs, res
 

@@ -60,7 +60,7 @@ def test_a_still_caustic_bakes_generates_layer_texel_for_texel():
     assert seg.frames == [0, 1, 2] and seg.coarsening == 1.0
     own = frames[0].sheet.layer.patches[0]
     for sl in seg.slices:
-        assert np.array_equal(sl, own.irradiance)
+        assert np.array_equal(sl, own.irradiance.astype(np.float32))
     assert np.array_equal(seg.layer.vertices, own.vertices)
 
 
