@@ -200,6 +200,13 @@ def test_baked_layer_is_one_fixed_mesh_and_one_image_and_each_slice_is_that_fram
     assert not [i for i in bpy.data.images if i.get("lens_lights_created") == "bake"]
     assert not [m for m in bpy.data.materials if m.get("lens_lights_created") == "layer"]
     assert not [a for a in bpy.data.actions if a.get("lens_lights_created") == "bake"]
+    # bake again, then one undo step puts the scene back
+    bpy.ops.ed.undo_push(message="cleared")
+    bpy.ops.lens_lights.bake("EXEC_DEFAULT", True)
+    assert len(layer_objects()) == 1
+    bpy.ops.ed.undo()
+    assert lens_lights() == []
+    assert not [i for i in bpy.data.images if i.get("lens_lights_created") == "bake"]
 
 
 def load(path):
