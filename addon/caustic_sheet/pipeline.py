@@ -14,13 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam_trace import BeamGrid, trace_beams
-from .caustic_layer import (
-    CausticLayer,
-    RasterFrame,
-    build_layer,
-    grouped_quantiles,
-    land_beams,
-)
+from .caustic_layer import CausticLayer, RasterFrame, build_layer, grouped_quantiles, land_beams
 from .emitters import Lens
 from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
 from .receiver_bvh import ReceiverMesh
