@@ -19,8 +19,8 @@ import textwrap
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import lens_lights
-from measuring_scene import build_measuring_scene
+from blender_scene_helpers import basic_scene, lens_lights, set_engine
+from measuring_scene import build_measuring_scene, new_material
 
 from addon import exact_optics
 
@@ -206,6 +206,38 @@ def test_baked_layer_is_one_fixed_mesh_and_one_image_and_each_slice_is_that_fram
     assert len(layer_objects()) == 1
     bpy.ops.ed.undo()
     assert lens_lights() == []
+    assert not [i for i in bpy.data.images if i.get("lens_lights_created") == "bake"]
+
+
+def test_a_glossy_receiver_keeps_its_fitted_spot_per_frame(empty_blend):
+    """A mirror floor takes no layer: its caustic is a Fitted spot per frame (as
+    Generate makes it), each shown on its own frame only, lighting the mirror only;
+    no layer object, no image."""
+    sc = bpy.context.scene
+    _ball, lamp = basic_scene()
+    floor = bpy.data.objects["Floor"]
+    mirror = new_material("Mirror")
+    mirror.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 1.0
+    floor.data.materials.append(mirror)
+    set_engine("BLENDER_EEVEE")
+    sc.lens_lights.energy_model = "CAUSTIC_LAYER"
+    bpy.ops.object.camera_add(location=(0.0, -8.0, 3.0), rotation=(1.4, 0.0, 0.0))
+    sc.camera = bpy.context.object
+    sc.frame_start, sc.frame_end = 1, 2
+    bpy.context.preferences.edit.keyframe_new_interpolation_type = "LINEAR"
+    for f, x in ((1, 0.0), (2, 0.2)):
+        lamp.location = (x, 0.0, 4.5)
+        lamp.keyframe_insert("location", frame=f)
+    sc.frame_set(1)
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    assert layer_objects() == []
+    spots = [o for o in lens_lights() if o.type == "LIGHT"]
+    assert len(spots) == 2
+    for f in (1, 2):
+        sc.frame_set(f)
+        (shown,) = [o for o in spots if not o.hide_render]
+        assert shown.data.type == "SPOT"
+        assert list(shown.light_linking.receiver_collection.objects) == [floor]
     assert not [i for i in bpy.data.images if i.get("lens_lights_created") == "bake"]
 
 
