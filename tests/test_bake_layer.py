@@ -1,7 +1,8 @@
 """The Caustic layer's bake in Blender (bpy module): one mesh of fixed topology per
 receiver plane over the frames, one packed image of slices, keyed slice index;
 each frame's slice carries Generate's layer of that frame (flux and centroid, and
-the exact optics' flux); Clear removes the objects, materials, image and actions;
+the exact optics' flux); Clear and one undo step remove the objects, materials,
+image and actions; a glossy receiver's Fitted spots stay one per frame;
 a baked frame renders in EEVEE in a Blender process without the extension, its
 caustic where and as bright as the exact optics says.
 
