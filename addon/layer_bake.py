@@ -66,6 +66,7 @@ class Segment:
     coarsening: float  # max over frames and axes: texel at the core / the frame's own
     plane: tuple  # (normal, axis_u, axis_v)
     members: dict = field(default_factory=dict)  # frame index → (patch, beams) on it
+    own: dict = field(default_factory=dict)  # frame index → Generate's PatchLayer there
     layer: PatchLayer | None = None  # re-landed on its first frame (the mesh)
     slices: list = field(default_factory=list)  # (res, res, 3) float32 irradiance per frame
     flux: list = field(default_factory=list)  # W in the raster per frame
@@ -171,32 +172,45 @@ def plan_segments(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tu
                 plane=(first.normal, first.axis_u, first.axis_v),
             )
             seg.members = {i: (pl.patch, tuple(int(x) for x in pl.sources)) for i, pl in rows[a:b]}
+            seg.own = dict(rows[a:b])
             out.append(seg)
     return out, res
 
 
 def bake_frames(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tuple[list, int]:
     """The segments with their slices: each frame's beams (Generate's budgets) landed
-    again on the rasters of the segments it belongs to. Returns (segments, res)."""
+    again on the rasters of the segments it belongs to (a frame whose segments' rasters
+    are all its own, as a still caustic's, keeps Generate's: the same values).
+    Returns (segments, res)."""
     segs, res = plan_segments(frames, limit)
     for i, fl in enumerate(frames):
         here = [s for s in segs if i in s.members]
         if not here:
             continue
-        given = [RasterFrame(s.members[i][0], s.members[i][1], *s.plane, s.axes) for s in here]
-        again = sheet_bake(
-            fl.sources,
-            fl.sheet.index,
-            budgets=fl.sheet.budgets,
-            resolution=res,
-            raster_frames=given,
-        )
-        for s, pl in zip(here, again.layer.patches, strict=True):
+        if all(_is_own_raster(s.own[i], s.axes, res) for s in here):
+            layers = [s.own[i] for s in here]
+        else:
+            given = [RasterFrame(*s.members[i], *s.plane, s.axes) for s in here]
+            layers = sheet_bake(
+                fl.sources,
+                fl.sheet.index,
+                budgets=fl.sheet.budgets,
+                resolution=res,
+                raster_frames=given,
+            ).layer.patches
+        for s, pl in zip(here, layers, strict=True):
             if s.layer is None:
                 s.layer = pl
             s.slices.append(np.asarray(pl.irradiance, dtype=np.float32))  # (the image: half)
             s.flux.append(float(pl.flux))
     return segs, res
+
+
+def _is_own_raster(layer: PatchLayer, axes, res: int) -> bool:
+    return layer.resolution == res and all(
+        np.array_equal(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+        for a, b in zip(layer.axes, axes, strict=True)
+    )
 
 
 # --------------------------------------------------------------------------- the atlas

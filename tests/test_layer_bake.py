@@ -15,6 +15,7 @@ import pytest
 
 from addon import exact_optics as eo
 from addon import layer_bake as lb
+from addon.caustic_sheet.caustic_layer import RasterFrame
 from addon.caustic_sheet.emitters import Lens, PointLight
 from addon.caustic_sheet.layer_metrics import relative_l1, ring_irradiance
 from addon.caustic_sheet.meshes import rectangle
@@ -62,6 +63,16 @@ def test_a_still_caustic_bakes_generates_layer_texel_for_texel():
     for sl in seg.slices:
         assert np.array_equal(sl, own.irradiance.astype(np.float32))
     assert np.array_equal(seg.layer.vertices, own.vertices)
+    # (the bake keeps Generate's layer there; landing the same rays again on the
+    # same raster, as the bake does for a moving caustic, gives the same values)
+    f0 = frames[0]
+    given = RasterFrame(own.patch, tuple(own.sources), own.normal, own.axis_u, own.axis_v, own.axes)
+    again = bake(
+        f0.sources, f0.sheet.index, budgets=f0.sheet.budgets, resolution=RES, raster_frames=[given]
+    ).layer.patches
+    assert len(again) == 1
+    assert np.array_equal(again[0].irradiance, own.irradiance)
+    assert np.array_equal(again[0].vertices, own.vertices)
 
 
 def test_a_moving_caustic_keeps_one_mesh_and_each_slice_is_that_frames_layer():
