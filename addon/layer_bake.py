@@ -18,7 +18,10 @@ frame would be needed. The bake instead keeps one mesh per **segment**:
 * **Re-landing.** Each frame's beams (the same traced rays as Generate's: same
   budgets) are landed again on its segments' rasters (`caustic_layer.RasterFrame`),
   so a slice holds what Generate's layer holds on that frame, on the segment's texels
-  (`bake_frames`).
+  (`bake_frames`; a frame whose segments' rasters are its own keeps Generate's).
+* **Mesh.** The material finds each point's texel from its position (the inverse
+  warp, `raster_coordinate`), so a segment needs one quad where the receiver's UVs
+  are affine (`baked_mesh`): the file does not grow with the raster's resolution.
 * **Slices.** Every segment's rasters on every frame become slices of one atlas
   image (`atlas_layout`, `stack_atlas`): tiles of res × res texels, slice k at tile
   (k mod cols, k div cols), each normalised to its own maximum (the scale and the
