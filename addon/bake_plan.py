@@ -332,7 +332,8 @@ def bake_message(figures: dict) -> str:
         f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
     )
     if figures.get("images"):
-        text += f"; {figures['images']} profile image{'s' if figures['images'] != 1 else ''}"
+        kind = "layer" if "layer_resolution" in figures else "profile"
+        text += f"; {figures['images']} {kind} image{'s' if figures['images'] != 1 else ''}"
     return text
 
 

@@ -11,10 +11,17 @@ travels 2 m sideways and 1 m up, so every lens' D/R changes on every frame).
   2 lights, Cycles (Exact profile), with the probe render and with
   ``use_viewport``; EEVEE (Caustic layer) for 1 lens over fewer frames;
 * size: the saved .blend after baking 1 frame and F frames (Exact profile: one
-  stacked image per lens; Caustic layer: one set of meshes per frame);
-* the Exact profile read between two D/R slices against the table of that D/R.
+  stacked image per lens);
+* the Exact profile read between two D/R slices against the table of that D/R;
+* the Caustic layer (EEVEE, 1 lens × 1 light) → reports/bake_layer.md: time (CPU
+  seconds of this process) and .blend size of the fixed-topology bake against the
+  earlier one mesh per frame (rebuilt here from the same plans: Generate's layers
+  per frame, each keyed visible on its frame), for each of `--layer-frames`; and a
+  baked middle frame rendered in EEVEE by a Blender process without the extension
+  against Generate's layer of that frame and the exact optics.
 
-    ./lens-lights bench bake [--frames 100] [--layer-frames 10] [--quick]
+    ./lens-lights bench bake [--frames 100] [--layer-frames 10 100] [--quick]
+    ./lens-lights bench bake --layer-only [--layer-frames 10 100] [--render-px 64]
 """
 
 from __future__ import annotations
@@ -88,14 +95,13 @@ def blend_size(tmp: str, name: str) -> int:
     return os.path.getsize(path)
 
 
-def timing_rows(frames: int, layer_frames: int):
+def timing_rows(frames: int):
     rows = []
     cases = [
         ("1 lens × 1 light", 1, 1, "CYCLES", frames, False),
         ("1 lens × 1 light", 1, 1, "CYCLES", frames, True),
         ("10 lenses × 2 lights", 10, 2, "CYCLES", frames, False),
         ("10 lenses × 2 lights", 10, 2, "CYCLES", frames, True),
-        ("1 lens × 1 light", 1, 1, "BLENDER_EEVEE", layer_frames, False),
     ]
     for label, n_lens, n_light, engine, f, viewport in cases:
         build_scene(n_lens, n_light, f, engine)
@@ -118,10 +124,10 @@ def timing_rows(frames: int, layer_frames: int):
     return rows
 
 
-def size_rows(frames: int, layer_frames: int):
+def size_rows(frames: int):
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for engine, f in (("CYCLES", frames), ("BLENDER_EEVEE", layer_frames)):
+        for engine, f in (("CYCLES", frames),):
             sizes = {}
             for n in (1, f):
                 build_scene(1, 1, f, engine)
@@ -195,15 +201,14 @@ def write_report(timing, sizes, errors, args):
     lines = [
         "# Bake: time and file size",
         "",
-        "Written by `./lens-lights bench bake"
-        + (f" --frames {args.frames} --layer-frames {args.layer_frames}")
-        + "` (bench/bake.py), "
+        "Written by `./lens-lights bench bake" + f" --frames {args.frames}" + "` (bench/bake.py), "
         f"Blender {bpy.app.version_string}, {platform.machine()}, "
         f"{os.cpu_count()} CPU(s) shared with other work: times are indicative.",
         "",
         "Scenes: N glass spheres (R = 0.3) over a floor, L point lights moving 2 m "
         "sideways and 1 m up over the frames (every D/R changes every frame). "
-        "Cycles gets the Exact profile tier (AUTO), EEVEE the Caustic layer.",
+        "Cycles gets the Exact profile tier (AUTO); the Caustic layer (EEVEE) is in "
+        "reports/bake_layer.md.",
         "",
         "## Time",
         "",
@@ -274,29 +279,318 @@ def write_report(timing, sizes, errors, args):
         "Exact profile: the image holds one 256 × 256 table per D/R slice (packed as a "
         "one-channel 32-bit float OpenEXR, ZIP: about 0.25 MB a slice); the slices "
         "cover the D/R range the lens takes, not the frames, so the size grows with the range (at most 12 slices), not with the number of "
-        "frames. Caustic layer: each frame keeps its own layer meshes (keyed visible "
-        "on that frame only), so its size grows with the frames.",
+        "frames. The Caustic layer (EEVEE): reports/bake_layer.md.",
         "",
     ]
     REPORT.write_text("\n".join(lines))
     print(f"wrote {REPORT}")
 
 
+# --------------------------------------------------------------------------- Caustic layer
+
+LAYER_REPORT = ROOT / "reports" / "bake_layer.md"
+
+
+def per_frame_layer_bake(frames: int):
+    """The bake as it was before the fixed topology (main at ca817e7): the same
+    plans (`Baker.plan_next`), then each frame's Generate layers, keyed visible on
+    their frame only. Returns LAST_BAKE-like figures."""
+    from lens_lights.addon import bake_plan
+    from lens_lights.operators import bake, layer_generate, light_builder
+
+    scene = bpy.context.scene
+    t0 = time.perf_counter()
+    baker = bake.Baker(bpy.context, 1, frames, True)
+    while not baker.done:
+        baker.plan_next()
+    t1 = time.perf_counter()
+    baker.restore_frame()
+    light_builder.clear(scene)
+    objects = 0
+    for f, work in zip(baker.frames, baker.works, strict=True):
+        for ob in layer_generate.build(scene, work):
+            bake.key_visibility(ob, bake_plan.single_frame_visibility(f, 1, frames))
+            objects += 1
+    t2 = time.perf_counter()
+    return dict(objects=objects, images=0, timings=dict(plan=t1 - t0, build=t2 - t1))
+
+
+def layer_rows(frame_counts):
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for f in frame_counts:
+            for mode in ("one mesh per frame (before)", "fixed topology"):
+                build_scene(1, 1, f, "BLENDER_EEVEE")
+                none = blend_size(tmp, "none.blend")
+                cpu, wall = time.process_time(), time.perf_counter()
+                if mode.startswith("fixed"):
+                    _s, fig = run_bake(f, True)
+                else:
+                    fig = per_frame_layer_bake(f)
+                cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+                meshes = [
+                    o for o in bpy.data.objects if o.type == "MESH" and o.lens_lights.is_lens_light
+                ]
+                faces = sum(len(o.data.polygons) for o in meshes)
+                size = blend_size(tmp, "baked.blend")
+                rows.append(
+                    dict(
+                        frames=f,
+                        mode=mode,
+                        objects=fig["objects"],
+                        faces=faces,
+                        images=fig["images"],
+                        cpu=cpu,
+                        wall=wall,
+                        plan=fig["timings"]["plan"],
+                        build=fig["timings"]["build"],
+                        reland=fig["timings"].get("layer re-landing", 0.0),
+                        none=none,
+                        size=size,
+                        res=fig.get("layer_resolution"),
+                        segments=len(fig.get("layer_segments", [])),
+                        coarsening=max(
+                            (c for _n, c in fig.get("layer_segments", [])), default=None
+                        ),
+                    )
+                )
+                print(rows[-1], flush=True)
+    return rows
+
+
+LAYER_STOCK_RENDER = """
+import json, os, sys
+import bpy
+path, out, frame, engine = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+bpy.ops.wm.open_mainfile(filepath=path)
+scene = bpy.context.scene
+facts = dict(registered=scene.bl_rna.properties.get("lens_lights") is not None)
+scene.render.engine = engine
+if engine == "CYCLES":
+    scene.cycles.samples = 64
+    scene.cycles.max_bounces = 0
+    scene.cycles.caustics_refractive = scene.cycles.caustics_reflective = False
+    scene.cycles.use_denoising = False
+scene.frame_set(frame)
+scene.render.filepath = os.path.join(out, "baked.exr")
+bpy.ops.render.render(write_still=True)
+bpy.data.collections["Lens Lights"].hide_render = True
+scene.render.filepath = os.path.join(out, "without.exr")
+bpy.ops.render.render(write_still=True)
+print("FACTS " + json.dumps(facts), flush=True)
+sys.stdout.flush()
+os._exit(0)
+"""
+
+
+def _load_luma(path):
+    import numpy as np
+
+    img = bpy.data.images.load(str(path))
+    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[..., :3].mean(axis=2)
+
+
+def layer_accuracy(px: int, frames: int = 9):
+    """The measuring scene (glass ball R = 0.5, n = 1.5, 2.5 above a white floor,
+    albedo 0.8; a 1000 W point light moving from (−0.45, 0, 4.45) to (−1.1, 0, 4.6)
+    over `frames` frames, linear keys; orthographic camera 1 m wide straight down on
+    the middle frame's axis point): the middle frame rendered in EEVEE (`px`²) from
+    the baked file by a process without the extension, and with Generate's layer of
+    that frame; each against the exact optics (`exact_optics.irradiance_on_plane`
+    around the axis point, and the axis point itself) and against each other."""
+    import math
+    import subprocess
+
+    import numpy as np
+    from measuring_scene import build_measuring_scene
+
+    from addon import exact_optics
+
+    R, N, P, A, VIEW = 0.5, 1.5, 1000.0, 0.8, 1.0
+    center = np.array([0.0, 0.0, 2.5])
+    first, last = np.array([-0.45, 0.0, 4.45]), np.array([-1.1, 0.0, 4.6])
+    mid_f = (frames + 1) // 2
+    light = first + (mid_f - 1) / (frames - 1) * (last - first)
+    u = (center - light) / np.linalg.norm(center - light)
+    hit = center + (center[2] / -u[2]) * u
+    built = build_measuring_scene(
+        "BLENDER_EEVEE",
+        resolution=px,
+        floor_size=60.0,
+        albedo=A,
+        view=VIEW,
+        camera_xy=(hit[0], hit[1]),
+        camera_height=6.0,
+        ball=dict(radius=R, location=tuple(center), ior=N, segments=48, rings=24, name="Marble"),
+        lamp=dict(location=tuple(first), power=P),
+    )
+    sc = built.scene
+    sc.lens_lights.energy_model = "CAUSTIC_LAYER"
+    sc.eevee.taa_render_samples = 16
+    sc.frame_start, sc.frame_end = 1, frames
+    bpy.context.preferences.edit.keyframe_new_interpolation_type = "LINEAR"
+    built.lamp.location = first
+    built.lamp.keyframe_insert("location", frame=1)
+    built.lamp.location = last
+    built.lamp.keyframe_insert("location", frame=frames)
+    sc.frame_set(1)
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+        blend = os.path.join(tmp, "baked.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        for engine in ("BLENDER_EEVEE", "CYCLES"):
+            run = subprocess.run(
+                [sys.executable, "-c", LAYER_STOCK_RENDER, blend, tmp, str(mid_f), engine],
+                capture_output=True,
+                text=True,
+                env=env,
+                timeout=1800,
+            )
+            facts = [ln for ln in run.stdout.splitlines() if ln.startswith("FACTS ")]
+            assert facts, run.stdout[-2000:] + run.stderr[-2000:]
+            assert '"registered": false' in facts[0]
+            label = "baked, EEVEE" if engine == "BLENDER_EEVEE" else "baked, Cycles (64 samples)"
+            out[label] = _load_luma(os.path.join(tmp, "baked.exr")) - _load_luma(
+                os.path.join(tmp, "without.exr")
+            )
+        # Generate's layer of that frame, rendered here
+        bpy.ops.lens_lights.clear()
+        sc.frame_set(mid_f)
+        assert bpy.ops.lens_lights.generate() == {"FINISHED"}
+        for name, hidden in (("gen.exr", False), ("gen_without.exr", True)):
+            bpy.data.collections["Lens Lights"].hide_render = hidden
+            sc.render.filepath = os.path.join(tmp, name)
+            bpy.ops.render.render(write_still=True)
+        out["Generate, EEVEE"] = _load_luma(os.path.join(tmp, "gen.exr")) - _load_luma(
+            os.path.join(tmp, "gen_without.exr")
+        )
+    coords = (np.arange(px) + 0.5) * (VIEW / px) - VIEW / 2
+    x = np.broadcast_to(hit[0] + coords[None, :], (px, px))
+    y = np.broadcast_to(hit[1] + coords[:, None], (px, px))
+    patch_r = 1.5 * VIEW / 32  # the test's measuring disc (1.5 px at 32 px)
+    d = float(np.linalg.norm(center - light))
+    e = exact_optics.irradiance_on_plane(
+        P / (4 * math.pi), d, R, N, center[2] / -u[2], [0, patch_r]
+    )
+    radiance = A * float(e[0]) * -u[2] / math.pi
+    patch = np.hypot(x - hit[0], y - hit[1]) <= patch_r
+    rows = []
+    for name, img in out.items():
+        cx, cy = float((img * x).sum() / img.sum()), float((img * y).sum() / img.sum())
+        rows.append(
+            dict(
+                render=name,
+                centroid=math.hypot(cx - hit[0], cy - hit[1]),
+                brightness=float(img[patch].mean()) / radiance,
+                total=float(img.sum()),
+            )
+        )
+    g, b = out["Generate, EEVEE"], out["baked, EEVEE"]
+    l1 = float(np.abs(b - g).sum() / g.sum())
+    return dict(rows=rows, l1=l1, px=px, frame=mid_f, frames=frames, light=light, hit=hit)
+
+
+def write_layer_report(rows, acc, args, _t):
+    by = {(r["frames"], r["mode"].startswith("fixed")): r for r in rows}
+    lines = [
+        "# Bake: the Caustic layer with a fixed topology",
+        "",
+        "Written by `./lens-lights bench bake --layer-only --layer-frames "
+        + " ".join(str(f) for f in args.layer_frames)
+        + f" --render-px {args.render_px}` (bench/bake.py), Blender {bpy.app.version_string}, "
+        f"{platform.machine()}, {os.cpu_count()} CPU(s) shared with other work "
+        f"(load average {os.getloadavg()[0]:.1f} at the end): times are indicative; "
+        "CPU seconds of this process.",
+        "",
+        "Scene: one glass sphere (R = 0.3, 1 m up) over a 40 m floor, one 1000 W point "
+        "light moving 2 m sideways and 1 m up over the frames, EEVEE, Caustic layer, "
+        "frames read from the viewport depsgraph (`use_viewport`). *Before*: each "
+        "frame's Generate layers kept as their own meshes, keyed visible on their frame "
+        "only (the bake up to ca817e7, rebuilt here from the same plans). *Fixed "
+        "topology*: one mesh per receiver plane × lens lights over the frames "
+        "(cut in time where one raster would coarsen a frame's caustic core more than "
+        "2×), the irradiance of every frame a slice of one packed half-float image.",
+        "",
+        "| frames | bake | layer objects | faces | images | raster | worst core texel "
+        "| CPU (s) | wall (s) | planning (s) | building (s) | of which re-landing (s) "
+        "| .blend not baked | .blend baked | baked − not baked |",
+        "| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+        "| ---: | ---: | ---: | ---: |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['frames']} | {r['mode']} | {r['objects']} | {r['faces']} | {r['images']} "
+            f"| {r['res'] or '–'} | "
+            + (f"{r['coarsening']:.2f}×" if r["coarsening"] is not None else "1×")
+            + f" | {r['cpu']:.1f} | {r['wall']:.1f} | {r['plan']:.1f} | {r['build']:.1f} "
+            f"| {r['reland']:.1f} | {mb(r['none'])} | {mb(r['size'])} "
+            f"| {mb(r['size'] - r['none'])} |"
+        )
+    for f in args.layer_frames:
+        old, new = by.get((f, False)), by.get((f, True))
+        if old and new:
+            lines.append("")
+            lines.append(
+                f"{f} frames: the bake adds {mb(new['size'] - new['none'])} to the file instead "
+                f"of {mb(old['size'] - old['none'])} "
+                f"({(old['size'] - old['none']) / max(new['size'] - new['none'], 1):.1f}× less), "
+                f"in {new['cpu']:.1f} CPU s instead of {old['cpu']:.1f}."
+            )
+    lines += [
+        "",
+        "## Accuracy of a baked frame",
+        "",
+        f"The measuring scene (glass ball R = 0.5, n = 1.5, 2.5 above a white floor of "
+        f"albedo 0.8, a 1000 W point light moving from (−0.45, 0, 4.45) to (−1.1, 0, 4.6) "
+        f"over {acc['frames']} frames), frame {acc['frame']} at {acc['px']}² px "
+        "(orthographic, 1 m wide, on that frame's axis point): the caustic (render minus "
+        "the render without the lens lights) from the baked file rendered by a Blender "
+        "process **without the extension** (EEVEE, and Cycles with no bounces), and from "
+        "Generate's layer of that frame (EEVEE). The axis point is not the exact "
+        "caustic's centroid (the beam is tilted 21° on that frame): compare the rows. "
+        "Centroid: distance of the radiance-weighted centroid over the view from the "
+        "axis point. Brightness: mean radiance within 0.047 m of the axis point over "
+        "the exact optics' there (`exact_optics.irradiance_on_plane` × albedo × "
+        "cos tilt / π).",
+        "",
+        "| render | centroid from the axis point (m) | brightness / exact |",
+        "| --- | ---: | ---: |",
+        *(f"| {r['render']} | {r['centroid']:.4f} | {r['brightness']:.3f} |" for r in acc["rows"]),
+        "",
+        f"Baked against Generate's render, pixel by pixel: relative L1 {acc['l1']:.3f} "
+        f"(one pixel is {1.0 / acc['px']:.4f} m).",
+        "",
+    ]
+    LAYER_REPORT.write_text("\n".join(lines))
+    print(f"wrote {LAYER_REPORT}")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--frames", type=int, default=100)
-    p.add_argument("--layer-frames", type=int, default=10)
+    p.add_argument("--layer-frames", type=int, nargs="+", default=[10, 100])
+    p.add_argument("--render-px", type=int, default=64, help="the layer's accuracy render")
+    p.add_argument("--layer-only", action="store_true", help="only reports/bake_layer.md")
     p.add_argument("--quick", action="store_true", help="5 frames, 2 layer frames")
     p.add_argument("--errors-only", action="store_true", help="only the slice errors (printed)")
     args = p.parse_args(argv)
     if args.quick:
-        args.frames, args.layer_frames = 5, 2
+        args.frames, args.layer_frames, args.render_px = 5, [2], 32
     load_extension().register()
+    write_layer_report(
+        layer_rows(args.layer_frames), layer_accuracy(args.render_px), args, time.perf_counter()
+    )
+    if args.layer_only:
+        return 0
     if args.errors_only:
         slice_error_rows()
         return 0
-    timing = timing_rows(args.frames, args.layer_frames)
-    sizes = size_rows(args.frames, args.layer_frames)
+    timing = timing_rows(args.frames)
+    sizes = size_rows(args.frames)
     errors = slice_error_rows()
     write_report(timing, sizes, errors, args)
     return 0

@@ -27,9 +27,12 @@ scene as it was:
      whose slice coordinate and first table distance are keyed Value nodes
      (node-tree action): the number of images does not grow with the frames. Not
      baked: the tilt correction and the shadow mask (both depend on the frame);
-   * Caustic layer: each frame's layer meshes (`layer_builder`), each object keyed
-     visible on its own frame only (the meshes grow with the frames: one set per
-     frame).
+   * Caustic layer: one mesh per receiver plane × lens lights whose topology is
+     fixed over the frames (`addon.layer_bake`: the union of the frames' rasters,
+     cut in time only where it would coarsen a frame's caustic core more than
+     `layer_bake.COARSEN_LIMIT` times; each frame's rays landed again on it), the
+     frames' irradiance as slices of one packed half-float image, read through
+     the mesh's raster UVs with a keyed slice index (`layer_bake_builder`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
 after it (the keys drive the lights; a cancel or a failed plan puts it back).
@@ -49,11 +52,11 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..addon import bake_plan
+from ..addon import bake_plan, layer_bake
 from ..addon.light_keys import keys_of
 from ..addon.report import error_text
 from ..addon.tiers import EXACT_PROFILE, builds_layer
-from . import cycles_caustics, layer_generate, light_builder
+from . import cycles_caustics, layer_bake_builder, layer_builder, layer_generate, light_builder
 from .generate import _options, plan_scene
 from .properties import COLLECTION_MARK
 from .scene_reader import rendered_depsgraph
@@ -378,22 +381,72 @@ class Baker:
         key_visibility(ob, bake_plan.visibility_keys(frames, track.present))
 
     def _build_layers(self) -> dict:
+        """Fixed-topology layers (`addon.layer_bake`): per segment one mesh, its
+        slice, scale and colour keyed per frame (CONSTANT) and its visibility; the
+        frames' fallback spots (no receiver at all, or glossy / transparent ones)
+        are made per frame and shown on their frame only, as Generate makes them."""
         scene = self.scene
         first, last = self.frames[0], self.frames[-1]
-        objects = 0
-        for f, work in zip(self.frames, self.works, strict=True):
-            made = layer_generate.build(scene, work)
+        inputs, spots = [], 0
+        for i, (f, work) in enumerate(zip(self.frames, self.works, strict=True)):
+            made = []
+            if work.layer_bake is None:  # no receiver: the Fitted spots stand in
+                made = layer_generate.build(scene, work)
+                inputs.append(layer_bake.FrameLayers([], None, [], []))
+            else:
+                infos = work.receivers.objects
+                skip = frozenset(k for k, info in enumerate(infos) if info.fallback)
+                keys = [fl.key for fl in self.per_frame[i]]
+                names = [info.name for info in infos]
+                inputs.append(
+                    layer_bake.FrameLayers(work.layer_sources, work.layer_bake, keys, names, skip)
+                )
+                if skip:
+                    patches = [p for p in work.layer_bake.layer.patches if p.object_id in skip]
+                    only = dataclasses.replace(
+                        work.layer_bake,
+                        layer=dataclasses.replace(work.layer_bake.layer, patches=patches),
+                    )
+                    _l, made, _n = layer_builder.build(
+                        scene, only, work.receivers, work.plan.lights, work.read.sphere_objects
+                    )
             for ob in made:
                 key_visibility(ob, bake_plan.single_frame_visibility(f, first, last))
-            objects += len(made)
-        return dict(objects=objects, images=0)
+            spots += len(made)
+        t = time.perf_counter()
+        segments, res = layer_bake.bake_frames(inputs)
+        self.timings["layer re-landing"] = time.perf_counter() - t
+        infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
+        collection = light_builder.lights_collection(scene)
+        objects, keyed, images = layer_bake_builder.build(scene, segments, res, infos, collection)
+        frames = np.asarray(self.frames)
+        path = 'nodes["{}"].outputs[0].default_value'
+        for seg, ob, (mat, slices, scales, colours) in zip(segments, objects, keyed, strict=True):
+            at = frames[seg.frames]
+            nt = mat.node_tree
+            key_column(nt, path.format(layer_bake_builder.SLICE_NODE), -1, at, slices, "CONSTANT")
+            key_column(nt, path.format(layer_bake_builder.SCALE_NODE), -1, at, scales, "CONSTANT")
+            for c in range(3):
+                col = [x[c] for x in colours]
+                key_column(nt, path.format(layer_bake_builder.COLOUR_NODE), c, at, col, "CONSTANT")
+            present = np.zeros(len(frames), dtype=bool)
+            present[seg.frames] = True
+            key_visibility(ob, bake_plan.visibility_keys(frames, present))
+        return dict(
+            objects=len(objects) + spots,
+            images=images,
+            layer_resolution=res,
+            layer_segments=[(len(s.frames), s.coarsening) for s in segments],
+        )
 
 
 def remove_unused_bake_actions() -> int:
-    """Remove the bake's actions (marked) that nothing uses (Clear's hook)."""
+    """Remove the bake's actions (marked) that nothing uses (Clear's hook), and the
+    baked layer's images nothing uses."""
     unused = [a for a in bpy.data.actions if a.get(COLLECTION_MARK) == BAKE_MARK and a.users == 0]
     if unused:
         bpy.data.batch_remove(unused)
+    layer_bake_builder.remove_unused_bake_images()
     return len(unused)
 
 

@@ -52,6 +52,7 @@ def prepare(depsgraph, work, options: dict):
         else None
     )
     camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
+    work.layer_sources = sources  # the bake lands them again (addon/layer_bake.py)
     work.layer_bake = bake(
         sources,
         work.receivers.mesh,

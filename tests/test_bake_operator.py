@@ -1,7 +1,7 @@
 """`lens_lights.bake` in Blender (bpy module, no renders): on every frame the baked
 lights are what Generate makes on that frame; a light that exists on some frames
 only is keyed hidden on the others; Exact profile lights share one image over the
-frames; the Caustic layer's objects show on their own frame only; Clear removes the
+frames; the Caustic layer keeps one object per receiver and lamps; Clear removes the
 baked lights, their actions and images; bad ranges change nothing; one undo step
 puts the scene back; the user's data is untouched."""
 
@@ -202,19 +202,22 @@ def test_exact_profile_bake_one_image_clear_and_undo(empty_blend):
     assert lens_lights() == [] and snapshot_diff(before, snapshot()) == []
 
 
-def test_caustic_layer_bake_shows_each_frame_its_own_layer(empty_blend):
+def test_caustic_layer_bake_keeps_one_mesh_per_receiver_and_lamps_over_the_frames(empty_blend):
+    """Lamps A and B light the floor on frames 1 and 3 (one raster: their caustics
+    overlap), A alone on frame 2: two layer objects, not one per frame; the one of
+    A and B shows on frames 1 and 3 with the same mesh, the other on frame 2."""
     sc = two_lamps_scene(engine="BLENDER_EEVEE", model="CAUSTIC_LAYER")
-    sc.frame_end = 2
     bpy.ops.object.camera_add(location=(0.0, 0.0, 8.0))
     sc.camera = bpy.context.object
     assert bpy.ops.lens_lights.bake() == {"FINISHED"}
     layers = [o for o in lens_lights() if o.type == "MESH"]
-    assert layers
-    for f in (1, 2):
+    assert len(layers) == 2
+    shown = {}
+    for f in (1, 2, 3):
         sc.frame_set(f)
-        shown = [o for o in layers if not o.hide_render]
-        assert shown and all(not o.hide_viewport for o in shown)
-        assert len(shown) < len(layers)  # the other frame's are hidden
+        (shown[f],) = [o for o in layers if not o.hide_render]
+        assert not shown[f].hide_viewport
+    assert shown[1] == shown[3] != shown[2]
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert lens_lights() == []
 

@@ -65,6 +65,7 @@ class PatchLayer:
     uvs: np.ndarray | None  # ((res+1)², 2) the receiver's UV at each vertex
     uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
     #                               None: the patch's UV is affine, valid everywhere
+    axes: tuple | None = None  # ((c, s, ξ0, dξ) along u, along v): the texel lines' warp
 
     @property
     def face_irradiance(self) -> np.ndarray:
@@ -83,6 +84,21 @@ class PatchLayer:
     def texel_flux(self) -> np.ndarray:
         """(res, res, 3) flux (W) of each texel."""
         return self.irradiance * self.texel_areas()[..., None]
+
+
+@dataclass(frozen=True)
+class RasterFrame:
+    """A raster given to :func:`build_layer` instead of the one it would fit to this
+    frame's landings (the bake's fixed topology, ``addon/layer_bake.py``): on patch
+    ``patch`` of the index, for the beams ``beams``, in the plane frame (``normal``,
+    ``axis_u``, ``axis_v``) with the texel lines ``axes`` (as ``PatchLayer.axes``)."""
+
+    patch: int
+    beams: tuple
+    normal: np.ndarray
+    axis_u: np.ndarray
+    axis_v: np.ndarray
+    axes: tuple
 
 
 @dataclass
@@ -209,6 +225,7 @@ def build_layer(
     own_objects=None,
     min_texel=None,
     blur_shares: bool = True,
+    raster_frames: list[RasterFrame] | None = None,
 ) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -221,7 +238,8 @@ def build_layer(
     on screen there): a renderer point-samples the layer a few times per pixel, so
     texels far below a pixel show as noise, not detail. ``blur_shares``: spread each
     sample of an extended source over its share (False: K sharp images, for
-    comparison)."""
+    comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
+    beam's flux on a patch without one is lost), instead of fitting them here."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -242,7 +260,7 @@ def build_layer(
     on = np.nonzero(pid >= 0)[0]
     on = on[np.lexsort((bid[on], pid[on]))]
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
-    for k, start in enumerate(p_starts):  # loop over patches, not rays
+    for k, start in enumerate(p_starts if raster_frames is None else []):  # per patch
         idx = on[start : p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
         p = int(pid[idx[0]])
         n = plist[p].normal
@@ -269,6 +287,10 @@ def build_layer(
             ]
             frames.append((p, n_out, au, av, axes[0], axes[1]))
             members.append(beams_here)
+    for rf in raster_frames or []:  # the bake's fixed rasters
+        slot_of[np.asarray(rf.beams, dtype=np.int64), rf.patch] = len(frames)
+        frames.append((rf.patch, rf.normal, rf.axis_u, rf.axis_v, *rf.axes))
+        members.append(np.asarray(rf.beams, dtype=np.int64))
     fr = {
         "au": np.array([f[2] for f in frames]).reshape(-1, 3),
         "av": np.array([f[3] for f in frames]).reshape(-1, 3),
@@ -380,6 +402,7 @@ def build_layer(
                 faces=faces,
                 uvs=uvs,
                 uv_inside=inside,
+                axes=(ax_u, ax_v),
             )
         )
     t3 = time.perf_counter()

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam_trace import BeamGrid, trace_beams
-from .caustic_layer import CausticLayer, build_layer, grouped_quantiles, land_beams
+from .caustic_layer import CausticLayer, RasterFrame, build_layer, grouped_quantiles, land_beams
 from .emitters import Lens
 from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
 from .receiver_bvh import ReceiverMesh
@@ -49,6 +49,7 @@ class SheetBake:
     layer: CausticLayer
     budgets: list[RayBudget]  # per source, (Nr, Na) and its node-ray count
     resolution: int
+    index: ReceiverIndex | None = None  # the receivers' index it landed on
 
 
 def bake(
@@ -63,16 +64,23 @@ def bake(
     grid: tuple[int, int] | None = None,
     blur_shares: bool = True,
     resolution: int | Callable[[list[float], list[float]], int] | None = None,
+    budgets: list[RayBudget] | None = None,
+    raster_frames: list[RasterFrame] | None = None,
 ) -> SheetBake:
     """Caustic layers of ``sources`` on ``receivers``. The grid per source comes from
     :func:`.ray_budget.allocate` (flux share and caustic extent from a coarse 4 × 16
     trace landed on the receivers, pixel size at the lens from ``camera``) unless
     ``grid`` = (Nr, Na) is given; the raster resolution from :func:`.layer_resolution`
     of the largest extent, or ``resolution(extents, pixels)`` if a callable; no texel
-    finer than ``texel_fraction`` of a pixel (a renderer would only alias it)."""
+    finer than ``texel_fraction`` of a pixel (a renderer would only alias it).
+    ``budgets`` (per source, e.g. an earlier bake's) replace the allocation, and
+    ``raster_frames`` the rasters fitted to the landings (`build_layer`): the bake of
+    an animation re-lands each frame's beams on rasters fixed over the frames."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
-    if grid is not None:
+    if budgets is not None:
+        pixels = [math.inf] * len(sources)
+    elif grid is not None:
         budgets = [RayBudget(int(grid[0]), int(grid[1])) for _ in sources]
         pixels = [math.inf] * len(sources)
     else:
@@ -125,8 +133,9 @@ def bake(
         own_objects=own if any(o >= 0 for o in own) else None,
         min_texel=[texel_fraction * p if math.isfinite(p) else 0.0 for p in pixels],
         blur_shares=blur_shares,
+        raster_frames=raster_frames,
     )
-    return SheetBake(layer, budgets, int(resolution))
+    return SheetBake(layer, budgets, int(resolution), index)
 
 
 def caustic_extents(
