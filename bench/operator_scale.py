@@ -138,6 +138,48 @@ def build_scene(n, kind, layout):
     return (gn_instances if kind == "gn" else collection_instances)(n, material, height)
 
 
+class _Marks:
+    """When `generate` returned and when the depsgraph update after the operator
+    began and ended (`depsgraph_update_pre` / `_post` handlers): "outside" split into
+    the undo push (the operator's end → the update) and the depsgraph update (the
+    relations rebuilt for the new lights, then the evaluation), as `bpy.ops` runs
+    them (`view_layer.update()` after an operator; the UI's next redraw does the same)."""
+
+    def __init__(self, gen):
+        self.gen, self.real = gen, gen.generate
+        self.reset()
+
+        def timed(context):
+            out = self.real(context)
+            self.end = time.perf_counter()
+            return out
+
+        gen.generate = timed
+        bpy.app.handlers.depsgraph_update_pre.append(self.pre)
+        bpy.app.handlers.depsgraph_update_post.append(self.post)
+
+    def reset(self):
+        self.end = self.t_pre = self.t_post = None
+
+    def pre(self, *args):
+        if self.end is not None and self.t_pre is None:
+            self.t_pre = time.perf_counter()
+
+    def post(self, *args):
+        if self.t_pre is not None:
+            self.t_post = time.perf_counter()
+
+    def split(self):
+        if self.end is None or self.t_pre is None or self.t_post is None:
+            return float("nan"), float("nan")
+        return self.t_pre - self.end, self.t_post - self.t_pre
+
+    def remove(self):
+        self.gen.generate = self.real
+        bpy.app.handlers.depsgraph_update_pre.remove(self.pre)
+        bpy.app.handlers.depsgraph_update_post.remove(self.post)
+
+
 def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     from lens_lights.operators import generate as gen
 
@@ -151,15 +193,21 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         s.use_merge, s.merge_distance = True, merge
     best = None
     first = None
-    for _ in range(repeat):
-        t, c = time.perf_counter(), time.process_time()
-        result = bpy.ops.lens_lights.generate()
-        total, cpu = time.perf_counter() - t, time.process_time() - c
-        first = total if first is None else first
-        fig = dict(gen.LAST_FIGURES)
-        if best is None or total < best[0]:
-            best = (total, fig, result, cpu)
-    total, fig, result, cpu = best
+    marks = _Marks(gen)
+    try:
+        for _ in range(repeat):
+            marks.reset()
+            t, c = time.perf_counter(), time.process_time()
+            # True: push the undo step, as the button does.
+            result = bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)
+            total, cpu = time.perf_counter() - t, time.process_time() - c
+            first = total if first is None else first
+            fig = dict(gen.LAST_FIGURES)
+            if best is None or total < best[0]:
+                best = (total, fig, result, cpu, marks.split())
+    finally:
+        marks.remove()
+    total, fig, result, cpu, (undo, update) = best
     tm = fig.get("timings", {})
     # Done inside the probe's render callback; the rest of the probe is Blender's.
     inside = sum(tm.get(k, 0.0) for k in ("read", "phase1", "budget", "plan", "receivers", "bake"))
@@ -181,6 +229,8 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         plan=tm.get("plan", 0.0),
         build=tm.get("build", 0.0),
         other=total - fig.get("seconds", 0.0),
+        undo=undo,
+        update=update,
         bake=tm.get("bake", 0.0) + tm.get("receivers", 0.0),
         model=fig.get("energy_model", "?"),
         how=fig.get("how"),
@@ -192,7 +242,8 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         f"(CPU {cpu:.2f} s; probe {row['probe']:.2f}, read "
         f"{row['read']:.2f}, phase 1 {row['phase1']:.2f}, budget {row['budget']:.2f}, plan "
         f"{row['plan']:.2f} (caustic layer {row['bake']:.2f}), build {row['build']:.2f}, "
-        f"outside generate {row['other']:.2f}); "
+        f"outside generate {row['other']:.2f}: undo push {row['undo']:.2f}, depsgraph update "
+        f"{row['update']:.2f}); "
         f"{row['sources']} sources → "
         f"{row['created']} lights [{row['how']}]",
         flush=True,
@@ -238,6 +289,12 @@ ATTRIBUTION = [
 ]
 
 
+def _path(how) -> str:
+    from lens_lights.operators.render_probe import VIEWPORT_AS_RENDER
+
+    return {"render": "probe", VIEWPORT_AS_RENDER: "viewport"}.get(how, f"fallback: {how}")
+
+
 def write_report(rows, args):
     lines = [
         "# Generate on many instanced spheres",
@@ -258,8 +315,13 @@ def write_report(rows, args):
         + (f", merging within {args.merge}" if args.merge else ", no merging")
         + ". `bpy.ops.lens_lights.generate()` end to end; the steps:",
         "",
-        "* probe: the tiny render that hands over the render depsgraph (scene copy, render "
-        "pipeline, depsgraph evaluation), without the work done inside it;",
+        "* path: how the render depsgraph was had (`BlenderSceneRead.how`): `viewport` — "
+        "nothing in the file renders differently, the viewport depsgraph is the render one "
+        "(`render_probe.as_rendered`); `probe` — a tiny render hands it over;",
+        "* probe: on the probe path, the tiny render that hands over the render depsgraph "
+        "(scene copy, render pipeline, the render depsgraph built and evaluated), without the "
+        "work done inside it; on the viewport path, the check that nothing differs "
+        "(`render_probe.viewport_differs`);",
         "* read: the pass over the depsgraph's instances (one sphere fit and material per "
         "instanced mesh, matrices copied), then numpy over all instances;",
         "* phase 1; budget: merging and the pre-selection of the "
@@ -267,8 +329,10 @@ def write_report(rows, args):
         "* plan: energy models, cut-off, cap and the rays that keep beams clear, for the "
         "pre-selected sources only; layer: the caustic layer (reading the receivers, "
         "the bake), when the energy model makes one; build: creating the Blender lights;",
-        "* outside: the operator's own cost outside `generate` (Blender's undo push of the "
-        "file, which grows with the number of objects).",
+        "* outside: Blender's cost after `generate` returns: undo (the undo push of the "
+        "file, the operator run as the button runs it) and update (the depsgraph update "
+        "that follows: the relations rebuilt because objects were added — Blender rebuilds "
+        "the whole graph, one node set per object of the scene — and the evaluation).",
         "",
         "The best run is the steps' split (wall seconds); the first run also pays the first "
         "evaluation of the freshly built scene's viewport depsgraph and caches. CPU: the "
@@ -276,26 +340,27 @@ def write_report(rows, args):
         "wall time also measures the other jobs (load average "
         f"{LOAD[0]:.1f} before the runs, {os.getloadavg()[0]:.1f} after).",
         "",
-        "| instancing | layout | spheres | sources | lights | first run s | best s | CPU s | probe | read "
-        "| phase 1 | budget | plan | layer | build | outside |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
-        "| ---: | ---: |",
+        "| instancing | layout | spheres | sources | lights | path | first run s | best s | CPU s "
+        "| probe | read | phase 1 | budget | plan | layer | build | outside: undo | update |",
+        "| --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+        "| ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in rows:
         lines.append(
             f"| {r['kind']} | {r['layout']} | {r['spheres']} | {r['sources']} | {r['created']} | "
-            f"{r['first']:.2f} | **{r['total']:.2f}** | {r['cpu']:.2f} | {r['probe']:.2f} | "
+            f"{_path(r['how'])} | {r['first']:.2f} | **{r['total']:.2f}** | {r['cpu']:.2f} | {r['probe']:.2f} | "
             f"{r['read']:.2f} | "
             f"{r['phase1']:.2f} | {r['budget']:.2f} | {r['plan']:.2f} | {r['bake']:.2f} | "
             f"{r['build']:.2f} | "
-            f"{r['other']:.2f} |"
+            f"{r['undo']:.2f} | {r['update']:.2f} |"
         )
     lines += [""]
     for r in rows:  # the shares of the wall time: Blender's own, then ours
         theirs = r["probe"] + r["other"]
         ours = sum(r[k] for k in ("read", "phase1", "budget", "plan", "bake", "build"))
         lines.append(
-            f"* {r['kind']}, {r['layout']}, {r['spheres']}: Blender's probe and undo "
+            f"* {r['kind']}, {r['layout']}, {r['spheres']} ({_path(r['how'])}): Blender's probe, "
+            "undo and update "
             f"{theirs:.1f} s ({theirs / r['total']:.0%}), Generate's own steps {ours:.1f} s "
             f"({ours / r['total']:.0%}) of {r['total']:.1f} s"
         )
@@ -328,11 +393,21 @@ def main(argv=None):
         default="AUTO",
         help="the scene's Energy Model (AUTO: the caustic layer in EEVEE; FITTED: lights)",
     )
+    ap.add_argument(
+        "--force-probe",
+        action="store_true",
+        help="always read the render depsgraph through the probe render (as before the "
+        "viewport path), to compare",
+    )
     ap.add_argument("--no-report", action="store_true")
     args = ap.parse_args(argv)
     LOAD[:] = os.getloadavg()
     ext = load_extension()
     ext.register()
+    if args.force_probe:  # the probe render on every scene (before the viewport path)
+        from lens_lights.operators import render_probe
+
+        render_probe.viewport_differs = lambda context: "forced by --force-probe"
     kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)
     layouts = ("table", "floating") if args.layout == "both" else (args.layout,)
     rows = [
