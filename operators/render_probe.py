@@ -411,10 +411,13 @@ def viewport_differs(context) -> str | None:
 def as_rendered(context, fn):
     """``(fn(depsgraph), how)`` with a depsgraph that is the render one: the viewport
     depsgraph when nothing in the file renders differently (`viewport_differs`; `how`
-    is `VIEWPORT_AS_RENDER`), else `rendered_depsgraph`'s (the probe, or its
-    fallback). Exceptions of `fn` propagate."""
+    is `VIEWPORT_AS_RENDER`) and no render is under way, else `rendered_depsgraph`'s
+    (the probe, or its fallback). Exceptions of `fn` propagate."""
     global _VIEWPORT_AS_RENDER
-    if viewport_differs(context) is not None:
+    # During a render of the user's (Generate from one of its handlers) the probe's
+    # fallback reads the viewport and says so, as it always did.
+    rendering = bpy.app.is_job_running("RENDER") or _RENDERS_RUNNING
+    if rendering or viewport_differs(context) is not None:
         return rendered_depsgraph(context, fn)
     depsgraph = context.evaluated_depsgraph_get()
     _VIEWPORT_AS_RENDER = depsgraph.as_pointer()
