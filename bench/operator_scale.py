@@ -256,7 +256,7 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
 
 #: Where Generate's time goes on many separate objects: measured step by step (CPU
 #: and wall, `bpy.app.debug_depsgraph_time` for Blender's build/evaluation split) on
-#: 2026-12-02, 100 489 collection-instance empties, load average 4.6–6.
+#: 2026-12-02, 100 489 collection-instance empties, load average 4.6–7.
 ATTRIBUTION = [
     "## Where the time goes on collection-instance empties",
     "",
@@ -265,33 +265,43 @@ ATTRIBUTION = [
     "`bpy.app.debug_depsgraph_time`):",
     "",
     "* **The probe render** (before this change, on every scene): 16.2 CPU s (25.9 s "
-    "wall): a second, render depsgraph built (11.6 s) and evaluated (7.3 s) from "
-    "scratch. **Now skipped** when nothing in the file renders differently "
+    "wall) at 100 k: a second, render depsgraph built (11.6 s) and evaluated (7.3 s) "
+    "from scratch. **Now skipped** when nothing in the file renders differently "
     "(`render_probe.viewport_differs`, vectorised: 0.19 CPU s at 100 k); the viewport "
     "depsgraph, already evaluated, is read instead (path `viewport`). Scenes where "
-    "viewport and render may differ still probe (path `probe`).",
+    "viewport and render may differ still probe (path `probe`). At 10 000 empties, best "
+    "of 2, the same run otherwise (`--counts 10000 --kind collection --layout floating "
+    "--repeat 2 --energy-model FITTED`, load 5): CPU 5.47 s with `--force-probe` (probe "
+    "2.82 s wall), 3.80 s without (check 0.06 s).",
     "* **Blender's, what remains:** adding the lens lights makes Blender rebuild the "
     "whole viewport depsgraph (relations of every object) and evaluate it again: 7.9 CPU "
-    "s (built 10.3 s + evaluated 3.7 s wall), about the scene's first evaluation (11.4 "
-    "CPU s: built 10.3 s + evaluated 5.7 s). It happens once per Generate (bpy.ops' "
-    "`view_layer.update()` after the operator; in the UI, the next redraw) — nothing "
-    "inside Generate evaluates the depsgraph again (one update per Generate, tested) — "
-    "and any added object costs it: it is not ours to cut. The undo push of the file is "
-    "small: 0.16 CPU s. A Generate that replaces earlier lens lights also pays their "
-    "removal (`light_builder.clear`: two `batch_remove` passes over the file, 4.1 CPU s at "
-    "100 k; one pass with the light data measured 20–25 % less at 5 k).",
+    "s at 100 k (built 10.3 s + evaluated 3.7 s wall), about the scene's first "
+    "evaluation (11.4 CPU s: built 10.3 s + evaluated 5.7 s); the table's update column "
+    "(wall, under the run's load). It happens once per Generate (bpy.ops' "
+    "`view_layer.update()` after the operator; in the UI, the next redraw; nothing inside "
+    "Generate evaluates the depsgraph again: one update per Generate, tested) and any "
+    "added object costs it: it is not ours to cut. The undo push of the file: 0.16 CPU "
+    "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
+    "pays their removal (`light_builder.clear`: two `batch_remove` passes over the file, "
+    "4.1 CPU s at 100 k; one pass with the light data measured 20–25 % less at 5 k, not "
+    "changed here).",
     "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
-    "few RNA reads and the matrix per instance: 2.7 s wall at 100 k), phase 1 on the "
-    "grid (a dense case for the broad phase, `reports/scale.md`; on this branch's "
-    "phase 1 it dominates at 100 k), the plan (2 s).",
+    "few RNA reads and the matrix per instance: 2.7–5.3 s wall at 100 k under load), "
+    "the plan (2–4 s) and phase 1, which now dominates: 130–205 s wall at 100 k on this "
+    "grid. It is not the broad phase: at 10 000 (cProfile, geometry-nodes grid) 3.7 of "
+    "4.1 s are the glass blockers' Fresnel share of the shadow lists "
+    "(`shadow_mask.glass_passed` 1.6 s own time, `exact_optics.fresnel_transmittance` "
+    "1.6 s), which grows faster than the spheres.",
     "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake, about "
     "constant in the number of spheres (it works on the 4 × maximum strongest sources); "
     "`--energy-model FITTED` measures the lights alone.",
     "",
-    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): see the "
-    "100 489 row. Without the probe, Blender's share is the one depsgraph rebuild and "
-    "evaluation after the lights are added (about 8 CPU s at 100 k) and the undo push; "
-    "the rest is Generate's own steps (phase 1 first).",
+    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met "
+    "in this run, because of phase 1's shadow lists. Blender's part is now the one "
+    "depsgraph rebuild and evaluation after the lights are added and the undo push "
+    "(about 8 CPU s at 100 k), the reading and planning about 3–4 CPU s: on a quiet "
+    "machine about 12 s plus phase 1, so the goal needs phase 1 at 100 k in a few "
+    "seconds (the first round's phase 1, before the glass blockers' share, took 4.6 s).",
 ]
 
 
