@@ -43,22 +43,22 @@ viewport depsgraph is read instead with the render-visibility rules applied by
 hand, and the read says so (``BlenderSceneRead.how``).
 
 **When the viewport's depsgraph is the render's** (`as_rendered`). The probe
-builds and evaluates a whole depsgraph (on 100 000 collection-instance empties
-about as long as everything else Generate does), so it is skipped when nothing in
-the file can make the render depsgraph differ from the viewport one
-(`viewport_differs`: vectorised over ``bpy.data.objects`` and collections, the
-modifier stacks read only for objects that can have one): every object and
-collection has the same viewport and render visibility (``hide_viewport`` ==
-``hide_render``, ``show_instancer_for_viewport`` == ``…_for_render``), every
-object the render shows at the top level is visible in the view layer (no eye,
-no local view), every modifier is on or off in both and is of a type that
-evaluates alike in both (Subdivision and Multires with equal levels — Subdivision
-not left to the GPU —, Screw with equal steps, geometry nodes without an "Is
-Viewport" node in their trees), curves and metaballs have equal resolutions,
-Simplify is off, no background scene, Object Mode.  Then the viewport depsgraph
-is read as it is (`reads_viewport_as_render`: no rule applied by hand, none is
-needed) and ``BlenderSceneRead.how`` is `VIEWPORT_AS_RENDER`; anything else is
-probed.
+builds and evaluates a whole second depsgraph (16 CPU s on 100 000
+collection-instance empties), so it is skipped when nothing in the file can make
+the render depsgraph differ from the viewport one (`viewport_differs`:
+vectorised over ``bpy.data.objects`` and collections, the modifier stacks read
+only for objects that can have one): every object and collection has the same
+viewport and render visibility (``hide_viewport`` == ``hide_render``,
+``show_instancer_for_viewport`` == ``…_for_render``), every object the render
+shows at the top level is visible in the view layer (no eye, no local view),
+every modifier is on or off in both and is of a type that evaluates alike in both
+(Subdivision and Multires with equal levels — Subdivision only with GPU
+subdivision off in the preferences —, Screw with equal steps, geometry nodes
+without an "Is Viewport" node in their trees), curves and metaballs have equal
+resolutions, Simplify is off, no background scene, Object Mode, and no render is
+under way.  Then the viewport depsgraph is read as it is
+(`reads_viewport_as_render`: no rule applied by hand, none is needed) and
+``BlenderSceneRead.how`` is `VIEWPORT_AS_RENDER`; anything else is probed.
 """
 
 from __future__ import annotations
@@ -318,7 +318,7 @@ def _tree_uses_viewport(tree, seen: dict) -> bool:
     return found
 
 
-def _modifier_differs(md, last: bool, gpu_subdivision: bool, trees: dict) -> bool:
+def _modifier_differs(md, gpu_subdivision: bool, trees: dict) -> bool:
     if md.show_viewport != md.show_render:
         return True
     if not md.show_render:
@@ -327,9 +327,9 @@ def _modifier_differs(md, last: bool, gpu_subdivision: bool, trees: dict) -> boo
     if kind in SAME_MODIFIERS:
         return False
     if kind == "SUBSURF":
-        # The viewport may leave the last Subdivision to the GPU (the evaluated mesh
-        # is then the cage).
-        return md.levels != md.render_levels or (last and gpu_subdivision)
+        # The viewport may leave a Subdivision (the last of the stack) to the GPU:
+        # its evaluated mesh is then the cage.
+        return md.levels != md.render_levels or gpu_subdivision
     if kind == "MULTIRES":
         return md.levels != md.render_levels
     if kind == "SCREW":
@@ -357,8 +357,12 @@ def viewport_differs(context) -> str | None:
     (see the module's docstring). Cheap: flags read with ``foreach_get``; modifier
     stacks only of the objects that can have one."""
     scene = context.scene
-    if context.mode != "OBJECT":
-        return f"{context.mode.lower().replace('_', ' ')} mode"
+    mode = getattr(context, "mode", None)
+    if mode != "OBJECT":
+        return f"{str(mode).lower().replace('_', ' ')} mode"
+    shown = getattr(context, "visible_objects", None)
+    if shown is None:
+        return "the context has no visible objects"
     if scene.render.use_simplify:
         return "Simplify is on"
     if scene.background_set is not None:
@@ -394,15 +398,13 @@ def viewport_differs(context) -> str | None:
         ob = objects[int(k)]
         if _data_differs(ob):
             return f"{ob.name}: its render resolution differs"
-        mods = ob.modifiers
-        n = len(mods)
-        for i, md in enumerate(mods):
-            if _modifier_differs(md, i == n - 1, gpu, trees):
+        for md in ob.modifiers:
+            if _modifier_differs(md, gpu, trees):
                 return f"{ob.name}: modifier {md.name} ({md.type.lower()})"
     # What the render shows at the top level must be visible in the view layer (the
     # eye, local view: flags the depsgraph has but `hide_*` do not say).
     expected = {ob for ob in render_visible_objects(context.view_layer) if not ob.hide_render}
-    missing = expected - set(context.visible_objects)
+    missing = expected - set(shown)
     if missing:
         return f"{min(ob.name for ob in missing)} is hidden in the viewport"
     return None
