@@ -286,8 +286,11 @@ ATTRIBUTION = [
     "4.1 CPU s at 100 k; one pass with the light data measured 20–25 % less at 5 k, not "
     "changed here).",
     "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
-    "few RNA reads and the matrix per instance: 2.7–5.3 s wall at 100 k under load), "
-    "the plan (2–4 s) and phase 1, which now dominates: 130–205 s wall at 100 k on this "
+    "dozen RNA reads and the matrix per instance, about 25 µs each; the matrix copy "
+    "is now 2 µs of it, and copying `Matrix` objects to convert them at the end would "
+    "save 0.4 µs): 2.7–2.9 CPU s at 100 k with the check (`read_blender_scene`, 5.5–5.9 s "
+    "wall at load 4), the plan (2–4 s wall) and phase 1, which now dominates: 130–205 s "
+    "wall at 100 k on this "
     "grid. It is not the broad phase: at 10 000 (cProfile, geometry-nodes grid) 3.7 of "
     "4.1 s are the glass blockers' Fresnel share of the shadow lists "
     "(`shadow_mask.glass_passed` 1.6 s own time, `exact_optics.fresnel_transmittance` "
@@ -299,9 +302,10 @@ ATTRIBUTION = [
     "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met "
     "in this run, because of phase 1's shadow lists. Blender's part is now the one "
     "depsgraph rebuild and evaluation after the lights are added and the undo push "
-    "(about 8 CPU s at 100 k), the reading and planning about 3–4 CPU s: on a quiet "
-    "machine about 12 s plus phase 1, so the goal needs phase 1 at 100 k in a few "
-    "seconds (the first round's phase 1, before the glass blockers' share, took 4.6 s).",
+    "(about 8 CPU s at 100 k), the check and the read 2.8 CPU s, the plan 2–4 s wall: "
+    "on a quiet machine roughly 12–14 s before phase 1, so the goal needs phase 1 at "
+    "100 k in a second or two (the first round's phase 1, before the glass blockers' "
+    "share, took 4.6 s) — an estimate from the steps, not a measured total.",
 ]
 
 
