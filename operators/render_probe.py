@@ -419,7 +419,11 @@ def as_rendered(context, fn):
     # During a render of the user's (Generate from one of its handlers) the probe's
     # fallback reads the viewport and says so, as it always did.
     rendering = bpy.app.is_job_running("RENDER") or _RENDERS_RUNNING
-    if rendering or viewport_differs(context) is not None:
+    try:
+        differs = rendering or viewport_differs(context) is not None
+    except Exception:  # something the check does not know: the probe decides
+        differs = True
+    if differs:
         return rendered_depsgraph(context, fn)
     depsgraph = context.evaluated_depsgraph_get()
     _VIEWPORT_AS_RENDER = depsgraph.as_pointer()

@@ -261,3 +261,17 @@ def test_geometry_nodes_is_viewport_is_read_as_rendered(empty_blend):
     (name, (center, radius)), *_ = spheres(r).items()
     assert name == "Host" and center == (0.0, 0.0, 2.0)
     assert radius == pytest.approx(0.7, rel=5e-3)
+
+
+def test_a_failing_check_or_a_render_under_way_keeps_the_probe_path(empty_blend, monkeypatch):
+    plain_scene()
+
+    def broken(context):
+        raise AttributeError("a property this Blender lacks")
+
+    with monkeypatch.context() as m:
+        m.setattr(probe(), "viewport_differs", broken)
+        assert read().how == "render"  # the probe rendered
+    # A render of the user's under way: the probe's fallback, which says so.
+    monkeypatch.setattr(probe(), "_RENDERS_RUNNING", 1)
+    assert read().how == "viewport (a render is in progress)"
