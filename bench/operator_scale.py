@@ -138,12 +138,57 @@ def build_scene(n, kind, layout):
     return (gn_instances if kind == "gn" else collection_instances)(n, material, height)
 
 
+class _Marks:
+    """When `generate` returned and when the depsgraph update after the operator
+    began and ended (`depsgraph_update_pre` / `_post` handlers): "outside" split into
+    the undo push (the operator's end → the update) and the depsgraph update (the
+    relations rebuilt for the new lights, then the evaluation), as `bpy.ops` runs
+    them (`view_layer.update()` after an operator; the UI's next redraw does the same)."""
+
+    def __init__(self, gen):
+        self.gen, self.real = gen, gen.generate
+        self.reset()
+
+        def timed(context):
+            out = self.real(context)
+            self.end = time.perf_counter()
+            return out
+
+        gen.generate = timed
+        bpy.app.handlers.depsgraph_update_pre.append(self.pre)
+        bpy.app.handlers.depsgraph_update_post.append(self.post)
+
+    def reset(self):
+        self.end = self.t_pre = self.t_post = None
+
+    def pre(self, *args):
+        if self.end is not None and self.t_pre is None:
+            self.t_pre = time.perf_counter()
+
+    def post(self, *args):
+        if self.t_pre is not None:
+            self.t_post = time.perf_counter()
+
+    def split(self):
+        if self.end is None or self.t_pre is None or self.t_post is None:
+            return float("nan"), float("nan")
+        return self.t_pre - self.end, self.t_post - self.t_pre
+
+    def remove(self):
+        self.gen.generate = self.real
+        bpy.app.handlers.depsgraph_update_pre.remove(self.pre)
+        bpy.app.handlers.depsgraph_update_post.remove(self.post)
+
+
 def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     from lens_lights.operators import generate as gen
 
     t = time.perf_counter()
     spheres = build_scene(n, kind, layout)
     setup = time.perf_counter() - t
+    # The UI always has an undo stack (the bpy module makes it on the first push):
+    # the operator's own undo push is then measured as the button pays it.
+    bpy.ops.ed.undo_push(message="scene built")
     s = bpy.context.scene.lens_lights
     s.max_lights = max_lights
     s.energy_model = energy_model
@@ -151,15 +196,21 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         s.use_merge, s.merge_distance = True, merge
     best = None
     first = None
-    for _ in range(repeat):
-        t, c = time.perf_counter(), time.process_time()
-        result = bpy.ops.lens_lights.generate()
-        total, cpu = time.perf_counter() - t, time.process_time() - c
-        first = total if first is None else first
-        fig = dict(gen.LAST_FIGURES)
-        if best is None or total < best[0]:
-            best = (total, fig, result, cpu)
-    total, fig, result, cpu = best
+    marks = _Marks(gen)
+    try:
+        for _ in range(repeat):
+            marks.reset()
+            t, c = time.perf_counter(), time.process_time()
+            # True: push the undo step, as the button does.
+            result = bpy.ops.lens_lights.generate("EXEC_DEFAULT", True)
+            total, cpu = time.perf_counter() - t, time.process_time() - c
+            first = total if first is None else first
+            fig = dict(gen.LAST_FIGURES)
+            if best is None or total < best[0]:
+                best = (total, fig, result, cpu, marks.split())
+    finally:
+        marks.remove()
+    total, fig, result, cpu, (undo, update) = best
     tm = fig.get("timings", {})
     # Done inside the probe's render callback; the rest of the probe is Blender's.
     inside = sum(tm.get(k, 0.0) for k in ("read", "phase1", "budget", "plan", "receivers", "bake"))
@@ -181,6 +232,8 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         plan=tm.get("plan", 0.0),
         build=tm.get("build", 0.0),
         other=total - fig.get("seconds", 0.0),
+        undo=undo,
+        update=update,
         bake=tm.get("bake", 0.0) + tm.get("receivers", 0.0),
         model=fig.get("energy_model", "?"),
         how=fig.get("how"),
@@ -192,7 +245,8 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         f"(CPU {cpu:.2f} s; probe {row['probe']:.2f}, read "
         f"{row['read']:.2f}, phase 1 {row['phase1']:.2f}, budget {row['budget']:.2f}, plan "
         f"{row['plan']:.2f} (caustic layer {row['bake']:.2f}), build {row['build']:.2f}, "
-        f"outside generate {row['other']:.2f}); "
+        f"outside generate {row['other']:.2f}: undo push {row['undo']:.2f}, depsgraph update "
+        f"{row['update']:.2f}); "
         f"{row['sources']} sources → "
         f"{row['created']} lights [{row['how']}]",
         flush=True,
@@ -200,42 +254,65 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     return row
 
 
-#: Where Generate's time goes on many separate objects: profiles (cProfile around
-#: `bpy.ops.lens_lights.generate()`) of 2026-12-01, on a machine with load 9-12.
+#: Where Generate's time goes on many separate objects: measured step by step (CPU
+#: and wall, `bpy.app.debug_depsgraph_time` for Blender's build/evaluation split) on
+#: 2026-12-02, 100 489 collection-instance empties, load average 4.6–7.
 ATTRIBUTION = [
     "## Where the time goes on collection-instance empties",
     "",
-    "Profiled on 2026-12-01 (cProfile around `bpy.ops.lens_lights.generate()`, "
-    "20 164 empties, load average 9–12, so every figure is inflated about 3–5× against "
-    "the lightly loaded runs of the first round: 28.9 s for 100 489 empties then, of "
-    "which probe 11.7 s, outside 11.0 s, read 1.3 s, phase 1 4.6 s):",
+    "Measured step by step on 2026-12-02 (100 489 empties, FITTED, load average 4.6–6 on "
+    "the 2 cores, so wall ≈ 1.5–2 × CPU; Blender's own split from "
+    "`bpy.app.debug_depsgraph_time`):",
     "",
-    "* **Blender's:** the probe render itself (scene copy, render pipeline, the render "
-    "depsgraph's evaluation of every object: 9.9 s of 33 s in the profile, in C, "
-    "`render_probe._probe`'s own time) and, outside the operator, the undo push of a "
-    "file with one object per sphere (5.9 s at 20 k, 11 s at 100 k in the first "
-    "round; it grows with the objects, not with what Generate made). Before the "
-    "operator runs, the scene's first viewport evaluation (9.1 s at 20 k under this "
-    "load) is paid by the first Generate after the scene is built (the first-run "
-    "column). Without these, 100 000 empties would fit in 15 s; with them they do not, "
-    "whatever Generate does: the probe is the only way Python gets the render "
-    "depsgraph (`operators/render_probe.py`, not changed here).",
-    "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`; "
-    "per instance a few RNA reads and its matrix copied: `np.array(matrix_world)` is "
-    "6.7 µs, half of it; depsgraph instances have no `foreach_get`, and a copied "
-    "`Matrix` turned into numpy later costs more, 11 µs); phase 1 on the grid "
-    "(a dense case for the broad phase: `reports/scale.md`'s dense grid); the plan. "
-    "Together about a fifth of the total at 100 k.",
-    "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake "
-    "(beams traced, landed and splatted: 16.8 s of 33 s in the profile at 20 k), "
-    "about constant in the number of spheres (it works on the 4 × maximum strongest "
-    "sources); `--energy-model FITTED` measures the lights alone.",
+    "* **The probe render** (before this change, on every scene): 16.2 CPU s (25.9 s "
+    "wall) at 100 k: a second, render depsgraph built (11.6 s) and evaluated (7.3 s) "
+    "from scratch. **Now skipped** when nothing in the file renders differently "
+    "(`render_probe.viewport_differs`, vectorised: 0.19 CPU s at 100 k); the viewport "
+    "depsgraph, already evaluated, is read instead (path `viewport`). Scenes where "
+    "viewport and render may differ still probe (path `probe`). At 10 000 empties, best "
+    "of 2, the same run otherwise (`--counts 10000 --kind collection --layout floating "
+    "--repeat 2 --energy-model FITTED`, load 5): CPU 5.47 s with `--force-probe` (probe "
+    "2.82 s wall), 3.80 s without (check 0.06 s).",
+    "* **Blender's, what remains:** adding the lens lights makes Blender rebuild the "
+    "whole viewport depsgraph (relations of every object) and evaluate it again: 7.9 CPU "
+    "s at 100 k (built 10.3 s + evaluated 3.7 s wall), about the scene's first "
+    "evaluation (11.4 CPU s: built 10.3 s + evaluated 5.7 s); the table's update column "
+    "(wall, under the run's load). It happens once per Generate (bpy.ops' "
+    "`view_layer.update()` after the operator; in the UI, the next redraw; nothing inside "
+    "Generate evaluates the depsgraph again: one update per Generate, tested) and any "
+    "added object costs it: it is not ours to cut. The undo push of the file: 0.16 CPU "
+    "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
+    "pays their removal (`light_builder.clear`: two `batch_remove` passes over the file, "
+    "4.1 CPU s at 100 k; one pass with the light data measured 20–25 % less at 5 k, not "
+    "changed here).",
+    "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
+    "dozen RNA reads and the matrix per instance, about 25 µs each; the matrix copy "
+    "is now 2 µs of it, and copying `Matrix` objects to convert them at the end would "
+    "save 0.4 µs): 2.7–2.9 CPU s at 100 k with the check (`read_blender_scene`, 5.5–5.9 s "
+    "wall at load 4), the plan (2–4 s wall) and phase 1, which now dominates: 130–205 s "
+    "wall at 100 k on this "
+    "grid. It is not the broad phase: at 10 000 (cProfile, geometry-nodes grid) 3.7 of "
+    "4.1 s are the glass blockers' Fresnel share of the shadow lists "
+    "(`shadow_mask.glass_passed` 1.6 s own time, `exact_optics.fresnel_transmittance` "
+    "1.6 s), which grows faster than the spheres.",
+    "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake, about "
+    "constant in the number of spheres (it works on the 4 × maximum strongest sources); "
+    "`--energy-model FITTED` measures the lights alone.",
     "",
-    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met. "
-    "Blender's probe render and undo push alone took 22.7 s of 28.9 s in the lightly "
-    "loaded first round (Generate's own steps 6.2 s); in a loaded run they are 80–90 % "
-    "of the wall time (the shares above).",
+    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met "
+    "in this run, because of phase 1's shadow lists. Blender's part is now the one "
+    "depsgraph rebuild and evaluation after the lights are added and the undo push "
+    "(about 8 CPU s at 100 k), the check and the read 2.8 CPU s, the plan 2–4 s wall: "
+    "on a quiet machine roughly 12–14 s before phase 1, so the goal needs phase 1 at "
+    "100 k in a second or two (the first round's phase 1, before the glass blockers' "
+    "share, took 4.6 s) — an estimate from the steps, not a measured total.",
 ]
+
+
+def _path(how) -> str:
+    from lens_lights.operators.render_probe import VIEWPORT_AS_RENDER
+
+    return {"render": "probe", VIEWPORT_AS_RENDER: "viewport"}.get(how, f"fallback: {how}")
 
 
 def write_report(rows, args):
@@ -258,8 +335,13 @@ def write_report(rows, args):
         + (f", merging within {args.merge}" if args.merge else ", no merging")
         + ". `bpy.ops.lens_lights.generate()` end to end; the steps:",
         "",
-        "* probe: the tiny render that hands over the render depsgraph (scene copy, render "
-        "pipeline, depsgraph evaluation), without the work done inside it;",
+        "* path: how the render depsgraph was had (`BlenderSceneRead.how`): `viewport` — "
+        "nothing in the file renders differently, the viewport depsgraph is the render one "
+        "(`render_probe.as_rendered`); `probe` — a tiny render hands it over;",
+        "* probe: on the probe path, the tiny render that hands over the render depsgraph "
+        "(scene copy, render pipeline, the render depsgraph built and evaluated), without the "
+        "work done inside it; on the viewport path, the check that nothing differs "
+        "(`render_probe.viewport_differs`);",
         "* read: the pass over the depsgraph's instances (one sphere fit and material per "
         "instanced mesh, matrices copied), then numpy over all instances;",
         "* phase 1; budget: merging and the pre-selection of the "
@@ -267,8 +349,10 @@ def write_report(rows, args):
         "* plan: energy models, cut-off, cap and the rays that keep beams clear, for the "
         "pre-selected sources only; layer: the caustic layer (reading the receivers, "
         "the bake), when the energy model makes one; build: creating the Blender lights;",
-        "* outside: the operator's own cost outside `generate` (Blender's undo push of the "
-        "file, which grows with the number of objects).",
+        "* outside: Blender's cost after `generate` returns: undo (the undo push of the "
+        "file, the operator run as the button runs it) and update (the depsgraph update "
+        "that follows: the relations rebuilt because objects were added — Blender rebuilds "
+        "the whole graph, one node set per object of the scene — and the evaluation).",
         "",
         "The best run is the steps' split (wall seconds); the first run also pays the first "
         "evaluation of the freshly built scene's viewport depsgraph and caches. CPU: the "
@@ -276,26 +360,27 @@ def write_report(rows, args):
         "wall time also measures the other jobs (load average "
         f"{LOAD[0]:.1f} before the runs, {os.getloadavg()[0]:.1f} after).",
         "",
-        "| instancing | layout | spheres | sources | lights | first run s | best s | CPU s | probe | read "
-        "| phase 1 | budget | plan | layer | build | outside |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
-        "| ---: | ---: |",
+        "| instancing | layout | spheres | sources | lights | path | first run s | best s | CPU s "
+        "| probe | read | phase 1 | budget | plan | layer | build | outside: undo | update |",
+        "| --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+        "| ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in rows:
         lines.append(
             f"| {r['kind']} | {r['layout']} | {r['spheres']} | {r['sources']} | {r['created']} | "
-            f"{r['first']:.2f} | **{r['total']:.2f}** | {r['cpu']:.2f} | {r['probe']:.2f} | "
+            f"{_path(r['how'])} | {r['first']:.2f} | **{r['total']:.2f}** | {r['cpu']:.2f} | {r['probe']:.2f} | "
             f"{r['read']:.2f} | "
             f"{r['phase1']:.2f} | {r['budget']:.2f} | {r['plan']:.2f} | {r['bake']:.2f} | "
             f"{r['build']:.2f} | "
-            f"{r['other']:.2f} |"
+            f"{r['undo']:.2f} | {r['update']:.2f} |"
         )
     lines += [""]
     for r in rows:  # the shares of the wall time: Blender's own, then ours
         theirs = r["probe"] + r["other"]
         ours = sum(r[k] for k in ("read", "phase1", "budget", "plan", "bake", "build"))
         lines.append(
-            f"* {r['kind']}, {r['layout']}, {r['spheres']}: Blender's probe and undo "
+            f"* {r['kind']}, {r['layout']}, {r['spheres']} ({_path(r['how'])}): Blender's probe, "
+            "undo and update "
             f"{theirs:.1f} s ({theirs / r['total']:.0%}), Generate's own steps {ours:.1f} s "
             f"({ours / r['total']:.0%}) of {r['total']:.1f} s"
         )
@@ -328,11 +413,21 @@ def main(argv=None):
         default="AUTO",
         help="the scene's Energy Model (AUTO: the caustic layer in EEVEE; FITTED: lights)",
     )
+    ap.add_argument(
+        "--force-probe",
+        action="store_true",
+        help="always read the render depsgraph through the probe render (as before the "
+        "viewport path), to compare",
+    )
     ap.add_argument("--no-report", action="store_true")
     args = ap.parse_args(argv)
     LOAD[:] = os.getloadavg()
     ext = load_extension()
     ext.register()
+    if args.force_probe:  # the probe render on every scene (before the viewport path)
+        from lens_lights.operators import render_probe
+
+        render_probe.viewport_differs = lambda context: "forced by --force-probe"
     kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)
     layouts = ("table", "floating") if args.layout == "both" else (args.layout,)
     rows = [

@@ -5,8 +5,9 @@ planning (`addon/planning.py`) and the report (`addon/report.py`) are pure.
 Generate works in two stages, so that a failure never leaves the scene half-done:
 
 1. **Plan** (nothing in the file changes): read the scene as the renderer sees it
-   (`scene_reader.rendered_depsgraph`: the render depsgraph of the context scene
-   and view layer), run phase 1 for every light type
+   (`render_probe.as_rendered`: the render depsgraph of the context scene and view
+   layer — the viewport one when nothing renders differently, else a probe
+   render's), run phase 1 for every light type
    (`phase1_primaries.compute_phase1_primaries`), then `planning.plan_result`: pre-select the
    sources (merging nearby ones if the scene's settings ask for it, then the
    ``PRESELECT_FACTOR × max_lights`` strongest by estimated flux) and plan the
@@ -43,7 +44,7 @@ from ..addon.planning import PRESELECT_FACTOR, plan_result
 from ..addon.report import error_text, linking_note, linking_sets_note, report_message
 from ..addon.tiers import builds_layer, resolve_energy_model
 from . import cycles_caustics, layer_generate, light_builder
-from .scene_reader import RENDER, read_depsgraph, rendered_depsgraph
+from .scene_reader import RENDER, VIEWPORT_AS_RENDER, as_rendered, read_depsgraph
 from .scene_state import has_lens_lights
 
 #: The figures of the last run of `generate` (with "timings": seconds per step).
@@ -125,7 +126,7 @@ def generate(context):
         try:
             options = _options(settings)
             t = time.perf_counter()
-            work, how = rendered_depsgraph(
+            work, how = as_rendered(
                 context,
                 lambda dg: layer_generate.prepare(dg, plan_scene(dg, scene, options), options),
             )
@@ -175,7 +176,7 @@ def generate(context):
 
     try:
         level, message, figures = report_message(
-            work, len(made), read_as_rendered=work.read.how == RENDER
+            work, len(made), read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER)
         )
     except Exception as exc:  # the lights are made: say so
         traceback.print_exc()

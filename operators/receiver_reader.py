@@ -19,7 +19,7 @@ import numpy as np
 from ..addon.caustic_sheet.receiver_bvh import ReceiverMesh
 from ..addon.layer_plan import fallback_reason
 from .material_reader import main_material, node_tree
-from .scene_reader import _is_lens_light, _render_visible_objects
+from .scene_reader import _is_lens_light, _render_visible_objects, reads_viewport_as_render
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
@@ -126,7 +126,7 @@ def read_receivers(depsgraph, exclude=()) -> Receivers:
     """The receivers in `depsgraph` (see the module's docstring); `exclude`: original
     objects that are no receivers (the lenses)."""
     excluded = {ob.as_pointer() for ob in exclude if ob is not None}
-    viewport = depsgraph.mode != "RENDER"
+    viewport = depsgraph.mode != "RENDER" and not reads_viewport_as_render(depsgraph)
     visible = _render_visible_objects(depsgraph.view_layer) if viewport else None
     meshes: dict = {}
     ids: dict = {}

@@ -1,9 +1,10 @@
 """Read a Blender scene as the renderer sees it, into the bpy-free scene model.
 
 **Which depsgraph.** See `render_probe`: the render depsgraph, as a final render
-(F12) evaluates the scene, had from a tiny render of a copy of the scene; when
-that cannot run, the viewport depsgraph with the render-visibility rules applied
-by hand (``BlenderSceneRead.how`` says which).
+(F12) evaluates the scene: the viewport one when nothing in the file renders
+differently (`render_probe.as_rendered`), else had from a tiny render of a copy of
+the scene; when that cannot run, the viewport depsgraph with the render-visibility
+rules applied by hand (``BlenderSceneRead.how`` says which).
 
 **Reading.** `read_depsgraph(depsgraph)` walks the depsgraph's object instances
 (modifiers, geometry nodes and instancing applied, world space).  The per-instance
@@ -86,7 +87,14 @@ from ..addon.sphere_fit import fit_sphere
 from ..addon.tiers import LensOptics
 from .material_reader import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
-from .render_probe import ProbeUnavailable, rendered_depsgraph  # noqa: F401  (re-exported)
+from .render_probe import (  # noqa: F401  (re-exported)
+    VIEWPORT_AS_RENDER,
+    ProbeUnavailable,
+    as_rendered,
+    reads_viewport_as_render,
+    rendered_depsgraph,
+)
+from .render_probe import render_visible_objects as _render_visible_objects
 
 GEOMETRY_TYPES = {
     "MESH",
@@ -105,23 +113,6 @@ READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 
 
 # --------------------------------------------------------------------------- visibility
-
-
-def _render_visible_objects(view_layer) -> set:
-    """Original objects in at least one collection enabled for rendering (used
-    only when reading a viewport depsgraph)."""
-    visible = set()
-
-    def walk(layer_coll, parent_hidden):
-        coll = layer_coll.collection
-        hidden = parent_hidden or layer_coll.exclude or coll.hide_render
-        if not hidden:
-            visible.update(ob.original for ob in coll.objects)
-        for child in layer_coll.children:
-            walk(child, hidden)
-
-    walk(view_layer.layer_collection, False)
-    return visible
 
 
 def _is_lens_light(ob) -> bool:
@@ -339,7 +330,7 @@ def read_blender_scene(context_or_depsgraph) -> BlenderSceneRead:
         read = read_depsgraph(context_or_depsgraph)
     else:
         context = context_or_depsgraph
-        read, how = rendered_depsgraph(context, lambda dg: read_depsgraph(dg, context.scene))
+        read, how = as_rendered(context, lambda dg: read_depsgraph(dg, context.scene))
         read.how = how
     # The evaluated meshes may be freed (the probe's depsgraph) or replaced (the
     # viewport's, at its next update) after this: the occluders keep only the
@@ -405,7 +396,7 @@ def read_depsgraph(depsgraph, scene=None) -> BlenderSceneRead:
     """Read `depsgraph` (render or viewport); `scene`: the original scene whose
     camera and resolution the read reports (default: the depsgraph's)."""
     scene = scene if scene is not None else depsgraph.scene
-    viewport = depsgraph.mode != "RENDER"
+    viewport = depsgraph.mode != "RENDER" and not reads_viewport_as_render(depsgraph)
     walk = _InstanceWalk(
         viewport, _render_visible_objects(depsgraph.view_layer) if viewport else None
     )

@@ -212,6 +212,55 @@ def test_many_instances_stay_fast(empty_blend):
     assert t["read"] < 1.0 and t["plan"] < 2.0 and figures["seconds"] < 5.0, t
 
 
+def test_generate_on_empties_renders_no_probe_and_updates_the_depsgraph_once(
+    empty_blend, monkeypatch
+):
+    """300 collection-instance empties, nothing set apart for the render: Generate
+    reads the viewport depsgraph (no probe render), and the operator with its undo
+    step makes one depsgraph update (the lights added in one go, nothing evaluated
+    inside), whose read is the probe's."""
+    from lens_lights.operators import render_probe
+
+    glass = glass_material()
+    floor(40)
+    bead = add_sphere("Bead", (0, 0, 0), radius=0.3, material=glass)
+    beads = collection_of("Bead", bead)
+    for k, (x, y, _z) in enumerate(grid(300, spacing=1.0)):
+        collection_instance(f"Beads.{k:03d}", beads, location=(x - 8, y - 8, 1))
+    add_point_light("Lamp A", (3.0, 2.0, 12.0))
+    add_point_light("Lamp B", (-2.5, -1.0, 9.0))
+    bpy.context.view_layer.update()
+    bpy.ops.ed.undo_push(message="scene")
+    probes = count_calls(monkeypatch, render_probe, "_probe")
+    updates = []
+
+    def note(scene, depsgraph=None):
+        updates.append(scene.name)
+
+    bpy.app.handlers.depsgraph_update_post.append(note)
+    try:
+        assert bpy.ops.lens_lights.generate("EXEC_DEFAULT", True) == {"FINISHED"}
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(note)
+    from lens_lights.operators import generate as gen
+
+    figures = gen.LAST_FIGURES
+    assert figures["how"] == render_probe.VIEWPORT_AS_RENDER and probes == []
+    assert updates == [bpy.context.scene.name]
+    assert figures["lenses"] == 300 and figures["created"] == 64 == len(lens_lights())
+    # the same read through the probe render: the same lenses and lights
+    from lens_lights.operators.scene_reader import read_blender_scene, read_depsgraph
+
+    fast = read_blender_scene(bpy.context)
+    probed, how = render_probe.rendered_depsgraph(
+        bpy.context, lambda dg: read_depsgraph(dg, bpy.context.scene)
+    )
+    assert how == "render" and fast.how == render_probe.VIEWPORT_AS_RENDER
+    assert fast.sphere_sources == probed.sphere_sources
+    assert fast.light_sources == probed.light_sources == ["Lamp A", "Lamp B"]
+    np.testing.assert_array_equal(fast.arrays.center, probed.arrays.center)
+
+
 def test_occluders_match_brute_force_and_blender():
     """Rays against 2 000 random spheres: the same first hits as a plain loop; a
     rotated, scaled plane (box test, then BVH) as `Scene.ray_cast` sees it."""
