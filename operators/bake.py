@@ -10,9 +10,9 @@ scene as it was:
 1. **Plan** every frame (nothing changes but the current frame, put back at the
    end): `scene.frame_set(f)`, then Generate's planning (`generate.plan_scene`, and
    the Caustic layer's bake `layer_generate.prepare`) on the render depsgraph of a
-   probe render (`render_probe.rendered_depsgraph`; `use_viewport=True`: the
-   viewport depsgraph with the render rules, faster, for scenes where render and
-   viewport agree). Each frame's lights become `addon.bake_plan.FrameLight`s keyed
+   probe render where the render can differ from the viewport, else the viewport's
+   (`render_probe.as_rendered`, as Generate; `use_viewport=True`: always the
+   viewport depsgraph with the render rules). Each frame's lights become `addon.bake_plan.FrameLight`s keyed
    by live update's `addon.light_keys.LightKey` (primary, lens, kind, tier,
    occurrence; variant "near" for the Exact profile's near field).
 2. **Build**: Clear (the previous lens lights, baked or not), then
@@ -59,7 +59,7 @@ from ..addon.tiers import EXACT_PROFILE, builds_layer
 from . import cycles_caustics, layer_bake_builder, layer_builder, layer_generate, light_builder
 from .generate import _options, plan_scene
 from .properties import COLLECTION_MARK
-from .scene_reader import rendered_depsgraph
+from .scene_reader import VIEWPORT_AS_RENDER, as_rendered
 
 BAKE_MARK = "bake"
 SLICE_NODE, H_MIN_NODE = light_builder.SLICE_NODE, light_builder.H_MIN_NODE
@@ -296,8 +296,10 @@ class Baker:
         if self.use_viewport:
             work = plan(self.context.evaluated_depsgraph_get())
             work.read.occluders.release()
-        else:
-            work, _how = rendered_depsgraph(self.context, plan)
+        else:  # the probe only where the render can differ from the viewport
+            work, how = as_rendered(self.context, plan)
+            if how == VIEWPORT_AS_RENDER:
+                work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts))
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         if self.layer:

@@ -196,9 +196,9 @@ def test_select_sources_without_a_cap_keeps_everything(empty_blend):
     assert len(sel.sources) == 3 and sel.preselect == 4
 
 
-def test_many_instances_stay_fast(empty_blend):
-    """2 000 geometry-node instances × 2 lights: generate well under a second or
-    two (the per-instance Python work is a key lookup and a matrix copy)."""
+def test_many_instances_are_all_read(empty_blend):
+    """2 000 geometry-node instances × 2 lights: every instance is a lens, and the 64
+    lights kept are the cap (their speed is bench/operator_scale.py's, not a test's)."""
     glass = glass_material()
     floor(100)
     gn_instances(
@@ -208,8 +208,8 @@ def test_many_instances_stay_fast(empty_blend):
     add_point_light("Lamp B", (-5.0, 0.0, 9.0))
     level, message, figures = generate()
     assert figures["lenses"] == 2000 and figures["created"] == 64
-    t = figures["timings"]
-    assert t["read"] < 1.0 and t["plan"] < 2.0 and figures["seconds"] < 5.0, t
+    made = {(ob.lens_lights.source_light, ob.lens_lights.source_lens) for ob in lens_lights()}
+    assert len(made) == 64  # 64 distinct (light, instance) pairs
 
 
 def test_generate_on_empties_renders_no_probe_and_updates_the_depsgraph_once(
