@@ -12,8 +12,8 @@ scene as it was:
    the Caustic layer's bake `layer_generate.prepare`) on the render depsgraph of a
    probe render where the render can differ from the viewport, else the viewport's
    (`render_probe.as_rendered`, as Generate; `use_viewport=True`: always the
-   viewport depsgraph with the render rules). Each frame's lights become `addon.bake_plan.FrameLight`s keyed
-   by live update's `addon.light_keys.LightKey` (primary, lens, kind, tier,
+   viewport depsgraph with the render rules). Each frame's lights become
+   `addon.bake_plan.FrameLight`s keyed by live update's `addon.light_keys.LightKey` (primary, lens, kind, tier,
    occurrence; variant "near" for the Exact profile's near field).
 2. **Build**: Clear (the previous lens lights, baked or not), then
    * light tiers: one Blender object per key (`light_builder.create_light` from the
