@@ -13,8 +13,9 @@ scene as it was:
    probe render where the render can differ from the viewport, else the viewport's
    (`render_probe.as_rendered`, as Generate; `use_viewport=True`: always the
    viewport depsgraph with the render rules). Each frame's lights become
-   `addon.bake_plan.FrameLight`s keyed by live update's `addon.light_keys.LightKey` (primary, lens, kind, tier,
-   occurrence; variant "near" for the Exact profile's near field).
+   `addon.bake_plan.FrameLight`s keyed by live update's `addon.light_keys.LightKey`
+   (primary, lens, kind, tier, occurrence; variant "near" for the Exact profile's
+   near field).
 2. **Build**: Clear (the previous lens lights, baked or not), then
    * light tiers: one Blender object per key (`light_builder.create_light` from the
      key's first frame), its transform (object action), energy, colour, cone,
