@@ -430,13 +430,17 @@ def clear(scene) -> int:
     Nothing else is touched."""
     settings = scene.lens_lights
     objects = created_objects(scene)
-    datas = {ob.data for ob in objects if ob.data is not None}
+    refs: dict = {}
+    for ob in objects:
+        if ob.data is not None:
+            refs[ob.data] = refs.get(ob.data, 0) + 1
+    # a datablock only these objects use goes with them, in the same pass (each
+    # batch_remove scans the whole file: slow with many objects); one that something
+    # else uses too (the user linked it) stays
+    owned = [d for d, k in refs.items() if d.users == k]
     removed = len(objects)
     if objects:
-        bpy.data.batch_remove(objects)  # one pass: fast for many lights
-    orphans = [d for d in datas if d.users == 0]
-    if orphans:
-        bpy.data.batch_remove(orphans)  # with their embedded node trees
+        bpy.data.batch_remove(objects + owned)  # with their embedded node trees
     remove_unused_profile_images()
     from .layer_builder import remove_unused_layer_materials  # (it imports this module)
 

@@ -120,6 +120,21 @@ def test_clear_removes_everything_created_and_nothing_else(empty_blend):
     assert not has_lens_lights(bpy.context.scene)
 
 
+def test_clear_keeps_a_lens_lights_data_the_user_also_uses(empty_blend):
+    """Clear removes its lights' data with them, but not a light data the user gave
+    to an object of theirs (it has a user left)."""
+    basic_scene()
+    generate()
+    (ll,) = lens_lights()
+    data = ll.data
+    mine = bpy.data.objects.new("My lamp", data)
+    bpy.context.scene.collection.objects.link(mine)
+    n_lights = len(bpy.data.lights)
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert lens_lights() == [] and bpy.data.objects.get("My lamp") is mine
+    assert mine.data is data and len(bpy.data.lights) == n_lights
+
+
 def test_there_is_something_to_clear_only_after_generate(empty_blend):
     from lens_lights.operators.scene_state import has_lens_lights
 
