@@ -172,19 +172,31 @@ def _angle(a, b):
 
 
 def _overlapping_rows(rows, obst, count, direction, ang, n_rows):
-    """Rows with two blockers whose caps overlap (their union is no sum)."""
+    """Rows with two blockers whose caps overlap (their union is no sum). Each
+    blocker is first tried against the next of its row (in a crowded view most rows
+    are found so); every pair of the rows still open after that."""
     out = np.zeros(n_rows, dtype=bool)
     multi = count[rows] > 1
     if not multi.any():
         return out
-    starts = np.concatenate([[0], np.cumsum(count)])
-    p = np.flatnonzero(multi)  # each pair with every pair of its row after it
-    after = starts[rows[p] + 1] - p - 1
-    q = concat_ranges(p + 1, after)
-    p = np.repeat(p, after)
+    p = np.flatnonzero(rows[1:] == rows[:-1])
+    _mark_overlaps(out, rows, obst, p, p + 1, direction, ang)
+    sel = np.flatnonzero(multi & ~out[rows])
+    if sel.size:
+        r, o = rows[sel], obst[sel]
+        cnt = np.bincount(r, minlength=n_rows)
+        starts = np.concatenate([[0], np.cumsum(cnt)])
+        p = np.arange(r.size)  # each pair with every pair of its row after it
+        after = starts[r + 1] - p - 1
+        q = concat_ranges(p + 1, after)
+        _mark_overlaps(out, r, o, np.repeat(p, after), q, direction, ang)
+    return out
+
+
+def _mark_overlaps(out, rows, obst, p, q, direction, ang):
+    """out[row] = True where the caps of the pairs (p, q) of its blockers overlap."""
     gap = _angle(direction[obst[p]], direction[obst[q]])
     out[rows[p[gap < ang[obst[p]] + ang[obst[q]]]]] = True
-    return out
 
 
 def _end_rule(m):
