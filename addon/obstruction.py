@@ -77,14 +77,15 @@ def find_blockers(
     partial = total_blocker[row_of[lens]] < 0
     rows = row_of[lens[partial]]
     obst, alpha, beta, gamma = obst[partial], alpha[partial], beta[partial], gamma[partial]
-    order = np.lexsort((obst, rows))
-    rows, obst = rows[order], obst[order]
-    cover = cap_overlap_fraction(alpha[order], beta[order], gamma[order])
-    unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt)
+    # by row, then sphere (one sort of a unique integer key, as lexsort((obst, rows)))
+    order = np.argsort(rows * direction.shape[0] + obst, kind="stable")
+    rows, obst, gamma = rows[order], obst[order], gamma[order]
+    cover = cap_overlap_fraction(alpha[order], beta[order], gamma)
+    unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt, gamma=gamma)
     unblocked[total_blocker >= 0] = 0.0
     offsets = np.zeros(n_rows + 1, dtype=np.int64)
-    np.add.at(offsets, rows + 1, 1)
-    return Blockers(total_blocker, np.cumsum(offsets), obst, unblocked)
+    offsets[1:] = np.cumsum(np.bincount(rows, minlength=n_rows))
+    return Blockers(total_blocker, offsets, obst, unblocked)
 
 
 def _angle_between_rows(direction, i, k):

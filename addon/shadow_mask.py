@@ -119,7 +119,16 @@ def passed_share(chord2, beta, glass, ior, kt, h):
 
 
 def union_unblocked(
-    rows, obst, cover, lens_rows, direction, ang, ior=None, kt=None, n_samples=MAX_SAMPLES
+    rows,
+    obst,
+    cover,
+    lens_rows,
+    direction,
+    ang,
+    ior=None,
+    kt=None,
+    n_samples=MAX_SAMPLES,
+    gamma=None,
 ) -> np.ndarray:
     """The unblocked share of every lens row (``len(lens_rows)``), from its partial
     blockers: pairs (``rows``, ``obst``) sorted by row, ``cover`` each pair's closed-form
@@ -129,7 +138,7 @@ def union_unblocked(
     1 − Σ cover_k (1 − ⟨passed⟩_k), ⟨passed⟩ 0 for an opaque blocker and, for a glass
     one, its Fresnel share averaged over what it covers of the lens' cap
     (:func:`glass_passed`, 1-D). Rows whose blockers overlap are sampled
-    (:func:`_sampled_blocked`)."""
+    (:func:`_sampled_blocked`). ``gamma``: each pair's angle lens–blocker, if known."""
     n_rows = len(lens_rows)
     unblocked = np.ones(n_rows)
     rows, obst = np.asarray(rows, dtype=np.int64), np.asarray(obst, dtype=np.int64)
@@ -148,8 +157,11 @@ def union_unblocked(
     hard = _overlapping_rows(rows, obst, count, direction, ang, n_rows)
     passed = np.zeros(rows.size)  # the glass blockers' share of their blocked directions
     if g.any():
-        gamma = _angle(direction[lens[g]], direction[obst[g]])
-        passed[g] = glass_passed(alpha[g], beta[g], gamma, ior_a[obst[g]], kt_a[obst[g]])
+        if gamma is None:
+            gamma_g = _angle(direction[lens[g]], direction[obst[g]])
+        else:
+            gamma_g = np.asarray(gamma, dtype=float)[g]
+        passed[g] = glass_passed(alpha[g], beta[g], gamma_g, ior_a[obst[g]], kt_a[obst[g]])
     blocked = np.zeros(n_rows)
     np.add.at(blocked, rows, cover * (1.0 - passed))  # disjoint: the union is the sum
     unblocked = np.clip(1.0 - blocked, 0.0, 1.0)
