@@ -125,6 +125,10 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     rho = ang[active] * (1.0 + 1e-12) + 1e-15
     c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
     level = np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * rho / c0, 1.0)))).astype(np.int64)
+    # Boxes by level: a level's owners and queries (it and the finer ones) are slices.
+    by_level = np.argsort(level, kind="stable")
+    active, w, rho, level = active[by_level], w[by_level], rho[by_level], level[by_level]
+    ends = np.searchsorted(level, np.arange(level[-1] + 1), side="right")
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
     pa, pb = [], []
 
@@ -147,23 +151,31 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         pa.append(q[near])
         pb.append(e[near])
 
+    box_lo, box_hi = w - rho[:, None], w + rho[:, None]
     for lvl in np.unique(level):
         cell = c0 * 2.0**lvl
-        owners = np.flatnonzero(level == lvl)
-        queries = np.flatnonzero(level <= lvl)
+        end = int(ends[lvl])
+        owners = np.arange(int(ends[lvl - 1]) if lvl else 0, end)
+        # Only boxes that meet the owners' bounding box can meet an owner's box (a
+        # level of a few near spheres is not searched with every far one's keys).
+        lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
+        queries = np.flatnonzero(np.all((box_hi[:end] >= lo) & (box_lo[:end] <= hi), axis=1))
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
         q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
         order = np.argsort(e_keys, kind="stable")
         ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
         qi = queries[q_idx]
         cross = level[qi] < lvl
-        # Crowded or not (which way is faster; both give the same pairs), from every
-        # 16th query key.
+        # Crowded or not (which way is faster; both give the same pairs): judged on
+        # every 16th query key first, so that a crowded level is searched only once.
         sample = q_keys[::16]
         hits = np.searchsorted(ek, sample, side="right") - np.searchsorted(ek, sample)
         if int(hits.sum()) <= 4 * sample.size:
-            meet(q_keys, qi, cross, q_bits, ek, eo, eb)
-            continue
+            lo = np.searchsorted(ek, q_keys, side="left")
+            count = np.searchsorted(ek, q_keys, side="right") - lo
+            if int(count.sum()) <= 4 * q_keys.size:
+                meet(q_keys, qi, cross, q_bits, ek, eo, eb, lo, count)
+                continue
         # Crowded: split the owners by corner, so that a query's cell at corner bq
         # is searched only among owners at corners be with bq & be == 0 (above),
         # and a pair's other meetings are never expanded.
