@@ -77,14 +77,15 @@ def find_blockers(
     partial = total_blocker[row_of[lens]] < 0
     rows = row_of[lens[partial]]
     obst, alpha, beta, gamma = obst[partial], alpha[partial], beta[partial], gamma[partial]
-    order = np.lexsort((obst, rows))
-    rows, obst = rows[order], obst[order]
-    cover = cap_overlap_fraction(alpha[order], beta[order], gamma[order])
-    unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt)
+    # by row, then sphere (one sort of a unique integer key, as lexsort((obst, rows)))
+    order = np.argsort(rows * direction.shape[0] + obst, kind="stable")
+    rows, obst, gamma = rows[order], obst[order], gamma[order]
+    cover = cap_overlap_fraction(alpha[order], beta[order], gamma)
+    unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt, gamma=gamma)
     unblocked[total_blocker >= 0] = 0.0
     offsets = np.zeros(n_rows + 1, dtype=np.int64)
-    np.add.at(offsets, rows + 1, 1)
-    return Blockers(total_blocker, np.cumsum(offsets), obst, unblocked)
+    offsets[1:] = np.cumsum(np.bincount(rows, minlength=n_rows))
+    return Blockers(total_blocker, offsets, obst, unblocked)
 
 
 def _angle_between_rows(direction, i, k):
@@ -124,52 +125,72 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     rho = ang[active] * (1.0 + 1e-12) + 1e-15
     c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
     level = np.maximum(0, np.ceil(np.log2(np.maximum(2.0 * rho / c0, 1.0)))).astype(np.int64)
+    # Boxes by level: a level's owners and queries (it and the finer ones) are slices.
+    by_level = np.argsort(level, kind="stable")
+    active, w, rho, level = active[by_level], w[by_level], rho[by_level], level[by_level]
+    ends = np.searchsorted(level, np.arange(level[-1] + 1), side="right")
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
     pa, pb = [], []
+
+    def meet(qk, qi, cross, qb, ek, eo, eb, lo=None, count=None):
+        """Pairs (query, owner) sharing a cell, in their home cell only, near."""
+        if lo is None:
+            lo = np.searchsorted(ek, qk, side="left")
+            count = np.searchsorted(ek, qk, side="right") - lo
+        if not count.any():
+            return
+        at = concat_ranges(lo, count)
+        q, e = np.repeat(qi, count), eo[at]
+        ok = np.repeat(cross, count) | (q < e)  # within a level both orders come up
+        if qb is not None:
+            ok &= (np.repeat(qb, count) & eb[at]) == 0
+        q, e = q[ok], e[ok]
+        # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
+        chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
+        near = chord2 <= (rho[q] + rho[e]) ** 2
+        pa.append(q[near])
+        pb.append(e[near])
+
+    box_lo, box_hi = w - rho[:, None], w + rho[:, None]
     for lvl in np.unique(level):
         cell = c0 * 2.0**lvl
-        owners = np.flatnonzero(level == lvl)
-        queries = np.flatnonzero(level <= lvl)
+        end = int(ends[lvl])
+        owners = np.arange(int(ends[lvl - 1]) if lvl else 0, end)
+        # Only boxes that meet the owners' bounding box can meet an owner's box (a
+        # level of a few near spheres is not searched with every far one's keys).
+        lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
+        queries = np.flatnonzero(np.all((box_hi[:end] >= lo) & (box_lo[:end] <= hi), axis=1))
         e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
         q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
-
-        def meet(qk, qi, qb, ek, eo, eb, lvl=lvl, lo=None, count=None):
-            """Pairs (query, owner) sharing a cell, in their home cell only, near."""
-            if lo is None:
-                lo = np.searchsorted(ek, qk, side="left")
-                count = np.searchsorted(ek, qk, side="right") - lo
-            if not count.any():
-                return
-            at = concat_ranges(lo, count)
-            q, e = np.repeat(qi, count), eo[at]
-            ok = (level[q] < lvl) | (q < e)  # within a level both orders come up
-            if qb is not None:
-                ok &= (np.repeat(qb, count) & eb[at]) == 0
-            q, e = q[ok], e[ok]
-            # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
-            chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
-            near = chord2 <= (rho[q] + rho[e]) ** 2
-            pa.append(q[near])
-            pb.append(e[near])
-
         order = np.argsort(e_keys, kind="stable")
         ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
         qi = queries[q_idx]
-        lo = np.searchsorted(ek, q_keys, side="left")
-        count = np.searchsorted(ek, q_keys, side="right") - lo
-        if int(count.sum()) <= 4 * q_keys.size:
-            meet(q_keys, qi, q_bits, ek, eo, eb, lo=lo, count=count)
-            continue
+        cross = level[qi] < lvl
+        # Crowded or not (which way is faster; both give the same pairs): judged on
+        # every 16th query key first, so that a crowded level is searched only once.
+        sample = q_keys[::16]
+        hits = np.searchsorted(ek, sample, side="right") - np.searchsorted(ek, sample)
+        if int(hits.sum()) <= 4 * sample.size:
+            lo = np.searchsorted(ek, q_keys, side="left")
+            count = np.searchsorted(ek, q_keys, side="right") - lo
+            if int(count.sum()) <= 4 * q_keys.size:
+                meet(q_keys, qi, cross, q_bits, ek, eo, eb, lo, count)
+                continue
         # Crowded: split the owners by corner, so that a query's cell at corner bq
         # is searched only among owners at corners be with bq & be == 0 (above),
         # and a pair's other meetings are never expanded.
-        by_corner = [np.flatnonzero(eb == be) for be in range(8)]
+        by_corner = []
+        for be in range(8):
+            k = np.flatnonzero(eb == be)
+            by_corner.append((ek[k], eo[k]))
         for bq in range(8):
             sel = np.flatnonzero(q_bits == bq)
+            if not sel.size:
+                continue
+            qk, qs, cs = q_keys[sel], qi[sel], cross[sel]
             for be in range(8):
-                if sel.size and not bq & be and by_corner[be].size:
-                    k = by_corner[be]
-                    meet(q_keys[sel], qi[sel], None, ek[k], eo[k], None)
+                if not bq & be and by_corner[be][0].size:
+                    meet(qk, qs, cs, None, *by_corner[be], None)
     if not pa:
         return empty, empty
     return active[np.concatenate(pa)], active[np.concatenate(pb)]
