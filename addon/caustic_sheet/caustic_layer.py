@@ -31,7 +31,6 @@ lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo
 from __future__ import annotations
 
 import functools
-import math
 import time
 from dataclasses import dataclass, field
 
@@ -238,7 +237,7 @@ def build_layer(
     dirs = np.concatenate([x.dirs for x in landed])
     wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
-    frames, members = [], []
+    frames, members, slot_pts, floors = [], [], [], []
     on = np.nonzero(pid >= 0)[0]
     on = on[np.lexsort((bid[on], pid[on]))]
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
@@ -264,18 +263,22 @@ def build_layer(
             beams_here = bid[idx[b_starts[comp]]]
             slot_of[beams_here, p] = len(frames)
             floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
-            axes = [
-                _warp_axis(c[sel], w_here[sel], clip_fraction, res, warp, floor) for c in (x, y)
-            ]
-            frames.append((p, n_out, au, av, axes[0], axes[1]))
+            frames.append((p, n_out, au, av))
             members.append(beams_here)
+            slot_pts.append((x[sel], y[sel], w_here[sel]))
+            floors.append(floor)
     fr = {
         "au": np.array([f[2] for f in frames]).reshape(-1, 3),
         "av": np.array([f[3] for f in frames]).reshape(-1, 3),
     }
-    for key, k in (("u", 4), ("v", 5)):
-        for j, name in enumerate(("c", "s", "xi0", "dxi")):
-            fr[key + name] = np.array([f[k][j] for f in frames])
+    # every raster's texel lines at once (one sort per axis for all rasters)
+    gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
+    w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
+    for key, k in (("u", 0), ("v", 1)):
+        c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
+        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, res, warp, floors)
+        for name, val in zip(("c", "s", "xi0", "dxi"), axis, strict=True):
+            fr[key + name] = val
 
     n_slots = len(frames)
     rgb = np.zeros((n_slots * res * res, 3))
@@ -349,18 +352,39 @@ def build_layer(
 
     layers = []
     uv_fits = {}
-    for s, (p, n_out, au, av, ax_u, ax_v) in enumerate(frames):
-        eu, ev = _edges(ax_u, res), _edges(ax_v, res)
-        area = np.diff(ev)[:, None] * np.diff(eu)[None, :]
-        off = 0.1 * min(np.diff(eu).min(), np.diff(ev).min()) if offset is None else offset
-        origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
-        irr = rgb[s * res * res : (s + 1) * res * res].reshape(res, res, 3) / area[..., None]
-        verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape(-1, 3)
+    # all rasters' texel lines, areas, irradiance and vertices in one pass each
+    eu_all, ev_all = (
+        _edges(
+            (
+                fr[k + "c"][:, None],
+                fr[k + "s"][:, None],
+                fr[k + "xi0"][:, None],
+                fr[k + "dxi"][:, None],
+            ),
+            res,
+        )
+        for k in ("u", "v")
+    )
+    du, dv = np.diff(eu_all, axis=1), np.diff(ev_all, axis=1)
+    irr_all = rgb.reshape(n_slots, res, res, 3) / (dv[:, :, None] * du[:, None, :])[..., None]
+    offs = 0.1 * np.minimum(du.min(axis=1, initial=np.inf), dv.min(axis=1, initial=np.inf))
+    n_all = np.array([f[1] for f in frames]).reshape(-1, 3)
+    origins = n_all * np.array(
+        [plist[p].offset * (n_out @ plist[p].normal) for p, n_out, _, _ in frames]
+    ).reshape(-1, 1)
+    verts_all = (
+        origins[:, None, None, :]
+        + eu_all[:, None, :, None] * fr["au"][:, None, None, :]
+        + ev_all[:, :, None, None] * fr["av"][:, None, None, :]
+    ).reshape(n_slots, (res + 1) ** 2, 3)
+    faces = _grid_faces(res)
+    for s, (p, n_out, au, av) in enumerate(frames):
+        eu, ev, origin, verts = eu_all[s], ev_all[s], origins[s], verts_all[s]
+        off = offs[s] if offset is None else offset
+        irr = irr_all[s]
         if p not in uv_fits:  # one fit per patch, shared by its rasters
             uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
         uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
-        a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
-        faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
         layers.append(
             PatchLayer(
                 patch=int(p),
@@ -394,6 +418,16 @@ def build_layer(
         n_subcells=n_sub,
         timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0},
     )
+
+
+@functools.lru_cache(maxsize=8)
+def _grid_faces(res: int) -> np.ndarray:
+    """(res², 4) quads of a (res+1)² vertex grid, counter-clockwise; read-only, shared
+    by every raster of that resolution."""
+    a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
+    out = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
+    out.setflags(write=False)
+    return out
 
 
 def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
@@ -432,29 +466,67 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
         )
 
 
-def _warp_axis(x, w, clip_fraction, res, warp, min_texel=0.0):
-    """(c, s, ξ0, dξ) of one raster axis: texel lines at ``c + s·sinh(ξ0 + i·dξ)``; the
-    warp is flattened (s grown) until the finest texel, s·dξ, is ``min_texel`` (or the
-    texels are uniform)."""
-    lo = weighted_quantile(x, w, 0.5 * clip_fraction)
-    hi = weighted_quantile(x, w, 1.0 - 0.5 * clip_fraction)
-    span = max(hi - lo, 1e-12 * (1.0 + abs(lo) + abs(hi)))
+def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+    """:func:`weighted_quantile` (interpolated in the cumulative weight, as np.interp)
+    of ``x`` within each group (ids 0..n_groups−1, every group non-empty), for each
+    share in ``qs``: (n_groups, len(qs)), one sort for all groups."""
+    o = np.lexsort((x, groups))
+    g, xs = groups[o], x[o]
+    cw = np.cumsum(w[o])
+    ends = np.cumsum(np.bincount(g, minlength=n_groups))
+    starts = ends - np.bincount(g, minlength=n_groups)
+    base = np.where(starts > 0, cw[np.maximum(starts - 1, 0)], 0.0)
+    total = cw[ends - 1] - base
+    out = np.empty((n_groups, len(qs)))
+    for k, q in enumerate(qs):
+        target = base + q * total
+        j = np.searchsorted(cw, target, side="right") - 1  # cw[j] ≤ target < cw[j+1]
+        j = np.clip(j, starts - 1, ends - 1)
+        lo = np.maximum(j, starts)
+        hi = np.minimum(j + 1, ends - 1)
+        c0 = np.where(j >= starts, cw[lo], base)
+        gap = cw[hi] - c0
+        frac = np.where(
+            (j >= starts) & (j < ends - 1) & (gap > 0),
+            (target - c0) / np.where(gap > 0, gap, 1.0),
+            0.0,
+        )
+        out[:, k] = np.where(j < starts, xs[starts], xs[lo] + frac * (xs[hi] - xs[lo]))
+    return out
+
+
+def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
+    """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
+    ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
+    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median; the
+    warp is flattened (s grown) until the finest texel, s·dξ, is the group's
+    ``min_texel`` (or the texels are uniform)."""
+    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+    q = grouped_interp_quantiles(x, w, groups, n_groups, qs)
+    lo, hi, c = q[:, 0], q[:, 1], q[:, 2]
+    span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
-    c = weighted_quantile(x, w, 0.5)
-    s = max(weighted_quantile(np.abs(x - c), w, 0.5), 1e-3 * span) if warp else 1e3 * span
+    if warp:
+        mad = grouped_interp_quantiles(np.abs(x - c[groups]), w, groups, n_groups, (0.5,))[:, 0]
+        s = np.maximum(mad, 1e-3 * span)
+    else:
+        s = 1e3 * span
+    min_texel = np.asarray(min_texel, dtype=float).reshape(-1)
 
     def finest(s):
-        return s * (math.asinh((hi - c) / s) - math.asinh((lo - c) / s)) / res
+        return s * (np.arcsinh((hi - c) / s) - np.arcsinh((lo - c) / s)) / res
 
-    if finest(s) < min_texel:  # grows with s, toward the uniform texel (hi − lo)/res
-        if (hi - lo) / res <= min_texel:
-            s = 1e3 * span
-        else:
-            a, b = s, 1e3 * span
-            for _ in range(60):  # bisection in log s
-                m = math.sqrt(a * b)
-                a, b = (m, b) if finest(m) < min_texel else (a, m)
-            s = b
+    need = finest(s) < min_texel  # grows with s, toward the uniform texel (hi − lo)/res
+    flat = need & ((hi - lo) / res <= min_texel)
+    s = np.where(flat, 1e3 * span, s)
+    bis = need & ~flat
+    if np.any(bis):
+        a, b = s.copy(), 1e3 * span
+        for _ in range(60):  # bisection in log s
+            m = np.sqrt(a * b)
+            low = finest(m) < min_texel
+            a, b = np.where(low, m, a), np.where(low, b, m)
+        s = np.where(bis, b, s)
     xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
     return c, s, xi0, (xi1 - xi0) / res
 
@@ -464,8 +536,15 @@ def _edges(axis, res):
     return c + s * np.sinh(xi0 + dxi * np.arange(res + 1))
 
 
+def _asinh(u):
+    """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
+    a few ulps)."""
+    a = np.abs(u)
+    return np.copysign(np.log(a + np.sqrt(a * a + 1.0)), u)
+
+
 def _texel_index(x, fr, key, slots):
-    xi = np.arcsinh((x - fr[key + "c"][slots]) / fr[key + "s"][slots])
+    xi = _asinh((x - fr[key + "c"][slots]) / fr[key + "s"][slots])
     return np.floor((xi - fr[key + "xi0"][slots]) / fr[key + "dxi"][slots]).astype(np.int64)
 
 
@@ -484,12 +563,24 @@ def _deposit(acc, out_acc, points, slots, flux, fr, res):
 
 
 def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
+    """``x``, ``y``, ``flux`` (…) in the rasters' planes; ``slots`` broadcast against them
+    (a cell's sub-cells: (C, 1) against (C, q), so each raster's warp is gathered once
+    per cell, not per sub-cell)."""
     ix = _texel_index(x, fr, "u", slots)
     iy = _texel_index(y, fr, "v", slots)
+    _accumulate(acc, out_acc, ix, iy, slots, flux, res)
+
+
+def _accumulate(acc, out_acc, ix, iy, slots, flux, res):
+    """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them);
+    beyond a raster, to its ``out_acc``."""
     inside = (ix >= 0) & (ix < res) & (iy >= 0) & (iy < res)
     idx = (slots * res + iy) * res + ix
     acc += np.bincount(idx[inside], weights=flux[inside], minlength=len(acc))
-    out_acc += np.bincount(slots[~inside], weights=flux[~inside], minlength=len(out_acc))
+    outside = ~inside
+    if np.any(outside):
+        out_slots = np.broadcast_to(slots, outside.shape)[outside]
+        out_acc += np.bincount(out_slots, weights=flux[outside], minlength=len(out_acc))
 
 
 def _splat_cells(
@@ -534,23 +625,32 @@ def _splat_cells(
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
     dsum = dens.sum(axis=1)
     dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
+    # The warp's argument (x − c)/s at the corners: the bilinear sub-cells commute with
+    # that affine map, so they are placed in it directly (per raster constants gathered
+    # once per cell, not per sub-cell).
+    su, sv = fr["us"][slots], fr["vs"][slots]
+    xn = (x - fr["uc"][slots][:, None]) / su[:, None]
+    yn = (y - fr["vc"][slots][:, None]) / sv[:, None]
+    xi0u, dxiu = fr["uxi0"][slots], fr["udxi"][slots]
+    xi0v, dxiv = fr["vxi0"][slots], fr["vdxi"][slots]
     n_sub = 0
     for mm in np.unique(m):  # loop over subdivision levels
         sel = np.nonzero(m == mm)[0]
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
-        px = x[sel] @ bw.T  # (c, q)
-        py = y[sel] @ bw.T
+        px = xn[sel] @ bw.T  # (c, q)
+        py = yn[sel] @ bw.T
         if jitter is not None:
             a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
             j = jitter[sel]
-            px += a * j[:, None, 0, 0] + b * j[:, None, 1, 0]
-            py += a * j[:, None, 0, 1] + b * j[:, None, 1, 1]
+            px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
+            py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
         w = dens[sel] @ bw.T
         w *= (flux[sel] / w.sum(axis=1))[:, None]
-        sl = np.repeat(slots[sel], len(s))
-        _deposit_2d(acc, out_acc, px.reshape(-1), py.reshape(-1), sl, w.reshape(-1), fr, res)
+        ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
+        iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
+        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, res)
         n_sub += w.size
     return n_sub
 
