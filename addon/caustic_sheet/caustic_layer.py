@@ -574,13 +574,14 @@ def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
 def _accumulate(acc, out_acc, ix, iy, slots, flux, res):
     """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them);
     beyond a raster, to its ``out_acc``."""
-    inside = (ix >= 0) & (ix < res) & (iy >= 0) & (iy < res)
-    idx = (slots * res + iy) * res + ix
-    acc += np.bincount(idx[inside], weights=flux[inside], minlength=len(acc))
-    outside = ~inside
-    if np.any(outside):
-        out_slots = np.broadcast_to(slots, outside.shape)[outside]
-        out_acc += np.bincount(out_slots, weights=flux[outside], minlength=len(out_acc))
+    n = len(acc)
+    # unsigned: a negative index compares as huge (one test per side); the texels
+    # beyond a raster go to bin n + slot, so one bincount takes both
+    inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
+    idx = np.where(inside, (slots * res + iy) * res + ix, n + slots)
+    both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
+    acc += both[:n]
+    out_acc += both[n:]
 
 
 def _splat_cells(
@@ -625,6 +626,7 @@ def _splat_cells(
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
     dsum = dens.sum(axis=1)
     dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
+    dsum = dens.sum(axis=1)
     # The warp's argument (x − c)/s at the corners: the bilinear sub-cells commute with
     # that affine map, so they are placed in it directly (per raster constants gathered
     # once per cell, not per sub-cell).
@@ -646,8 +648,8 @@ def _splat_cells(
             j = jitter[sel]
             px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
             py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
-        w = dens[sel] @ bw.T
-        w *= (flux[sel] / w.sum(axis=1))[:, None]
+        # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
+        w = (dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None]) @ bw.T
         ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
         iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
         _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, res)
