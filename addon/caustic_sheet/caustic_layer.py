@@ -183,13 +183,18 @@ def land_beams(
     # a sample with no beam (its light inside the sphere) lands nowhere
     valid = np.concatenate([np.repeat(b.valid, b.n_rays // len(b.valid)) for b in beams])
     patch = np.where(valid, patch, -1)
-    out, start = [], 0
-    for b, n in zip(beams, sizes, strict=True):
-        nf = np.zeros(n)
-        np.add.at(nf, cell_corners(b.shape), 0.25 * b.cell_flux.reshape(-1)[:, None])
-        sl = slice(start, start + n)
-        out.append(_Landed(b, patch[sl], point[sl], d[sl], nf))
-        start += n
+    # each node a quarter of its cells' flux: one bincount over all beams' corners
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    corners = np.concatenate(
+        [cell_corners(b.shape) + s for b, s in zip(beams, starts[:-1].tolist(), strict=True)]
+    )
+    quarter = np.concatenate([0.25 * b.cell_flux.reshape(-1) for b in beams])
+    node_flux = np.bincount(
+        corners.reshape(-1), weights=np.repeat(quarter, 4), minlength=int(starts[-1])
+    )
+    out = []
+    for b, a, e in zip(beams, starts[:-1].tolist(), starts[1:].tolist(), strict=True):
+        out.append(_Landed(b, patch[a:e], point[a:e], d[a:e], node_flux[a:e]))
     return out
 
 

@@ -54,7 +54,7 @@ def build_index(
     mesh: ReceiverMesh,
     min_plane_triangles: int = 2,
     max_planes: int = 64,
-    cells_per_triangle: float = 1.0,
+    cells_per_triangle: float = 2.0,
 ) -> ReceiverIndex:
     """Index ``mesh`` for landing rays: the up to ``max_planes`` patches with at least
     ``min_plane_triangles`` triangles take the planar fast path, the rest a BVH."""
@@ -200,12 +200,13 @@ def _locate(g: PlaneGrids, o, d, pl, t):
     k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     q = np.repeat(np.arange(len(ray)), cnt)
     tri = g.cell_tris[np.repeat(s0, cnt) + k]
-    rel = xy[q] - g.tri_a[tri]
-    uv = np.einsum("kij,kj->ki", g.tri_inv[tri], rel)
+    a, inv = g.tri_a[tri], g.tri_inv[tri]
+    rx, ry = xy[q, 0] - a[:, 0], xy[q, 1] - a[:, 1]
+    u = inv[:, 0, 0] * rx + inv[:, 0, 1] * ry  # the 2 × 2 products written out: no einsum
+    v = inv[:, 1, 0] * rx + inv[:, 1, 1] * ry
     eps = 1e-12
-    hit = (uv[:, 0] >= -eps) & (uv[:, 1] >= -eps) & (uv.sum(axis=1) <= 1.0 + eps)
-    q, tri, uv = q[hit], tri[hit], uv[hit]
+    hit = np.nonzero((u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps))[0]
     # a point on a shared edge lies in two triangles: either will do (same plane, same t)
-    r = ray[q]
-    tri_out[r], u_out[r], v_out[r] = tri, uv[:, 0], uv[:, 1]
+    r = ray[q[hit]]
+    tri_out[r], u_out[r], v_out[r] = tri[hit], u[hit], v[hit]
     return tri_out, u_out, v_out
