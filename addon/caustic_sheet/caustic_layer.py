@@ -133,11 +133,28 @@ def weighted_quantile(x, w, q):
     return float(np.interp(q * cw[-1], cw, x[o]))
 
 
+def _group_order(x, groups, n_groups: int) -> np.ndarray:
+    """np.lexsort((x, groups)): the order by group, then by x (stable). Groups already
+    in order (contiguous runs, as the rasters' and beams' landings are) are sorted run
+    by run: many short sorts are several times faster than one two-key lexsort."""
+    groups = np.asarray(groups)
+    if len(groups) < 2 or not np.all(groups[1:] >= groups[:-1]):
+        return np.lexsort((x, groups))
+    bounds = np.searchsorted(groups, np.arange(n_groups + 1)).tolist()
+    return np.concatenate(
+        [np.zeros(0, dtype=np.intp)]
+        + [
+            a + np.argsort(x[a:b], kind="stable")
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
+    )
+
+
 def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
     """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
     group non-empty): (n_groups, len(qs)), the values where the group's cumulative
     weight first reaches each share (one sort for all groups)."""
-    o = np.lexsort((x, groups))
+    o = _group_order(x, groups, n_groups)
     g, xs, ws = groups[o], x[o], w[o]
     cw = np.cumsum(ws)
     total = np.bincount(g, weights=ws, minlength=n_groups)
@@ -309,7 +326,12 @@ def build_layer(
             [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
         )
         cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
-        rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
+        # the samples' shares matter only to blur an extended source's images
+        blurred = blur_shares and any(
+            lb.beam.rotations is not None and np.any(lb.beam.rotations) for lb in members_g
+        )
+        if blurred:
+            rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
         acc = np.zeros(n_slots * res * res)
         out_acc = np.zeros(n_slots)
@@ -328,12 +350,13 @@ def build_layer(
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
-            jitter = None
-            if blur_shares and np.any(rot[cidx]):
+            jitter = shares = None
+            if blurred and np.any(rot[cidx]):
                 direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
                 jitter = _share_offsets(
                     point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
                 )
+                shares = (disc[cidx], share_cells[cidx], share_grid[cidx])
             n_sub += _splat_cells(
                 acc,
                 out_acc,
@@ -348,7 +371,7 @@ def build_layer(
                 max_subcells,
                 flux_subcells_per_texel,
                 jitter=jitter,
-                shares=(disc[cidx], share_cells[cidx], share_grid[cidx]),
+                shares=shares,
             )
         flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
         flux_out += out_acc
@@ -475,7 +498,7 @@ def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
     """:func:`weighted_quantile` (interpolated in the cumulative weight, as np.interp)
     of ``x`` within each group (ids 0..n_groups−1, every group non-empty), for each
     share in ``qs``: (n_groups, len(qs)), one sort for all groups."""
-    o = np.lexsort((x, groups))
+    o = _group_order(x, groups, n_groups)
     g, xs = groups[o], x[o]
     cw = np.cumsum(w[o])
     ends = np.cumsum(np.bincount(g, minlength=n_groups))
