@@ -357,10 +357,14 @@ def build_layer(
                     point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
                 )
                 shares = (disc[cidx], share_cells[cidx], share_grid[cidx])
+            # each node in its raster's plane coordinates once, then per cell corner
+            ns = np.maximum(slot, 0)
+            node_x = np.einsum("ij,ij->i", point, fr["au"][ns])
+            node_y = np.einsum("ij,ij->i", point, fr["av"][ns])
             n_sub += _splat_cells(
                 acc,
                 out_acc,
-                point[corners[cidx]],
+                (node_x[corners[cidx]], node_y[corners[cidx]]),
                 cs[cidx, 0],
                 dens[cidx],
                 cflux[cidx],
@@ -615,7 +619,7 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, res):
 def _splat_cells(
     acc,
     out_acc,
-    corner_pts,
+    corner_xy,
     slots,
     dens,
     flux,
@@ -629,15 +633,16 @@ def _splat_cells(
     jitter=None,
     shares=None,
 ):
-    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells.
+    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells;
+    ``corner_xy``: the corners' plane coordinates (x, y), each (C, 4), along the axes of
+    the cell's raster ``slots``.
 
     ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of a unit step along each
     axis of the emitter's shape (:func:`_share_offsets`); ``shares``: per cell (disc,
     grid cell, grid size) of its sample's share. Each sub-cell is moved by a point of
     that share from a low-discrepancy sequence, so the K images of an extended source
     blend into its continuous blur instead of K separate copies."""
-    x = np.einsum("cki,ci->ck", corner_pts, fr["au"][slots])  # (C, 4)
-    y = np.einsum("cki,ci->ck", corner_pts, fr["av"][slots])
+    x, y = corner_xy  # (C, 4)
     # sub-cells per side: the quad's extent in local texels at its centre
     tx = _local_texel(x.mean(1), fr, "u", slots)
     ty = _local_texel(y.mean(1), fr, "v", slots)
