@@ -477,7 +477,8 @@ def speed_section(timings, gen) -> list[str]:
         "## 64 lens lights on a table (10 000 triangles)",
         "",
         "Marbles (R = 2 cm) resting on a table top meshed into 9 800 triangles, plus a floor",
-        "and a wall; one point light above. Best of 3 runs on a shared 2-core machine:",
+        "and a wall; one point light above. Best of 3 runs on a shared 2-core machine",
+        f"(load average {os.getloadavg()[0]:.1f} when this section was measured):",
         "CPU seconds of the process (what the machine's other users disturb least; the",
         "wall-clock seconds are beside them). *index*: planar patches + BVH of the scene",
         "(once per scene); *trace*: the 64 exact beams, one vectorised pass; *land*: all",
@@ -516,7 +517,7 @@ def update_speed_section(timings, gen, path):
     head = "## 64 lens lights on a table"
     start = text.index(head)
     end = text.index("\n## ", start + len(head)) + 1
-    path.write_text(text[:start] + "\n".join(speed_section(timings, gen)) + text[end:])
+    path.write_text(text[:start] + "\n".join(speed_section(timings, gen)) + "\n" + text[end:])
 
 
 def main(argv=None):
