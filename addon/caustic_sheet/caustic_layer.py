@@ -755,8 +755,10 @@ def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
     mesh = index.mesh
     if mesh.uvs is None:
         return None
+    used = np.zeros(len(mesh.vertices), dtype=bool)
+    used[np.asarray(mesh.triangles)[patch.triangles].reshape(-1)] = True
+    vi = np.nonzero(used)[0]  # the patch's vertices, sorted (a mask: no sort needed)
     uv = np.asarray(mesh.uvs, dtype=float)
-    vi = np.unique(np.asarray(mesh.triangles)[patch.triangles].reshape(-1))
     pv = np.asarray(mesh.vertices, dtype=float)[vi]
     au, av = perpendicular_frame(n_out)
     a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
