@@ -674,20 +674,34 @@ def _splat_cells(
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
-        px = xn[sel] @ bw.T  # (c, q)
-        py = yn[sel] @ bw.T
+        px = _rows_matmul(xn[sel], bw.T)  # (c, q)
+        py = _rows_matmul(yn[sel], bw.T)
         if jitter is not None:
             a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
             j = jitter[sel]
             px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
             py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
         # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
-        w = (dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None]) @ bw.T
+        w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
         ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
         iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
         _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, res)
         n_sub += w.size
     return n_sub
+
+
+def _rows_matmul(a, b, limit: int = 1 << 18):
+    """``a @ b`` in blocks of rows small enough (rows × b's size ≤ ``limit``) that
+    OpenBLAS runs each on one thread: for a product 4 deep its threads cost far more
+    than they save (measured 4.4 ms CPU, 8.9 ms wall for (4145, 4) @ (4, 64) against
+    0.22 ms in blocks, worst on a busy machine)."""
+    n = max(1, limit // max(b.shape[0] * b.shape[1], 1))
+    if len(a) <= n:
+        return a @ b
+    out = np.empty((len(a), b.shape[1]), dtype=np.result_type(a, b))
+    for i in range(0, len(a), n):
+        np.matmul(a[i : i + n], b, out=out[i : i + n])
+    return out
 
 
 #: Roberts' R2 sequence (the plastic number): well spread points in the unit square.
