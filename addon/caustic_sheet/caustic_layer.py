@@ -261,7 +261,7 @@ def build_layer(
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
     frames, members, slot_pts, floors = [], [], [], []
     on = np.nonzero(pid >= 0)[0]
-    on = on[np.lexsort((bid[on], pid[on]))]
+    on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
     for k, start in enumerate(p_starts):  # loop over patches, not rays
         idx = on[start : p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
