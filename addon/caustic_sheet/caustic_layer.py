@@ -135,10 +135,11 @@ def weighted_quantile(x, w, q):
 
 def _group_order(x, groups, n_groups: int) -> np.ndarray:
     """np.lexsort((x, groups)): the order by group, then by x (stable). Groups already
-    in order (contiguous runs, as the rasters' and beams' landings are) are sorted run
-    by run: many short sorts are several times faster than one two-key lexsort."""
+    in order (contiguous runs, as the rasters' and beams' landings are) and long are
+    sorted run by run: twice as fast as one two-key lexsort."""
     groups = np.asarray(groups)
-    if len(groups) < 2 or not np.all(groups[1:] >= groups[:-1]):
+    # short runs: one lexsort is cheaper than a sort call per run
+    if len(groups) < 64 * max(n_groups, 1) or not np.all(groups[1:] >= groups[:-1]):
         return np.lexsort((x, groups))
     bounds = np.searchsorted(groups, np.arange(n_groups + 1)).tolist()
     return np.concatenate(
@@ -179,11 +180,11 @@ def land_beams(
     on from there (a lens is not its own receiver; other lenses may be receivers)."""
     o = np.concatenate([b.exit_points.reshape(-1, 3) for b in beams])
     d = np.concatenate([b.exit_dirs.reshape(-1, 3) for b in beams])
-    sizes = [b.n_rays for b in beams]
-    scale = np.repeat(
-        [max(float(np.ptp(b.exit_points.reshape(-1, 3), axis=0).max()), 1e-300) for b in beams],
-        sizes,
-    )
+    sizes = [len(b.exit_points.reshape(-1, 3)) for b in beams]
+    # each beam's spread of exit points, all beams by one reduceat per bound
+    first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    spread = np.maximum.reduceat(o, first) - np.minimum.reduceat(o, first)
+    scale = np.repeat(np.maximum(spread.max(axis=1), 1e-300), sizes)
     h = intersect(index, o, d, t_min=-t_min_rel * scale)
     tri, point = h.triangle, h.point
     if own_objects is not None:
@@ -198,7 +199,12 @@ def land_beams(
             h.t[again] = h2.t
     patch = np.where(tri >= 0, index.patch_of[np.maximum(tri, 0)], -1)
     # a sample with no beam (its light inside the sphere) lands nowhere
-    valid = np.concatenate([np.repeat(b.valid, b.n_rays // len(b.valid)) for b in beams])
+    valid = np.repeat(
+        np.concatenate([b.valid for b in beams]),
+        np.concatenate(
+            [np.full(len(b.valid), n // len(b.valid)) for b, n in zip(beams, sizes, strict=True)]
+        ),
+    )
     patch = np.where(valid, patch, -1)
     # each node a quarter of its cells' flux: one bincount over all beams' corners
     starts = np.concatenate([[0], np.cumsum(sizes)])
