@@ -447,12 +447,38 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
                 lines.append(f"| {r['label']} | | | | | {r['status']} |")
     else:
         lines.append("Not run here (`--lightsheet ROWS.json`: rows of a local run).")
+    lines += ["", *speed_section(timings, gen)]
     lines += [
+        "## Texel blocks (the EEVEE showcase)",
         "",
+        "Every raster of a bake has the same resolution: one texel per pixel of the",
+        "largest caustic on screen, at most 128, and at most √(65 536 / sources) so that",
+        "all layers together keep within 65 536 faces (`addon/layer_plan.py`). With many",
+        "lenses the share is small (64 lenses: 32² each) whatever the screen size of each",
+        "caustic, so a caustic seen close up shows its texels as blocks, while a distant",
+        "one wastes them. Following the screen per receiver needs a resolution per raster",
+        "(faces shared in proportion to each caustic's size in pixels², within the same",
+        "total); the accumulation now indexes every raster by the one resolution, so this",
+        "is a change of `caustic_layer.build_layer`'s bookkeeping (a per-raster offset",
+        "and size), not of the method. Not done in this round. Meanwhile no texel is",
+        "finer than half a pixel (`pipeline.bake`'s ``texel_fraction``): EEVEE samples",
+        "each pixel at a few points, and a resting marble's sub-pixel core was drawn by",
+        "texels 1/40 of a pixel wide, which rendered as noise (a ±8 % flux change between",
+        "two renders of the same layer).",
+        "",
+    ]
+    path.write_text("\n".join(lines))
+
+
+def speed_section(timings, gen) -> list[str]:
+    """The "64 lens lights on a table" section's lines (its heading to the blank line
+    before the next heading)."""
+    lines = [
         "## 64 lens lights on a table (10 000 triangles)",
         "",
         "Marbles (R = 2 cm) resting on a table top meshed into 9 800 triangles, plus a floor",
-        "and a wall; one point light above. Best of 3 runs on a shared 2-core machine:",
+        "and a wall; one point light above. Best of 3 runs on a shared 2-core machine",
+        f"(load average {os.getloadavg()[0]:.1f} when this section was measured):",
         "CPU seconds of the process (what the machine's other users disturb least; the",
         "wall-clock seconds are beside them). *index*: planar patches + BVH of the scene",
         "(once per scene); *trace*: the 64 exact beams, one vectorised pass; *land*: all",
@@ -480,30 +506,29 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
         "The issue's goal is < 0.5 s for 64 lens lights of a table scene. Lost: flux that",
         "misses every receiver (exactly, 1e-4 of a marble's beam leaves it upward).",
         "",
-        "## Texel blocks (the EEVEE showcase)",
-        "",
-        "Every raster of a bake has the same resolution: one texel per pixel of the",
-        "largest caustic on screen, at most 128, and at most √(65 536 / sources) so that",
-        "all layers together keep within 65 536 faces (`addon/layer_plan.py`). With many",
-        "lenses the share is small (64 lenses: 32² each) whatever the screen size of each",
-        "caustic, so a caustic seen close up shows its texels as blocks, while a distant",
-        "one wastes them. Following the screen per receiver needs a resolution per raster",
-        "(faces shared in proportion to each caustic's size in pixels², within the same",
-        "total); the accumulation now indexes every raster by the one resolution, so this",
-        "is a change of `caustic_layer.build_layer`'s bookkeeping (a per-raster offset",
-        "and size), not of the method. Not done in this round. Meanwhile no texel is",
-        "finer than half a pixel (`pipeline.bake`'s ``texel_fraction``): EEVEE samples",
-        "each pixel at a few points, and a resting marble's sub-pixel core was drawn by",
-        "texels 1/40 of a pixel wide, which rendered as noise (a ±8 % flux change between",
-        "two renders of the same layer).",
-        "",
     ]
-    path.write_text("\n".join(lines))
+    return lines
+
+
+def update_speed_section(timings, gen, path):
+    """Replace only the "64 lens lights" section of the report at ``path`` (the rest,
+    e.g. EEVEE rows pasted from a local run, stays as it is)."""
+    text = path.read_text()
+    head = "## 64 lens lights on a table"
+    start = text.index(head)
+    end = text.index("\n## ", start + len(head)) + 1
+    path.write_text(text[:start] + "\n".join(speed_section(timings, gen)) + "\n" + text[end:])
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--quick", action="store_true", help="fewer timing repeats")
+    ap.add_argument(
+        "--speed-only",
+        action="store_true",
+        help="the accuracy rows (printed) and the 64-lens timings only; rewrites only the "
+        "report's '64 lens lights' section",
+    )
     ap.add_argument("--lightsheet", help="JSON rows of a local Lightsheet run to show")
     ap.add_argument("--eevee", help="JSON rows of EEVEE renders (real_scenes' measure)")
     args = ap.parse_args(argv)
@@ -518,8 +543,18 @@ def main(argv=None):
             f"{c['name']:>24}: L1 {c['l1']:.4f} flux ratio {c['flux_ratio']:.4f} "
             f"({c['seconds']:.3f} s)"
         )
-    extended = extended_cases(5e5 if args.quick else 2e6)
     repeats = 1 if args.quick else 3
+    if args.speed_only:
+        timings = [timing_case(8, 32, 32, repeats), timing_case(16, 64, 64, repeats)]
+        timings.append(timing_case(32, 128, 64, repeats))
+        for t in timings:
+            print(f"64 sources, {t['grid']}: {t['cpu']:.3f} s CPU ({t['total']:.3f} s wall)")
+        gen = generate_case(repeats)
+        print(f"64 sources as Generate bakes them: {gen['cpu']:.3f} s CPU")
+        update_speed_section(timings, gen, REPORTS / "caustic_layer.md")
+        print(f"updated the '64 lens lights' section of {REPORTS / 'caustic_layer.md'}")
+        return
+    extended = extended_cases(5e5 if args.quick else 2e6)
     timings = [
         timing_case(8, 32, 32, repeats),
         timing_case(16, 64, 64, repeats),

@@ -461,3 +461,71 @@ def test_no_texel_finer_than_the_floor_it_is_given():
     # a floor above the even texel: even texels, the best the resolution allows
     flat = _only(build_layer([beam], index, resolution=96, min_texel=[2.0 * uniform]))
     np.testing.assert_allclose(np.diff(flat.edges_u), uniform, rtol=1e-2)
+
+
+# --------------------------------------------------------------- the speed round's helpers
+
+
+@pytest.mark.parametrize("in_order", [True, False])
+def test_grouped_quantiles_are_np_interp_per_group(in_order):
+    """All groups' quantiles in one sort = np.interp in each group's cumulative weight
+    (`weighted_quantile`), whether the groups come in runs or shuffled."""
+    from addon.caustic_sheet.caustic_layer import grouped_interp_quantiles, weighted_quantile
+
+    rng = np.random.default_rng(3)
+    sizes = [1, 2, 7, 40, 300]
+    groups = np.repeat(np.arange(len(sizes)), sizes)
+    x = rng.normal(size=len(groups)) * 10.0
+    x[:3] = 0.5  # ties
+    w = rng.random(len(groups))
+    if not in_order:
+        o = rng.permutation(len(groups))
+        groups, x, w = groups[o], x[o], w[o]
+    qs = (0.0005, 0.5, 0.9995, 1.0)
+    got = grouped_interp_quantiles(x, w, groups, len(sizes), qs)
+    for g in range(len(sizes)):
+        sel = groups == g
+        want = [weighted_quantile(x[sel], w[sel], q) for q in qs]
+        np.testing.assert_allclose(got[g], want, rtol=1e-12, atol=1e-12)
+
+
+def test_point_samples_are_the_emitters_own_samples():
+    """The vectorised samples of point-like emitters = `source_samples` one by one; an
+    extended emitter or a sun is left to it (None)."""
+    from addon.caustic_sheet.emitters import SpotLight, point_samples, source_samples
+
+    lens = Lens(np.array([0.1, -0.2, 0.3]), 0.4, 1.5)
+    point = _point([1.0, 2.0, 3.0])
+    spot = SpotLight(np.array([-1.0, 0.5, 2.0]), np.array([0.0, 0.0, -1.0]), 7.0, 1.0)
+    pairs = [(point, lens), (spot, lens), (PointLight(np.ones(3) * 3, 1.0, radius=0.1), lens)]
+    pairs.append((SunLight(np.array([0.0, 0.0, -1.0]), 2.0), lens))
+    got = point_samples(pairs)
+    assert got[2] is None and got[3] is None
+    for sm, (e, ln) in zip(got[:2], pairs[:2], strict=True):
+        want = source_samples(e, ln, 16)
+        for name in ("points", "directions", "weights", "share_cells"):
+            np.testing.assert_array_equal(getattr(sm, name), getattr(want, name))
+        assert not sm.parallel and sm.share_grid == want.share_grid == 1
+        assert not np.any(want.shares)  # a point has no extent: None stands for zeros
+
+
+def test_planar_index_inverses_and_patches_match_numpys():
+    """The closed-form 2 × 2 inverses = np.linalg.inv; the patches (keys by lexsort):
+    one per object's plane, in np.unique(axis=0)'s order, triangles in index order."""
+    from addon.caustic_sheet.receiver_index import _inv2
+    from addon.caustic_sheet.receiver_patches import find_patches
+
+    m = np.random.default_rng(5).normal(size=(50, 2, 2))
+    np.testing.assert_allclose(_inv2(m), np.linalg.inv(m), rtol=1e-9, atol=1e-12)
+    mesh = merge(
+        rectangle([0, 0, 0], [0, 0, 1], 2.0, 2.0, 3, 3),
+        rectangle([0, 1, 1], [0, -1, 0], 2.0, 2.0, 2, 2, object_id=2),
+        rectangle([0, 0, 0.5], [0, 0, 1], 1.0, 1.0, 1, 1, object_id=3),
+    )
+    patch_of, patches = find_patches(mesh)
+    # one plane per object: a patch per object, in the keys' order (object id first)
+    assert [p.object_id for p in patches] == [0, 2, 3]
+    for k, p in enumerate(patches):
+        want = np.nonzero(np.asarray(mesh.ids) == p.object_id)[0]
+        np.testing.assert_array_equal(p.triangles, want)
+        np.testing.assert_array_equal(np.nonzero(patch_of == k)[0], want)

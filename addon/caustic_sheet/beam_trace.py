@@ -33,6 +33,7 @@ from .emitters import (
     SourceSamples,
     angular_factor,
     is_isotropic,
+    point_samples,
     source_samples,
 )
 
@@ -173,7 +174,11 @@ class _Batch:
 
 
 def _batch(pairs, n_source: int) -> _Batch:
-    samples = [source_samples(e, lens, n_source) for e, lens in pairs]
+    points = point_samples(pairs)
+    samples = [
+        sm if sm is not None else source_samples(e, lens, n_source)
+        for sm, (e, lens) in zip(points, pairs, strict=True)
+    ]
     lenses = [lens for _, lens in pairs]
     counts = [len(sm.weights) for sm in samples]
     rep = lambda v: np.repeat(np.asarray(v, dtype=float), counts, axis=0)  # noqa: E731

@@ -216,6 +216,32 @@ def source_samples(emitter, lens: Lens, k: int = 1) -> SourceSamples:
     raise TypeError(f"unknown emitter {type(emitter).__name__}")
 
 
+def point_samples(pairs) -> list:
+    """:func:`source_samples` of the (emitter, lens) pairs whose emitter is a point (a
+    point or spot light of radius 0: one sample whatever k), all at once (many lenses
+    under one lamp cost one set of array operations); None for the other pairs. Their
+    ``shares`` is None: a point has no extent to blur over."""
+    out = [None] * len(pairs)
+    idx = [
+        i
+        for i, (e, _) in enumerate(pairs)
+        if isinstance(e, (PointLight, SpotLight)) and not e.radius > 0.0
+    ]
+    if not idx:
+        return out
+    p = np.array([pairs[i][0].position for i in idx], dtype=float).reshape(-1, 3)
+    c = np.array([pairs[i][1].center for i in idx], dtype=float).reshape(-1, 3)
+    d = c - p
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    w = np.array([pairs[i][0].power for i in idx], dtype=float) / (4.0 * math.pi)
+    cells = np.zeros((1, 2), dtype=np.int64)
+    for k, i in enumerate(idx):
+        out[i] = SourceSamples(
+            False, p[k : k + 1], d[k : k + 1], w[k : k + 1], pairs[i][0], None, True, cells, 1
+        )
+    return out
+
+
 def _axes(a1, a2, k: int) -> np.ndarray:
     return np.broadcast_to(np.stack([a1, a2]), (k, 2, 3)).copy()
 

@@ -56,14 +56,20 @@ def find_patches(
     patch_of = np.full(len(t), -1, dtype=np.int64)
     if not ok.any():
         return patch_of, []
-    uniq, inverse = np.unique(keys[ok], axis=0, return_inverse=True)
-    patch_of[ok] = inverse.reshape(-1)
-    order = np.argsort(patch_of, kind="stable")
-    starts = np.searchsorted(patch_of[order], np.arange(len(uniq)))
-    ends = np.searchsorted(patch_of[order], np.arange(len(uniq)), side="right")
+    # the distinct keys in lexicographic order (np.unique(axis=0)'s, by one lexsort:
+    # many times faster than its sort of row records); triangles in index order
+    kept = np.nonzero(ok)[0]
+    o = kept[np.lexsort(keys[kept].T[::-1])]
+    ks = keys[o]
+    first = np.ones(len(o), dtype=bool)
+    first[1:] = np.any(ks[1:] != ks[:-1], axis=1)
+    patch_of[o] = np.cumsum(first) - 1
+    uniq = ks[first]
+    starts = np.nonzero(first)[0]
+    ends = np.append(starts[1:], len(o))
     patches = []
     for p in range(len(uniq)):  # loop over patches, not triangles
-        tri = order[starts[p] : ends[p]]
+        tri = o[starts[p] : ends[p]]
         n = nrm[tri].mean(axis=0)
         n /= np.linalg.norm(n)
         patches.append(ReceiverPatch(int(uniq[p, 0]), n, float(np.mean(off[tri])), tri))
