@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -40,6 +39,13 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 EXIT_BAD_INPUT = 2
+
+
+def _call(*args, **kwargs) -> int:
+    """`subprocess.call`, imported only by the commands that run one."""
+    import subprocess
+
+    return subprocess.call(*args, **kwargs)
 
 
 def _fail(message: str) -> int:
@@ -629,14 +635,14 @@ def cmd_test(args, extra) -> int:
     # is the same code on every release.
     marks = ["-m", "blender"] if release != DEFAULT_BLENDER and "-m" not in extra else []
     cmd = [sys.executable, "-m", "pytest", *targets, "-q", *marks, *extra]
-    code = subprocess.call(cmd, cwd=ROOT)
+    code = _call(cmd, cwd=ROOT)
     if code != 0 or chosen or not targets:
         return code
     print(
         f"lens-lights: the Blender tests on Blender {MINIMUM_BLENDER} (the manifest's minimum)",
         flush=True,
     )
-    return subprocess.call(
+    return _call(
         [str(ROOT / "lens-lights"), "test", "--blender", MINIMUM_BLENDER, *extra], cwd=ROOT
     )
 
@@ -649,8 +655,8 @@ def cmd_lint(args, extra) -> int:
     ruff = Path(sys.executable).with_name("ruff")
     if not ruff.is_file():
         return _fail(f"ruff is not installed beside {sys.executable}")
-    code = subprocess.call([str(ruff), "check", *extra, "."], cwd=ROOT)
-    return subprocess.call([str(ruff), "format", "--check", *extra, "."], cwd=ROOT) or code
+    code = _call([str(ruff), "check", *extra, "."], cwd=ROOT)
+    return _call([str(ruff), "format", "--check", *extra, "."], cwd=ROOT) or code
 
 
 # --------------------------------------------------------------------------- bench
@@ -661,7 +667,7 @@ def cmd_bench(args, extra) -> int:
     if not script.is_file():
         names = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_"))
         return _fail(f"no benchmark {args.name!r}; there are: {', '.join(names)}")
-    return subprocess.call([sys.executable, str(script), *extra], cwd=ROOT)
+    return _call([sys.executable, str(script), *extra], cwd=ROOT)
 
 
 # --------------------------------------------------------------------------- render, demo, build
@@ -734,13 +740,21 @@ def main(argv=None) -> int:
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
 
-    render = _load_script("render")
-    render.add_render_arguments(
-        sub.add_parser("render", help="render a .blend or .bi scene (with lens lights by default)")
+    p_render = sub.add_parser(
+        "render", help="render a .blend or .bi scene (with lens lights by default)"
     )
-    render.add_demo_arguments(
-        sub.add_parser("demo", help="render the showcase scene without and with lens lights")
-    )
+    p_demo = sub.add_parser("demo", help="render the showcase scene without and with lens lights")
+    # The command: the first word (the top-level parser has no option taking a value).
+    # Only render and demo need their options, hence scripts/render.py (and numpy).
+    command = next((a for a in (sys.argv[1:] if argv is None else argv) if a[:1] != "-"), None)
+    if command in ("render", "demo"):
+        render = _load_script("render")
+        render.add_render_arguments(p_render)
+        render.add_demo_arguments(p_demo)
+    if command == "phase1":
+        # Phase 1 is elementwise numpy: BLAS threads (OpenBLAS makes one per core at
+        # import) would only add their start-up to the command's time.
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     sub.add_parser(
         "build",
         add_help=False,
@@ -757,7 +771,7 @@ def main(argv=None) -> int:
     if args.command == "bench":
         return cmd_bench(args, extra)
     if args.command == "fuzz":
-        return subprocess.call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
+        return _call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
     if extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     return {"phase1": cmd_phase1, "render": cmd_render, "demo": cmd_render}[args.command](args)
