@@ -813,7 +813,8 @@ def _sphere_columns(block: bytes, count: int):
         return None
     if count == 0:
         return np.empty((len(_SPHERE_NUMBERS), 0))
-    a = np.frombuffer(block, dtype=np.uint8)
+    padded = np.frombuffer(block + bytes(_MAX_NUMBER_WIDTH), dtype=np.uint8)
+    a = padded[: len(block)]
     blank = np.empty(a.size + 2, dtype=bool)
     blank[0] = blank[-1] = True
     np.equal(a, _BLANK, out=blank[1:-1])
@@ -844,33 +845,43 @@ def _sphere_columns(block: bytes, count: int):
         key = _SPHERE_KEYS[k].encode()
         if np.any(length[:, k] != len(key)):
             return None
-        for j, byte in enumerate(key):
-            if np.any(a[start[:, k] + j] != byte):
-                return None
+        if np.any(_windows(padded, start[:, k], len(key)) != np.frombuffer(key, np.uint8)):
+            return None
     v = np.empty((len(_SPHERE_NUMBERS), count))
     for row, k in enumerate(_SPHERE_NUMBERS):
-        if not _convert_column(a, start[:, k], length[:, k], v[row]):
+        if not _convert_column(padded, start[:, k], length[:, k], v[row]):
             return None
     return v
 
 
-def _convert_column(a, start, length, out) -> bool:
-    """Convert the number tokens a[start : start + length] into `out`; False if one
-    is too long for the gather."""
+def _windows(padded, start, width):
+    """padded[start[r] : start[r] + width] of every r, as rows (len(start), width):
+    a sliding-window view indexed by row (no index made per byte)."""
+    from numpy.lib.stride_tricks import as_strided
+
+    view = as_strided(padded, shape=(padded.size - width + 1, width), strides=(1, 1))
+    return view[start]
+
+
+def _convert_column(padded, start, length, out) -> bool:
+    """Convert the number tokens padded[start : start + length] into `out`; False if
+    one is too long for the gather (`padded`: the block, then _MAX_NUMBER_WIDTH
+    zero bytes)."""
     import numpy as np
 
     if not length.size:
         return True
-    s0, n0 = int(start[0]), int(length[0])
-    if np.all(length == n0) and all(np.all(a[start + j] == a[s0 + j]) for j in range(n0)):
-        out[:] = float(a[s0 : s0 + n0].tobytes())  # one material for all: one value
-        return True
+    n0 = int(length[0])
+    if np.all(length == n0):
+        texts = _windows(padded, start, n0)
+        if np.all(texts == texts[0]):  # one material for all: one value
+            out[:] = float(texts[0].tobytes())
+            return True
     width = int(length.max())
     if width > _MAX_NUMBER_WIDTH:
         return False
-    offset = np.arange(width)
-    chars = a[np.minimum(start[:, None] + offset, a.size - 1)]
-    chars[offset >= length[:, None]] = 0  # padding: numpy's bytes strings end there
+    chars = _windows(padded, start, width)
+    chars[np.arange(width) >= length[:, None]] = 0  # numpy's bytes strings end there
     out[:] = chars.view(f"S{width}").ravel().astype(float)  # ValueError: not a number
     return True
 
