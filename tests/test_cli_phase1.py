@@ -481,3 +481,38 @@ def test_gather_and_matrix_texts_against_slices():
             ]
             want = [[orjson.dumps(x, option=orjson.OPT_SERIALIZE_NUMPY) for x in row] for row in v]
             assert texts == want
+
+
+def test_phase1_starts_lean_and_render_keeps_its_options():
+    """`phase1` loads neither scripts/render.py nor subprocess, and runs numpy with one
+    BLAS thread unless the user chose otherwise; `render` and `demo` still have their
+    options (loaded for them only)."""
+    import os
+    import sys
+
+    code = (
+        "import contextlib, io, json, os, sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'scripts')!r})\n"
+        "import cli\n"
+        "out = io.TextIOWrapper(io.BytesIO())\n"
+        "with contextlib.redirect_stdout(out):\n"
+        f"    code = cli.main(['phase1', {str(FIG1)!r}, '--json'])\n"
+        "print(json.dumps([code, 'lens_lights_scripts_render' in sys.modules,\n"
+        "    'subprocess' in sys.modules, os.environ.get('OPENBLAS_NUM_THREADS')]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1]) == [0, False, False, "1"]
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert json.loads(res.stdout.splitlines()[-1])[3] == "2"
+    for command, option in (("render", "--engine"), ("demo", "--out")):
+        res = subprocess.run(
+            [str(LAUNCHER), command, "--help"], capture_output=True, text=True, timeout=300
+        )
+        assert res.returncode == 0 and option in res.stdout, res.stderr
