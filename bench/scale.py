@@ -439,8 +439,11 @@ def main(argv=None) -> int:
         "on its bytes (`bi_format._arrays_from_bytes`: comments blanked in place, the "
         "sphere block checked whole, each column cast at once), the JSON from two orjson "
         "matrices per chunk (a row's floats, its ints) gathered through a reused "
-        "cumulative-sum index, and a leaner start-up (no render script for `phase1`, "
-        "one BLAS thread). Since the third round phase 1 also takes the union of "
+        "cumulative-sum index, a leaner start-up (no render script for `phase1`, "
+        "one BLAS thread), and glibc keeping freed memory for reuse (the launcher sets "
+        "MALLOC_MMAP_THRESHOLD_ and MALLOC_TRIM_THRESHOLD_ for `phase1`: numpy's large "
+        "temporaries no longer fault fresh pages in, each time; the in-process stages "
+        "below run without it). Since the third round phase 1 also takes the union of "
         "the blockers' shadows with a glass blocker's Fresnel share "
         "(`shadow_mask`): most of its time in these scenes of glass droplets.",
         "",
