@@ -600,18 +600,40 @@ def read_bi_arrays(path: PathLike):
     """What phase 1 needs of a `.bi` file (`phase1.SceneArrays`): the very numbers
     of `SceneArrays.from_scene(read_bi(path))`, read as columns without a Python
     object per sphere when the spheres are written one record a line (as
-    `format_bi` writes them). Anything else, and every error, goes through
-    `read_bi`'s record reader: the same scene, the same messages."""
-    text, name = _read_text(path)
-    return parse_bi_arrays(text, name)
+    `format_bi` writes them): numpy on the file's bytes (`_arrays_from_bytes`),
+    else on its text (`_arrays_in_layout`). Anything else, and every error, goes
+    through `read_bi`'s record reader: the same scene, the same messages."""
+    name = os.fspath(path)
+    try:
+        with open(name, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise BiFormatError(name, None, f"cannot read the file: {exc.strerror or exc}") from exc
+    arrays = _arrays_or_none(_arrays_from_bytes, data, name)
+    return arrays if arrays is not None else _parse_arrays_text(_decode(data, name), name)
 
 
 def parse_bi_arrays(text: str, path: str = "<string>"):
     """`read_bi_arrays` on the text of a file."""
+    arrays = None
+    if text.isascii():
+        arrays = _arrays_or_none(_arrays_from_bytes, text.encode("ascii"), path)
+    return arrays if arrays is not None else _parse_arrays_text(text, path)
+
+
+def _arrays_or_none(fast, data, path):
+    """A fast path's arrays, or None where it gives up (or trips on unusual text:
+    the slower paths then decide, and name the line)."""
     try:
-        arrays = _arrays_in_layout(text, path)
-    except Exception:  # unusual text: the record reader decides (and names the line)
-        arrays = None
+        return fast(data, path)
+    except Exception:
+        return None
+
+
+def _parse_arrays_text(text: str, path: str):
+    """The text paths: spheres one record a line as lists of tokens, else the record
+    reader."""
+    arrays = _arrays_or_none(_arrays_in_layout, text, path)
     if arrays is None:
         from .phase1 import SceneArrays
 
@@ -621,6 +643,7 @@ def parse_bi_arrays(text: str, path: str = "<string>"):
 
 #: The objects' count record: the only key "O" (none of the records before it has it).
 _OBJECTS_LINE = re.compile(r"^[^\S\n]*O(?:[^\S\n][^\n]*)?$", re.MULTILINE)
+_OBJECTS_LINE_BYTES = re.compile(rb"^[^\S\n]*O(?:[^\S\n][^\n]*)?$", re.MULTILINE)
 #: First character of each record of a sphere, in the written order.
 _SPHERE_LINE_STARTS = "TCRS" + "#" * 7
 _SPHERE_LINES = len(_SPHERE_LINE_STARTS)
@@ -635,8 +658,6 @@ def _arrays_in_layout(text: str, path: str):
     line holds two records or a part of one), values checked as the reader does
     (the number syntax, finite, the ranges), converted per column."""
     import numpy as np
-
-    from .phase1 import SceneArrays
 
     if "\r" in text:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
@@ -665,25 +686,204 @@ def _arrays_in_layout(text: str, path: str):
     for row, k in enumerate(_SPHERE_NUMBERS):
         if not _number_column(tokens[k::_SPHERE_TOKENS], v[row]):
             return None
+    return _scene_arrays(lights, [tokens for tokens, _ in head.colors], v)
+
+
+def _scene_arrays(lights: list[Light], light_colors: list[list[str]], v):
+    """`SceneArrays` of the head's lights (their colours as tokens: the scale waits
+    for the spheres') and the sphere columns `v` (`_SPHERE_NUMBERS`' values, one row
+    each), or None if a sphere value is out of the grammar's ranges (the record
+    reader then names its line)."""
+    import numpy as np
+
+    from .phase1 import SceneArrays
+
     center, radius, color = v[0:3].T, v[3], v[4:7]
     ka, kd, ks, kt, ex, ior = v[7], v[8], v[9], v[10], v[11], v[12]
     if not _spheres_in_range(v, radius, color, ka, kd, ks, kt, ex, ior):
         return None
-    light_tokens = [tokens for tokens, _ in head.colors]
-    above_one = bool(np.any(color > 1.0)) or any(float(t) > 1.0 for c in light_tokens for t in c)
+    above_one = bool(np.any(color > 1.0)) or any(float(t) > 1.0 for c in light_colors for t in c)
     scale = 255.0 if above_one else 1.0
     n = len(lights)
     return SceneArrays(
         light_position=np.array([lt.position for lt in lights], dtype=float).reshape(n, 3),
         light_brightness=np.array([lt.brightness for lt in lights], dtype=float).reshape(n),
         light_color=np.array(
-            [[_color_from_text(t, scale) for t in c] for c in light_tokens], dtype=float
+            [[_color_from_text(t, scale) for t in c] for c in light_colors], dtype=float
         ).reshape(n, 3),
         center=np.ascontiguousarray(center),
         radius=radius.copy(),
         ior=ior.copy(),
         kt=kt.copy(),
     )
+
+
+# The bytes path: numpy over the file's bytes, no Python object per line or token.
+# It takes a file whose spheres are one record a line in the written order (blanks,
+# tabs, blank lines and comments anywhere) and gives up (None) on anything else.
+
+_BLANK, _NEWLINE, _TAB = ord(" "), ord("\n"), ord("\t")
+#: Bytes of the sphere block besides the keys' letters: blanks and the number syntax.
+_NUMBER_BYTES = b"0123456789.eE+- \t\n"
+#: What deleting `_NUMBER_BYTES` leaves of one sphere's keys ("T0CRS#C…" → "TCRS#C…").
+_KEY_LETTERS = "".join(k for k in _SPHERE_KEYS if k).encode().translate(None, _NUMBER_BYTES)
+#: Token indices (in a sphere's 25) that begin a record, hence a line.
+_RECORD_STARTS = [k for k, key in enumerate(_SPHERE_KEYS) if key is not None and key != "0"]
+#: Widest number token the bytes path gathers (longer ones: the text path).
+_MAX_NUMBER_WIDTH = 64
+
+
+def _arrays_from_bytes(data: bytes, path: str):
+    """The `SceneArrays` of a file's bytes, or None (then the text paths decide).
+
+    Comments are blanked in place (newlines kept: every token stays on its line);
+    the head (the records before the objects) goes through the record reader. The
+    sphere block is checked as a whole: deleting blanks and number bytes leaves
+    exactly the keys' letters of `count` spheres in order; there are 25 tokens per
+    sphere, the keys are whole tokens where the layout puts them, and a newline
+    stands before each record and nowhere inside one. Then every other token is a
+    number of ASCII digits, `.`, `e`, `E`, `+`, `-`, which `float` reads iff it
+    matches the grammar (`_FLOAT_RE`); each column is converted by numpy's cast
+    (the same correctly rounded double as `float`), a column of one repeated token
+    once."""
+    import numpy as np
+
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if not data.isascii():
+        data.decode("utf-8")  # bad UTF-8: the text path's message
+        # UTF-8 in a comment is fine; anywhere else the text paths decide.
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if b"/*" in data or b"*/" in data:
+        blanked = _blank_comments(np.frombuffer(data, dtype=np.uint8))
+        if blanked is None:
+            return None
+        data = blanked.tobytes()
+    if not data.isascii():
+        return None
+    m = _OBJECTS_LINE_BYTES.search(data)
+    if m is None:
+        return None
+    head = _Reader(data[: m.end()].decode("ascii"), path)
+    _, _, _, lights, count = head.head()
+    if head.peek() is not None:
+        return None
+    v = _sphere_columns(data[m.end() :], count)
+    if v is None:
+        return None
+    return _scene_arrays(lights, [tokens for tokens, _ in head.colors], v)
+
+
+def _blank_comments(a):
+    """The bytes `a` with each /* … */ comment's bytes blanked, newlines kept (the
+    record reader's rule: the first "/*", then the first "*/" after it), or None if
+    comments are not simple (nested openings, a stray or missing end)."""
+    import numpy as np
+
+    from .ranges import concat_ranges
+
+    slash = np.flatnonzero(a == ord("/"))
+    opens = slash[slash + 1 < a.size]
+    opens = opens[a[opens + 1] == ord("*")]
+    closes = slash[slash > 0] - 1
+    closes = closes[a[closes] == ord("*")]
+    # "/*/": that '*' opens (or, inside a comment, closes: then it is given up below)
+    closes = closes[(closes == 0) | (a[closes - 1] != ord("/"))]
+    if opens.size != closes.size:
+        return None
+    # open < its close (not sharing the '*') < the next open (not sharing the '/')
+    if np.any(closes < opens + 2) or np.any(opens[1:] < closes[:-1] + 2):
+        return None
+    inside = concat_ranges(opens, closes + 2 - opens)
+    out = a.copy()
+    out[inside[a[inside] != _NEWLINE]] = _BLANK
+    return out
+
+
+def _sphere_columns(block: bytes, count: int):
+    """The `_SPHERE_NUMBERS` columns (rows of `count` values) of a sphere block in the
+    written layout (see `_arrays_from_bytes`), or None."""
+    import numpy as np
+
+    n_tokens = _SPHERE_TOKENS * count
+    if 2 * n_tokens > len(block):  # each token and the blank before it: a byte at least
+        return None
+    if block.translate(None, _NUMBER_BYTES) != _KEY_LETTERS * count:
+        return None
+    if count == 0:
+        return np.empty((len(_SPHERE_NUMBERS), 0))
+    padded = np.frombuffer(block + bytes(_MAX_NUMBER_WIDTH), dtype=np.uint8)
+    a = padded[: len(block)]
+    blank = np.empty(a.size + 2, dtype=bool)
+    blank[0] = blank[-1] = True
+    np.equal(a, _BLANK, out=blank[1:-1])
+    blank[1:-1] |= a == _NEWLINE
+    blank[1:-1] |= a == _TAB
+    edges = np.flatnonzero(blank[1:] != blank[:-1])
+    if edges.size != 2 * n_tokens:
+        return None
+    start, end = edges[0::2], edges[1::2]
+    # A newline in the gap before each record's first token, none before the others.
+    # The gaps' first or last byte tells (a blank line, a blanked comment line, the
+    # indentation of a key); the rest (trailing blanks) are counted.
+    gap_start, gap_end = np.r_[0, end[:-1]], start
+    nl = (a[gap_start] == _NEWLINE) | (a[gap_end - 1] == _NEWLINE)
+    unsure = np.flatnonzero(~nl & (gap_end - gap_start > 2))
+    if unsure.size:
+        lines = np.flatnonzero(a == _NEWLINE)
+        nl[unsure] = np.searchsorted(lines, gap_start[unsure]) < np.searchsorted(
+            lines, gap_end[unsure]
+        )
+    want = np.zeros(_SPHERE_TOKENS, dtype=bool)
+    want[_RECORD_STARTS] = True
+    if np.any(nl.reshape(count, _SPHERE_TOKENS) != want):
+        return None
+    start = start.reshape(count, _SPHERE_TOKENS)
+    length = end.reshape(count, _SPHERE_TOKENS) - start
+    for k in _KEY_COLUMNS:
+        key = _SPHERE_KEYS[k].encode()
+        if np.any(length[:, k] != len(key)):
+            return None
+        if np.any(_windows(padded, start[:, k], len(key)) != np.frombuffer(key, np.uint8)):
+            return None
+    v = np.empty((len(_SPHERE_NUMBERS), count))
+    for row, k in enumerate(_SPHERE_NUMBERS):
+        if not _convert_column(padded, start[:, k], length[:, k], v[row]):
+            return None
+    return v
+
+
+def _windows(padded, start, width):
+    """padded[start[r] : start[r] + width] of every r, as rows (len(start), width):
+    a sliding-window view indexed by row (no index made per byte)."""
+    from numpy.lib.stride_tricks import as_strided
+
+    view = as_strided(padded, shape=(padded.size - width + 1, width), strides=(1, 1))
+    return view[start]
+
+
+def _convert_column(padded, start, length, out) -> bool:
+    """Convert the number tokens padded[start : start + length] into `out`; False if
+    one is too long for the gather (`padded`: the block, then _MAX_NUMBER_WIDTH
+    zero bytes)."""
+    import numpy as np
+
+    if not length.size:
+        return True
+    n0 = int(length[0])
+    if np.all(length == n0):
+        texts = _windows(padded, start, n0)
+        if np.all(texts == texts[0]):  # one material for all: one value
+            out[:] = float(texts[0].tobytes())
+            return True
+    width = int(length.max())
+    if width > _MAX_NUMBER_WIDTH:
+        return False
+    chars = _windows(padded, start, width)
+    chars[np.arange(width) >= length[:, None]] = 0  # numpy's bytes strings end there
+    out[:] = chars.view(f"S{width}").ravel().astype(float)  # ValueError: not a number
+    return True
 
 
 def _number_column(tokens: list[str], out) -> bool:

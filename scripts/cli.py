@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -40,6 +39,13 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 EXIT_BAD_INPUT = 2
+
+
+def _call(*args, **kwargs) -> int:
+    """`subprocess.call`, imported only by the commands that run one."""
+    import subprocess
+
+    return subprocess.call(*args, **kwargs)
 
 
 def _fail(message: str) -> int:
@@ -395,19 +401,49 @@ class _Pieces:
         return cls(items.buf.tobytes(), start, length)
 
 
-def _join_rows(fields: list[_Pieces]) -> bytes:
-    """Row by row, each field's text in turn: one gather of bytes (a chunk
-    fitting the caches: the gather is the writer's main cost)."""
+def _matrix_texts(values):
+    """orjson's text of a 2-D numeric array (n ≥ 1 rows, k columns) as bytes, and
+    where each number's text starts and ends in it (n, k): "[[a,b],[c,d]]" has
+    k − 1 commas inside each row and one after it (the last row's: its final "]").
+    A non-finite float is orjson's null."""
+    import numpy as np
+    import orjson
+
+    buf = orjson.dumps(np.ascontiguousarray(values), option=orjson.OPT_SERIALIZE_NUMPY)
+    n, k = values.shape
+    b = np.frombuffer(buf, dtype=np.uint8)
+    sep = np.append(np.flatnonzero(b == ord(",")), len(buf) - 1).reshape(n, k)
+    start, end = np.empty((n, k), dtype=np.int64), np.empty((n, k), dtype=np.int64)
+    start[:, 1:], end[:, :-1] = sep[:, :-1] + 1, sep[:, :-1]
+    start[0, 0], start[1:, 0] = 2, sep[:-1, -1] + 2  # after "[[", after "],["
+    end[:, -1] = sep[:, -1] - 1  # before the row's "]"
+    return b, start, end
+
+
+def _gather(src, start, length, work=None) -> bytes:
+    """The bytes src[start[p] : start[p] + length[p]] of every piece p in turn, in one
+    numpy gather: the index of each output byte is the previous one + 1 within a
+    piece, a jump where a piece begins (a cumulative sum, no index per byte made in
+    Python). `work`: a list holding an int64 buffer reused from call to call (fresh
+    arrays of this size cost page faults)."""
     import numpy as np
 
-    base = np.cumsum([0] + [f.buf.size for f in fields])
-    big = np.concatenate([f.buf for f in fields])
-    start = np.stack([f.start + b for f, b in zip(fields, base[:-1], strict=True)], axis=1)
-    length = np.stack([f.length for f in fields], axis=1).ravel()
-    first = np.cumsum(length) - length  # where each piece begins in the output
-    idx = np.repeat(start.ravel() - first, length)
-    idx += np.arange(idx.size)
-    return big[idx].tobytes()
+    keep = length > 0
+    start, length = start[keep], length[keep]
+    if not start.size:
+        return b""
+    ends = np.cumsum(length)
+    total = int(ends[-1])
+    if work is None:
+        work = [np.empty(0, dtype=np.int64)]
+    if work[0].size < total:
+        work[0] = np.empty(total, dtype=np.int64)
+    idx = work[0][:total]
+    idx.fill(1)
+    idx[0] = start[0]
+    idx[ends[:-1]] = start[1:] - start[:-1] - length[:-1] + 1
+    np.cumsum(idx, out=idx)
+    return src[idx].tobytes()
 
 
 #: Sources per chunk of the compact writer (about 0.6 kB of text each).
@@ -418,8 +454,10 @@ def phase1_compact_json(result, lights, model: str):
     """The compact JSON of `phase1 --json` as chunks of bytes (one document,
     streamed COMPACT_CHUNK sources at a time), printed by orjson straight from the
     columns and assembled by numpy: no dict and no Python object per source or
-    per number (each field's texts are ranges of one orjson output; a row is
-    the template's constant pieces and its fields' ranges, gathered at once).
+    per number. Per chunk, orjson prints two matrices (the ints light, lens; the
+    20 floats of a row in the row's order, null where a field is null) and the
+    shadow lists; a row is the template's constant texts and ranges of those
+    outputs (a vector's "x,y,z" is one range), gathered at once (`_gather`).
 
     The same JSON content as `write_phase1_json` of `phase1_json_rows` (the
     json module's writer, kept for `--indent`), with one difference in form and
@@ -434,8 +472,25 @@ def phase1_compact_json(result, lights, model: str):
     t = result.table
     col = t.kind == 2
     with np.errstate(divide="ignore", invalid="ignore"):
-        image = 1.0 / t.vergence
-        magnification = -1.0 / (t.vergence * t.distance)
+        image = np.where(col, np.nan, 1.0 / t.vergence)
+        magnification = np.where(col, np.nan, -1.0 / (t.vergence * t.distance))
+    # The floats of a row in the order it prints them (columns of `floats` below).
+    float_columns = [
+        *t.position.T,
+        *t.axis.T,
+        np.degrees(t.spread),
+        np.where(col, t.cylinder_radius, np.nan),
+        t.intensity,
+        *t.color.T,
+        image,
+        magnification,
+        t.brightness_factor,
+        t.unblocked_fraction,
+        lights.energy_w,
+        lights.spot_size_deg,
+        lights.spot_blend,
+        lights.radius,
+    ]
     kinds = [orjson.dumps(k).decode() for k in t.KINDS]
     profiles = None
     if lights.profile_info is not None:
@@ -444,72 +499,90 @@ def phase1_compact_json(result, lights, model: str):
             for p in lights.json_columns()["profile"]
         ]
     offsets = t.shadow_offsets
-    num = _Pieces.numbers
-    # (the text before a field, the field's texts for the rows a:b)
-    fields = [
-        (',{"light":', lambda a, b: num(t.light[a:b])),
-        (',"lens":', lambda a, b: num(t.lens[a:b])),
-        (',"kind":', lambda a, b: _Pieces.choice(kinds, t.kind[a:b])),
-        *[
-            (pre + "[" if c == 0 else ",", lambda a, b, x=x, c=c: num(x[a:b, c]))
-            for pre, x in ((',"position":', t.position), ('],"axis":', t.axis))
-            for c in range(3)
-        ],
-        ('],"spread_deg":', lambda a, b: num(np.degrees(t.spread[a:b]))),
-        (',"cylinder_radius":', lambda a, b: num(t.cylinder_radius[a:b], ~col[a:b])),
-        (',"intensity":', lambda a, b: num(t.intensity[a:b])),
-        *[
-            (',"color":[' if c == 0 else ",", lambda a, b, c=c: num(t.color[a:b, c]))
-            for c in range(3)
-        ],
-        (
-            '],"full":',
-            lambda a, b: _Pieces.choice(["false", "true"], offsets[a + 1 : b + 1] == offsets[a:b]),
-        ),
-        (
-            ',"shadow_list":[',
-            lambda a, b: _Pieces.lists(
-                t.shadow_spheres[offsets[a] : offsets[b]], offsets[a : b + 1] - offsets[a]
-            ),
-        ),
-        ('],"image_distance":', lambda a, b: num(image[a:b], col[a:b])),
-        (',"magnification":', lambda a, b: num(magnification[a:b], col[a:b])),
-        (',"brightness_factor":', lambda a, b: num(t.brightness_factor[a:b])),
-        (',"unblocked_fraction":', lambda a, b: num(t.unblocked_fraction[a:b])),
-        (
-            ',"blender_light":{"type":"SPOT","energy_w":',
-            lambda a, b: num(lights.energy_w[a:b]),
-        ),
-        (',"spot_size_deg":', lambda a, b: num(lights.spot_size_deg[a:b])),
-        (',"spot_blend":', lambda a, b: num(lights.spot_blend[a:b])),
-        (',"radius":', lambda a, b: num(lights.radius[a:b])),
+    # A row: constant text, then a range of a source, in turn. Sources: "i" the ints'
+    # text, "f" the floats', (column, last column) of their matrix; or a `_Pieces`.
+    template = [
+        (',{"light":', ("i", 0, 0)),
+        (',"lens":', ("i", 1, 1)),
+        (',"kind":', "kind"),
+        (',"position":[', ("f", 0, 2)),
+        ('],"axis":[', ("f", 3, 5)),
+        ('],"spread_deg":', ("f", 6, 6)),
+        (',"cylinder_radius":', ("f", 7, 7)),
+        (',"intensity":', ("f", 8, 8)),
+        (',"color":[', ("f", 9, 11)),
+        ('],"full":', "full"),
+        (',"shadow_list":[', "shadow"),
+        ('],"image_distance":', ("f", 12, 12)),
+        (',"magnification":', ("f", 13, 13)),
+        (',"brightness_factor":', ("f", 14, 14)),
+        (',"unblocked_fraction":', ("f", 15, 15)),
+        (',"blender_light":{"type":"SPOT","energy_w":', ("f", 16, 16)),
+        (',"spot_size_deg":', ("f", 17, 17)),
+        (',"spot_blend":', ("f", 18, 18)),
+        (',"radius":', ("f", 19, 19)),
     ]
     if profiles is not None:
-
-        def profile_texts(a, b):
-            lengths = np.array([len(p) for p in profiles[a:b]], dtype=np.int64)
-            return _Pieces(b"".join(profiles[a:b]), np.cumsum(lengths) - lengths, lengths)
-
-        fields.append((',"profile":', profile_texts))
-    fields.append(("}}", None))
+        template.append((',"profile":', "profile"))
+    template.append(("}}", None))
+    const = [text.encode() for text, _ in template]
+    const_buf = np.frombuffer(b"".join(const), dtype=np.uint8)
+    const_len = np.array([len(c) for c in const], dtype=np.int64)
+    const_start = np.cumsum(const_len) - const_len
     reasons = _skip_reasons(result)
+    work = [np.empty(0, dtype=np.int64)]  # `_gather`'s index buffer
+
+    def rows(a, b):
+        n = b - a
+        ints_buf, i_start, i_end = _matrix_texts(np.stack([t.light[a:b], t.lens[a:b]], axis=1))
+        floats = np.empty((n, len(float_columns)))
+        for c, column in enumerate(float_columns):
+            floats[:, c] = column[a:b]
+        float_buf, f_start, f_end = _matrix_texts(floats)
+        other = {
+            "kind": _Pieces.choice(kinds, t.kind[a:b]),
+            "full": _Pieces.choice(["false", "true"], offsets[a + 1 : b + 1] == offsets[a:b]),
+            "shadow": _Pieces.lists(
+                t.shadow_spheres[offsets[a] : offsets[b]], offsets[a : b + 1] - offsets[a]
+            ),
+        }
+        if profiles is not None:
+            lengths = np.array([len(p) for p in profiles[a:b]], dtype=np.int64)
+            other["profile"] = _Pieces(
+                b"".join(profiles[a:b]), np.cumsum(lengths) - lengths, lengths
+            )
+        bufs = [const_buf, ints_buf, float_buf] + [p.buf for p in other.values()]
+        sizes = np.cumsum([0] + [x.size for x in bufs])[:-1]
+        base = dict(zip(["const", "i", "f", *other], sizes, strict=True))
+        start = np.empty((n, 2 * len(template)), dtype=np.int64)
+        length = np.zeros((n, 2 * len(template)), dtype=np.int64)
+        for p, (_, source) in enumerate(template):
+            start[:, 2 * p] = base["const"] + const_start[p]
+            length[:, 2 * p] = const_len[p]
+            if source is None:
+                continue
+            if isinstance(source, tuple):
+                name, first, last = source
+                s, e = (i_start, i_end) if name == "i" else (f_start, f_end)
+                start[:, 2 * p + 1] = base[name] + s[:, first]
+                length[:, 2 * p + 1] = e[:, last] - s[:, first]
+            else:
+                start[:, 2 * p + 1] = base[source] + other[source].start
+                length[:, 2 * p + 1] = other[source].length
+        return _gather(np.concatenate(bufs), start.ravel(), length.ravel(), work)
 
     def chunks():
         yield b'{"model":' + orjson.dumps(model) + b',"sources":['
         n = len(t)
         for a in range(0, n, COMPACT_CHUNK):
-            b = min(a + COMPACT_CHUNK, n)
-            pieces = []
-            for before, texts in fields:
-                pieces.append(_Pieces.constant(before, b - a))
-                if texts is not None:
-                    pieces.append(texts(a, b))
-            text = _join_rows(pieces)
+            text = rows(a, min(a + COMPACT_CHUNK, n))
             yield text[1:] if a == 0 else text  # no comma before the first row
         yield b'],"skipped":['
         for a in range(0, len(reasons), JSON_CHUNK):
-            rows = [{"light": j, "lens": i, "reason": r} for j, i, r in reasons[a : a + JSON_CHUNK]]
-            yield (b"," if a else b"") + orjson.dumps(rows)[1:-1]
+            rows_ = [
+                {"light": j, "lens": i, "reason": r} for j, i, r in reasons[a : a + JSON_CHUNK]
+            ]
+            yield (b"," if a else b"") + orjson.dumps(rows_)[1:-1]
         yield b"]}\n"
 
     return chunks()
@@ -562,14 +635,14 @@ def cmd_test(args, extra) -> int:
     # is the same code on every release.
     marks = ["-m", "blender"] if release != DEFAULT_BLENDER and "-m" not in extra else []
     cmd = [sys.executable, "-m", "pytest", *targets, "-q", *marks, *extra]
-    code = subprocess.call(cmd, cwd=ROOT)
+    code = _call(cmd, cwd=ROOT)
     if code != 0 or chosen or not targets:
         return code
     print(
         f"lens-lights: the Blender tests on Blender {MINIMUM_BLENDER} (the manifest's minimum)",
         flush=True,
     )
-    return subprocess.call(
+    return _call(
         [str(ROOT / "lens-lights"), "test", "--blender", MINIMUM_BLENDER, *extra], cwd=ROOT
     )
 
@@ -582,8 +655,8 @@ def cmd_lint(args, extra) -> int:
     ruff = Path(sys.executable).with_name("ruff")
     if not ruff.is_file():
         return _fail(f"ruff is not installed beside {sys.executable}")
-    code = subprocess.call([str(ruff), "check", *extra, "."], cwd=ROOT)
-    return subprocess.call([str(ruff), "format", "--check", *extra, "."], cwd=ROOT) or code
+    code = _call([str(ruff), "check", *extra, "."], cwd=ROOT)
+    return _call([str(ruff), "format", "--check", *extra, "."], cwd=ROOT) or code
 
 
 # --------------------------------------------------------------------------- bench
@@ -594,7 +667,7 @@ def cmd_bench(args, extra) -> int:
     if not script.is_file():
         names = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_"))
         return _fail(f"no benchmark {args.name!r}; there are: {', '.join(names)}")
-    return subprocess.call([sys.executable, str(script), *extra], cwd=ROOT)
+    return _call([sys.executable, str(script), *extra], cwd=ROOT)
 
 
 # --------------------------------------------------------------------------- render, demo, build
@@ -667,13 +740,21 @@ def main(argv=None) -> int:
     p = sub.add_parser("bench", help="run a benchmark of bench/ (extra args go to it)")
     p.add_argument("name", help="benchmark name, e.g. scale or accuracy")
 
-    render = _load_script("render")
-    render.add_render_arguments(
-        sub.add_parser("render", help="render a .blend or .bi scene (with lens lights by default)")
+    p_render = sub.add_parser(
+        "render", help="render a .blend or .bi scene (with lens lights by default)"
     )
-    render.add_demo_arguments(
-        sub.add_parser("demo", help="render the showcase scene without and with lens lights")
-    )
+    p_demo = sub.add_parser("demo", help="render the showcase scene without and with lens lights")
+    # The command: the first word (the top-level parser has no option taking a value).
+    # Only render and demo need their options, hence scripts/render.py (and numpy).
+    command = next((a for a in (sys.argv[1:] if argv is None else argv) if a[:1] != "-"), None)
+    if command in ("render", "demo"):
+        render = _load_script("render")
+        render.add_render_arguments(p_render)
+        render.add_demo_arguments(p_demo)
+    if command == "phase1":
+        # Phase 1 is elementwise numpy: BLAS threads (OpenBLAS makes one per core at
+        # import) would only add their start-up to the command's time.
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     sub.add_parser(
         "build",
         add_help=False,
@@ -690,7 +771,7 @@ def main(argv=None) -> int:
     if args.command == "bench":
         return cmd_bench(args, extra)
     if args.command == "fuzz":
-        return subprocess.call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
+        return _call([sys.executable, str(ROOT / "scripts" / "fuzz_bi.py"), *extra])
     if extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     return {"phase1": cmd_phase1, "render": cmd_render, "demo": cmd_render}[args.command](args)

@@ -901,3 +901,173 @@ def test_comment_stripping_matches_the_rule(text):
     want.append(text[pos:])
     assert got == "".join(want)
     assert re.sub(r"\s+", " ", got) == re.sub(r"\s+", " ", "".join(want))
+
+
+# --------------------------------------------------------------------------- #
+# The bytes path of `read_bi_arrays` (`_arrays_from_bytes`: numpy over the file's
+# bytes) against the record reader: the same arrays bit for bit, or it gives up
+# (None) and the text paths decide; never arrays for a file the reader refuses.
+
+
+def bytes_path(text):
+    from addon.bi_format import _arrays_from_bytes, _arrays_or_none
+
+    return _arrays_or_none(_arrays_from_bytes, text.encode("utf-8"), "x.bi")
+
+
+def assert_bytes_path_agrees(text):
+    """The bytes path's arrays are the record reader's; None where it gives up; and
+    None whenever the record reader refuses the text. Returns its arrays."""
+    fast = bytes_path(text)
+    try:
+        slow = arrays_of_record_reader(text)
+    except BiFormatError:
+        assert fast is None
+        return None
+    if fast is not None:
+        assert_same_arrays(fast, slow)
+    return fast
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes)
+def test_bytes_path_reads_written_files_like_the_record_reader(scene):
+    text = format_bi(scene)
+    assert bytes_path(text) is not None  # the writer's layout is the bytes path's
+    assert_bytes_path_agrees(text)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    scenes,
+    st.lists(st.tuples(st.integers(0, 10**6), st.sampled_from(range(len(EDITS)))), max_size=3),
+    st.booleans(),
+)
+def test_bytes_path_and_record_reader_agree_on_edited_files(scene, edits, join):
+    lines = format_bi(scene).split("\n")
+    for where, edit in edits:
+        k = where % len(lines)
+        lines[k] = EDITS[edit](lines[k])
+    text = "\n".join(lines)
+    if join and len(lines) > 2:  # two records on one line
+        text = text.replace("\nR ", " R ", 1).replace("\n#A", " #A", 1)
+    assert_bytes_path_agrees(text)
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_bytes_path_on_a_large_file_and_its_edits(shared):
+    text = format_bi(droplets(300, shared=shared))
+    assert assert_bytes_path_agrees(text).radius.shape == (300,)
+    lines = text.split("\n")
+    for k in (40, 1000, len(lines) - 3):
+        for edit in EDITS:
+            edited = lines.copy()
+            edited[k] = edit(edited[k])
+            assert_bytes_path_agrees("\n".join(edited))
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda t: t.replace("\n", "\r\n"),
+        lambda t: t.replace("\n", "\r"),
+        lambda t: "\ufeff" + t,
+        lambda t: t.replace(" ", "\t"),
+        lambda t: t.replace("\n", "\n  "),
+        lambda t: t.replace("\n", " \n\n"),
+        lambda t: t.replace("\n#A", " /* é, a comment\nover lines */\n#A"),
+        lambda t: t.replace("\nR", "/**/\nR").replace("\nS", " /*/ x */\nS"),
+        lambda t: t.rstrip("\n"),
+    ],
+)
+def test_bytes_path_takes_blanks_comments_and_line_ends(change):
+    """Other blanks, line ends, a byte-order mark and comments anywhere (on their own
+    lines, after a record, over several lines, with UTF-8 in them) keep a file in the
+    layout: the bytes path reads it, like the record reader."""
+    text = change(format_bi(droplets(100, shared=False)))
+    fast = bytes_path(text)
+    assert fast is not None
+    # A file's byte-order mark is read as a file's (`read_bi`), not as text.
+    assert_same_arrays(fast, arrays_of_record_reader(text.removeprefix("\ufeff")))
+
+
+GOOD_NUMBERS = [
+    "1.",
+    ".5",
+    "+3",
+    "-0",
+    "-0.0e0",
+    "1e5",
+    "1E-5",
+    "+.5e+3",
+    "007",
+    "9007199254740993",  # 2^53 + 1: a tie, rounded to even
+    "0.30000000000000004",
+    "2.2250738585072014e-308",
+    "4.9e-324",
+    "1e-400",
+    "1.7976931348623157e308",
+    "0.1000000000000000055511151231257827021181583404541015625",
+]
+BAD_NUMBERS = ["1e", "1.2.3", "+-1", ".", "e5", "--1", "1-2", "nan", "inf", "1e999", "0x10", "1_0"]
+
+
+@pytest.mark.parametrize("token", GOOD_NUMBERS + BAD_NUMBERS)
+def test_bytes_path_numbers_read_like_float_or_go_to_the_record_reader(token, tmp_path):
+    """A centre coordinate of one sphere among many: read as `float` reads it (bit
+    for bit), or refused with the record reader's message and line."""
+    from addon.bi_format import read_bi_arrays
+
+    lines = format_bi(droplets(100, shared=False)).split("\n")
+    k = lines.index("/* object 70: sphere */") + 2
+    assert lines[k].startswith("C ")
+    lines[k] = f"C 1 {token} 2"
+    text = "\n".join(lines)
+    fast = assert_bytes_path_agrees(text)
+    if token in GOOD_NUMBERS:
+        assert fast is not None
+        got = fast.center[69, 1]
+        assert math.copysign(1, got) == math.copysign(1, float(token)) and got == float(token)
+    else:
+        path = tmp_path / "n.bi"
+        path.write_text(text)
+        with pytest.raises(BiFormatError) as info:
+            read_bi_arrays(path)
+        assert info.value.line == k + 1
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "a /* b */ c /* d */\n",
+        "a /* b\n */ c /* d */\n",
+        "/**/ /*/ */ x\n",
+        "a /*/*/ b\n",
+        "a */ /* b */*/ c\n",
+        "a /* b /* c */ d */\n",
+        "/* never closed\n x\n",
+        "*/ a\n",
+        "a /* b */* c\n",
+    ],
+)
+def test_bytes_comment_blanking_matches_the_rule(text):
+    """Comments the bytes path blanks are the rule's (the first "/*", then the first
+    "*/" after it; newlines kept); where it cannot tell simply, it gives up."""
+    import numpy as np
+
+    from addon.bi_format import _blank_comments
+
+    got = _blank_comments(np.frombuffer(text.encode(), dtype=np.uint8))
+    want, pos, ok = [], 0, True
+    while (start := text.find("/*", pos)) >= 0:
+        end = text.find("*/", start + 2)
+        if end < 0:
+            ok = False
+            break
+        want += [text[pos:start], "".join(c if c == "\n" else " " for c in text[start : end + 2])]
+        pos = end + 2
+    want.append(text[pos:])
+    if got is None:
+        return  # gave up: the text paths decide
+    assert ok and "*/" not in text[pos:]
+    assert got.tobytes().decode() == "".join(want)

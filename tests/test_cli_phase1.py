@@ -414,3 +414,105 @@ def test_compact_json_of_many_sources_is_the_json_modules_content(monkeypatch):
     monkeypatch.setattr(cli, "COMPACT_CHUNK", 50)
     text = _compact(result, lights, "FITTED")
     assert _same(json.loads(text), json.loads(_reference_json(result, lights, "FITTED")))
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("chunk", [1, 7, 8192])
+def test_compact_json_is_orjson_of_the_rows_byte_for_byte(seed, model, chunk, monkeypatch):
+    """The compact writer (two orjson matrices per chunk, rows gathered by numpy)
+    writes byte for byte what orjson writes for the rows made one by one as
+    Python objects (`phase1_json_rows`, None for null), non-finite numbers
+    included, whatever the chunk size."""
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    sys.path.insert(0, str(ROOT / "tests"))
+    import cli
+    from random_scenes import random_scene
+
+    from addon.phase1 import compute_phase1
+
+    scene = random_scene(seed, n_lights=2, n_spheres=30)
+    scene.objects[0].radius = -1.0  # a skipped pair
+    result = compute_phase1(scene)
+    lights = cli.phase1_light_table(scene, result, model)
+    t = result.table
+    t.intensity[0] = np.nan
+    t.position[-1, 1] = -np.inf
+    t.vergence[len(t) // 2] = 0.0  # an image at infinity, where the kind has one
+    monkeypatch.setattr(cli, "COMPACT_CHUNK", chunk)
+    got = b"".join(cli.phase1_compact_json(result, lights, model.upper()))
+    sources, skipped = cli.phase1_json_rows(result, lights)
+    whole = {"model": model.upper(), "sources": sources, "skipped": skipped}
+    assert got == orjson.dumps(whole, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
+
+
+def test_gather_and_matrix_texts_against_slices():
+    """`_gather` is the pieces' slices joined; `_matrix_texts` finds each number's
+    text in orjson's print of a matrix (one row, one column, nulls, ints)."""
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import cli
+
+    rng = np.random.default_rng(3)
+    src = rng.integers(0, 256, 500).astype(np.uint8)
+    work = [np.empty(0, dtype=np.int64)]
+    for _ in range(50):
+        n = int(rng.integers(0, 30))
+        start = rng.integers(0, 400, n)
+        length = rng.integers(0, 5, n)  # empty pieces too
+        want = b"".join(src[a : a + k].tobytes() for a, k in zip(start, length, strict=True))
+        assert cli._gather(src, start, length, work) == want
+        assert cli._gather(src, start, length) == want
+    for shape in [(1, 1), (1, 4), (5, 1), (6, 3)]:
+        values = rng.normal(size=shape) * 10.0 ** rng.integers(-20, 20, shape)
+        values.flat[0] = np.nan
+        for v in (values, rng.integers(-(10**12), 10**12, shape)):
+            buf, start, end = cli._matrix_texts(v)
+            texts = [
+                [buf[a:b].tobytes() for a, b in zip(r, e, strict=True)]
+                for r, e in zip(start, end, strict=True)
+            ]
+            want = [[orjson.dumps(x, option=orjson.OPT_SERIALIZE_NUMPY) for x in row] for row in v]
+            assert texts == want
+
+
+def test_phase1_starts_lean_and_render_keeps_its_options():
+    """`phase1` loads neither scripts/render.py nor subprocess, and runs numpy with one
+    BLAS thread unless the user chose otherwise; `render` and `demo` still have their
+    options (loaded for them only)."""
+    import os
+    import sys
+
+    code = (
+        "import contextlib, io, json, os, sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'scripts')!r})\n"
+        "import cli\n"
+        "out = io.TextIOWrapper(io.BytesIO())\n"
+        "with contextlib.redirect_stdout(out):\n"
+        f"    code = cli.main(['phase1', {str(FIG1)!r}, '--json'])\n"
+        "print(json.dumps([code, 'lens_lights_scripts_render' in sys.modules,\n"
+        "    'subprocess' in sys.modules, os.environ.get('OPENBLAS_NUM_THREADS')]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1]) == [0, False, False, "1"]
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert json.loads(res.stdout.splitlines()[-1])[3] == "2"
+    for command, option in (("render", "--engine"), ("demo", "--out")):
+        res = subprocess.run(
+            [str(LAUNCHER), command, "--help"], capture_output=True, text=True, timeout=300
+        )
+        assert res.returncode == 0 and option in res.stdout, res.stderr
