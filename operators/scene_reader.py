@@ -54,6 +54,7 @@ Rules:
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
 
@@ -123,29 +124,55 @@ def _is_lens_light(ob) -> bool:
 # --------------------------------------------------------------------------- geometry
 
 
-def _mesh_arrays(mesh):
+#: Sphere fits of the meshes read before, by content (`_fingerprint`): the next
+#: Generate, live-update frame or bake frame fits only the meshes that changed.
+_FITS: dict[bytes, object] = {}
+_FITS_MAX = 4096
+
+
+def _fingerprint(mesh):
+    """(digest, vertices, face normals) of an evaluated mesh: its counts, vertex
+    positions and face normals, which decide its sphere fit (face centres and areas
+    follow from them for a given topology; a change of topology changes a count or a
+    normal)."""
     nv, nf = len(mesh.vertices), len(mesh.polygons)
     v = np.empty(nv * 3)
     mesh.vertices.foreach_get("co", v)
-    c = np.empty(nf * 3)
-    mesh.polygons.foreach_get("center", c)
     nr = np.empty(nf * 3)
     mesh.polygons.foreach_get("normal", nr)
+    h = hashlib.blake2b(np.array([nv, nf, len(mesh.loops)], dtype=np.int64).tobytes())
+    h.update(v.tobytes())
+    h.update(nr.tobytes())
+    return h.digest(), v.reshape(-1, 3), nr.reshape(-1, 3)
+
+
+def _face_centres_areas(mesh):
+    nf = len(mesh.polygons)
+    c = np.empty(nf * 3)
+    mesh.polygons.foreach_get("center", c)
     a = np.empty(nf)
     mesh.polygons.foreach_get("area", a)
-    return v.reshape(-1, 3), c.reshape(-1, 3), nr.reshape(-1, 3), a
+    return c.reshape(-1, 3), a
 
 
 def _local_fit(mesh, corners, cache):
-    """Sphere fit of an evaluated mesh in its local space (cached per mesh)."""
+    """Sphere fit of an evaluated mesh in its local space (cached per mesh in a run,
+    and by content across runs)."""
     key = mesh.as_pointer()
     if key in cache:
         return cache[key]
-    if corners is None:
-        corners = _mesh_arrays(mesh)[0]
-    fit = box_fit_failure(corners.max(axis=0) - corners.min(axis=0))
+    fit = None if corners is None else box_fit_failure(corners.max(axis=0) - corners.min(axis=0))
     if fit is None:
-        fit = fit_sphere(*_mesh_arrays(mesh))
+        digest, v, normals = _fingerprint(mesh)
+        fit = _FITS.get(digest)
+        if fit is None:
+            fit = box_fit_failure(v.max(axis=0) - v.min(axis=0)) if len(v) else None
+            if fit is None:
+                centres, areas = _face_centres_areas(mesh)
+                fit = fit_sphere(v, centres, normals, areas)
+            if len(_FITS) >= _FITS_MAX:
+                _FITS.clear()
+            _FITS[digest] = fit
     cache[key] = fit
     return fit
 

@@ -607,3 +607,32 @@ def test_generate_regenerate_and_clear_touch_nothing_of_the_users(empty_blend):
     bpy.ops.lens_lights.clear()
     assert snapshot_diff(before, snapshot()) == []
     assert {a: sorted(x.name_full for x in getattr(bpy.data, a)) for a in names} == names
+
+
+def test_a_lens_mesh_edited_between_reads_is_fitted_again(empty_blend):
+    """Sphere fits are remembered by the mesh's content across runs (scene_reader's
+    `_FITS`): an edited mesh is fitted again — scaled 2× it reads as radius 1.0,
+    with its top cap cut open it is no lens."""
+    import bmesh
+    from mathutils import Matrix
+
+    ball = add_sphere("Ball", (0.0, 0.0, 2.0), radius=0.5, material=glass_material())
+    r = read()
+    assert r.sphere_sources == ["Ball"]
+    assert float(r.arrays.radius[0]) == pytest.approx(0.5, rel=2e-3)
+    assert read().sphere_sources == ["Ball"]  # the same mesh: the remembered fit
+
+    ball.data.transform(Matrix.Scale(2.0, 4))
+    ball.data.update()
+    r = read()
+    assert float(r.arrays.radius[0]) == pytest.approx(1.0, rel=2e-3)
+
+    bm = bmesh.new()
+    bm.from_mesh(ball.data)
+    cap = [f for f in bm.faces if f.calc_center_median().z > 0.9]
+    assert cap
+    bmesh.ops.delete(bm, geom=cap, context="FACES_ONLY")
+    bm.to_mesh(ball.data)
+    bm.free()
+    ball.data.update()
+    assert read().sphere_sources == []
