@@ -53,18 +53,39 @@ def find_blockers(
     n_rows = lens_rows.size
     row_of = np.full(direction.shape[0], -1, dtype=np.int64)
     row_of[lens_rows] = np.arange(n_rows)
+    # tlen of the nearest total blocker found so far per sphere (coarse levels first):
+    # a pair whose farther sphere is already hidden behind something nearer than the
+    # other sphere can change nothing (that one is no nearest total blocker, and a
+    # hidden lens has no shadow list), so it is dropped before its exact test.
+    hidden_at = np.full(direction.shape[0], np.inf)
 
-    a, b = _candidate_pairs(direction, ang, obstacle, row_of >= 0)
-    # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
-    far_a = tlen[a] > tlen[b]
-    lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
-    keep = (row_of[lens] >= 0) & obstacle[obst] & (tlen[obst] < tlen[lens])
-    lens, obst = lens[keep], obst[keep]
-    alpha, beta = ang[lens], ang[obst]
-    gamma = _angle_between_rows(direction, lens, obst)
-    blocks = alpha + beta >= gamma
-    lens, obst, alpha, beta, gamma = (x[blocks] for x in (lens, obst, alpha, beta, gamma))
-    total = beta >= gamma + alpha
+    def useful(q, e):
+        """Pairs that can change the answer; farther sphere a lens, nearer an obstacle."""
+        tq, te = tlen[q], tlen[e]
+        far_q = tq > te
+        far, near = np.where(far_q, q, e), np.where(far_q, e, q)
+        tf, tn = np.where(far_q, tq, te), np.where(far_q, te, tq)
+        return (row_of[far] >= 0) & obstacle[near] & (tn < tf) & (hidden_at[far] >= tn)
+
+    found = []
+    for a, b in _candidate_batches(direction, ang, obstacle, row_of >= 0, useful):
+        # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
+        far_a = tlen[a] > tlen[b]
+        lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
+        alpha, beta = ang[lens], ang[obst]
+        gamma = _angle_between_rows(direction, lens, obst)
+        blocks = alpha + beta >= gamma
+        lens, obst, alpha, beta, gamma = (x[blocks] for x in (lens, obst, alpha, beta, gamma))
+        total = beta >= gamma + alpha
+        np.minimum.at(hidden_at, lens[total], tlen[obst[total]])
+        found.append((lens, obst, alpha, beta, gamma, total))
+    if found:
+        cols = (np.concatenate(x) for x in zip(*found, strict=True))
+        lens, obst, alpha, beta, gamma, total = cols
+    else:
+        lens = obst = np.zeros(0, dtype=np.int64)
+        alpha = beta = gamma = np.zeros(0)
+        total = np.zeros(0, dtype=bool)
 
     total_blocker = np.full(n_rows, -1, dtype=np.int64)
     if np.any(total):
@@ -99,7 +120,20 @@ def _angle_between_rows(direction, i, k):
 
 
 def _candidate_pairs(direction, ang, obstacle, lens_mask):
-    """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap.
+    """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap
+    (`_candidate_batches`, all levels joined)."""
+    batches = list(_candidate_batches(direction, ang, obstacle, lens_mask))
+    if not batches:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    return tuple(np.concatenate(x) for x in zip(*batches, strict=True))
+
+
+def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
+    """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap,
+    one batch per grid level, coarsest first; `useful(a, b)` (a mask), if given, is
+    asked for each batch's pairs just before they are yielded, so a caller may drop
+    the pairs the coarser batches made pointless.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
     distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect
@@ -118,9 +152,8 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     boxes is in its lower cell (`_cell_keys`' corner bits: `bits_a & bits_b == 0`).
     """
     active = np.flatnonzero(obstacle | lens_mask)
-    empty = np.zeros(0, dtype=np.int64)
     if active.size < 2:
-        return empty, empty
+        return
     w = direction[active]
     rho = ang[active] * (1.0 + 1e-12) + 1e-15
     c0 = max(2.0 * float(np.quantile(rho, 0.05)), _MIN_CELL)
@@ -130,7 +163,6 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     active, w, rho, level = active[by_level], w[by_level], rho[by_level], level[by_level]
     ends = np.searchsorted(level, np.arange(level[-1] + 1), side="right")
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
-    pa, pb = [], []
 
     def meet(qk, qi, cross, qb, ek, eo, eb, lo=None, count=None):
         """Pairs (query, owner) sharing a cell, in their home cell only, near."""
@@ -148,11 +180,16 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
         # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
         chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
         near = chord2 <= (rho[q] + rho[e]) ** 2
-        pa.append(q[near])
-        pb.append(e[near])
+        q, e = active[q[near]], active[e[near]]
+        if useful is not None:
+            ok = useful(q, e)
+            q, e = q[ok], e[ok]
+        pa.append(q)
+        pb.append(e)
 
     box_lo, box_hi = w - rho[:, None], w + rho[:, None]
-    for lvl in np.unique(level):
+    for lvl in np.unique(level)[::-1]:
+        pa, pb = [], []
         cell = c0 * 2.0**lvl
         end = int(ends[lvl])
         owners = np.arange(int(ends[lvl - 1]) if lvl else 0, end)
@@ -175,6 +212,8 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
             count = np.searchsorted(ek, q_keys, side="right") - lo
             if int(count.sum()) <= 4 * q_keys.size:
                 meet(q_keys, qi, cross, q_bits, ek, eo, eb, lo, count)
+                if pa:
+                    yield np.concatenate(pa), np.concatenate(pb)
                 continue
         # Crowded: split the owners by corner, so that a query's cell at corner bq
         # is searched only among owners at corners be with bq & be == 0 (above),
@@ -191,9 +230,8 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
             for be in range(8):
                 if not bq & be and by_corner[be][0].size:
                     meet(qk, qs, cs, None, *by_corner[be], None)
-    if not pa:
-        return empty, empty
-    return active[np.concatenate(pa)], active[np.concatenate(pb)]
+        if pa:
+            yield np.concatenate(pa), np.concatenate(pb)
 
 
 def _cell_keys(w, rho, cell):
