@@ -68,7 +68,8 @@ def brute_force(alpha, blockers, n=1200):
     for beta, gamma, az, glass in blockers:
         c = direction(gamma, az)
         off = np.arctan2(np.linalg.norm(np.cross(s, c), axis=-1), s @ c)
-        through = KT * KT * fresnel_two_surfaces(np.sin(off) / math.sin(beta)) if glass else 0.0
+        sin_i = np.minimum(np.sin(off) / math.sin(beta), 1.0)  # outside: not used
+        through = KT * KT * fresnel_two_surfaces(sin_i) if glass else 0.0
         passed = np.where(off < beta, passed * through, passed)
     w = np.sin(th)
     return float((passed * w).sum() / w.sum())
