@@ -171,10 +171,20 @@ def union_unblocked(
         np.multiply.at(prod, rows, 1.0 - cover * (1.0 - passed))
         unblocked[hard] = prod[hard]
     elif hard.any():
-        sampled = _sampled_blocked(
-            rows, obst, count, hard, lens_rows, direction, ang, glass, ior_a, kt_a, n_samples
-        )
-        unblocked[hard] = np.clip(1.0 - sampled[hard], 0.0, 1.0)
+        # overlapping only in pairs: the sum less each pair's overlap (sampled alone)
+        pairs, p, q = _pair_only_overlaps(rows, obst, count, hard, direction, ang)
+        if p.size:
+            twice = _pair_overlap_blocked(
+                p, q, rows, obst, lens_rows, direction, ang, glass, ior_a, kt_a
+            )
+            blocked -= np.bincount(rows[p], twice, minlength=n_rows)
+            unblocked[pairs] = np.clip(1.0 - blocked[pairs], 0.0, 1.0)
+        rest = hard & ~pairs
+        if rest.any():
+            sampled = _sampled_blocked(
+                rows, obst, count, rest, lens_rows, direction, ang, glass, ior_a, kt_a, n_samples
+            )
+            unblocked[rest] = np.clip(1.0 - sampled[rest], 0.0, 1.0)
     return unblocked
 
 
@@ -294,7 +304,8 @@ def _piece(v0, v1, sb, n, kt, arc):
         # no piece B (zero width), its c is then anything finite.
         cp, sp, sq, cq, sg = arc
         c = 1.0 - 2.0 * (sh * cp + ch * sp) * (sq * ch - cq * sh) / (sin_t * sg)
-        wts = np.arccos(np.clip(c, -1.0, 1.0)) * (1.0 / np.pi) * wts
+        c = np.clip(c, -1.0, 1.0)  # the arc's half-angle, acos c by atan2 (SPEC §4.2)
+        wts = 2.0 * np.arctan2(np.sqrt(1.0 - c), np.sqrt(1.0 + c)) * (1.0 / np.pi) * wts
     share = _share(sin_t / sb, n, kt)
     return (share * wts).sum(axis=1), wts.sum(axis=1)
 
@@ -476,3 +487,203 @@ def ray_passes(origins, dirs, t_end, centers, radii, ior=None, kt=None) -> np.nd
             share = 0.0
         out = np.where(hit, out * share, out)
     return out
+
+
+#: Rings of the cap grids over one overlap of two blockers (× 2·rings azimuths): the
+#: fewest of these ≥ `_FULL_RINGS` × the grid's radius against the lens' (a grid spans
+#: that overlap only, so its edge error, ∝ (ρ / α)² / rings², is a share of it).
+PAIR_RINGS = (8, 16, 32, 64)
+#: Rings (and `_FULL_BOX`: box cells along) for a grid as wide as the lens' cap. On the
+#: 16 × 10 000 droplets, against the former sampler at 96 × 192 per cap: 107 shares off
+#: by more than 1e-3 (the former sampler at its budget: 940), at most 7.4e-3 (1.1e-2).
+_FULL_RINGS = 24
+#: Blockers per row beyond which the row's overlaps are not told apart (sampled whole).
+_MAX_ROW = 16
+#: Samples × pairs per block of the pairs' grids (memory stays bounded).
+_PAIR_BLOCK = 200_000
+
+
+def _pair_only_overlaps(rows, obst, count, hard, direction, ang):
+    """The overlapping blocker pairs (p, q) (indices into rows/obst) of the rows of
+    ``hard`` where no three blockers' caps overlap one another (no direction lies behind
+    three: the union is the sum less each pair's overlap), and those rows (a mask)."""
+    n_rows = count.size
+    sel = np.flatnonzero(hard[rows] & (count[rows] <= _MAX_ROW))
+    ok = np.zeros(n_rows, dtype=bool)
+    empty = np.zeros(0, dtype=np.int64)
+    if sel.size == 0:
+        return ok, empty, empty
+    starts = np.concatenate([[0], np.cumsum(count)])
+    after = starts[rows[sel] + 1] - sel - 1  # each blocker with every one after it
+    q = concat_ranges(sel + 1, after)
+    p = np.repeat(sel, after)
+    gap = _angle(direction[obst[p]], direction[obst[q]])
+    over = gap < ang[obst[p]] + ang[obst[q]]
+    p, q = p[over], q[over]
+    local = np.arange(rows.size) - starts[rows]  # place in its row (< _MAX_ROW)
+    adj = np.zeros(rows.size, dtype=np.int64)  # per blocker: bit set of its overlaps
+    np.bitwise_or.at(adj, p, np.left_shift(1, local[q]))
+    np.bitwise_or.at(adj, q, np.left_shift(1, local[p]))
+    ok[rows[sel]] = True
+    ok[rows[p[(adj[p] & adj[q]) != 0]]] = False  # a triangle: three may overlap
+    keep = ok[rows[p]]
+    return ok & hard, p[keep], q[keep]
+
+
+def _hav(x):
+    return np.sin(0.5 * x) ** 2
+
+
+def _pair_overlap_blocked(p, q, rows, obst, lens_rows, direction, ang, glass, ior, kt):
+    """Per overlapping pair (p, q): ∫ over blocker p's cap ∩ blocker q's cap ∩ the
+    lens' cap of (1 − passed_p)(1 − passed_q), over the lens' solid angle (what the
+    plain sum counts twice). A lens-shaped overlap is sampled on a box around it in
+    the gnomonic plane at its axis' middle (a thin sliver is as many cells across as a
+    round overlap); the smaller blocker if nested, or the lens' cap if smaller, on its
+    cap's grid (`cap_offsets`)."""
+    bi, bj = obst[p], obst[q]
+    swap = ang[bj] > ang[bi]  # i the wider
+    bi, bj = np.where(swap, bj, bi), np.where(swap, bi, bj)
+    lens = lens_rows[rows[p]]
+    ci, cj, w = direction[bi], direction[bj], direction[lens]
+    a, b, alpha = ang[bi], ang[bj], ang[lens]
+    d_ij = cj - ci
+    g = _angle(ci, cj)
+    nested = g + b <= a
+    # the lens-shaped overlap: axis from ci toward cj, points t ∈ [g − b, a] on it,
+    # the rims crossing at φ off the axis (haversine law: no cancellation when small)
+    sa, sg = np.sin(a), np.where(g > 0.0, np.sin(g), 1.0)
+    hav_phi = np.clip((_hav(b) - _hav(a - g)) / np.maximum(sa * sg, 1e-300), 0.0, 1.0)
+    t_c = 0.5 * (a + g - b)
+    half_u = np.maximum(0.5 * (a - g + b), 0.0)  # the overlap's half-length on the axis
+    hav_d = _hav(a - t_c) + sa * np.sin(t_c) * hav_phi
+    hav_d = np.clip(hav_d, 0.0, 1.0)
+    reach = np.maximum(half_u, 2.0 * np.arctan2(np.sqrt(hav_d), np.sqrt(1.0 - hav_d)))
+    e = (d_ij + 2.0 * _hav(g)[:, None] * ci) / sg[:, None]  # unit, ⟂ ci, toward cj
+    m_off = -2.0 * _hav(t_c)[:, None] * ci + np.sin(t_c)[:, None] * e  # centre − ci
+    # gnomonic box: caps map to ellipses symmetric about the axis, so the overlap lies
+    # within tan(half_u) along it and tan(reach) across (a cell's margin for the ramps)
+    box_u, box_v = np.tan(np.minimum(half_u, 1.2)), np.tan(np.minimum(reach, 1.2))
+    small = nested | (4.0 * box_u * box_v >= 4.0 * np.pi * _hav(alpha))
+    on_lens = small & (alpha <= np.where(nested, b, np.inf))
+    out = np.zeros(p.size)
+    boxed = np.flatnonzero(~small)
+    # cells along × across by the box's size against the lens' cap (error ∝ its area)
+    scale = np.sqrt(box_u * box_v / (np.pi * _hav(alpha)))
+    levels = np.asarray(BOX_LEVELS)
+    lv = np.minimum(np.searchsorted(levels, scale[boxed] * _FULL_BOX), levels.size - 1)
+    for j, nu in enumerate(BOX_LEVELS):
+        idx = boxed[lv == j]
+        step = max(1, _PAIR_BLOCK // (nu * nu * 4 // 3))
+        for s in range(0, idx.size, step):
+            k = idx[s : s + step]
+            e1 = -np.sin(t_c[k])[:, None] * ci[k] + np.cos(t_c[k])[:, None] * e[k]
+            e2 = np.cross(ci[k], e[k])
+            m = ci[k] + m_off[k]
+            out[k] = _box_block(
+                m,
+                m_off[k],
+                e1,
+                e2,
+                box_u[k],
+                box_v[k],
+                bi[k],
+                bj[k],
+                d_ij[k],
+                ci[k] - w[k],
+                alpha[k],
+                ang,
+                glass,
+                ior,
+                kt,
+                nu,
+                nu * 4 // 3,
+            )
+    round_ = np.flatnonzero(small)
+    if round_.size:
+        # the lens' cap, or the smaller blocker (nested: its own rim is the grid's)
+        rho = np.where(on_lens, alpha, b)[round_]
+        m_off_r = np.where(on_lens[:, None], w - ci, d_ij)[round_]
+        ref = np.where(on_lens[:, None], 0.5 * (ci + cj) - w, w - cj)[round_]
+        own_j = (nested & ~on_lens)[round_]
+        size = np.sin(0.5 * rho) / np.sin(0.5 * alpha[round_])  # against the lens' cap
+        r = round_
+        geo = (bi[r], bj[r], ci[r], w[r], d_ij[r], m_off_r, ref, rho, alpha[r], own_j)
+        geo += (on_lens[r], size)
+        levels = np.asarray(PAIR_RINGS)
+        nr_of = levels[np.minimum(np.searchsorted(levels, _FULL_RINGS * size), levels.size - 1)]
+        for nr in PAIR_RINGS:
+            idx = np.flatnonzero(nr_of == nr)
+            step = max(1, _PAIR_BLOCK // (2 * nr * nr))
+            for s in range(0, idx.size, step):
+                k = idx[s : s + step]
+                out[round_[k]] = _pair_block(tuple(x[k] for x in geo), ang, glass, ior, kt, nr)
+    return out
+
+
+#: Cells along the axis of the box over a lens-shaped overlap (4/3 as many across), the
+#: fewest for which ``_FULL_BOX`` × the box's size against the lens' cap.
+BOX_LEVELS = (6, 12, 24, 48)
+_FULL_BOX = 24
+
+
+def _box_block(
+    m, m_off, e1, e2, box_u, box_v, bi, bj, d_ij, ci_w, alpha, ang, glass, ior, kt, n_u, n_v
+):
+    """The pair term on a midpoint grid over the gnomonic box (±box_u along e1, ±box_v
+    along e2 about m), each sample weighted by its solid angle du dv / (1 + r²)^{3/2}."""
+    # a cell more on every side: the edges' ramps reach half a cell beyond the overlap
+    box_u, box_v = box_u * (1.0 + 2.0 / (n_u - 2)), box_v * (1.0 + 2.0 / (n_v - 2))
+    fu = (np.arange(n_u) + 0.5) / n_u * 2.0 - 1.0
+    fv = (np.arange(n_v) + 0.5) / n_v * 2.0 - 1.0
+    u = (box_u[:, None] * fu)[:, :, None]  # (P, U, 1)
+    v = (box_v[:, None] * fv)[:, None, :]  # (P, 1, V)
+    r2 = (u * u + v * v).reshape(m.shape[0], -1)
+    root = np.sqrt(1.0 + r2)
+    k = 1.0 / root
+    km1 = -r2 / (root * (1.0 + root))  # k − 1, no cancellation
+    plane = u[..., None] * e1[:, None, None, :] + v[..., None] * e2[:, None, None, :]
+    off = km1[..., None] * m[:, None, :] + k[..., None] * plane.reshape(m.shape[0], -1, 3)
+    du, dv = 2.0 * box_u / n_u, 2.0 * box_v / n_v
+    h = np.sqrt(du * dv)[:, None] * k * k  # a cell's angular size (the projection shrinks)
+    value = k**3
+    for blk, to_c in ((bi, m_off), (bj, m_off - d_ij)):
+        value = value * _passes_not(to_c, off, ang[blk], glass[blk], ior[blk], kt[blk], h, None)
+    d = (m_off + ci_w)[:, None, :] + off
+    value *= coverage(np.einsum("pni,pni->pn", d, d), alpha, h)
+    return value.sum(axis=1) * du * dv / (4.0 * np.pi * _hav(alpha))
+
+
+def _pair_block(geo, ang, glass, ior, kt, nr):
+    """The pair term on a cap's grid (`cap_offsets`, nr rings)."""
+    bi, bj, ci, w, d_ij, m_off, ref, rho, alpha, own_j, on_lens, size = geo
+    na = 2 * nr
+    m = ci + m_off
+    m /= np.linalg.norm(m, axis=1)[:, None]
+    off = cap_offsets(m, rho, ref, nr, na)
+    h = _ramp_width(rho, nr, na)
+    value = np.ones(off.shape[:2])
+    for blk, to_c, mine in ((bi, m_off, None), (bj, m_off - d_ij, own_j)):
+        value *= _passes_not(to_c, off, ang[blk], glass[blk], ior[blk], kt[blk], h, mine)
+    d = (m_off + ci - w)[:, None, :] + off
+    in_lens = coverage(np.einsum("pni,pni->pn", d, d), alpha, h)
+    value *= np.where(on_lens[:, None], 1.0, in_lens)
+    return size * size * value.mean(axis=1)
+
+
+def _passes_not(to_c, off, beta, glass, ior, kt, h, mine):
+    """(1 − what a blocker passes) × how much of each sample's cell its cap covers, at
+    the grid's samples ``off`` from a centre ``to_c`` away from the blocker's."""
+    d = to_c[:, None, :] + off
+    chord2 = np.einsum("pni,pni->pn", d, d)
+    half = 0.5 * np.sqrt(np.minimum(chord2, 4.0))
+    cos_half = np.sqrt(np.maximum(1.0 - half * half, 0.0))
+    theta = 2.0 * np.arctan2(half, cos_half)
+    cov = np.clip(0.5 + (beta[:, None] - theta) / np.maximum(h, 1e-300), 0.0, 1.0)
+    if mine is not None:
+        cov[mine] = 1.0
+    g = np.flatnonzero(glass)
+    if g.size:
+        sin_iota = 2.0 * half[g] * cos_half[g] / np.sin(np.maximum(beta[g], 1e-300))[:, None]
+        cov[g] *= 1.0 - _share(sin_iota, ior[g][:, None], kt[g][:, None])
+    return cov
