@@ -7,6 +7,8 @@ as the boxes' pre-test, before it casts against the meshes inside the boxes.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -70,13 +72,71 @@ def box_entries(
 BATCH_CELLS = 1 << 20
 
 
+#: From this many spheres on, `sphere_hits_bundles` first tests the bundles against
+#: groups of spheres (about `CLUSTER_SIZE` each) and only then against the members of
+#: the groups they pass near.
+CLUSTER_FROM = 4096
+CLUSTER_SIZE = 32
+
+
+def sphere_clusters(centers: np.ndarray, radii: np.ndarray):
+    """Spheres grouped by the cells of a uniform grid (about `CLUSTER_SIZE` spheres a
+    cell): (order, starts, centre, radius) — the spheres' indices cell by cell, each
+    cell's first position in `order`, and a ball per cell holding all its spheres
+    (centre: the middle of its centres' box; radius: the farthest sphere's reach)."""
+    lo, hi = centers.min(axis=0), centers.max(axis=0)
+    ext = np.maximum(hi - lo, 0.0)
+    want = max(1.0, len(centers) / CLUSTER_SIZE)
+    # the cell side h with about `want` cells over the centres' box (flat boxes too):
+    # the number of cells falls as h grows; bisection in log h
+    top = float(ext.max())
+    h = 1.0
+    if top > 0:
+        lo_h, hi_h = top / want, top
+        for _ in range(30):
+            mid_h = math.sqrt(lo_h * hi_h)
+            if np.prod(np.floor(ext / mid_h) + 1.0) >= want:
+                lo_h = mid_h
+            else:
+                hi_h = mid_h
+        h = lo_h
+    ijk = np.floor((centers - lo) / h).astype(np.int64)
+    dims = ijk.max(axis=0) + 1
+    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    starts = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
+    c = centers[order]
+    mid = 0.5 * (np.minimum.reduceat(c, starts, axis=0) + np.maximum.reduceat(c, starts, axis=0))
+    cell = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, len(order))))
+    reach = np.sqrt(np.sum((c - mid[cell]) ** 2, axis=1)) + radii[order]
+    return order, starts, mid, np.maximum.reduceat(reach, starts)
+
+
+def _near_line(centers, radii, ref, d, reach):
+    """(S, b) whether each sphere (centre, radius) may be hit by a bundle (first
+    origin `ref`, direction `d`, origins within `reach` of it): ahead of it and
+    near its line, in world coordinates by matrix products, widened by far more than
+    their rounding."""
+    dw = np.einsum("bj,bj->b", ref, d)
+    c2, r2w = np.einsum("sj,sj->s", centers, centers), np.einsum("bj,bj->b", ref, ref)
+    cd = centers @ d.T - dw[None]  # (S, b): (centre − ref)·d
+    cc = c2[:, None] - 2.0 * (centers @ ref.T) + r2w[None]  # |centre − ref|²
+    rr = radii[:, None] + reach[None]
+    scale = np.sqrt(c2)[:, None] + np.sqrt(r2w)[None]
+    tol = 1e-9 * scale
+    return (cd + rr + tol > 0) & (cc - cd * cd <= rr**2 + tol * (scale + rr))
+
+
 def sphere_hits_bundles(
     centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, d: np.ndarray
 ) -> np.ndarray:
     """`sphere_hits` of many bundles at once: `origins` (B × k × 3), one unit
     direction per bundle `d` (B × 3) → (B × k). The same arithmetic per bundle
     (relative to its first origin, spheres off its line skipped), vectorised over
-    the (bundle, sphere) pairs the line test keeps."""
+    the (bundle, sphere) pairs the line test keeps. Many spheres: the line test
+    first on groups of them (`sphere_clusters`, balls holding their members, so no
+    sphere a bundle can hit is missed), then on the members of the groups kept."""
     origins = np.asarray(origins, dtype=float)
     d = np.asarray(d, dtype=float).reshape(-1, 3)
     B, k = origins.shape[:2]
@@ -86,21 +146,21 @@ def sphere_hits_bundles(
     ref = origins[:, 0]  # (B, 3)
     o = origins - ref[:, None]  # (B, k, 3), small
     reach = np.sqrt(np.einsum("bkj,bkj->bk", o, o)).max(axis=1)  # (B,)
-    # The line test in world coordinates by matrix products (fast), widened by far
-    # more than its rounding; the kept pairs are then computed as `sphere_hits` does.
-    dw = np.einsum("bj,bj->b", ref, d)
-    c2, r2w = np.einsum("sj,sj->s", centers, centers), np.einsum("bj,bj->b", ref, ref)
-    step = max(1, BATCH_CELLS // max(radii.size, 1))
+    clusters = sphere_clusters(centers, radii) if radii.size >= CLUSTER_FROM else None
+    groups = radii.size if clusters is None else len(clusters[1])
+    step = max(1, BATCH_CELLS // max(groups, 1))
     for b0 in range(0, B, step):
         b1 = min(B, b0 + step)
         sl = slice(b0, b1)
-        cd = centers @ d[sl].T - dw[None, sl]  # (S, b): (centre − ref)·d
-        cc = c2[:, None] - 2.0 * (centers @ ref[sl].T) + r2w[None, sl]  # |centre − ref|²
-        rr = radii[:, None] + reach[None, sl]
-        scale = np.sqrt(c2)[:, None] + np.sqrt(r2w[sl])[None]
-        tol = 1e-9 * scale
-        near_line = (cd + rr + tol > 0) & (cc - cd * cd <= rr**2 + tol * (scale + rr))
-        si, bi = np.nonzero(near_line)
+        if clusters is None:
+            si, bi = np.nonzero(_near_line(centers, radii, ref[sl], d[sl], reach[sl]))
+        else:
+            order, starts, mid, rad = clusters
+            gi, bi = np.nonzero(_near_line(mid, rad, ref[sl], d[sl], reach[sl]))
+            size = np.diff(np.append(starts, len(order)))[gi]
+            first = np.repeat(starts[gi] - np.cumsum(size) + size, size)
+            si = order[first + np.arange(int(size.sum()))]
+            bi = np.repeat(bi, size)
         if bi.size == 0:
             continue
         c = centers[si] - ref[b0 + bi]  # (P, 3), relative as in `sphere_hits`

@@ -227,6 +227,51 @@ def test_batched_sphere_and_box_hits_equal_the_per_bundle_ones():
     assert math.isinf(sphere_hits_bundles(C[:0], R[:0], origins[:1], d[:1]).min())
 
 
+@pytest.mark.parametrize("layout", ["cloud", "plane", "line", "stacked"])
+def test_grouped_sphere_hits_equal_the_per_bundle_ones(layout, monkeypatch):
+    """From `CLUSTER_FROM` spheres on the bundles meet groups of spheres first: the
+    hits are those of `sphere_hits` bundle by bundle (every sphere a ray can hit is
+    in a group the line test keeps), in a cloud, a flat grid, a line and with many
+    spheres at one centre, far from the world origin."""
+    from addon import ray_hits
+
+    rng = np.random.default_rng(11)
+    n = ray_hits.CLUSTER_FROM + 900
+    if layout == "cloud":
+        C = rng.uniform(-30, 30, (n, 3))
+    elif layout == "plane":
+        g = np.stack(np.meshgrid(np.arange(70), np.arange(72), indexing="ij"), -1)
+        C = np.column_stack([g.reshape(-1, 2)[:n] * 0.8, np.zeros(n)])
+    elif layout == "line":
+        C = np.column_stack([np.linspace(-50, 50, n), np.zeros(n), np.zeros(n)])
+    else:
+        C = np.repeat(rng.uniform(-5, 5, (n // 100 + 1, 3)), 100, axis=0)[:n]
+    C = C + 1e4
+    R = rng.uniform(0.05, 0.6, n)
+    B = 40
+    pick = rng.choice(n, B)
+    d = rng.normal(size=(B, 3))
+    d[:4, 1:] = 0.0
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    # bundles starting just outside a sphere (as planning's), and some from afar
+    o0 = C[pick] + (R[pick] * 1.01)[:, None] * d
+    o0[::5] -= 40.0 * d[::5]
+    origins = o0[:, None] + rng.uniform(-0.2, 0.2, (B, 5, 3))
+    got = ray_hits.sphere_hits_bundles(C, R, origins, d)
+    assert np.isfinite(got).sum() > 20
+    for b in range(B):
+        want = sphere_hits(C, R, origins[b], d[b])
+        np.testing.assert_allclose(got[b], want, rtol=1e-12, atol=1e-12)
+    monkeypatch.setattr(ray_hits, "CLUSTER_FROM", n + 1)  # every pair: the same numbers
+    np.testing.assert_array_equal(got, ray_hits.sphere_hits_bundles(C, R, origins, d))
+    order, starts, mid, rad = ray_hits.sphere_clusters(C, R)
+    assert np.array_equal(np.sort(order), np.arange(n))
+    cell = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, n)))
+    assert np.all(
+        np.linalg.norm(C[order] - mid[cell], axis=1) + R[order] <= rad[cell] * (1 + 1e-12)
+    )
+
+
 @pytest.mark.parametrize("model", MODELS)
 def test_nothing_kept_is_planned_alike(model):
     """Every source under the cut-off, a maximum of 0 lights, no source at all."""
