@@ -282,30 +282,26 @@ ATTRIBUTION = [
     "Generate evaluates the depsgraph again: one update per Generate, tested) and any "
     "added object costs it: it is not ours to cut. The undo push of the file: 0.16 CPU "
     "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
-    "pays their removal (`light_builder.clear`: two `batch_remove` passes over the file, "
-    "4.1 CPU s at 100 k; one pass with the light data measured 20–25 % less at 5 k, not "
-    "changed here).",
+    "pays their removal (`light_builder.clear`: the lights and their data in one "
+    "`batch_remove`, one scan of the file).",
     "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
-    "dozen RNA reads and the matrix per instance, about 25 µs each; the matrix copy "
-    "is now 2 µs of it, and copying `Matrix` objects to convert them at the end would "
-    "save 0.4 µs): 2.7–2.9 CPU s at 100 k with the check (`read_blender_scene`, 5.5–5.9 s "
-    "wall at load 4), the plan (2–4 s wall) and phase 1, which now dominates: 130–205 s "
-    "wall at 100 k on this "
-    "grid. It is not the broad phase: at 10 000 (cProfile, geometry-nodes grid) 3.7 of "
-    "4.1 s are the glass blockers' Fresnel share of the shadow lists "
-    "(`shadow_mask.glass_passed` 1.6 s own time, `exact_optics.fresnel_transmittance` "
-    "1.6 s), which grows faster than the spheres.",
+    "dozen RNA reads and the matrix per instance, about 20 µs each; the matrix copy "
+    "is 2 µs of it): 1.8–2.6 s at 100 k; the plan 0.08–0.09 s (the rays that keep the "
+    "beams clear meet groups of spheres first, `ray_hits.sphere_clusters`: it was "
+    "1.7 s); phase 1 5.1–6.6 s for the two lights, of which the glass blockers' Fresnel "
+    "shares (`shadow_mask.glass_passed`) about 2.4 s, the broad phase about 0.9 s and "
+    "the other exact shares the rest (standalone cProfile of `compute_phase1` on this "
+    "grid; it was 130–205 s wall before the quadrature of the glass shares was "
+    "rewritten).",
     "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake, about "
     "constant in the number of spheres (it works on the 4 × maximum strongest sources); "
     "`--energy-model FITTED` measures the lights alone.",
     "",
-    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met "
-    "in this run, because of phase 1's shadow lists. Blender's part is now the one "
-    "depsgraph rebuild and evaluation after the lights are added and the undo push "
-    "(about 8 CPU s at 100 k), the check and the read 2.8 CPU s, the plan 2–4 s wall: "
-    "on a quiet machine roughly 12–14 s before phase 1, so the goal needs phase 1 at "
-    "100 k in a second or two (the first round's phase 1, before the glass blockers' "
-    "share, took 4.6 s) — an estimate from the steps, not a measured total.",
+    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met. "
+    "On a quiet machine (load about 1), four runs of the 100 489 case: 15.4, 15.5, 17.3 "
+    "and 19.4 s; Blender's depsgraph rebuild and evaluation after the lights are added and "
+    "the undo push 7.6–9.6 s of it, the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s. "
+    "The goal needs phase 1 at 100 k in about 2 s (or Blender's update gone).",
 ]
 
 
