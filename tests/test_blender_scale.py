@@ -61,6 +61,7 @@ def test_200_instances_are_fitted_once(empty_blend, monkeypatch, kind):
     if kind == "collection":
         assert bead.name not in bpy.context.scene.collection.objects
     add_point_light("Lamp", (7.0, 7.0, 12.0))
+    monkeypatch.setattr(scene_reader, "_FITS", {})  # nothing remembered from other tests
     fits = count_calls(monkeypatch, scene_reader, "fit_sphere")
     materials = count_calls(monkeypatch, scene_reader, "material_optics")
     r = scene_reader.read_blender_scene(bpy.context)
@@ -73,6 +74,10 @@ def test_200_instances_are_fitted_once(empty_blend, monkeypatch, kind):
     centers = sorted(map(tuple, np.round(r.arrays.center[r.arrays.center[:, 2] > 0], 5)))
     assert centers == sorted((x, y, 1.0) for x, y, _ in points)
     assert r.lens_candidates.all() and len(set(r.sphere_sources)) == n
+    # read again: the meshes did not change, their fits are remembered (no new fit)
+    again = scene_reader.read_blender_scene(bpy.context)
+    assert len(fits) == (2 if kind == "geometry" else 1)
+    np.testing.assert_array_equal(again.arrays.radius, r.arrays.radius)
 
 
 def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
