@@ -117,14 +117,7 @@ def key_visibility(ob, keys):
 def compact_profile_image(key: str, pixels):
     """A marked profile image (as `light_builder.profile_image` makes, reused by
     key) holding `pixels` (H, K) as a one-channel 32-bit float OpenEXR, ZIP, packed:
-    a third of the size of the RGBA image packed from memory, bit for bit the same
-    values. Written through a throw-away scene's output settings (the user's are not
-    touched) into a temporary folder, loaded and packed."""
-    import os
-    import tempfile
-
-    import numpy as np
-
+    bit for bit the same values (`light_builder.packed_exr`)."""
     H, K = pixels.shape
     for img in bpy.data.images:
         if (
@@ -134,30 +127,9 @@ def compact_profile_image(key: str, pixels):
             and img.packed_file is not None
         ):
             return img
-    tmp_scene = bpy.data.scenes.new("Lens Lights bake (temporary)")
-    src = bpy.data.images.new("Lens profile (temporary)", K, H, float_buffer=True, alpha=False)
-    try:
-        src.colorspace_settings.name = "Non-Color"  # before the pixels (see profile_image)
-        src.use_half_precision = False
-        rgba = np.ones((H, K, 4), dtype=np.float32)
-        rgba[..., :3] = np.asarray(pixels, dtype=np.float32)[..., None]
-        src.pixels.foreach_set(rgba.ravel())
-        src.update()
-        settings = tmp_scene.render.image_settings
-        settings.file_format = "OPEN_EXR"
-        settings.color_mode = "BW"
-        settings.color_depth = "32"
-        settings.exr_codec = "ZIP"
-        with tempfile.TemporaryDirectory(prefix="lens-lights-") as folder:
-            path = os.path.join(folder, "lens_profile.exr")
-            src.save_render(path, scene=tmp_scene)
-            img = bpy.data.images.load(path)
-            img.colorspace_settings.name = "Non-Color"
-            img.pack()
-    finally:
-        bpy.data.images.remove(src)
-        bpy.data.scenes.remove(tmp_scene)
-    img.name = light_builder.PROFILE_PREFIX + key
+    img = light_builder.packed_exr(
+        light_builder.PROFILE_PREFIX + key, pixels, "32", "lens_profile.exr"
+    )
     img[COLLECTION_MARK] = "profile"
     img[light_builder.PROFILE_KEY] = key
     return img

@@ -24,14 +24,10 @@ over its frames, and per bake one atlas image of every frame's irradiance.
 
 from __future__ import annotations
 
-import os
-import tempfile
-
 import bpy
-import numpy as np
 
 from ..addon import layer_bake
-from . import layer_builder
+from . import layer_builder, light_builder
 from .properties import COLLECTION_MARK
 
 SLICE_NODE, SCALE_NODE, COLOUR_NODE = "Lens layer slice", "Lens layer scale", "Lens layer colour"
@@ -42,49 +38,14 @@ BAKE_MARK = "bake"
 
 
 def packed_exr(name: str, pixels) -> object:
-    """A packed Non-Color image of `pixels` ((H, W) one channel or (H, W, 3) RGB,
-    row 0 at the bottom) saved as a half-float OpenEXR, ZIP, through a throw-away
-    scene's output settings (the user's are not touched), marked "bake"."""
-    px = np.asarray(pixels, dtype=np.float32)
-    h, w = px.shape[:2]
-    tmp_scene = bpy.data.scenes.new("Lens Lights bake (temporary)")
-    src = bpy.data.images.new(name + " (temporary)", w, h, float_buffer=True, alpha=False)
-    try:
-        src.colorspace_settings.name = "Non-Color"  # before the pixels
-        rgba = np.ones((h, w, 4), dtype=np.float32)
-        rgba[..., :3] = px[..., None] if px.ndim == 2 else px
-        src.pixels.foreach_set(rgba.ravel())
-        src.update()
-        settings = tmp_scene.render.image_settings
-        settings.file_format = "OPEN_EXR"
-        settings.color_mode = "BW" if px.ndim == 2 else "RGB"
-        settings.color_depth = "16"
-        settings.exr_codec = "ZIP"
-        with tempfile.TemporaryDirectory(prefix="lens-lights-") as folder:
-            path = os.path.join(folder, "lens_caustic_bake.exr")
-            src.save_render(path, scene=tmp_scene)
-            img = bpy.data.images.load(path)
-            img.colorspace_settings.name = "Non-Color"
-            img.pack()
-    finally:
-        bpy.data.images.remove(src)
-        bpy.data.scenes.remove(tmp_scene)
-    img.name = name
+    """A packed half-float OpenEXR of `pixels` (`light_builder.packed_exr`), marked
+    "bake"."""
+    img = light_builder.packed_exr(name, pixels, "16", "lens_caustic_bake.exr")
     img[COLLECTION_MARK] = BAKE_MARK
     return img
 
 
-def _math(nt, op, a, b=None, c=None):
-    n = nt.nodes.new("ShaderNodeMath")
-    n.operation = op
-    for k, v in enumerate((a, b, c)):
-        if v is None:
-            continue
-        if isinstance(v, (int, float)):
-            n.inputs[k].default_value = float(v)
-        else:
-            nt.links.new(v, n.inputs[k])
-    return n.outputs[0]
+_math = light_builder.shader_math
 
 
 def _raster_coordinate(nt, position, axis, direction, res: int):

@@ -87,6 +87,61 @@ def link_collection(scene, lens_object, cache):
     return coll
 
 
+def shader_math(nt, op, *inputs):
+    """A Math node of `nt` doing `op` on `inputs` (numbers become its default values,
+    sockets are linked; None leaves an input as it is); its output socket."""
+    n = nt.nodes.new("ShaderNodeMath")
+    n.operation = op
+    for k, v in enumerate(inputs):
+        if v is None:
+            continue
+        if isinstance(v, (int, float)):
+            n.inputs[k].default_value = float(v)
+        else:
+            nt.links.new(v, n.inputs[k])
+    return n.outputs[0]
+
+
+def packed_exr(name: str, pixels, depth: str, file_name: str):
+    """A packed Non-Color image named `name` of `pixels` ((H, W) one channel or
+    (H, W, 3) RGB, row 0 at the bottom) as an OpenEXR of `depth` ("16" half, "32"
+    float), ZIP: written through a throw-away scene's output settings (the user's are
+    not touched) into a temporary folder, loaded and packed. A third of the size of
+    the RGBA image packed from memory."""
+    import os
+    import tempfile
+
+    import numpy as np
+
+    px = np.asarray(pixels, dtype=np.float32)
+    h, w = px.shape[:2]
+    tmp_scene = bpy.data.scenes.new("Lens Lights bake (temporary)")
+    src = bpy.data.images.new(name + " (temporary)", w, h, float_buffer=True, alpha=False)
+    try:
+        src.colorspace_settings.name = "Non-Color"  # before the pixels (see profile_image)
+        src.use_half_precision = False
+        rgba = np.ones((h, w, 4), dtype=np.float32)
+        rgba[..., :3] = px[..., None] if px.ndim == 2 else px
+        src.pixels.foreach_set(rgba.ravel())
+        src.update()
+        settings = tmp_scene.render.image_settings
+        settings.file_format = "OPEN_EXR"
+        settings.color_mode = "BW" if px.ndim == 2 else "RGB"
+        settings.color_depth = depth
+        settings.exr_codec = "ZIP"
+        with tempfile.TemporaryDirectory(prefix="lens-lights-") as folder:
+            path = os.path.join(folder, file_name)
+            src.save_render(path, scene=tmp_scene)
+            img = bpy.data.images.load(path)
+            img.colorspace_settings.name = "Non-Color"
+            img.pack()
+    finally:
+        bpy.data.images.remove(src)
+        bpy.data.scenes.remove(tmp_scene)
+    img.name = name
+    return img
+
+
 def linking_sets(scene) -> int:
     """How many lens-linking collections this extension keeps in `scene` (each is
     one of Blender's light-linking sets)."""
@@ -173,16 +228,7 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     nt.nodes.clear()
 
     def math_node(op, a, b=None, c=None):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = op
-        for k, v in enumerate((a, b, c)):
-            if v is None:
-                continue
-            if isinstance(v, (int, float)):
-                n.inputs[k].default_value = float(v)
-            else:
-                nt.links.new(v, n.inputs[k])
-        return n.outputs[0]
+        return shader_math(nt, op, a, b, c)
 
     tc = nt.nodes.new("ShaderNodeTexCoord")
     sep = nt.nodes.new("ShaderNodeSeparateXYZ")
@@ -264,14 +310,7 @@ def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
     nx, ny, nz = q.inverted() @ Vector(profile["receiver_normal"])
 
     def op(kind, *args):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = kind
-        for k, v in enumerate(args):
-            if isinstance(v, (int, float)):
-                n.inputs[k].default_value = float(v)
-            else:
-                nt.links.new(v, n.inputs[k])
-        return n.outputs[0]
+        return shader_math(nt, kind, *args)
 
     x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
     q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
