@@ -32,7 +32,7 @@ import textwrap
 import bpy
 import numpy as np
 import pytest
-from measuring_scene import build_measuring_scene
+from measuring_scene import build_measuring_scene, direct_light_only
 
 from addon import exact_optics
 
@@ -99,12 +99,7 @@ def make_scene(center_mid, light_mid):
         lamp=dict(location=tuple(p), power=POWER),
     )
     sc = built.scene
-    sc.cycles.samples = 64
-    sc.cycles.max_bounces = 0
-    sc.cycles.use_denoising = False
-    sc.cycles.caustics_refractive = False
-    sc.cycles.caustics_reflective = False
-    sc.cycles.seed = 1
+    direct_light_only(sc, 64)
     sc.frame_start, sc.frame_end = 1, 3
     return built, hit
 
