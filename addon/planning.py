@@ -12,8 +12,8 @@
   surface the caustic falls on lies (no lens light at or behind it);
 * `plan_result`: all of it for phase 1's result on a scene read, on columns (the
   tiers' table makers; every kept source's rays in one batched cast:
-  `free_distances`, `receiver_rays`); `plan_result_per_source` is the same source by
-  source (`plan_lights`, `free_distance_behind`, `receiver_distance`), kept as the
+  `free_distances`, `receiver_rays`); tests/planning_reference.py does the same
+  source by source (`plan_lights`, `free_distance_behind`, `receiver_distance`), the
   reference the columns path is tested against.
 
 Every pair left without a light is a `skip_reasons.SkippedPair` (code + details).
@@ -504,7 +504,8 @@ def plan_result(
     the pre-selection, the rays of every kept source go in two batched casts
     (`free_distances`, `receiver_rays`), and the kept lights are the table maker's
     where it takes receivers (`RECEIVER_TABLES`), else the per-source maker's; the
-    same lights as `plan_result_per_source` (tests/test_planning_speed_equivalence.py)."""
+    same lights as tests/planning_reference.py's source by source
+    (tests/test_planning_speed_equivalence.py)."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
     selection = select_sources(
@@ -642,86 +643,3 @@ def _final_lights(read, selection, cols, rows, tier, model, common) -> _KeptLigh
             )
         )
     return _KeptLights(None, out, f)
-
-
-def plan_result_per_source(
-    read,
-    result: Phase1Result,
-    options: dict,
-    timings: dict | None = None,
-    *,
-    preselect_factor: int = PRESELECT_FACTOR,
-) -> Work:
-    """`plan_result` source by source (the tier's per-source maker, the rays one
-    source at a time): the reference the columns path is tested against.
-
-    The pre-selection and the plan for phase 1's `result` on a scene read
-    (`read.arrays`, `primaries`, `lens_optics`, names, `scene_size`, `bounds`,
-    `occluders`: `scene_reader.read_depsgraph`); `options`: energy_model,
-    min_brightness, max_lights, spot_blend, merge_distance.
-
-    The lights are planned twice: first every pre-selected source without the rays
-    that keep a beam's spot clear of the geometry behind its lens (they hardly
-    change which lights are kept: a beam's brightness does not depend on how far
-    behind the lens its spot sits, a Fitted spot pulled in keeps its irradiance in
-    the middle of its receivers), then only the kept ones with the rays and the
-    same cut-off (a light the rays make dimmer than it is dropped and reported), for
-    the sources whose spot may sit behind the lens (THESIS and PHYSICAL:
-    `may_be_beam`; the other tiers: all), against the geometry that was read
-    (`occluders`: spheres analytically, other meshes by box then BVH), and for
-    every kept source the receiver behind its lens (`receiver_distance`): no lens
-    light sits at or behind the surface its caustic falls on."""
-    timings = {} if timings is None else timings
-    t = time.perf_counter()
-    selection = select_sources(
-        result,
-        read.arrays.light_brightness,
-        max_lights=options["max_lights"],
-        merge_distance=options["merge_distance"],
-        preselect_factor=preselect_factor,
-    )
-    timings["budget"] = time.perf_counter() - t
-    t = time.perf_counter()
-    model = options["energy_model"]
-    common = dict(
-        optics=read.lens_optics,
-        light_names=read.light_sources,
-        lens_names=read.sphere_sources,
-        min_brightness=options["min_brightness"],
-        max_lights=options["max_lights"],
-        spot_blend=options["spot_blend"],
-        scene_size=read.scene_size,
-        scene_bounds=read.bounds,
-    )
-    first = plan_lights(
-        SimpleNamespace(sources=selection.sources, skipped=[]),
-        read.primaries,
-        model,
-        energy_scale=selection.scale,
-        **common,
-    )
-    rows = {id(src): k for k, src in enumerate(selection.sources)}
-    chosen = [p.source for p in first.lights]
-    size = read.scene_size
-
-    def far_limit(src):
-        if model in (THESIS, PHYSICAL) and not may_be_beam(src, read.bounds, size):
-            return None
-        return free_distance_behind(read.occluders, src, size)
-
-    def receiver_limit(src):
-        return receiver_distance(read.occluders, src, size)
-
-    plan = plan_lights(
-        SimpleNamespace(sources=chosen, skipped=[]),
-        read.primaries,
-        model,
-        far_limit=far_limit,
-        receiver_limit=receiver_limit,
-        energy_scale=[selection.scale[rows[id(s)]] for s in chosen],
-        **common,
-    )
-    plan.skipped[:0] = first.skipped
-    timings["plan"] = time.perf_counter() - t
-    read.occluders.release()  # the depsgraph may go away after this
-    return Work(read, result, selection, plan, timings)

@@ -1,7 +1,7 @@
 """The columns planning path (`planning.plan_result`: the tiers' table makers, the
 rays of every kept source in one batched cast) against the per-source path
-(`planning.plan_result_per_source`: every source's light and rays one at a time,
-as planning was before): the same lights, fields to float tolerance, and the
+(tests/planning_reference.py's `plan_result_per_source`: every source's light and
+rays one at a time, as planning was before): the same lights, fields to float tolerance, and the
 same skipped pairs, on random scenes with every tier, cut-offs, caps, merging,
 other primaries' emission and radius, tinted glass, and a floor and a wall near
 the lenses (near-field fits, spots pulled in); plus the batched sphere and box
@@ -13,11 +13,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from planning_reference import plan_result_per_source
 from random_scenes import random_scene
 
 from addon.budget import take
 from addon.phase1 import Phase1Result, SceneArrays, compute_phase1
-from addon.planning import plan_result, plan_result_per_source
+from addon.planning import plan_result
 from addon.ray_hits import box_entries, box_entries_bundles, sphere_hits, sphere_hits_bundles
 from addon.skip_reasons import Reason
 from addon.tiers import LensOptics, PrimaryLight
