@@ -10,13 +10,16 @@ SPEC.md §3 gives the thesis' formulas, §4 the stable forms used here:
   tends to 0 smoothly as the image runs off to infinity.
 
 Everything is vectorised over lights × lenses (and × obstacles for the obstruction
-tests); the only Python loop is over lights, each handling all spheres at once.
+tests); the only Python loop is over lights, each handling all spheres at once (on
+several cores, lights side by side in threads).
 No inf or NaN leaves this module: invalid input becomes a skipped pair with a reason.
 """
 
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -354,7 +357,9 @@ class Phase1Result:
 
 
 def compute_phase1(
-    scene: Scene | SceneArrays, collimation_ratio: float = COLLIMATION_RATIO
+    scene: Scene | SceneArrays,
+    collimation_ratio: float = COLLIMATION_RATIO,
+    workers: int | None = None,
 ) -> Phase1Result:
     """All secondary light sources of a scene, and every pair that yields none.
 
@@ -363,6 +368,11 @@ def compute_phase1(
     the back vertex). Across the switch the light a receiver in the scene gets
     changes by about 1/collimation_ratio: the cone's apex is that far away and its
     half-angle that small, so its footprint is R_C to that precision.
+
+    `workers`: threads computing lights side by side (None: one per core, up to the
+    number of lights, when the scene is big enough to gain). The lights are
+    independent and numpy lets go of the GIL in its loops; the result is the same
+    for any number.
     """
     a = scene if isinstance(scene, SceneArrays) else SceneArrays.from_scene(scene)
     n_lights, n_spheres = len(a.light_brightness), len(a.radius)
@@ -375,16 +385,44 @@ def compute_phase1(
     valid_sphere = (problem != INVALID_SPHERE_NONFINITE) & (problem != INVALID_SPHERE_RADIUS)
     far = collimation_ratio * scene_size(a, valid_light, valid_sphere)
 
-    parts, skips = [], []
     all_spheres = np.arange(n_spheres)
     not_lens = problem >= 0
-    for j in range(n_lights):
+    lit = np.flatnonzero(valid_light)
+
+    def one_light(j):
+        own = [(j, all_spheres[not_lens], problem[not_lens], -1)]
+        return _light_sources(a, j, problem, valid_sphere, far, own), own
+
+    if workers is None:
+        workers = _default_workers(lit.size, n_spheres)
+    if workers > 1 and lit.size > 1:
+        with ThreadPoolExecutor(min(workers, lit.size)) as pool:
+            done = dict(zip(lit.tolist(), pool.map(one_light, lit.tolist()), strict=True))
+    else:
+        done = {j: one_light(j) for j in lit.tolist()}
+    parts, skips = [], []
+    for j in range(n_lights):  # in the lights' order, whichever thread finished first
         if not valid_light[j]:
             skips.append((j, all_spheres, np.full(n_spheres, INVALID_LIGHT), -1))
             continue
-        skips.append((j, all_spheres[not_lens], problem[not_lens], -1))
-        parts.append(_light_sources(a, j, problem, valid_sphere, far, skips))
+        part, own = done[j]
+        parts.append(part)
+        skips.extend(own)
     return Phase1Result(_concat_sources(parts), _skip_table(skips), a)
+
+
+#: Spheres below which one thread does all lights (a thread's start-up would not pay).
+THREADED_SPHERES = 2_000
+
+
+def _default_workers(n_lights: int, n_spheres: int) -> int:
+    if n_lights < 2 or n_spheres < THREADED_SPHERES:
+        return 1
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, n_lights))
 
 
 def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) -> dict:
