@@ -487,7 +487,8 @@ class _InstanceWalk:
             return False
         # Blender stores a matrix by columns: transposed into numpy's rows.
         mats = flat.reshape(n, 4, 4).transpose(0, 2, 1)[np.asarray(rows, dtype=np.int64)]
-        mats = mats.astype(float)
+        # The reference's dtype (float32 where mathutils hands numpy its buffer, 5.x).
+        mats = mats.astype(checks[0][1].dtype if checks else float)
         if any(not np.array_equal(mats[r], m) for r, m in checks):
             return False
         self.gid, self.pid, self.mats = gids, pids, mats
@@ -521,7 +522,7 @@ def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
     read, blocking = assemble(
         walk.groups,
         np.asarray(walk.gid, dtype=np.int64),
-        np.asarray(walk.mats, dtype=float).reshape(-1, 4, 4),
+        np.array(walk.mats).reshape(-1, 4, 4),
         np.asarray(walk.pid, dtype=np.int64),
         walk.parent_names,
         how,

@@ -1,0 +1,189 @@
+"""The depsgraph walk (`scene_reader._InstanceWalk.walk`: per-object caches, the
+matrices copied in one ``foreach_get``) gives exactly what the reference walk
+(`_InstanceWalk.add`, one instance at a time, every RNA value read per instance)
+gives, on scenes that mix every way an instance comes about."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,
+    collection_instance,
+    collection_of,
+    glass_material,
+    gn_instances,
+    grid,
+)
+
+pytestmark = pytest.mark.blender
+
+
+def _mixed_scene():
+    """Plain objects, collection instances (offset, nested, rotated, scaled uniformly
+    and not, parented, hidden for the render, in a collection hidden for the render),
+    a child collection, geometry-node instances (geometry and object instances)."""
+    glass = glass_material()
+    add_sphere("Plain", (0, 0, 3), radius=0.4, material=glass)
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(4, 0, 0))
+    bpy.context.object.name = "Box"
+    add_point_light("Lamp", (0, 0, 10))
+    bead = add_sphere("Bead", (0.2, 0, 0), radius=0.3, material=glass)
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(1, 0, 0))
+    cube = bpy.context.object
+    beads = collection_of("Beads", bead, cube)
+    inner = collection_of("Inner", add_sphere("Inner bead", (0, 1, 0), radius=0.2))
+    beads.children.link(inner)
+    beads.instance_offset = (0.5, -0.25, 0.1)
+    hidden_child = add_sphere("Hidden bead", (0, -1, 0), radius=0.2, material=glass)
+    beads.objects.link(hidden_child)
+    bpy.context.scene.collection.objects.unlink(hidden_child)
+    hidden_child.hide_render = True
+
+    for k, (x, y, _z) in enumerate(grid(12, spacing=2.0)):
+        collection_instance(f"E{k:02d}", beads, location=(x, y, 1))
+    turned = collection_instance("Turned", beads, location=(-3, 0, 0), scale=(2, 2, 2))
+    turned.rotation_euler = (0.3, -0.7, 1.1)
+    collection_instance("Squashed", beads, location=(-6, 0, 0), scale=(1, 1, 0.5))
+    parent = collection_instance("Parent", beads, location=(0, -5, 0))
+    child = collection_instance("Child", beads, location=(1, 0, 0))
+    child.parent = parent
+    parent.rotation_euler = (0, 0, math.pi / 3)
+    collection_instance("Not rendered", beads, location=(0, 8, 0)).hide_render = True
+    nest = collection_of("Nest", collection_instance("Nested", beads, location=(0, 0, 2)))
+    collection_instance("Nest 1", nest, location=(10, 0, 0))
+    collection_instance("Nest 2", nest, location=(12, 0, 0))
+    off = bpy.data.collections.new("Off for render")
+    bpy.context.scene.collection.children.link(off)
+    off.hide_render = True
+    collection_instance("In off", beads, location=(0, 12, 0), parent_coll=off)
+
+    gn_instances("Dots", grid(9, spacing=0.7), radius=0.1, material=glass, location=(0, 0, -3))
+    gn_instances("Object dots", grid(4), instance_object=bead, location=(5, 5, -3))
+    bpy.context.view_layer.update()
+
+
+def _reference(depsgraph, viewport):
+    from lens_lights.operators import scene_reader as sr
+
+    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    walk = sr._InstanceWalk(viewport, visible)
+    for inst in depsgraph.object_instances:
+        walk.add(inst)
+    return walk
+
+
+def _fast(depsgraph, viewport):
+    from lens_lights.operators import scene_reader as sr
+
+    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    walk = sr._InstanceWalk(viewport, visible)
+    assert walk.walk(depsgraph.object_instances)
+    return walk
+
+
+def _same_walk(a, b):
+    assert list(a.gid) == list(b.gid)
+    assert list(a.pid) == list(b.pid)
+    assert a.parent_names == b.parent_names
+    ma, mb = np.array(a.mats).reshape(-1, 4, 4), np.asarray(b.mats).reshape(-1, 4, 4)
+    assert ma.dtype == mb.dtype  # float32 from 5.x's mathutils buffer, else float64
+    assert np.array_equal(ma, mb)
+    assert [(g.kind, g.name, g.orig, g.reason) for g in a.groups] == [
+        (g.kind, g.name, g.orig, g.reason) for g in b.groups
+    ]
+
+
+@pytest.mark.parametrize("viewport", [False, True])
+def test_walk_matches_the_reference_walk(empty_blend, viewport):
+    """Both ways of reading (the render rules applied by hand or not) on the mixed
+    scene: the same groups, instances, instancers and matrices, bit for bit."""
+    _mixed_scene()
+    dg = bpy.context.evaluated_depsgraph_get()
+    ref = _reference(dg, viewport)
+    fast = _fast(dg, viewport)
+    _same_walk(ref, fast)
+    names = set(ref.parent_names)
+    # The scene has what it is meant to have (else the comparison proves little).
+    assert {"E00", "Turned", "Squashed", "Child", "Nest 1", "Dots", "Object dots"} <= names
+    assert ("Not rendered" in names) is (not viewport)
+    assert ("In off" in names) is (not viewport)
+    assert len(ref.gid) > 12 * 3
+
+
+def test_matrices_compose_as_blender_documents(empty_blend):
+    """The matrix the walk reads for a collection instance is the instancer's world
+    matrix × translation(−instance offset) × the child's world matrix (computed here
+    in numpy from the objects' own matrices)."""
+    _mixed_scene()
+    dg = bpy.context.evaluated_depsgraph_get()
+    walk = _fast(dg, False)
+    bead = bpy.data.objects["Bead"]
+    offset = np.eye(4)
+    offset[:3, 3] = -np.array(bpy.data.collections["Beads"].instance_offset)
+    for name in ("E03", "Turned", "Child"):
+        p = walk.parent_names.index(name)
+        rows = [
+            i
+            for i, (g, q) in enumerate(zip(walk.gid, walk.pid, strict=True))
+            if q == p and walk.groups[g].orig == bead
+        ]
+        assert len(rows) == 1
+        expected = np.array(bpy.data.objects[name].matrix_world) @ offset
+        expected = expected @ np.array(bead.matrix_world)
+        np.testing.assert_allclose(walk.mats[rows[0]], expected, atol=1e-5)
+
+
+def test_read_matches_the_reference_read(empty_blend):
+    """`read_depsgraph` (the fast walk) and the reference walk assembled the same way:
+    the same spheres, lights, names and what was left out."""
+    from lens_lights.operators import scene_reader as sr
+
+    _mixed_scene()
+    dg = bpy.context.evaluated_depsgraph_get()
+    fast = sr.read_depsgraph(dg)
+    ref = sr._assemble(bpy.context.scene, _reference(dg, True), "viewport")
+    for key in ("center", "radius", "ior", "kt", "light_position", "light_brightness"):
+        assert np.array_equal(getattr(fast.arrays, key), getattr(ref.arrays, key)), key
+    assert list(fast.sphere_sources) == list(ref.sphere_sources)
+    assert len(fast.sphere_sources) > 40
+    assert fast.left_out == ref.left_out and fast.light_sources == ref.light_sources
+    assert any("Squashed" in name for name, _ in fast.left_out)
+
+
+def test_a_second_pass_that_differs_falls_back(empty_blend, monkeypatch):
+    """When the matrices copied in one go are not the first pass's (here: a wrapper
+    whose ``foreach_get`` gives other numbers, or fails), `walk` keeps nothing and the
+    read is the reference walk's."""
+    from lens_lights.operators import scene_reader as sr
+
+    _mixed_scene()
+    dg = bpy.context.evaluated_depsgraph_get()
+
+    class Shifted:
+        def __init__(self, instances, fail):
+            self.instances, self.fail = instances, fail
+
+        def __iter__(self):
+            return iter(self.instances)
+
+        def foreach_get(self, name, out):
+            if self.fail:
+                raise RuntimeError("no")
+            self.instances.foreach_get(name, out)
+            out[:] = np.roll(out, 16)  # every matrix one instance later
+
+    for fail in (False, True):
+        walk = sr._InstanceWalk(False, None)
+        assert not walk.walk(Shifted(dg.object_instances, fail))
+        assert walk.gid == [] and walk.mats == []
+
+    ref = _reference(dg, False)
+    calls = []
+    real = sr._InstanceWalk.add
+    monkeypatch.setattr(sr._InstanceWalk, "walk", lambda self, instances: False)
+    monkeypatch.setattr(sr._InstanceWalk, "add", lambda self, i: calls.append(1) or real(self, i))
+    _same_walk(ref, sr._walk(dg, False))
+    assert len(calls) == len(dg.object_instances)
