@@ -84,16 +84,23 @@ def _fast(depsgraph, viewport):
     return walk
 
 
+def _items(w):
+    """Per instance: its object (original, name, kind, why not a sphere) and instancer.
+    (Group numbers are not compared: the reference's groups are keyed by the
+    pointer of the Python object Blender hands out per instance, which its own
+    caching of those objects may change between two instances of one object.)"""
+    return [
+        (w.groups[g].orig, w.groups[g].name, w.groups[g].kind, w.groups[g].reason)
+        + (w.parent_names[p] if p >= 0 else None,)
+        for g, p in zip(w.gid, w.pid, strict=True)
+    ]
+
+
 def _same_walk(a, b):
-    assert list(a.gid) == list(b.gid)
-    assert list(a.pid) == list(b.pid)
-    assert a.parent_names == b.parent_names
+    assert _items(a) == _items(b)
     ma, mb = np.array(a.mats).reshape(-1, 4, 4), np.asarray(b.mats).reshape(-1, 4, 4)
     assert ma.dtype == mb.dtype  # float32 from 5.x's mathutils buffer, else float64
     assert np.array_equal(ma, mb)
-    assert [(g.kind, g.name, g.orig, g.reason) for g in a.groups] == [
-        (g.kind, g.name, g.orig, g.reason) for g in b.groups
-    ]
 
 
 @pytest.mark.parametrize("viewport", [False, True])
@@ -187,3 +194,115 @@ def test_a_second_pass_that_differs_falls_back(empty_blend, monkeypatch):
     monkeypatch.setattr(sr._InstanceWalk, "add", lambda self, i: calls.append(1) or real(self, i))
     _same_walk(ref, sr._walk(dg, False))
     assert len(calls) == len(dg.object_instances)
+
+
+# --------------------------------------------------------------------------- bulk
+
+
+def _empties_scene():
+    """Only collection-instance empties (what `_bulk_walk` reads): two collections
+    (one with an offset, a child collection, a cube, an empty, a light, an object
+    also in the scene itself), instancers turned by odd angles, scaled uniformly and
+    not, parented, one without a collection; a floor, a lamp and a sphere besides."""
+    glass = glass_material()
+    bpy.ops.mesh.primitive_plane_add(size=40)
+    bpy.context.object.name = "Floor"
+    add_point_light("Lamp", (1, 2, 10))
+    add_sphere("Plain", (0, 0, 3), radius=0.4, material=glass)
+    bead = add_sphere("Bead", (0.2, 0.1, 0.05), radius=0.3, material=glass)
+    bead.rotation_euler = (0.2, 0.4, 0.6)
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(1, 0, 0))
+    cube = bpy.context.object
+    lamp = add_point_light("Bead lamp", (0, 0, 1), energy=10.0)
+    marker = bpy.data.objects.new("Marker", None)
+    beads = collection_of("Beads", bead, cube, lamp, marker)
+    inner = collection_of("Inner", add_sphere("Inner bead", (0, 1, 0), radius=0.2))
+    beads.children.link(inner)
+    beads.instance_offset = (0.5, -0.25, 0.125)
+    shared = add_sphere("Shared", (3, 3, 0.5), radius=0.25, material=glass)
+    beads.objects.link(shared)  # also in the scene itself
+    drop = add_sphere("Drop", (0, 0, 0), radius=0.2, material=glass)
+    drop.scale = (1, 1, 0.5)  # an ellipsoid: left out
+    drops = collection_of("Drops", drop, add_sphere("Round drop", (0, 0.5, 0), radius=0.1))
+
+    for k, (x, y, _z) in enumerate(grid(16, spacing=2.0)):
+        e = collection_instance(f"E{k:02d}", beads if k % 3 else drops, location=(x, y, 1))
+        e.rotation_euler = (0.1 * k, 0.37 * k, 0.73 * k)
+        e.scale = (1.7, 1.7, 1.7) if k % 4 == 1 else (1, 1, 1)
+    collection_instance("Squashed", beads, location=(-6, 0, 0), scale=(1, 1, 0.5))
+    parent = collection_instance("Parent", drops, location=(0, -5, 0))
+    parent.rotation_euler = (0.3, 0, math.pi / 3)
+    child = collection_instance("Child", beads, location=(1.5, 0.25, 0))
+    child.parent = parent
+    collection_instance("No collection", None, location=(0, 9, 0))
+    bpy.context.view_layer.update()
+
+
+def _as_rendered(fn):
+    from lens_lights.operators import render_probe
+
+    value, how = render_probe.as_rendered(bpy.context, fn)
+    assert how == render_probe.VIEWPORT_AS_RENDER
+    return value
+
+
+def test_bulk_read_matches_the_reference_walk(empty_blend):
+    """On empties instancing collections (turned, scaled, parented instancers, an
+    instance offset, lights, cubes and empties among the instanced objects), the
+    bulk read gives the reference walk's groups, instances, instancers and
+    matrices, bit for bit, and the read made of it is the same."""
+    from lens_lights.operators import scene_reader as sr
+
+    _empties_scene()
+
+    def both(dg):
+        return _reference(dg, False), sr._bulk_walk(dg), sr.read_depsgraph(dg)
+
+    ref, bulk, read = _as_rendered(both)
+    assert bulk is not None
+    _same_walk(ref, bulk)
+    kinds = {ref.groups[g].name for g in ref.gid}
+    assert {"Bead", "Cube", "Bead lamp", "Inner bead", "Shared", "Drop", "Plain"} <= kinds
+    assert len(ref.gid) > 16 * 4
+    assembled = sr._assemble(bpy.context.scene, ref, "x")
+    for key in ("center", "radius", "ior", "kt", "light_position", "light_brightness"):
+        assert np.array_equal(getattr(read.arrays, key), getattr(assembled.arrays, key)), key
+    assert list(read.sphere_sources) == list(assembled.sphere_sources)
+    assert read.left_out == assembled.left_out
+
+
+@pytest.mark.parametrize("change", ["nested", "hidden", "nodes", "mixed"])
+def test_bulk_read_declines_what_it_does_not_know(empty_blend, change):
+    """A collection instance inside an instanced collection, an instanced object
+    hidden, geometry nodes, the mixed scene: no bulk read (the walk reads them)."""
+    from lens_lights.operators import scene_reader as sr
+
+    if change == "mixed":
+        _mixed_scene()
+    else:
+        _empties_scene()
+        beads = bpy.data.collections["Beads"]
+        if change == "nested":
+            beads.objects.link(collection_instance("Inside", bpy.data.collections["Drops"]))
+            bpy.context.scene.collection.objects.unlink(bpy.data.objects["Inside"])
+        elif change == "hidden":
+            ob = bpy.data.objects["Inner bead"]
+            ob.hide_render = ob.hide_viewport = True
+        else:
+            bpy.data.objects["Bead"].modifiers.new("Nodes", "NODES")
+        bpy.context.view_layer.update()
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert sr._bulk_walk(dg) is None
+
+
+def test_bulk_read_that_disagrees_with_the_iterator_is_dropped(empty_blend, monkeypatch):
+    """When the composed matrices differ from the iterator's (here: a product
+    nudged), the check on the first instances drops the bulk read."""
+    from lens_lights.operators import scene_reader as sr
+
+    _empties_scene()
+    real = sr._mul
+    monkeypatch.setattr(sr, "_mul", lambda a, b: real(a, b) * np.float32(1.0001))
+    assert _as_rendered(sr._bulk_walk) is None
+    monkeypatch.setattr(sr, "_mul", real)
+    assert _as_rendered(sr._bulk_walk) is not None
