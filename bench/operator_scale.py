@@ -211,6 +211,7 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     finally:
         marks.remove()
     total, fig, result, cpu, (undo, update) = best
+    reads = read_cpu(repeat=3)
     tm = fig.get("timings", {})
     # Done inside the probe's render callback; the rest of the probe is Blender's.
     inside = sum(tm.get(k, 0.0) for k in ("read", "phase1", "budget", "plan", "receivers", "bake"))
@@ -239,6 +240,7 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         how=fig.get("how"),
         result=result,
         report=bpy.context.scene.lens_lights.last_report,
+        **reads,
     )
     print(
         f"{kind:>10} {layout:>8} {spheres:>7} spheres: first run {first:.2f} s, best {total:.2f} s "
@@ -252,6 +254,41 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         flush=True,
     )
     return row
+
+
+def read_cpu(repeat=3) -> dict:
+    """CPU seconds (best of `repeat`, interleaved) of the check (`viewport_differs`)
+    and of the read as Generate runs it (`as_rendered` → `read_depsgraph`: the bulk
+    read of collection-instance empties, else the walk), beside the reference read
+    (`_InstanceWalk.add`, every RNA value read per instance, as before issue 16),
+    both less the check."""
+    from lens_lights.operators import render_probe, scene_reader
+
+    ctx, scene = bpy.context, bpy.context.scene
+
+    def reference(dg):
+        walk = scene_reader._InstanceWalk(False, None)
+        for inst in dg.object_instances:
+            walk.add(inst)
+        return scene_reader._assemble(scene, walk, "reference")
+
+    runs = {
+        "check_cpu": lambda: render_probe.viewport_differs(ctx),
+        "read_cpu": lambda: render_probe.as_rendered(
+            ctx, lambda dg: scene_reader.read_depsgraph(dg, scene)
+        ),
+        "ref_read_cpu": lambda: render_probe.as_rendered(ctx, reference),
+    }
+    how = render_probe.as_rendered(ctx, lambda dg: None)[1]
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeat):
+        for key, fn in runs.items():
+            c = time.process_time()
+            fn()
+            best[key] = min(best[key], time.process_time() - c)
+    for key in ("read_cpu", "ref_read_cpu"):
+        best[key] = max(0.0, best[key] - best["check_cpu"])
+    return dict(best, read_how=how)
 
 
 #: Where Generate's time goes on many separate objects: measured step by step (CPU
@@ -284,9 +321,15 @@ ATTRIBUTION = [
     "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
     "pays their removal (`light_builder.clear`: the lights and their data in one "
     "`batch_remove`, one scan of the file).",
-    "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
-    "dozen RNA reads and the matrix per instance, about 20 µs each; the matrix copy "
-    "is 2 µs of it): 1.8–2.6 s at 100 k; the plan 0.08–0.09 s (the rays that keep the "
+    "* **Ours:** reading the instances: it was one pass over "
+    "`depsgraph.object_instances`, a dozen RNA reads and the matrix per instance (about "
+    "20 µs each: 1.8–2.6 s at 100 k); now empties instancing collections of plain "
+    "objects are read in bulk (`scene_reader._bulk_walk`: the depsgraph's objects with "
+    "`foreach_get`, each instance's matrix composed in numpy as Blender composes it, "
+    "float32, bit for bit; checked against the iterator's first 64 instances), and "
+    "anything else by a walk that caches per object and instancer and copies the "
+    "matrices in one `foreach_get` (`_InstanceWalk.walk`); the table above gives both "
+    "against the reference read. The plan 0.08–0.09 s (the rays that keep the "
     "beams clear meet groups of spheres first, `ray_hits.sphere_clusters`: it was "
     "1.7 s); phase 1 5.1–6.6 s for the two lights, of which the glass blockers' Fresnel "
     "shares (`shadow_mask.glass_passed`) about 2.4 s, the broad phase about 0.9 s and "
@@ -379,6 +422,21 @@ def write_report(rows, args):
             "undo and update "
             f"{theirs:.1f} s ({theirs / r['total']:.0%}), Generate's own steps {ours:.1f} s "
             f"({ours / r['total']:.0%}) of {r['total']:.1f} s"
+        )
+    lines += [
+        "",
+        "The read alone, CPU seconds, best of 3 after the runs (`read_cpu`: the check; "
+        "the read as Generate reads, less the check; the reference read, one instance at "
+        "a time with every RNA value read per instance, as before issue 16, less the check):",
+        "",
+        "| instancing | spheres | path | check | read | reference read | reference / read |",
+        "| --- | ---: | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['kind']} | {r['spheres']} | {_path(r['read_how'])} | {r['check_cpu']:.3f} | "
+            f"{r['read_cpu']:.3f} | "
+            f"{r['ref_read_cpu']:.3f} | {r['ref_read_cpu'] / max(r['read_cpu'], 1e-9):.1f} × |"
         )
     lines += ["", *ATTRIBUTION, "", "Reports of the runs:", ""]
     for r in rows:
