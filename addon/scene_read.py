@@ -309,14 +309,14 @@ def blocking_instances(groups, gid, kind, M, box_lo, box_hi, ellipsoids) -> Bloc
     )
 
 
-def place_spheres(groups, sg, M_sph):
+def place_spheres(groups, sg, M_sph, scale=None):
     """World centres and radii of sphere instances (groups `sg`, matrices `M_sph`,
-    uniformly scaled)."""
+    uniformly scaled; `scale`: their `uniform_scales` when already known)."""
     local_c = np.array(
         [g.center if g.kind == SPHERE_GROUP else np.zeros(3) for g in groups]
     ).reshape(-1, 3)
     local_r = np.array([g.radius for g in groups], dtype=float)
-    scale = uniform_scales(M_sph)
+    scale = uniform_scales(M_sph) if scale is None else scale
     center = np.einsum("nij,nj->ni", M_sph[:, :3, :3], local_c[sg]) + M_sph[:, :3, 3]
     return center.reshape(-1, 3), local_r[sg] * scale
 
@@ -359,13 +359,14 @@ def assemble(
     left.add_grouped(other, gid[other], lambda i: groups[gid[i]].reason, lens_of)
 
     sph = np.flatnonzero(kind == SPHERE_GROUP)
-    uniform = np.isfinite(uniform_scales(M[sph]))
+    scales = uniform_scales(M[sph])
+    uniform = np.isfinite(scales)
     bad = sph[~uniform]
     blocking = blocking_instances(groups, gid, kind, M, box_lo, box_hi, bad)
     left.add_grouped(bad, scale_codes(M[bad]), lambda i: scale_reason(M[i]), lens_of)
     sph = sph[uniform]
     sg = gid[sph]
-    center, radius = place_spheres(groups, sg, M[sph])
+    center, radius = place_spheres(groups, sg, M[sph], scales[uniform])
 
     out.arrays = SceneArrays(
         light_position=np.asarray(light_pos, dtype=float).reshape(-1, 3),

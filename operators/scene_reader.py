@@ -536,14 +536,14 @@ def _mul(a, b):
     )
 
 
-def _bulk_collections(instancers):
-    """The collections the empties `instancers` instance, if each can be read in
-    bulk: (instancer name → collection index, per collection its offset matrix and
-    objects), else None."""
+def _bulk_collections(instancers, names):
+    """The collections the empties `instancers` (named `names`) instance, if each
+    can be read in bulk: (instancer name → collection index, per collection its
+    offset matrix and objects), else None."""
     of: dict[str, int] = {}
     index: dict = {}
     kids: list = []
-    for empty in instancers:
+    for empty, name in zip(instancers, names, strict=True):
         coll = empty.instance_collection
         if coll is None:
             continue
@@ -564,7 +564,7 @@ def _bulk_collections(instancers):
             offset[:3, 3] = -np.array(coll.instance_offset, dtype=np.float32)
             c = index[coll] = len(kids)
             kids.append((offset, obs))
-        of[empty.name] = c
+        of[name] = c
     return of, kids
 
 
@@ -599,7 +599,9 @@ def _bulk_walk(depsgraph) -> _InstanceWalk | None:
     by_name = {ob.name: ob for ob in (listed[k] for k in others.tolist())}
     if any(_may_instance(ob) for ob in by_name.values()):
         return None
-    found = _bulk_collections([listed[k] for k in np.flatnonzero(inst_types == coll_code).tolist()])
+    rows_of = np.flatnonzero(inst_types == coll_code).tolist()
+    all_names = objects.keys()
+    found = _bulk_collections([listed[k] for k in rows_of], [all_names[k] for k in rows_of])
     if found is None:
         return None
     coll_of, kids = found
@@ -620,12 +622,12 @@ def _bulk_walk(depsgraph) -> _InstanceWalk | None:
     events = [(int(r), -1, None) for r in read_rows]
     first_row = np.full(len(kids), rows, dtype=np.int64)
     np.minimum.at(first_row, row_coll[row_coll >= 0], np.flatnonzero(row_coll >= 0))
-    kid_read = []  # per collection: [(original, evaluated)] of the objects read
+    kid_read = []  # per collection instanced here: [(original, evaluated)] of those read
     for c, (_offset, obs) in enumerate(kids):
-        read = [(ob, ob.evaluated_get(depsgraph)) for ob in obs if ob.type in READ_TYPES]
+        used = first_row[c] < rows
+        read = [(ob, ob.evaluated_get(depsgraph)) for ob in obs if used and ob.type in READ_TYPES]
         kid_read.append(read)
-        if first_row[c] < rows:
-            events += [(int(first_row[c]), k, c) for k in range(len(read))]
+        events += [(int(first_row[c]), k, c) for k in range(len(read))]
     row_gid = {}
     kid_gid: dict = {}
     for r, k, c in sorted(events, key=lambda e: (e[0], e[1])):
@@ -639,14 +641,13 @@ def _bulk_walk(depsgraph) -> _InstanceWalk | None:
                 kid_gid[orig] = _classify(ob, orig, walk.groups, walk.fit_cache, walk.optics_cache)
 
     # Per collection: the groups and local matrices of its instanced objects kept.
-    kept_gid, kept_mat, kept_pos, n_read = [], [], [], []
+    kept_gid, kept_mat, n_read = [], [], []
     for read in kid_read:
         g = np.array([kid_gid.get(orig, -1) for orig, _ob in read], dtype=np.int64)
         m = np.array([np.array(ob.matrix_world) for _orig, ob in read], dtype=np.float32)
         keep = g >= 0
         kept_gid.append(g[keep])
         kept_mat.append(m.reshape(-1, 4, 4)[keep])
-        kept_pos.append(np.flatnonzero(keep))
         n_read.append(len(read))
     n_read = np.array(n_read, dtype=np.int64)
     # Instancers with an object read in their collection, in row order, get an index.
@@ -702,7 +703,10 @@ def _bulk_agrees(depsgraph, walk) -> bool:
 
 def _walk(depsgraph, viewport) -> _InstanceWalk:
     if not viewport and reads_viewport_as_render(depsgraph):
-        walk = _bulk_walk(depsgraph)
+        try:
+            walk = _bulk_walk(depsgraph)
+        except Exception:  # anything it did not foresee: the walk reads (and says) it
+            walk = None
         if walk is not None:
             return walk
     visible = _render_visible_objects(depsgraph.view_layer) if viewport else None
