@@ -306,3 +306,37 @@ def test_bulk_read_that_disagrees_with_the_iterator_is_dropped(empty_blend, monk
     assert _as_rendered(sr._bulk_walk) is None
     monkeypatch.setattr(sr, "_mul", real)
     assert _as_rendered(sr._bulk_walk) is not None
+
+
+def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monkeypatch):
+    """Generate on the empties' scene reads it in bulk, and builds the lights (and the
+    report) that it builds when the walk reads it."""
+    from lens_lights.operators import scene_reader as sr
+    from lens_lights.operators.generate import generate as run
+
+    _empties_scene()
+    bpy.context.scene.lens_lights.energy_model = "FITTED"
+    bulk = []
+    real = sr._bulk_walk
+    monkeypatch.setattr(sr, "_bulk_walk", lambda dg: bulk.append(real(dg)) or bulk[-1])
+
+    def lights():
+        level, message, figures = run(bpy.context)
+        assert level == "INFO" and figures["created"] > 10
+        made = sorted(
+            (
+                ob.lens_lights.source_light,
+                ob.lens_lights.source_lens,
+                ob.data.type,
+                round(ob.data.energy, 9),
+                tuple(round(x, 9) for x in ob.matrix_world.translation),
+            )
+            for ob in bpy.data.objects
+            if ob.lens_lights.is_lens_light
+        )
+        return made, message, figures["lenses"], figures["left_out"]
+
+    by_bulk = lights()
+    assert len(bulk) == 1 and bulk[0] is not None
+    monkeypatch.setattr(sr, "_bulk_walk", lambda dg: None)
+    assert lights() == by_bulk
