@@ -340,3 +340,25 @@ def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monke
     assert len(bulk) == 1 and bulk[0] is not None
     monkeypatch.setattr(sr, "_bulk_walk", lambda dg: None)
     assert lights() == by_bulk
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n_groups", [1, 3, 100])
+def test_world_corners_are_the_einsums_numbers(dtype, n_groups):
+    """`scene_read._world_corners` (one 2-D einsum per group when they are few) gives
+    the numbers of the one einsum over all instances, bit for bit (signs of zeros,
+    NaN and infinity included), for float32 matrices (Blender 5.x) and float64."""
+    from lens_lights.addon.scene_read import _world_corners
+
+    rng = np.random.default_rng(7 + n_groups)
+    n = 5000
+    M = rng.normal(size=(n, 4, 4)).astype(dtype)
+    M[5, 1, 2], M[7, 0, 3], M[9, :3, :3] = np.nan, np.inf, 0.0
+    corners = rng.normal(size=(n_groups, 8, 3))
+    corners[-1, 3, 1] = np.nan
+    g = rng.integers(0, n_groups, n)
+    expected = np.einsum("nij,nkj->nki", M[:, :3, :3], corners[g]) + M[:, None, :3, 3]
+    got = _world_corners(corners, g, M).transpose(0, 2, 1)
+    assert got.dtype == expected.dtype
+    np.testing.assert_array_equal(got, expected)
+    assert np.array_equal(np.signbit(got), np.signbit(expected))
