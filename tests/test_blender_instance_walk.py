@@ -271,10 +271,13 @@ def test_bulk_read_matches_the_reference_walk(empty_blend):
     assert read.left_out == assembled.left_out
 
 
-@pytest.mark.parametrize("change", ["nested", "hidden", "nodes", "mixed"])
+@pytest.mark.parametrize(
+    "change", ["nested", "hidden", "hidden inside", "not shown", "nodes", "mixed"]
+)
 def test_bulk_read_declines_what_it_does_not_know(empty_blend, change):
-    """A collection instance inside an instanced collection, an instanced object
-    hidden, geometry nodes, the mixed scene: no bulk read (the walk reads them)."""
+    """A collection instance inside an instanced collection, an instanced object or
+    child collection hidden, an instancer not shown, geometry nodes, the mixed scene:
+    no bulk read (the walk reads them)."""
     from lens_lights.operators import scene_reader as sr
 
     if change == "mixed":
@@ -288,6 +291,12 @@ def test_bulk_read_declines_what_it_does_not_know(empty_blend, change):
         elif change == "hidden":
             ob = bpy.data.objects["Inner bead"]
             ob.hide_render = ob.hide_viewport = True
+        elif change == "hidden inside":
+            inner = bpy.data.collections["Inner"]
+            inner.hide_render = inner.hide_viewport = True
+        elif change == "not shown":
+            e = bpy.data.objects["E01"]
+            e.show_instancer_for_viewport = e.show_instancer_for_render = False
         else:
             bpy.data.objects["Bead"].modifiers.new("Nodes", "NODES")
         bpy.context.view_layer.update()
