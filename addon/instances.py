@@ -90,12 +90,13 @@ def instance_names(
     n, n_groups = gid.size, max(len(group_names), 1)
     pair = pid * n_groups + gid
     pairs, pair_of = np.unique(pair, return_inverse=True)
+    parents, groups = np.divmod(pairs, n_groups)  # floored: −1 for no instancer
+    texts = [
+        group_names[g] if p < 0 else f"{parent_names[p]}/{group_names[g]}"
+        for p, g in zip(parents.tolist(), groups.tolist(), strict=True)
+    ]
     base_ids: dict[str, int] = {}
-    pair_base = np.empty(pairs.size, dtype=np.int64)
-    for k, p in enumerate(pairs):
-        parent, g = divmod(int(p), n_groups)
-        text = group_names[g] if parent < 0 else f"{parent_names[parent]}/{group_names[g]}"
-        pair_base[k] = base_ids.setdefault(text, len(base_ids))
+    pair_base = np.array([base_ids.setdefault(t, len(base_ids)) for t in texts], dtype=np.int64)
     base = pair_base[pair_of.ravel()] if n else np.zeros(0, np.int64)
     return InstanceNames(list(base_ids), base, occurrences(base))
 

@@ -211,6 +211,7 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
     finally:
         marks.remove()
     total, fig, result, cpu, (undo, update) = best
+    reads = read_cpu(repeat=3)
     tm = fig.get("timings", {})
     # Done inside the probe's render callback; the rest of the probe is Blender's.
     inside = sum(tm.get(k, 0.0) for k in ("read", "phase1", "budget", "plan", "receivers", "bake"))
@@ -239,6 +240,7 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         how=fig.get("how"),
         result=result,
         report=bpy.context.scene.lens_lights.last_report,
+        **reads,
     )
     print(
         f"{kind:>10} {layout:>8} {spheres:>7} spheres: first run {first:.2f} s, best {total:.2f} s "
@@ -252,6 +254,83 @@ def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
         flush=True,
     )
     return row
+
+
+def read_cpu(repeat=3) -> dict:
+    """CPU seconds (best of `repeat`, interleaved) of the check (`viewport_differs`)
+    and of the read as Generate runs it (`as_rendered` → `read_depsgraph`: the bulk
+    read of collection-instance empties, else the walk), beside the reference read
+    (`_InstanceWalk.add`, every RNA value read per instance, as before issue 16),
+    both less the check."""
+    from lens_lights.operators import render_probe, scene_reader
+
+    ctx, scene = bpy.context, bpy.context.scene
+
+    def reference(dg):
+        walk = scene_reader._InstanceWalk(False, None)
+        for inst in dg.object_instances:
+            walk.add(inst)
+        return scene_reader._assemble(scene, walk, "reference")
+
+    runs = {
+        "check_cpu": lambda: render_probe.viewport_differs(ctx),
+        "read_cpu": lambda: render_probe.as_rendered(
+            ctx, lambda dg: scene_reader.read_depsgraph(dg, scene)
+        ),
+        "ref_read_cpu": lambda: render_probe.as_rendered(ctx, reference),
+    }
+    how = render_probe.as_rendered(ctx, lambda dg: None)[1]
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeat):
+        for key, fn in runs.items():
+            c = time.process_time()
+            fn()
+            best[key] = min(best[key], time.process_time() - c)
+    for key in ("read_cpu", "ref_read_cpu"):
+        best[key] = max(0.0, best[key] - best["check_cpu"])
+    return dict(best, read_how=how)
+
+
+def read_only(args) -> int:
+    """`--read-only`: per case, the CPU seconds (best of ``--repeat``) of the check
+    and of the check and the read as Generate runs them, with this checkout's
+    extension or `--extension`'s (not registered: the read needs no operator)."""
+    import importlib.util
+
+    if args.extension:
+        root = Path(args.extension).resolve()
+        spec = importlib.util.spec_from_file_location(
+            "lens_lights", root / "__init__.py", submodule_search_locations=[str(root)]
+        )
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["lens_lights"] = module
+        spec.loader.exec_module(module)
+    else:
+        root = ROOT
+        load_extension()
+    from lens_lights.operators import render_probe, scene_reader
+
+    kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)
+    cases = [(n, k, "floating") for n in args.counts for k in kinds]
+    cases += [(int(c.split(":")[2]), *c.split(":")[:2]) for c in args.extra]
+    for n, kind, layout in cases:
+        spheres = build_scene(n, kind, layout)
+        ctx, scene = bpy.context, bpy.context.scene
+        best = {"check": float("inf"), "check+read": float("inf")}
+        for _ in range(args.repeat):
+            c = time.process_time()
+            render_probe.viewport_differs(ctx)
+            best["check"] = min(best["check"], time.process_time() - c)
+            c = time.process_time()
+            render_probe.as_rendered(ctx, lambda dg, s=scene: scene_reader.read_depsgraph(dg, s))
+            best["check+read"] = min(best["check+read"], time.process_time() - c)
+        print(
+            f"{root.name}: {kind} {layout} {spheres} spheres: check {best['check']:.3f} s, "
+            f"check and read {best['check+read']:.3f} s CPU (best of {args.repeat}; load "
+            f"{os.getloadavg()[0]:.1f})",
+            flush=True,
+        )
+    return 0
 
 
 #: Where Generate's time goes on many separate objects: measured step by step (CPU
@@ -284,9 +363,15 @@ ATTRIBUTION = [
     "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
     "pays their removal (`light_builder.clear`: the lights and their data in one "
     "`batch_remove`, one scan of the file).",
-    "* **Ours:** reading the instances (one pass over `depsgraph.object_instances`, a "
-    "dozen RNA reads and the matrix per instance, about 20 µs each; the matrix copy "
-    "is 2 µs of it): 1.8–2.6 s at 100 k; the plan 0.08–0.09 s (the rays that keep the "
+    "* **Ours:** reading the instances: it was one pass over "
+    "`depsgraph.object_instances`, a dozen RNA reads and the matrix per instance (about "
+    "20 µs each: 1.8–2.6 s at 100 k); now empties instancing collections of plain "
+    "objects are read in bulk (`scene_reader._bulk_walk`: the depsgraph's objects with "
+    "`foreach_get`, each instance's matrix composed in numpy as Blender composes it, "
+    "float32, bit for bit; checked against the iterator's first 64 instances), and "
+    "anything else by a walk that caches per object and instancer and copies the "
+    "matrices in one `foreach_get` (`_InstanceWalk.walk`); the table above gives both "
+    "against the reference read. The plan 0.08–0.09 s (the rays that keep the "
     "beams clear meet groups of spheres first, `ray_hits.sphere_clusters`: it was "
     "1.7 s); phase 1 5.1–6.6 s for the two lights, of which the glass blockers' Fresnel "
     "shares (`shadow_mask.glass_passed`) about 2.4 s, the broad phase about 0.9 s and "
@@ -300,8 +385,22 @@ ATTRIBUTION = [
     "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met. "
     "On a quiet machine (load about 1), four runs of the 100 489 case: 15.4, 15.5, 17.3 "
     "and 19.4 s; Blender's depsgraph rebuild and evaluation after the lights are added and "
-    "the undo push 7.6–9.6 s of it, the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s. "
+    "the undo push 7.6–9.6 s of it, the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s "
+    "(before the bulk read: the check and the read are now about half, the table above). "
     "The goal needs phase 1 at 100 k in about 2 s (or Blender's update gone).",
+    "",
+    "What is left of the read on collection-instance empties (2026-12-02, CPU, 100 000 "
+    "instances, numpy alone): the assembly (`scene_read.assemble`) about 0.38 s — the "
+    "instances' world boxes 0.14 s (one 2-D `einsum` per group: 0.23 s with the one "
+    "`einsum` over all instances' corners; a `matmul` is faster still but rounds the "
+    "last bit differently, so it is not used), the names 0.08 s, the uniform scales "
+    "0.05 s (an `einsum` too) —; the bulk read itself about one Python step per "
+    "instancing empty (its collection and name). The report's 100 489 row was run "
+    "before the world boxes' change. Against the read before issue 16 (`--read-only "
+    "--extension` a checkout of it; CPU, best of 3, load 2.1–3): at 100 000 empties "
+    "the check 0.31 → 0.21 s and the read 2.56 → 0.87 s (2.9 ×); at 20 164 empties the "
+    "check and the read 0.39–0.54 → 0.19–0.21 s, at 20 164 geometry-nodes instances "
+    "0.24–0.35 → 0.10–0.17 s.",
 ]
 
 
@@ -380,6 +479,21 @@ def write_report(rows, args):
             f"{theirs:.1f} s ({theirs / r['total']:.0%}), Generate's own steps {ours:.1f} s "
             f"({ours / r['total']:.0%}) of {r['total']:.1f} s"
         )
+    lines += [
+        "",
+        "The read alone, CPU seconds, best of 3 after the runs (`read_cpu`: the check; "
+        "the read as Generate reads, less the check; the reference read, one instance at "
+        "a time with every RNA value read per instance, as before issue 16, less the check):",
+        "",
+        "| instancing | spheres | path | check | read | reference read | reference / read |",
+        "| --- | ---: | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['kind']} | {r['spheres']} | {_path(r['read_how'])} | {r['check_cpu']:.3f} | "
+            f"{r['read_cpu']:.3f} | "
+            f"{r['ref_read_cpu']:.3f} | {r['ref_read_cpu'] / max(r['read_cpu'], 1e-9):.1f} × |"
+        )
     lines += ["", *ATTRIBUTION, "", "Reports of the runs:", ""]
     for r in rows:
         lines.append(f"* {r['kind']}, {r['layout']}, {r['spheres']}: {r['report']}")
@@ -416,8 +530,17 @@ def main(argv=None):
         "viewport path), to compare",
     )
     ap.add_argument("--no-report", action="store_true")
+    ap.add_argument(
+        "--read-only",
+        action="store_true",
+        help="only the check and the read (CPU, best of --repeat) of each case, printed; "
+        "with --extension, of another checkout's code (e.g. main's, to compare)",
+    )
+    ap.add_argument("--extension", help="--read-only: the checkout whose extension is read")
     args = ap.parse_args(argv)
     LOAD[:] = os.getloadavg()
+    if args.read_only:
+        return read_only(args)
     ext = load_extension()
     ext.register()
     if args.force_probe:  # the probe render on every scene (before the viewport path)

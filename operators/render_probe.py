@@ -278,12 +278,13 @@ def render_visible_objects(view_layer) -> set:
     """Original objects in at least one collection of `view_layer` enabled for
     rendering (not excluded, not ``hide_render``, nor a parent of it)."""
     visible = set()
+    evaluated = view_layer.id_data.is_evaluated  # an original scene holds originals
 
     def walk(layer_coll, parent_hidden):
         coll = layer_coll.collection
         hidden = parent_hidden or layer_coll.exclude or coll.hide_render
         if not hidden:
-            visible.update(ob.original for ob in coll.objects)
+            visible.update((ob.original for ob in coll.objects) if evaluated else coll.objects)
         for child in layer_coll.children:
             walk(child, hidden)
 
@@ -403,7 +404,11 @@ def viewport_differs(context) -> str | None:
                 return f"{ob.name}: modifier {md.name} ({md.type.lower()})"
     # What the render shows at the top level must be visible in the view layer (the
     # eye, local view: flags the depsgraph has but `hide_*` do not say).
-    expected = {ob for ob in render_visible_objects(context.view_layer) if not ob.hide_render}
+    expected = render_visible_objects(context.view_layer)
+    hidden = np.flatnonzero(_flags(objects, "hide_render"))
+    if len(hidden):  # (few: read one by one)
+        listed = objects.values()
+        expected -= {listed[int(k)] for k in hidden}
     missing = expected - set(shown)
     if missing:
         return f"{min(ob.name for ob in missing)} is hidden in the viewport"
