@@ -20,6 +20,9 @@ from .shadow_mask import union_unblocked
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
 
+#: Owners per occupied cell above which a level is searched on the half-size grid.
+_CROWDED = 4
+
 
 @dataclass
 class Blockers:
@@ -131,25 +134,30 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
 
 def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
     """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap,
-    one batch per grid level, coarsest first; `useful(a, b)` (a mask), if given, is
+    one batch per level, coarsest first; `useful(a, b)` (a mask), if given, is
     asked for each batch's pairs just before they are yielded, so a caller may drop
     the pairs the coarser batches made pointless.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
-    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect
-    (ρ is widened by a few ulps for rounding); pairs sharing a cell are kept if
-    that chord test holds.
-    A hierarchy of uniform grids (cell sizes c₀·2^ℓ) holds each box in the level
-    whose cells are at least twice its width, so a box touches at most 8 cells of
-    its own level and of every coarser one. Each box is looked up in its own and
-    all coarser levels: two intersecting boxes always share a cell of the coarser
-    one's level. Near and far spheres (discs of very different sizes) thus cost
-    no more than uniform ones.
-    A pair is kept only in the cell holding the lower corner of the two boxes'
-    overlap (and, within one level, with a < b): so each pair comes out once,
-    without sorting all candidates to drop repeats. A box spans at most two
-    cells per axis; that cell is the one where, on every axis, one of the two
-    boxes is in its lower cell (`_cell_keys`' corner bits: `bits_a & bits_b == 0`).
+    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b (ρ is widened by a few ulps for rounding);
+    pairs met are kept if that chord test holds.
+    The directions are seen on the six faces of a cube (a face per axis and sign,
+    each direction at home on the face of its largest coordinate): a face keeps two
+    of the three coordinates, which brings points no farther apart, so two
+    overlapping discs' squares [w − ρ, w + ρ] there intersect on every face.
+    A hierarchy of levels (sizes c₀·2^ℓ) holds each box in the level whose size is
+    at least its width. Each level's boxes (the owners) are met by their own and
+    every finer level's boxes on a uniform 2-D grid per face, of the level's size
+    or, where that is crowded, of half of it (fewer far pairs share a cell). A finer
+    box is looked up on its home face only; an owner is put on every face near
+    enough that a box at home there can overlap it (see `_faces_near`), and a pair
+    of owners is kept on the home face of the one that comes first.
+    Within a face, a pair is met only in the cell holding the lower corner of the
+    two squares' overlap: the cell where, on both axes, one of the two squares is
+    in its first cell (`_face_keys`' corner bits: `bits_a & bits_b == 0`); two owners
+    meet from the one with the lower corner bits (or, both in their first cells,
+    the one sorted first). So each pair comes out once, without sorting the
+    candidates to drop repeats.
     """
     active = np.flatnonzero(obstacle | lens_mask)
     if active.size < 2:
@@ -163,94 +171,205 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
     active, w, rho, level = active[by_level], w[by_level], rho[by_level], level[by_level]
     ends = np.searchsorted(level, np.arange(level[-1] + 1), side="right")
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
+    axis = np.argmax(np.abs(w), axis=1)
+    home = 2 * axis + (w[np.arange(w.shape[0]), axis] >= 0)
+    pa, pb = [], []
 
-    def meet(qk, qi, cross, qb, ek, eo, eb, lo=None, count=None):
-        """Pairs (query, owner) sharing a cell, in their home cell only, near."""
-        if lo is None:
-            lo = np.searchsorted(ek, qk, side="left")
-            count = np.searchsorted(ek, qk, side="right") - lo
+    def meet(q, e, lo, count, faces=None, corners=None):
+        """The near pairs of query q.ids[i] with owners e.ids[lo[i] … lo[i] + count[i]
+        − 1]; faces (those of q's keys), if given: kept on the home face of the pair's
+        first box only; corners (the query keys' and the owners' corner bits), if
+        given: q's keys counted all owners of their cell, and only those at corners
+        sharing no bit with the query's are kept (q is e: the owners among
+        themselves, each pair from the lower corner or, both at corner 0, from the
+        one sorted first). The owners' columns are read in their own order, the
+        query's repeated: no scattered reads per meeting."""
         if not count.any():
             return
         at = concat_ranges(lo, count)
-        q, e = np.repeat(qi, count), eo[at]
-        ok = np.repeat(cross, count) | (q < e)  # within a level both orders come up
-        if qb is not None:
-            ok &= (np.repeat(qb, count) & eb[at]) == 0
-        q, e = q[ok], e[ok]
-        # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
-        chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
-        near = chord2 <= (rho[q] + rho[e]) ** 2
-        q, e = active[q[near]], active[e[near]]
+        if corners is not None:
+            # A few owners per cell: all of a cell's met, those of the wrong corners
+            # dropped here, before the columns are read.
+            row = np.flatnonzero(count)
+            row = np.repeat(row, count[row])
+            bq, be = corners[0][row], corners[1][at]
+            keep = (bq & be) == 0
+            if q is e:
+                keep &= (bq < be) | ((bq == be) & (row < at))
+            keep = np.flatnonzero(keep)
+            row, at = row[keep], at[keep]
+            chord2 = (q.x[row] - e.x[at]) ** 2 + (q.y[row] - e.y[at]) ** 2
+            chord2 += (q.z[row] - e.z[at]) ** 2
+            r = q.r[row] + e.r[at]
+            near = np.flatnonzero(chord2 <= r * r)
+            row = row[near]
+            qi, ei = q.ids[row], e.ids[at[near]]
+            if faces is not None:
+                face = faces[row]
+        else:
+            chord2 = (np.repeat(q.x, count) - e.x[at]) ** 2
+            chord2 += (np.repeat(q.y, count) - e.y[at]) ** 2
+            chord2 += (np.repeat(q.z, count) - e.z[at]) ** 2
+            r = np.repeat(q.r, count) + e.r[at]
+            near = np.flatnonzero(chord2 <= r * r)
+            qi, ei = np.repeat(q.ids, count)[near], e.ids[at[near]]
+            if faces is not None:
+                face = np.repeat(faces, count)[near]
+        if faces is not None:
+            ok = face == home[np.minimum(qi, ei)]
+            qi, ei = qi[ok], ei[ok]
+        a, b = active[qi], active[ei]
         if useful is not None:
-            ok = useful(q, e)
-            q, e = q[ok], e[ok]
-        pa.append(q)
-        pb.append(e)
+            ok = useful(a, b)
+            a, b = a[ok], b[ok]
+        pa.append(a)
+        pb.append(b)
+
+    def side(keys, ids):
+        return _Side(keys, ids, wx[ids], wy[ids], wz[ids], rho[ids])
 
     box_lo, box_hi = w - rho[:, None], w + rho[:, None]
     for lvl in np.unique(level)[::-1]:
-        pa, pb = [], []
+        pa.clear()
+        pb.clear()
         cell = c0 * 2.0**lvl
         end = int(ends[lvl])
-        owners = np.arange(int(ends[lvl - 1]) if lvl else 0, end)
+        start = int(ends[lvl - 1]) if lvl else 0
+        owners = np.arange(start, end)
         # Only boxes that meet the owners' bounding box can meet an owner's box (a
         # level of a few near spheres is not searched with every far one's keys).
         lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
-        queries = np.flatnonzero(np.all((box_hi[:end] >= lo) & (box_lo[:end] <= hi), axis=1))
-        e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
-        q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
-        order = np.argsort(e_keys, kind="stable")
-        ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
-        qi = queries[q_idx]
-        cross = level[qi] < lvl
-        # Crowded or not (which way is faster; both give the same pairs): judged on
-        # every 16th query key first, so that a crowded level is searched only once.
-        sample = q_keys[::16]
-        hits = np.searchsorted(ek, sample, side="right") - np.searchsorted(ek, sample)
-        if int(hits.sum()) <= 4 * sample.size:
-            lo = np.searchsorted(ek, q_keys, side="left")
-            count = np.searchsorted(ek, q_keys, side="right") - lo
-            if int(count.sum()) <= 4 * q_keys.size:
-                meet(q_keys, qi, cross, q_bits, ek, eo, eb, lo, count)
-                if pa:
-                    yield np.concatenate(pa), np.concatenate(pb)
-                continue
-        # Crowded: split the owners by corner, so that a query's cell at corner bq
-        # is searched only among owners at corners be with bq & be == 0 (above),
-        # and a pair's other meetings are never expanded.
-        by_corner = []
-        for be in range(8):
-            k = np.flatnonzero(eb == be)
-            by_corner.append((ek[k], eo[k]))
-        for bq in range(8):
-            sel = np.flatnonzero(q_bits == bq)
-            if not sel.size:
-                continue
-            qk, qs, cs = q_keys[sel], qi[sel], cross[sel]
-            for be in range(8):
-                if not bq & be and by_corner[be][0].size:
-                    meet(qk, qs, cs, None, *by_corner[be], None)
+        finer = np.flatnonzero(np.all((box_hi[:start] >= lo) & (box_lo[:start] <= hi), axis=1))
+        on_faces = _faces_near(w[owners], rho[owners] + 0.5 * cell)
+        grid = cell
+        while True:
+            e_keys, e_idx, e_bits, e_face = _face_keys(w[owners], rho[owners], grid, on_faces)
+            code = e_keys * 4 + e_bits
+            order = np.argsort(code, kind="stable")
+            code = code[order]
+            # Crowded (many owners per cell): the half-size grid meets fewer far pairs.
+            cells = 1 + np.count_nonzero(code[1:] != code[:-1])
+            if grid < cell or grid / 2.0 < _MIN_CELL or code.size < _CROWDED * cells:
+                break
+            grid = cell / 2.0
+        own = side(code, owners[e_idx[order]])
+        own_bits, own_face = e_bits[order], e_face[order]
+        find = _lookup(code, 24 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
+        q_keys, q_idx, q_bits, _ = _face_keys(
+            w[finer], rho[finer], grid, home[finer, None] == np.arange(6)
+        )
+        ask = side(q_keys * 4, finer[q_idx])
+        if grid == cell:
+            # Not crowded: each key meets its cell's owners of every corner; those
+            # whose corners share a bit are dropped before the chord test.
+            lo, count = find(ask.keys, ask.keys + 4)
+            meet(ask, own, lo, count, corners=(q_bits, own_bits))
+            cell_of = own.keys - own_bits
+            lo, count = find(cell_of, cell_of + 4)
+            meet(own, own, lo, count, own_face, (own_bits, own_bits))
+            if pa:
+                yield np.concatenate(pa), np.concatenate(pb)
+            continue
+        # Crowded: each key meets only the owners at corners it shares no bit with.
+        for be in range(4):
+            lo, count = find(ask.keys + be, ask.keys + be + 1)
+            count[(q_bits & be) != 0] = 0
+            meet(ask, own, lo, count)
+            # The owners among themselves: from the lower corner bits only.
+            code = own.keys - own_bits + be
+            lo, count = find(code, code + 1)
+            count[((own_bits & be) != 0) | (own_bits >= be)] = 0
+            meet(own, own, lo, count, own_face)
+        # Both in their first cells: each with the ones sorted after it.
+        first = np.flatnonzero(own_bits == 0)
+        lo, count = find(own.keys[first], own.keys[first] + 1)
+        head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
+        meet(head, own, first + 1, lo + count - first - 1, own_face[first])
         if pa:
             yield np.concatenate(pa), np.concatenate(pb)
 
 
-def _cell_keys(w, rho, cell):
-    """Keys of the (at most 8) cells of a grid of size `cell` that each box
-    [w − ρ, w + ρ] touches (2ρ ≤ cell), with the index of the box each key is for
-    and which corner of the box's cells it is (bit 4: x, 2: y, 1: z upper).
+@dataclass
+class _Side:
+    """Cell codes (sorted, for owners) and, per code, its box's row and columns."""
+
+    keys: np.ndarray
+    ids: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+
+
+#: The two coordinates a cube face keeps (faces 2k, 2k + 1: axis k, − and +).
+_FACE_AXES = ((1, 2), (0, 2), (0, 1))
+
+
+def _faces_near(w, reach):
+    """(n, 6) mask of the faces on which a direction within chord `reach` of w can be
+    at home: one there has s·v_k ≥ |v_j| for all j, and each coordinate moves by at
+    most the chord, so s·w_k ≥ max_j |w_j| − 2·reach (with a margin for rounding)."""
+    top = np.abs(w).max(axis=1) - 2.0 * reach * (1.0 + 1e-9) - 1e-12
+    out = np.empty((w.shape[0], 6), dtype=bool)
+    for k in range(3):
+        out[:, 2 * k] = -w[:, k] >= top
+        out[:, 2 * k + 1] = w[:, k] >= top
+    return out
+
+
+def _face_keys(w, rho, cell, faces):
+    """Keys of the cells of a 2-D grid of size `cell` on each face of `faces` ((n, 6)
+    mask) that each square [w − ρ, w + ρ] (its two coordinates kept by the face)
+    touches, 2ρ ≤ 2·cell (up to 3 per axis); with the index of the box each key is
+    for, which of the box's cells it is by corner bits (2: the first axis, 1: the
+    second not the box's first cell on it), and the face.
     The grid is fixed in space (origin below −1, since |w| = 1), so keys of
-    different box sets on the same level agree."""
+    different box sets on the same grid agree."""
     dims = int(math.ceil(2.5 / cell)) + 2
-    lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
-    hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
-    base = (lo[:, 0] * dims + lo[:, 1]) * dims + lo[:, 2]
-    # Which axes the box spans two cells on (bits as the corners'): corner d is
-    # touched iff its bits are among them.
-    spans = (hi > lo).astype(np.uint8) @ np.array([4, 2, 1], dtype=np.uint8)
-    keys, idx, bits = [], [], []
-    for d in range(8):
-        ok = np.flatnonzero((spans & d) == d)
-        keys.append(base[ok] + ((d >> 2) * dims + ((d >> 1) & 1)) * dims + (d & 1))
-        idx.append(ok)
-        bits.append(np.full(ok.size, d, dtype=np.uint8))
-    return np.concatenate(keys), np.concatenate(idx), np.concatenate(bits)
+    keys, idx, bits, face = [], [], [], []
+    for f in range(6):
+        rows = np.flatnonzero(faces[:, f])
+        if not rows.size:
+            continue
+        i, j = _FACE_AXES[f // 2]
+        r = rho[rows]
+        # Cells from −1 (a box up to a cell past −1) to dims − 2, shifted by one so
+        # keys are ≥ 0 and each (face, cell) has its own.
+        lo_i = np.floor((w[rows, i] - r + 1.25) / cell).astype(np.int64)
+        lo_j = np.floor((w[rows, j] - r + 1.25) / cell).astype(np.int64)
+        span_i = np.floor((w[rows, i] + r + 1.25) / cell).astype(np.int64) - lo_i
+        span_j = np.floor((w[rows, j] + r + 1.25) / cell).astype(np.int64) - lo_j
+        base = (f * dims + lo_i + 1) * dims + lo_j + 1
+        for di in range(int(span_i.max()) + 1):
+            oi = np.flatnonzero(span_i >= di)
+            for dj in range(int(span_j[oi].max()) + 1):
+                ok = oi[span_j[oi] >= dj]
+                keys.append(base[ok] + di * dims + dj)
+                idx.append(rows[ok])
+                bits.append(np.full(ok.size, 2 * (di > 0) + (dj > 0), dtype=np.int64))
+                face.append(np.full(ok.size, f, dtype=np.int64))
+    if not keys:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, empty, empty
+    return tuple(np.concatenate(x) for x in (keys, idx, bits, face))
+
+
+def _lookup(codes, size):
+    """For sorted `codes` (all below `size`), a function giving, for bounds lo, hi,
+    where the codes in [lo, hi) start and how many they are: a table by code where
+    it is small beside the codes, else binary searches."""
+    if size <= 8 * codes.size:
+        start = np.zeros(size + 5, dtype=np.int64)
+        np.cumsum(np.bincount(codes, minlength=size + 4), out=start[1:])
+
+        def find(lo, hi):
+            first = start[lo]
+            return first, start[hi] - first
+
+        return find
+
+    def search(lo, hi):
+        first = np.searchsorted(codes, lo, side="left")
+        return first, np.searchsorted(codes, hi, side="left") - first
+
+    return search
