@@ -23,6 +23,9 @@ _MIN_CELL = 1e-6
 #: Owners per occupied cell above which a level is searched on the half-size grid.
 _CROWDED = 4
 
+#: Meetings tested at once (a few MB of temporaries).
+_PIECE = 1 << 16
+
 
 @dataclass
 class Blockers:
@@ -184,39 +187,43 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
         themselves, each pair from the lower corner or, both at corner 0, from the
         one sorted first). The owners' columns are read in their own order, the
         query's repeated: no scattered reads per meeting."""
-        if not count.any():
+        total = np.cumsum(count)
+        if not total.size or not total[-1]:
             return
+        # In pieces of about _PIECE meetings: their temporaries stay in cache.
+        cuts = np.searchsorted(total, np.arange(_PIECE, int(total[-1]), _PIECE))
+        for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True):
+            if t > s:
+                meet_piece(q, e, lo[s:t], count[s:t], s, faces, corners)
+
+    def meet_piece(q, e, lo, count, s, faces, corners):
         at = concat_ranges(lo, count)
+        row = np.repeat(np.arange(s, s + count.size), count)
         if corners is not None:
             # A few owners per cell: all of a cell's met, those of the wrong corners
             # dropped here, before the columns are read.
-            row = np.flatnonzero(count)
-            row = np.repeat(row, count[row])
             bq, be = corners[0][row], corners[1][at]
             keep = (bq & be) == 0
             if q is e:
                 keep &= (bq < be) | ((bq == be) & (row < at))
             keep = np.flatnonzero(keep)
             row, at = row[keep], at[keep]
-            chord2 = (q.x[row] - e.x[at]) ** 2 + (q.y[row] - e.y[at]) ** 2
-            chord2 += (q.z[row] - e.z[at]) ** 2
-            r = q.r[row] + e.r[at]
-            near = np.flatnonzero(chord2 <= r * r)
-            row = row[near]
-            qi, ei = q.ids[row], e.ids[at[near]]
-            if faces is not None:
-                face = faces[row]
-        else:
-            chord2 = (np.repeat(q.x, count) - e.x[at]) ** 2
-            chord2 += (np.repeat(q.y, count) - e.y[at]) ** 2
-            chord2 += (np.repeat(q.z, count) - e.z[at]) ** 2
-            r = np.repeat(q.r, count) + e.r[at]
-            near = np.flatnonzero(chord2 <= r * r)
-            qi, ei = np.repeat(q.ids, count)[near], e.ids[at[near]]
-            if faces is not None:
-                face = np.repeat(faces, count)[near]
+        chord2 = q.x[row]
+        chord2 -= e.x[at]
+        chord2 *= chord2
+        for qc, ec in ((q.y, e.y), (q.z, e.z)):
+            d = qc[row]
+            d -= ec[at]
+            d *= d
+            chord2 += d
+        r = q.r[row]
+        r += e.r[at]
+        r *= r
+        near = np.flatnonzero(chord2 <= r)
+        row = row[near]
+        qi, ei = q.ids[row], e.ids[at[near]]
         if faces is not None:
-            ok = face == home[np.minimum(qi, ei)]
+            ok = faces[row] == home[np.minimum(qi, ei)]
             qi, ei = qi[ok], ei[ok]
         a, b = active[qi], active[ei]
         if useful is not None:
@@ -240,10 +247,11 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
         # level of a few near spheres is not searched with every far one's keys).
         lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
         finer = np.flatnonzero(np.all((box_hi[:start] >= lo) & (box_lo[:start] <= hi), axis=1))
-        on_faces = _faces_near(w[owners], rho[owners] + 0.5 * cell)
+        on_faces = np.nonzero(_faces_near(w[owners], rho[owners] + 0.5 * cell))
+        on_faces = (owners[on_faces[0]], on_faces[1])
         grid = cell
         while True:
-            e_keys, e_idx, e_bits, e_face = _face_keys(w[owners], rho[owners], grid, on_faces)
+            e_keys, e_idx, e_bits, e_face = _face_keys(w, rho, grid, *on_faces)
             code = e_keys * 4 + e_bits
             order = np.argsort(code, kind="stable")
             code = code[order]
@@ -252,13 +260,11 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
             if grid < cell or grid / 2.0 < _MIN_CELL or code.size < _CROWDED * cells:
                 break
             grid = cell / 2.0
-        own = side(code, owners[e_idx[order]])
+        own = side(code, e_idx[order])
         own_bits, own_face = e_bits[order], e_face[order]
         find = _lookup(code, 24 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
-        q_keys, q_idx, q_bits, _ = _face_keys(
-            w[finer], rho[finer], grid, home[finer, None] == np.arange(6)
-        )
-        ask = side(q_keys * 4, finer[q_idx])
+        q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
+        ask = side(q_keys * 4, q_idx)
         if grid == cell:
             # Not crowded: each key meets its cell's owners of every corner; those
             # whose corners share a bit are dropped before the chord test.
@@ -317,41 +323,34 @@ def _faces_near(w, reach):
     return out
 
 
-def _face_keys(w, rho, cell, faces):
-    """Keys of the cells of a 2-D grid of size `cell` on each face of `faces` ((n, 6)
-    mask) that each square [w − ρ, w + ρ] (its two coordinates kept by the face)
-    touches, 2ρ ≤ 2·cell (up to 3 per axis); with the index of the box each key is
-    for, which of the box's cells it is by corner bits (2: the first axis, 1: the
-    second not the box's first cell on it), and the face.
+def _face_keys(w, rho, cell, rows, face):
+    """Keys of the cells of a 2-D grid of size `cell` on face face[k] that the square
+    [w − ρ, w + ρ] of box rows[k] (its two coordinates kept by the face) touches,
+    2ρ ≤ 2·cell (up to 3 per axis); with the index of the box each key is for,
+    which of the box's cells it is by corner bits (2: the first axis, 1: the second
+    not the box's first cell on it), and the face.
     The grid is fixed in space (origin below −1, since |w| = 1), so keys of
     different box sets on the same grid agree."""
     dims = int(math.ceil(2.5 / cell)) + 2
-    keys, idx, bits, face = [], [], [], []
-    for f in range(6):
-        rows = np.flatnonzero(faces[:, f])
-        if not rows.size:
-            continue
-        i, j = _FACE_AXES[f // 2]
-        r = rho[rows]
-        # Cells from −1 (a box up to a cell past −1) to dims − 2, shifted by one so
-        # keys are ≥ 0 and each (face, cell) has its own.
-        lo_i = np.floor((w[rows, i] - r + 1.25) / cell).astype(np.int64)
-        lo_j = np.floor((w[rows, j] - r + 1.25) / cell).astype(np.int64)
-        span_i = np.floor((w[rows, i] + r + 1.25) / cell).astype(np.int64) - lo_i
-        span_j = np.floor((w[rows, j] + r + 1.25) / cell).astype(np.int64) - lo_j
-        base = (f * dims + lo_i + 1) * dims + lo_j + 1
-        for di in range(int(span_i.max()) + 1):
-            oi = np.flatnonzero(span_i >= di)
-            for dj in range(int(span_j[oi].max()) + 1):
-                ok = oi[span_j[oi] >= dj]
-                keys.append(base[ok] + di * dims + dj)
-                idx.append(rows[ok])
-                bits.append(np.full(ok.size, 2 * (di > 0) + (dj > 0), dtype=np.int64))
-                face.append(np.full(ok.size, f, dtype=np.int64))
-    if not keys:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty, empty
-    return tuple(np.concatenate(x) for x in (keys, idx, bits, face))
+    axes = np.array(_FACE_AXES)[face // 2]
+    r = rho[rows]
+    # Cells from −1 (a box up to a cell past −1) to dims − 2, shifted by one so
+    # keys are ≥ 0 and each (face, cell) has its own.
+    lo_i = np.floor((w[rows, axes[:, 0]] - r + 1.25) / cell).astype(np.int64)
+    lo_j = np.floor((w[rows, axes[:, 1]] - r + 1.25) / cell).astype(np.int64)
+    span_i = np.floor((w[rows, axes[:, 0]] + r + 1.25) / cell).astype(np.int64) - lo_i
+    span_j = np.floor((w[rows, axes[:, 1]] + r + 1.25) / cell).astype(np.int64) - lo_j
+    base = (face * dims + lo_i + 1) * dims + lo_j + 1
+    keys, idx, bits = [], [], []
+    for di in range(int(span_i.max(initial=0)) + 1):
+        oi = np.flatnonzero(span_i >= di)
+        for dj in range(int(span_j[oi].max(initial=0)) + 1):
+            ok = oi[span_j[oi] >= dj]
+            keys.append(base[ok] + di * dims + dj)
+            idx.append(ok)
+            bits.append(np.full(ok.size, 2 * (di > 0) + (dj > 0), dtype=np.int64))
+    ok = np.concatenate(idx)
+    return np.concatenate(keys), rows[ok], np.concatenate(bits), face[ok]
 
 
 def _lookup(codes, size):
