@@ -262,35 +262,37 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
             grid = cell / 2.0
         own = side(code, e_idx[order])
         own_bits, own_face = e_bits[order], e_face[order]
-        find = _lookup(code, 24 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
         q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
         ask = side(q_keys * 4, q_idx)
         if grid == cell:
             # Not crowded: each key meets its cell's owners of every corner; those
             # whose corners share a bit are dropped before the chord test.
-            lo, count = find(ask.keys, ask.keys + 4)
-            meet(ask, own, lo, count, corners=(q_bits, own_bits))
-            cell_of = own.keys - own_bits
-            lo, count = find(cell_of, cell_of + 4)
-            meet(own, own, lo, count, own_face, (own_bits, own_bits))
+            for q, corners, faces in ((ask, q_bits, None), (own, own_bits, own_face)):
+                cell_of = q.keys - (corners if q is own else 0)
+                lo = np.searchsorted(code, cell_of)
+                count = np.searchsorted(code, cell_of + 4) - lo
+                meet(q, own, lo, count, faces, (corners, own_bits))
             if pa:
                 yield np.concatenate(pa), np.concatenate(pb)
             continue
+        cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
+        q_runs = cells.runs(ask.keys)
+        own_runs = cells.bounds[cells.of_code]
         # Crowded: each key meets only the owners at corners it shares no bit with.
         for be in range(4):
-            lo, count = find(ask.keys + be, ask.keys + be + 1)
+            lo = q_runs[:, be]
+            count = q_runs[:, be + 1] - lo
             count[(q_bits & be) != 0] = 0
             meet(ask, own, lo, count)
             # The owners among themselves: from the lower corner bits only.
-            code = own.keys - own_bits + be
-            lo, count = find(code, code + 1)
+            lo = own_runs[:, be]
+            count = own_runs[:, be + 1] - lo
             count[((own_bits & be) != 0) | (own_bits >= be)] = 0
             meet(own, own, lo, count, own_face)
         # Both in their first cells: each with the ones sorted after it.
         first = np.flatnonzero(own_bits == 0)
-        lo, count = find(own.keys[first], own.keys[first] + 1)
         head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
-        meet(head, own, first + 1, lo + count - first - 1, own_face[first])
+        meet(head, own, first + 1, own_runs[first, 1] - first - 1, own_face[first])
         if pa:
             yield np.concatenate(pa), np.concatenate(pb)
 
@@ -353,22 +355,31 @@ def _face_keys(w, rho, cell, rows, face):
     return np.concatenate(keys), rows[ok], np.concatenate(bits), face[ok]
 
 
-def _lookup(codes, size):
-    """For sorted `codes` (all below `size`), a function giving, for bounds lo, hi,
-    where the codes in [lo, hi) start and how many they are: a table by code where
-    it is small beside the codes, else binary searches."""
-    if size <= 8 * codes.size:
-        start = np.zeros(size + 5, dtype=np.int64)
-        np.cumsum(np.bincount(codes, minlength=size + 4), out=start[1:])
+class _Cells:
+    """The occupied cells of a crowded level's sorted owner codes (cell key × 4 +
+    corner bits): per cell, where each corner's run of owners starts and where the
+    cell ends (`bounds`, (cells, 5)), and the cell of each code (`of_code`).
+    `runs(codes)` gives the bounds for query codes of corner 0 (all equal for an
+    empty cell), through a table of all `keys` cells where it is small beside the
+    codes, else by binary search among the occupied cells."""
 
-        def find(lo, hi):
-            first = start[lo]
-            return first, start[hi] - first
+    def __init__(self, codes, keys):
+        new = np.r_[True, (codes[1:] >> 2) != (codes[:-1] >> 2)]
+        self.of_code = np.cumsum(new) - 1
+        self.cell = codes[new] & ~np.int64(3)
+        self.bounds = np.searchsorted(codes, self.cell[:, None] + np.arange(5))
+        self.table = None
+        if keys <= 16 * codes.size:
+            self.table = np.full(keys, -1, dtype=np.int64)
+            self.table[self.cell >> 2] = np.arange(self.cell.size)
 
-        return find
-
-    def search(lo, hi):
-        first = np.searchsorted(codes, lo, side="left")
-        return first, np.searchsorted(codes, hi, side="left") - first
-
-    return search
+    def runs(self, codes):
+        if self.table is not None:
+            at = self.table[codes >> 2]
+            found = at >= 0
+        else:
+            at = np.minimum(np.searchsorted(self.cell, codes), self.cell.size - 1)
+            found = self.cell[at] == codes
+        out = self.bounds[at]
+        out[~found] = 0
+        return out
