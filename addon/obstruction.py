@@ -235,20 +235,23 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
     def side(keys, ids):
         return _Side(keys, ids, wx[ids], wy[ids], wz[ids], rho[ids])
 
-    box_lo, box_hi = w - rho[:, None], w + rho[:, None]
+    box_lo = [wx - rho, wy - rho, wz - rho]
+    box_hi = [wx + rho, wy + rho, wz + rho]
     for lvl in np.unique(level)[::-1]:
         pa.clear()
         pb.clear()
         cell = c0 * 2.0**lvl
         end = int(ends[lvl])
         start = int(ends[lvl - 1]) if lvl else 0
-        owners = np.arange(start, end)
         # Only boxes that meet the owners' bounding box can meet an owner's box (a
         # level of a few near spheres is not searched with every far one's keys).
-        lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
-        finer = np.flatnonzero(np.all((box_hi[:start] >= lo) & (box_lo[:start] <= hi), axis=1))
-        on_faces = np.nonzero(_faces_near(w[owners], rho[owners] + 0.5 * cell))
-        on_faces = (owners[on_faces[0]], on_faces[1])
+        meets = np.ones(start, dtype=bool)
+        for lo, hi in zip(box_lo, box_hi, strict=True):
+            meets &= hi[:start] >= lo[start:end].min()
+            meets &= lo[:start] <= hi[start:end].max()
+        finer = np.flatnonzero(meets)
+        on_faces = np.nonzero(_faces_near(w[start:end], rho[start:end] + 0.5 * cell))
+        on_faces = (on_faces[0] + start, on_faces[1])
         grid = cell
         while True:
             e_keys, e_idx, e_bits, e_face = _face_keys(w, rho, grid, *on_faces)
