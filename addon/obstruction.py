@@ -20,7 +20,8 @@ from .shadow_mask import union_unblocked
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
 
-#: Owners per occupied cell above which a level is searched on the half-size grid.
+#: Owner keys per occupied cell and corner from which a level is searched on the
+#: half-size grid (fewer far pairs share a cell there).
 _CROWDED = 4
 
 #: Meetings tested at once (a few MB of temporaries).
