@@ -74,8 +74,21 @@ def find_blockers(
         tf, tn = np.where(far_q, tq, te), np.where(far_q, te, tq)
         return (row_of[far] >= 0) & obstacle[near] & (tn < tf) & (hidden_at[far] >= tn)
 
+    def open_to(q, e):
+        """Spheres q that can make a useful pair with some of the spheres e (a level's
+        owners): as the farther one, a lens not hidden before e's nearest obstacle;
+        as the nearer, an obstacle no farther than some lens of e, or than what
+        hides it."""
+        tq, te = tlen[q], tlen[e]
+        obst, lens = obstacle[e], row_of[e] >= 0
+        nearest = te[obst].min() if obst.any() else np.inf
+        reach = np.minimum(te, hidden_at[e])[lens].max() if lens.any() else -np.inf
+        as_far = (row_of[q] >= 0) & (nearest < tq) & (nearest <= hidden_at[q])
+        return as_far | (obstacle[q] & (tq <= reach))
+
     found = []
-    for a, b in _candidate_batches(direction, ang, obstacle, row_of >= 0, useful):
+    batches = _candidate_batches(direction, ang, obstacle, row_of >= 0, useful, open_to)
+    for a, b in batches:
         # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
         far_a = tlen[a] > tlen[b]
         lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
@@ -136,11 +149,13 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     return tuple(np.concatenate(x) for x in zip(*batches, strict=True))
 
 
-def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
+def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, open_to=None):
     """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap,
     one batch per level, coarsest first; `useful(a, b)` (a mask), if given, is
     asked for each batch's pairs just before they are yielded, so a caller may drop
-    the pairs the coarser batches made pointless.
+    the pairs the coarser batches made pointless; `open_to(q, e)` (a mask of q), if
+    given, is asked for the finer boxes q before they meet a level's boxes e: those
+    it drops could make no useful pair with any of them.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
     distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b (ρ is widened by a few ulps for rounding);
@@ -251,6 +266,8 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
             meets &= hi[:start] >= lo[start:end].min()
             meets &= lo[:start] <= hi[start:end].max()
         finer = np.flatnonzero(meets)
+        if open_to is not None and finer.size:
+            finer = finer[open_to(active[finer], active[start:end])]
         on_faces = np.nonzero(_faces_near(w[start:end], rho[start:end] + 0.5 * cell))
         on_faces = (on_faces[0] + start, on_faces[1])
         grid = cell
