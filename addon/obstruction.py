@@ -74,20 +74,16 @@ def find_blockers(
         tf, tn = np.where(far_q, tq, te), np.where(far_q, te, tq)
         return (row_of[far] >= 0) & obstacle[near] & (tn < tf) & (hidden_at[far] >= tn)
 
-    def open_to(q, e):
-        """Spheres q that can make a useful pair with some of the spheres e (a level's
-        owners): as the farther one, a lens not hidden before e's nearest obstacle;
-        as the nearer, an obstacle no farther than some lens of e, or than what
-        hides it."""
-        tq, te = tlen[q], tlen[e]
-        obst, lens = obstacle[e], row_of[e] >= 0
-        nearest = te[obst].min() if obst.any() else np.inf
-        reach = np.minimum(te, hidden_at[e])[lens].max() if lens.any() else -np.inf
-        as_far = (row_of[q] >= 0) & (nearest < tq) & (nearest <= hidden_at[q])
-        return as_far | (obstacle[q] & (tq <= reach))
+    def window(s):
+        """Per sphere, the depth it blocks at (its tangent length if an obstacle, else
+        ∞) and the depth up to which a blocker can still matter to it (the nearer of
+        its tangent length and what hides it, if a lens, else −∞): a useful pair has
+        one's first no deeper than the other's second."""
+        near = np.where(obstacle[s], tlen[s], np.inf)
+        return near, np.where(row_of[s] >= 0, np.minimum(tlen[s], hidden_at[s]), -np.inf)
 
     found = []
-    batches = _candidate_batches(direction, ang, obstacle, row_of >= 0, useful, open_to)
+    batches = _candidate_batches(direction, ang, obstacle, row_of >= 0, useful, window)
     for a, b in batches:
         # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
         far_a = tlen[a] > tlen[b]
@@ -149,13 +145,15 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     return tuple(np.concatenate(x) for x in zip(*batches, strict=True))
 
 
-def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, open_to=None):
+def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=None):
     """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap,
     one batch per level, coarsest first; `useful(a, b)` (a mask), if given, is
     asked for each batch's pairs just before they are yielded, so a caller may drop
-    the pairs the coarser batches made pointless; `open_to(q, e)` (a mask of q), if
-    given, is asked for the finer boxes q before they meet a level's boxes e: those
-    it drops could make no useful pair with any of them.
+    the pairs the coarser batches made pointless. `window(s)`, if given, is asked
+    before each level for two depths per sphere (n, f) such that a useful pair
+    (a, b) has n_a ≤ f_b or n_b ≤ f_a: a finer box that can make no such pair with
+    any of the level's boxes is not looked up there, nor, where the level is
+    crowded, is any box in a cell where it can make none.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
     distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b (ρ is widened by a few ulps for rounding);
@@ -266,8 +264,10 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, open_to
             meets &= hi[:start] >= lo[start:end].min()
             meets &= lo[:start] <= hi[start:end].max()
         finer = np.flatnonzero(meets)
-        if open_to is not None and finer.size:
-            finer = finer[open_to(active[finer], active[start:end])]
+        if window is not None:
+            depth_n, depth_f = window(active)
+            lvl_n, lvl_f = depth_n[start:end].min(), depth_f[start:end].max()
+            finer = finer[(depth_n[finer] <= lvl_f) | (depth_f[finer] >= lvl_n)]
         on_faces = np.nonzero(_faces_near(w[start:end], rho[start:end] + 0.5 * cell))
         on_faces = (on_faces[0] + start, on_faces[1])
         grid = cell
@@ -297,8 +297,17 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, open_to
                 yield np.concatenate(pa), np.concatenate(pb)
             continue
         cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
-        q_runs = cells.runs(ask.keys)
+        q_runs, q_cell = cells.runs(ask.keys)
         own_runs = cells.bounds[cells.of_code]
+        if window is not None:
+            # A key whose box can make no useful pair with any owner of its cell
+            # meets none of them.
+            first_of = cells.bounds[:, 0]
+            cell_n = np.minimum.reduceat(depth_n[own.ids], first_of)
+            cell_f = np.maximum.reduceat(depth_f[own.ids], first_of)
+            for runs, ids, at in ((q_runs, ask.ids, q_cell), (own_runs, own.ids, cells.of_code)):
+                idle = (depth_n[ids] > cell_f[at]) & (depth_f[ids] < cell_n[at])
+                runs[idle] = runs[idle, :1]
         # Crowded: each key meets only the owners at corners it shares no bit with.
         for be in range(4):
             lo = q_runs[:, be]
@@ -313,7 +322,8 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, open_to
         # Both in their first cells: each with the ones sorted after it.
         first = np.flatnonzero(own_bits == 0)
         head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
-        meet(head, own, first + 1, own_runs[first, 1] - first - 1, own_face[first])
+        count = np.maximum(own_runs[first, 1] - first - 1, 0)
+        meet(head, own, first + 1, count, own_face[first])
         if pa:
             yield np.concatenate(pa), np.concatenate(pb)
 
@@ -381,8 +391,9 @@ class _Cells:
     corner bits): per cell, where each corner's run of owners starts and where the
     cell ends (`bounds`, (cells, 5)), and the cell of each code (`of_code`).
     `runs(codes)` gives the bounds for query codes of corner 0 (all equal for an
-    empty cell), through a table of all `keys` cells where it is small beside the
-    codes, else by binary search among the occupied cells."""
+    empty cell) and their cells (0 for an empty one), through a table of all `keys`
+    cells where it is small beside the codes, else by binary search among the
+    occupied cells."""
 
     def __init__(self, codes, keys):
         new = np.r_[True, (codes[1:] >> 2) != (codes[:-1] >> 2)]
@@ -403,4 +414,4 @@ class _Cells:
             found = self.cell[at] == codes
         out = self.bounds[at]
         out[~found] = 0
-        return out
+        return out, np.where(found, at, 0)
