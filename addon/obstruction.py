@@ -277,8 +277,8 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
             order = np.argsort(code, kind="stable")
             code = code[order]
             # Crowded (many owners per cell): the half-size grid meets fewer far pairs.
-            cells = 1 + np.count_nonzero(code[1:] != code[:-1])
-            if grid < cell or grid / 2.0 < _MIN_CELL or code.size < _CROWDED * cells:
+            occupied = 1 + np.count_nonzero(code[1:] != code[:-1])
+            if grid < cell or grid / 2.0 < _MIN_CELL or code.size < _CROWDED * occupied:
                 break
             grid = cell / 2.0
         own = side(code, e_idx[order])
