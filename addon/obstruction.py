@@ -20,6 +20,13 @@ from .shadow_mask import union_unblocked
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
 _MIN_CELL = 1e-6
 
+#: Owner keys per occupied cell and corner from which a level is searched on the
+#: half-size grid (fewer far pairs share a cell there).
+_CROWDED = 4
+
+#: Meetings tested at once (a few MB of temporaries).
+_PIECE = 1 << 16
+
 
 @dataclass
 class Blockers:
@@ -67,8 +74,17 @@ def find_blockers(
         tf, tn = np.where(far_q, tq, te), np.where(far_q, te, tq)
         return (row_of[far] >= 0) & obstacle[near] & (tn < tf) & (hidden_at[far] >= tn)
 
+    def window(s):
+        """Per sphere, the depth it blocks at (its tangent length if an obstacle, else
+        ∞) and the depth up to which a blocker can still matter to it (the nearer of
+        its tangent length and what hides it, if a lens, else −∞): a useful pair has
+        one's first no deeper than the other's second."""
+        near = np.where(obstacle[s], tlen[s], np.inf)
+        return near, np.where(row_of[s] >= 0, np.minimum(tlen[s], hidden_at[s]), -np.inf)
+
     found = []
-    for a, b in _candidate_batches(direction, ang, obstacle, row_of >= 0, useful):
+    batches = _candidate_batches(direction, ang, obstacle, row_of >= 0, useful, window)
+    for a, b in batches:
         # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
         far_a = tlen[a] > tlen[b]
         lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
@@ -129,27 +145,36 @@ def _candidate_pairs(direction, ang, obstacle, lens_mask):
     return tuple(np.concatenate(x) for x in zip(*batches, strict=True))
 
 
-def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
+def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=None):
     """Unordered pairs (a, b), each once, of spheres whose angular discs may overlap,
-    one batch per grid level, coarsest first; `useful(a, b)` (a mask), if given, is
+    one batch per level, coarsest first; `useful(a, b)` (a mask), if given, is
     asked for each batch's pairs just before they are yielded, so a caller may drop
-    the pairs the coarser batches made pointless.
+    the pairs the coarser batches made pointless. `window(s)`, if given, is asked
+    before each level for two depths per sphere (n, f) such that a useful pair
+    (a, b) has n_a ≤ f_b or n_b ≤ f_a: a finer box that can make no such pair with
+    any of the level's boxes is not looked up there, nor, where the level is
+    crowded, is any box in a cell where it can make none.
 
     Conservative: overlapping discs (γ ≤ ρ_a + ρ_b) have unit vectors at chord
-    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b, so their boxes [w − ρ, w + ρ] intersect
-    (ρ is widened by a few ulps for rounding); pairs sharing a cell are kept if
-    that chord test holds.
-    A hierarchy of uniform grids (cell sizes c₀·2^ℓ) holds each box in the level
-    whose cells are at least twice its width, so a box touches at most 8 cells of
-    its own level and of every coarser one. Each box is looked up in its own and
-    all coarser levels: two intersecting boxes always share a cell of the coarser
-    one's level. Near and far spheres (discs of very different sizes) thus cost
-    no more than uniform ones.
-    A pair is kept only in the cell holding the lower corner of the two boxes'
-    overlap (and, within one level, with a < b): so each pair comes out once,
-    without sorting all candidates to drop repeats. A box spans at most two
-    cells per axis; that cell is the one where, on every axis, one of the two
-    boxes is in its lower cell (`_cell_keys`' corner bits: `bits_a & bits_b == 0`).
+    distance 2 sin(γ/2) ≤ γ ≤ ρ_a + ρ_b (ρ is widened by a few ulps for rounding);
+    pairs met are kept if that chord test holds.
+    The directions are seen on the six faces of a cube (a face per axis and sign,
+    each direction at home on the face of its largest coordinate): a face keeps two
+    of the three coordinates, which brings points no farther apart, so two
+    overlapping discs' squares [w − ρ, w + ρ] there intersect on every face.
+    A hierarchy of levels (sizes c₀·2^ℓ) holds each box in the level whose size is
+    at least its width. Each level's boxes (the owners) are met by their own and
+    every finer level's boxes on a uniform 2-D grid per face, of the level's size
+    or, where that is crowded, of half of it (fewer far pairs share a cell). A finer
+    box is looked up on its home face only; an owner is put on every face near
+    enough that a box at home there can overlap it (see `_faces_near`), and a pair
+    of owners is kept on the home face of the one that comes first.
+    Within a face, a pair is met only in the cell holding the lower corner of the
+    two squares' overlap: the cell where, on both axes, one of the two squares is
+    in its first cell (`_face_keys`' corner bits: `bits_a & bits_b == 0`); two owners
+    meet from the one with the lower corner bits (or, both in their first cells,
+    the one sorted first). So each pair comes out once, without sorting the
+    candidates to drop repeats.
     """
     active = np.flatnonzero(obstacle | lens_mask)
     if active.size < 2:
@@ -163,94 +188,230 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None):
     active, w, rho, level = active[by_level], w[by_level], rho[by_level], level[by_level]
     ends = np.searchsorted(level, np.arange(level[-1] + 1), side="right")
     wx, wy, wz = (np.ascontiguousarray(w[:, k]) for k in range(3))
+    axis = np.argmax(np.abs(w), axis=1)
+    home = 2 * axis + (w[np.arange(w.shape[0]), axis] >= 0)
+    pa, pb = [], []
 
-    def meet(qk, qi, cross, qb, ek, eo, eb, lo=None, count=None):
-        """Pairs (query, owner) sharing a cell, in their home cell only, near."""
-        if lo is None:
-            lo = np.searchsorted(ek, qk, side="left")
-            count = np.searchsorted(ek, qk, side="right") - lo
-        if not count.any():
+    def meet(q, e, lo, count, faces=None, corners=None):
+        """The near pairs of query q.ids[i] with owners e.ids[lo[i] … lo[i] + count[i]
+        − 1]; faces (those of q's keys), if given: kept on the home face of the pair's
+        first box only; corners (the query keys' and the owners' corner bits), if
+        given: q's keys counted all owners of their cell, and only those at corners
+        sharing no bit with the query's are kept (q is e: the owners among
+        themselves, each pair from the lower corner or, both at corner 0, from the
+        one sorted first). The owners' columns are read in their own order, the
+        query's repeated: no scattered reads per meeting."""
+        total = np.cumsum(count)
+        if not total.size or not total[-1]:
             return
-        at = concat_ranges(lo, count)
-        q, e = np.repeat(qi, count), eo[at]
-        ok = np.repeat(cross, count) | (q < e)  # within a level both orders come up
-        if qb is not None:
-            ok &= (np.repeat(qb, count) & eb[at]) == 0
-        q, e = q[ok], e[ok]
-        # The boxes only bound the discs: keep pairs within chord ρ_a + ρ_b (≤ γ).
-        chord2 = (wx[q] - wx[e]) ** 2 + (wy[q] - wy[e]) ** 2 + (wz[q] - wz[e]) ** 2
-        near = chord2 <= (rho[q] + rho[e]) ** 2
-        q, e = active[q[near]], active[e[near]]
-        if useful is not None:
-            ok = useful(q, e)
-            q, e = q[ok], e[ok]
-        pa.append(q)
-        pb.append(e)
+        # In pieces of about _PIECE meetings: their temporaries stay in cache.
+        cuts = np.searchsorted(total, np.arange(_PIECE, int(total[-1]), _PIECE))
+        for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True):
+            if t > s:
+                meet_piece(q, e, lo[s:t], count[s:t], s, faces, corners)
 
-    box_lo, box_hi = w - rho[:, None], w + rho[:, None]
+    def meet_piece(q, e, lo, count, s, faces, corners):
+        at = concat_ranges(lo, count)
+        row = np.repeat(np.arange(s, s + count.size), count)
+        if corners is not None:
+            # A few owners per cell: all of a cell's met, those of the wrong corners
+            # dropped here, before the columns are read.
+            bq, be = corners[0][row], corners[1][at]
+            keep = (bq & be) == 0
+            if q is e:
+                keep &= (bq < be) | ((bq == be) & (row < at))
+            keep = np.flatnonzero(keep)
+            row, at = row[keep], at[keep]
+        chord2 = q.x[row]
+        chord2 -= e.x[at]
+        chord2 *= chord2
+        for qc, ec in ((q.y, e.y), (q.z, e.z)):
+            d = qc[row]
+            d -= ec[at]
+            d *= d
+            chord2 += d
+        r = q.r[row]
+        r += e.r[at]
+        r *= r
+        near = np.flatnonzero(chord2 <= r)
+        row = row[near]
+        qi, ei = q.ids[row], e.ids[at[near]]
+        if faces is not None:
+            ok = faces[row] == home[np.minimum(qi, ei)]
+            qi, ei = qi[ok], ei[ok]
+        a, b = active[qi], active[ei]
+        if useful is not None:
+            ok = useful(a, b)
+            a, b = a[ok], b[ok]
+        pa.append(a)
+        pb.append(b)
+
+    def side(keys, ids):
+        return _Side(keys, ids, wx[ids], wy[ids], wz[ids], rho[ids])
+
+    box_lo = [wx - rho, wy - rho, wz - rho]
+    box_hi = [wx + rho, wy + rho, wz + rho]
     for lvl in np.unique(level)[::-1]:
-        pa, pb = [], []
+        pa.clear()
+        pb.clear()
         cell = c0 * 2.0**lvl
         end = int(ends[lvl])
-        owners = np.arange(int(ends[lvl - 1]) if lvl else 0, end)
+        start = int(ends[lvl - 1]) if lvl else 0
         # Only boxes that meet the owners' bounding box can meet an owner's box (a
         # level of a few near spheres is not searched with every far one's keys).
-        lo, hi = box_lo[owners].min(axis=0), box_hi[owners].max(axis=0)
-        queries = np.flatnonzero(np.all((box_hi[:end] >= lo) & (box_lo[:end] <= hi), axis=1))
-        e_keys, e_idx, e_bits = _cell_keys(w[owners], rho[owners], cell)
-        q_keys, q_idx, q_bits = _cell_keys(w[queries], rho[queries], cell)
-        order = np.argsort(e_keys, kind="stable")
-        ek, eo, eb = e_keys[order], owners[e_idx[order]], e_bits[order]
-        qi = queries[q_idx]
-        cross = level[qi] < lvl
-        # Crowded or not (which way is faster; both give the same pairs): judged on
-        # every 16th query key first, so that a crowded level is searched only once.
-        sample = q_keys[::16]
-        hits = np.searchsorted(ek, sample, side="right") - np.searchsorted(ek, sample)
-        if int(hits.sum()) <= 4 * sample.size:
-            lo = np.searchsorted(ek, q_keys, side="left")
-            count = np.searchsorted(ek, q_keys, side="right") - lo
-            if int(count.sum()) <= 4 * q_keys.size:
-                meet(q_keys, qi, cross, q_bits, ek, eo, eb, lo, count)
-                if pa:
-                    yield np.concatenate(pa), np.concatenate(pb)
-                continue
-        # Crowded: split the owners by corner, so that a query's cell at corner bq
-        # is searched only among owners at corners be with bq & be == 0 (above),
-        # and a pair's other meetings are never expanded.
-        by_corner = []
-        for be in range(8):
-            k = np.flatnonzero(eb == be)
-            by_corner.append((ek[k], eo[k]))
-        for bq in range(8):
-            sel = np.flatnonzero(q_bits == bq)
-            if not sel.size:
-                continue
-            qk, qs, cs = q_keys[sel], qi[sel], cross[sel]
-            for be in range(8):
-                if not bq & be and by_corner[be][0].size:
-                    meet(qk, qs, cs, None, *by_corner[be], None)
+        meets = np.ones(start, dtype=bool)
+        for lo, hi in zip(box_lo, box_hi, strict=True):
+            meets &= hi[:start] >= lo[start:end].min()
+            meets &= lo[:start] <= hi[start:end].max()
+        finer = np.flatnonzero(meets)
+        if window is not None:
+            depth_n, depth_f = window(active)
+            lvl_n, lvl_f = depth_n[start:end].min(), depth_f[start:end].max()
+            finer = finer[(depth_n[finer] <= lvl_f) | (depth_f[finer] >= lvl_n)]
+        on_faces = np.nonzero(_faces_near(w[start:end], rho[start:end] + 0.5 * cell))
+        on_faces = (on_faces[0] + start, on_faces[1])
+        grid = cell
+        while True:
+            e_keys, e_idx, e_bits, e_face = _face_keys(w, rho, grid, *on_faces)
+            code = e_keys * 4 + e_bits
+            order = np.argsort(code, kind="stable")
+            code = code[order]
+            # Crowded (many owners per cell): the half-size grid meets fewer far pairs.
+            occupied = 1 + np.count_nonzero(code[1:] != code[:-1])
+            if grid < cell or grid / 2.0 < _MIN_CELL or code.size < _CROWDED * occupied:
+                break
+            grid = cell / 2.0
+        own = side(code, e_idx[order])
+        own_bits, own_face = e_bits[order], e_face[order]
+        q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
+        ask = side(q_keys * 4, q_idx)
+        if grid == cell:
+            # Not crowded: each key meets its cell's owners of every corner; those
+            # whose corners share a bit are dropped before the chord test.
+            for q, corners, faces in ((ask, q_bits, None), (own, own_bits, own_face)):
+                cell_of = q.keys - (corners if q is own else 0)
+                lo = np.searchsorted(code, cell_of)
+                count = np.searchsorted(code, cell_of + 4) - lo
+                meet(q, own, lo, count, faces, (corners, own_bits))
+            if pa:
+                yield np.concatenate(pa), np.concatenate(pb)
+            continue
+        cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
+        q_runs, q_cell = cells.runs(ask.keys)
+        own_runs = cells.bounds[cells.of_code]
+        if window is not None:
+            # A key whose box can make no useful pair with any owner of its cell
+            # meets none of them.
+            first_of = cells.bounds[:, 0]
+            cell_n = np.minimum.reduceat(depth_n[own.ids], first_of)
+            cell_f = np.maximum.reduceat(depth_f[own.ids], first_of)
+            for runs, ids, at in ((q_runs, ask.ids, q_cell), (own_runs, own.ids, cells.of_code)):
+                idle = (depth_n[ids] > cell_f[at]) & (depth_f[ids] < cell_n[at])
+                runs[idle] = runs[idle, :1]
+        # Crowded: each key meets only the owners at corners it shares no bit with.
+        for be in range(4):
+            lo = q_runs[:, be]
+            count = q_runs[:, be + 1] - lo
+            count[(q_bits & be) != 0] = 0
+            meet(ask, own, lo, count)
+            # The owners among themselves: from the lower corner bits only.
+            lo = own_runs[:, be]
+            count = own_runs[:, be + 1] - lo
+            count[((own_bits & be) != 0) | (own_bits >= be)] = 0
+            meet(own, own, lo, count, own_face)
+        # Both in their first cells: each with the ones sorted after it.
+        first = np.flatnonzero(own_bits == 0)
+        head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
+        count = np.maximum(own_runs[first, 1] - first - 1, 0)
+        meet(head, own, first + 1, count, own_face[first])
         if pa:
             yield np.concatenate(pa), np.concatenate(pb)
 
 
-def _cell_keys(w, rho, cell):
-    """Keys of the (at most 8) cells of a grid of size `cell` that each box
-    [w − ρ, w + ρ] touches (2ρ ≤ cell), with the index of the box each key is for
-    and which corner of the box's cells it is (bit 4: x, 2: y, 1: z upper).
+@dataclass
+class _Side:
+    """Cell codes (sorted, for owners) and, per code, its box's row and columns."""
+
+    keys: np.ndarray
+    ids: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    r: np.ndarray
+
+
+#: The two coordinates a cube face keeps (faces 2k, 2k + 1: axis k, − and +).
+_FACE_AXES = ((1, 2), (0, 2), (0, 1))
+
+
+def _faces_near(w, reach):
+    """(n, 6) mask of the faces on which a direction within chord `reach` of w can be
+    at home: one there has s·v_k ≥ |v_j| for all j, and each coordinate moves by at
+    most the chord, so s·w_k ≥ max_j |w_j| − 2·reach (with a margin for rounding)."""
+    top = np.abs(w).max(axis=1) - 2.0 * reach * (1.0 + 1e-9) - 1e-12
+    out = np.empty((w.shape[0], 6), dtype=bool)
+    for k in range(3):
+        out[:, 2 * k] = -w[:, k] >= top
+        out[:, 2 * k + 1] = w[:, k] >= top
+    return out
+
+
+def _face_keys(w, rho, cell, rows, face):
+    """Keys of the cells of a 2-D grid of size `cell` on face face[k] that the square
+    [w − ρ, w + ρ] of box rows[k] (its two coordinates kept by the face) touches,
+    2ρ ≤ 2·cell (up to 3 per axis); with the index of the box each key is for,
+    which of the box's cells it is by corner bits (2: the first axis, 1: the second
+    not the box's first cell on it), and the face.
     The grid is fixed in space (origin below −1, since |w| = 1), so keys of
-    different box sets on the same level agree."""
+    different box sets on the same grid agree."""
     dims = int(math.ceil(2.5 / cell)) + 2
-    lo = np.floor((w - rho[:, None] + 1.25) / cell).astype(np.int64)
-    hi = np.floor((w + rho[:, None] + 1.25) / cell).astype(np.int64)
-    base = (lo[:, 0] * dims + lo[:, 1]) * dims + lo[:, 2]
-    # Which axes the box spans two cells on (bits as the corners'): corner d is
-    # touched iff its bits are among them.
-    spans = (hi > lo).astype(np.uint8) @ np.array([4, 2, 1], dtype=np.uint8)
+    axes = np.array(_FACE_AXES)[face // 2]
+    r = rho[rows]
+    # Cells from −1 (a box up to a cell past −1) to dims − 2, shifted by one so
+    # keys are ≥ 0 and each (face, cell) has its own.
+    lo_i = np.floor((w[rows, axes[:, 0]] - r + 1.25) / cell).astype(np.int64)
+    lo_j = np.floor((w[rows, axes[:, 1]] - r + 1.25) / cell).astype(np.int64)
+    span_i = np.floor((w[rows, axes[:, 0]] + r + 1.25) / cell).astype(np.int64) - lo_i
+    span_j = np.floor((w[rows, axes[:, 1]] + r + 1.25) / cell).astype(np.int64) - lo_j
+    base = (face * dims + lo_i + 1) * dims + lo_j + 1
     keys, idx, bits = [], [], []
-    for d in range(8):
-        ok = np.flatnonzero((spans & d) == d)
-        keys.append(base[ok] + ((d >> 2) * dims + ((d >> 1) & 1)) * dims + (d & 1))
-        idx.append(ok)
-        bits.append(np.full(ok.size, d, dtype=np.uint8))
-    return np.concatenate(keys), np.concatenate(idx), np.concatenate(bits)
+    for di in range(int(span_i.max(initial=0)) + 1):
+        oi = np.flatnonzero(span_i >= di)
+        for dj in range(int(span_j[oi].max(initial=0)) + 1):
+            ok = oi[span_j[oi] >= dj]
+            keys.append(base[ok] + di * dims + dj)
+            idx.append(ok)
+            bits.append(np.full(ok.size, 2 * (di > 0) + (dj > 0), dtype=np.int64))
+    ok = np.concatenate(idx)
+    return np.concatenate(keys), rows[ok], np.concatenate(bits), face[ok]
+
+
+class _Cells:
+    """The occupied cells of a crowded level's sorted owner codes (cell key × 4 +
+    corner bits): per cell, where each corner's run of owners starts and where the
+    cell ends (`bounds`, (cells, 5)), and the cell of each code (`of_code`).
+    `runs(codes)` gives the bounds for query codes of corner 0 (all equal for an
+    empty cell) and their cells (0 for an empty one), through a table of all `keys`
+    cells where it is small beside the codes, else by binary search among the
+    occupied cells."""
+
+    def __init__(self, codes, keys):
+        new = np.r_[True, (codes[1:] >> 2) != (codes[:-1] >> 2)]
+        self.of_code = np.cumsum(new) - 1
+        self.cell = codes[new] & ~np.int64(3)
+        self.bounds = np.searchsorted(codes, self.cell[:, None] + np.arange(5))
+        self.table = None
+        if keys <= 16 * codes.size:
+            self.table = np.full(keys, -1, dtype=np.int64)
+            self.table[self.cell >> 2] = np.arange(self.cell.size)
+
+    def runs(self, codes):
+        if self.table is not None:
+            at = self.table[codes >> 2]
+            found = at >= 0
+        else:
+            at = np.minimum(np.searchsorted(self.cell, codes), self.cell.size - 1)
+            found = self.cell[at] == codes
+        out = self.bounds[at]
+        out[~found] = 0
+        return out, np.where(found, at, 0)

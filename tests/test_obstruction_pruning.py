@@ -71,6 +71,24 @@ def test_hidden_lens_still_blocks_the_lens_behind_it():
     assert 0.0 < got.unblocked_fraction[2] < 1.0
 
 
+def test_hidden_finer_spheres_still_meet_the_levels_that_matter():
+    """Before a level's boxes are met, the finer ones that can make no useful pair
+    with them are dropped (`open_to`). Sphere 0 (β 0.3, tangent 1, coarsest) hides
+    lenses 1 and 3 first; yet lens 1's nearest total blocker is sphere 2 (β 0.05,
+    tangent 0.5, a level between), and the hidden sphere 3 still partly blocks
+    lens 4 (β 0.12, tangent 20, a level between, 0.10 from sphere 3): both hidden
+    ones must still meet those levels."""
+    dirs = [_unit(0.0), _unit(0.05), _unit(0.06), _unit(-0.15), _unit(-0.25)]
+    ang, tlen = [0.3, 0.01, 0.05, 0.01, 0.12], [1.0, 10.0, 0.5, 5.0, 20.0]
+    got = _find(dirs, ang, tlen)
+    # By hand (γ is the difference of the tilts): 0 covers 1 (0.3 ≥ 0.05 + 0.01) and 3
+    # (0.3 ≥ 0.15 + 0.01); 2 covers 1 (0.05 ≥ 0.01 + 0.01) and is nearer; 0 and 3
+    # overlap 4 (0.25 ≤ 0.42, 0.10 ≤ 0.13), neither covers it; 2 overlaps 0 only.
+    assert got.total_blocker.tolist() == [-1, 2, -1, 0, -1]
+    assert got.shadow_offsets.tolist() == [0, 1, 1, 1, 1, 3]
+    assert got.shadow_spheres.tolist() == [2, 0, 3]
+
+
 def _every_pair(dirs, ang, tlen):
     """Total blocker and partial list per lens by every lens against every sphere, with
     `math` angles; the tests' floating point differs from the columns' only in γ, so
