@@ -26,14 +26,18 @@ the scene is turned or in which order its spheres come.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .exact_optics import fresnel_transmittance
 from .ranges import concat_ranges
 
-#: Directions per lens cap (rings × 2·rings): at most, and at least for crowded views.
-MAX_SAMPLES, MIN_SAMPLES = 192 * 384, 16 * 32
-#: Sample × blocker evaluations per call before the grid gets coarser (memory, time).
+#: Rings of a sampled term's grid (× 2·rings azimuths): the fewest of these ≥
+#: `_TERM_FULL` × the grid's radius against the lens' cap (an error target, not a budget).
+TERM_RINGS = (4, 8, 16, 32, 64, 128)
+_TERM_FULL = 48
+#: Sample × blocker evaluations per block of terms (memory).
 BUDGET = 250_000
 #: Blocker pairs (of rows with overlapping blockers) per call beyond which the overlaps
 #: are not sampled but taken as independent (a crowded view: time, see README Limits).
@@ -92,6 +96,29 @@ def _ramp_width(a, nr, na):
     return np.repeat(np.minimum(ring, mean), na, axis=1)
 
 
+def _cell_sides(a, nr, na):
+    """Per sample of the grids over caps of angular radius ``a`` (P,): its cell's width
+    along the ring (dθ = dv / sin θ) and along the azimuth (sin θ dφ), (P, N) each."""
+    omc = 2.0 * np.sin(0.5 * a) ** 2
+    v = ((np.arange(nr) + 0.5) / nr)[None, :] * omc[:, None]
+    sin_t = np.sqrt(v * (2.0 - v))
+    ring = (omc / nr)[:, None] / np.maximum(sin_t, 1e-300)
+    return np.repeat(ring, na, axis=1), np.repeat(sin_t * (2.0 * np.pi / na), na, axis=1)
+
+
+def _ramp_along(off, off_len, to_rim, ring, arc):
+    """A ramp's width for an edge whose normal at each sample points along ``to_rim``
+    (the sample less the edge's cap centre, (P, N, 3)): the cell's width along that
+    normal, ``ring`` |cos ψ| + ``arc`` |sin ψ| (ψ off the grid's radial direction
+    ``off``, of length ``off_len``). A width matched to the cell keeps each edge's error
+    second order in the cell (a thin ring's width alone is not: an edge across the
+    rings saw point samples as long as the ring's cells)."""
+    dot = np.einsum("pni,pni->pn", off, to_rim)
+    norm = off_len * np.sqrt(np.einsum("pni,pni->pn", to_rim, to_rim))
+    cos = np.minimum(np.abs(dot) / np.maximum(norm, 1e-300), 1.0)
+    return ring * cos + arc * np.sqrt((1.0 - cos) * (1.0 + cos))
+
+
 def coverage(chord2, radius, h) -> np.ndarray:
     """How much of a sample's cell (angular size ``h`` (…, N)) lies in a cap of angular
     ``radius`` (…,) whose centre is at chord² ``chord2`` (…, N): a linear ramp over the
@@ -112,10 +139,55 @@ def passed_share(chord2, beta, glass, ior, kt, h):
     g = np.flatnonzero(glass)  # Fresnel only for the glass ones' rows
     if g.size:
         half = 0.5 * np.sqrt(np.minimum(chord2[g], 4.0))
-        sin_theta = 2.0 * half * np.sqrt(np.maximum(1.0 - half * half, 0.0))  # sin 2asin(c/2)
-        sin_iota = sin_theta / np.sin(beta[g])[:, None]
-        share[g] = glass_share(sin_iota, ior[g][:, None], kt[g][:, None])
+        cos_half = np.sqrt(np.maximum(1.0 - half * half, 0.0))
+        share[g] = _cell_share(half, cos_half, np.sin(beta[g]), h[g], ior[g], kt[g])
     return share, coverage(chord2, beta, h)
+
+
+#: Points of the tables of T(x) and its integral ∫₀ˣ T (x = sin ι = sin φ, φ uniform:
+#: dense toward grazing); interpolated linearly, within ~1e-8.
+_TABLE_POINTS = 4097
+
+
+@functools.lru_cache(maxsize=64)
+def _fresnel_table(ior: float):
+    """x = sin ι, T(x) (two surfaces, kt = 1) and G(x) = ∫₀ˣ T dx' for one index (the
+    integral by Simpson in φ on a grid 8 × as fine)."""
+    fine = 8 * (_TABLE_POINTS - 1)
+    phi = np.linspace(0.0, 0.5 * np.pi, fine + 1)
+    x = np.sin(phi)
+    t = glass_share(x, ior, 1.0)
+    f = t * np.cos(phi)  # dG/dφ
+    step = phi[1] - phi[0]
+    pairs = (f[:-2:2] + 4.0 * f[1:-1:2] + f[2::2]) * (step / 3.0)
+    g = np.concatenate([[0.0], np.cumsum(pairs)])  # G at every other fine point
+    keep = slice(0, None, 8)
+    return x[keep], t[keep], g[::4]
+
+
+def _cell_share(half, cos_half, sin_beta, h, ior, kt):
+    """kt² T(ι) averaged over the part inside the blocker of each sample's cell (its
+    width ``h`` along the blocker's radius; the sample at sin(θ/2) = ``half``): T falls
+    from T(0) to 0 within a few % of β of the rim, a layer that one value per cell
+    misses (a first-order error); the mean over [θ − h/2, θ + h/2] ∩ [0, β] of T in
+    x = sin θ / sin β from the tabulated ∫ T dx. Rows (B, N); per row ``sin_beta``,
+    ``ior``, ``kt`` (B,)."""
+    sin_t = 2.0 * half * cos_half
+    cos_t = 1.0 - 2.0 * half * half
+    sh, ch = 0.5 * h, 1.0 - 0.125 * h * h  # sin, cos of h/2 (h ≪ 1)
+    inv = 1.0 / sin_beta[:, None]
+    x_lo = np.clip((sin_t * ch - cos_t * sh) * inv, 0.0, 1.0)
+    x_hi = np.clip((sin_t * ch + cos_t * sh) * inv, 0.0, 1.0)
+    wide = x_hi - x_lo
+    out = np.empty(half.shape)
+    for n in np.unique(ior):
+        r = np.flatnonzero(ior == n)
+        xs, ts, gs = _fresnel_table(float(n))
+        lo, hi, dx = x_lo[r], x_hi[r], wide[r]
+        mean = (np.interp(hi, xs, gs) - np.interp(lo, xs, gs)) / np.maximum(dx, 1e-300)
+        point = np.interp(0.5 * (lo + hi), xs, ts)  # a cell too thin to difference
+        out[r] = np.where(dx > 1e-6, mean, point)
+    return out * np.clip(kt, 0.0, 1.0)[:, None] ** 2
 
 
 def union_unblocked(
@@ -127,7 +199,6 @@ def union_unblocked(
     ang,
     ior=None,
     kt=None,
-    n_samples=MAX_SAMPLES,
     gamma=None,
 ) -> np.ndarray:
     """The unblocked share of every lens row (``len(lens_rows)``), from its partial
@@ -182,7 +253,7 @@ def union_unblocked(
         rest = hard & ~pairs
         if rest.any():
             sampled = _sampled_blocked(
-                rows, obst, count, rest, lens_rows, direction, ang, glass, ior_a, kt_a, n_samples
+                rows, obst, count, rest, lens_rows, direction, ang, glass, ior_a, kt_a
             )
             unblocked[rest] = np.clip(1.0 - sampled[rest], 0.0, 1.0)
     return unblocked
@@ -280,13 +351,13 @@ def _glass_usual_block(alpha, beta, gamma, n, kt):
     if nb:
         # cos φ ≥ c on the circle θ: c = (v cos γ − 2 sin((α−γ)/2) sin((α+γ)/2)) /
         # (sin θ sin γ), the cosine law with cos α − cos γ as a product; γ = 0 leaves no
-        # piece B. acos: c carries its own rounding, the atan2 form would not help.
+        # piece B. The arc's half-angle acos c as atan √((1 − c)/(1 + c)) (SPEC §4.2).
         ab, gb = alpha[b_rows, None], gamma[b_rows, None]
         k = 2.0 * np.sin(0.5 * (ab - gb)) * np.sin(0.5 * (ab + gb))
         c = v[:nb] * np.cos(gb) - k
         c /= np.sqrt(sin2[:nb]) * np.sin(gb)
         np.clip(c, -1.0, 1.0, out=c)
-        wts[:nb] = np.arccos(c)
+        wts[:nb] = 2.0 * np.arctan(np.sqrt((1.0 - c) / np.maximum(1.0 + c, 1e-300)))
     n_r = n[rows, None]
     s2 = sin2 * (1.0 / np.sin(beta[rows]) ** 2)[:, None]  # sin²ι
     c_i = np.sqrt(np.maximum(1.0 - s2, 0.0))
@@ -380,15 +451,23 @@ def _share(sin_iota, n, kt):
     return np.clip(kt, 0.0, 1.0) ** 2 * 0.5 * (t_s * t_s + t_p * t_p)
 
 
-def _sampled_blocked(rows, obst, count, sampled, lens_rows, direction, ang, glass, ior, kt, n_max):
+def _sampled_blocked(rows, obst, count, sampled, lens_rows, direction, ang, glass, ior, kt):
     """Blocked share of the rows ``sampled``: 1 − Σ_k ∫ over blocker k's cap ∩ the
-    lens' cap of (1 − ∏_j passed_j) / (how many blockers' caps hold the direction),
-    over the lens' solid angle. Each term (row, k) on a grid over the smaller of the two
-    caps (a small blocker's own disc is covered exactly, a lens inside a big blocker's
-    disc is resolved: only the union's edges are sampled), meeting only the row's
-    blockers whose caps reach that grid; vectorised over all terms at once."""
+    lens' cap, outside the caps of the blockers before k (widest first), of
+    (1 − ∏_j passed_j), over the lens' solid angle. Each term (row, k) on a grid over
+    the smaller of the two caps (a small blocker's own disc is covered exactly, a lens
+    inside a big blocker's disc is resolved: only the union's edges are sampled), its
+    rings by its size against the lens' cap (`TERM_RINGS`), meeting only the row's
+    blockers whose caps reach that grid; vectorised over the terms of each level."""
     starts = np.concatenate([[0], np.cumsum(count)])
     t_pair = np.flatnonzero(sampled[rows])  # one term per pair of a sampled row
+    bk, alpha = ang[obst[t_pair]], ang[lens_rows[rows[t_pair]]]
+    # rings by the grid's radius against the lens' cap (the edge error ∝ (ρ/α)²/rings²)
+    size = np.sin(0.5 * np.minimum(bk, alpha)) / np.sin(0.5 * alpha)
+    levels = np.asarray(TERM_RINGS)
+    lv = np.minimum(np.searchsorted(levels, _TERM_FULL * size), levels.size - 1)
+    by_level = np.argsort(lv, kind="stable")
+    t_pair, lv = t_pair[by_level], lv[by_level]
     t_row, t_blk = rows[t_pair], obst[t_pair]
     lens = lens_rows[t_row]
     w, alpha = direction[lens], ang[lens]
@@ -404,25 +483,29 @@ def _sampled_blocked(rows, obst, count, sampled, lens_rows, direction, ang, glas
     wj = direction[it_blk]
     cross = np.cross(wd[it_term], wj)
     gamma = np.arctan2(np.linalg.norm(cross, axis=1), np.einsum("ij,ij->i", wd[it_term], wj))
-    is_self = it_pair == t_pair[it_term]
-    keep = is_self | (gamma < (ad[it_term] + ang[it_blk]) * (1.0 + 1e-9) + 1e-12)
-    it_term, it_blk, is_self, gamma = it_term[keep], it_blk[keep], is_self[keep], gamma[keep]
+    # each direction is counted by the first blocker of its row holding it, widest first
+    # (then by index: neither the scene's turn nor its order moves it)
+    pos = np.empty(rows.size, dtype=np.int64)
+    pos[np.lexsort((obst, -ang[obst], rows))] = np.arange(rows.size)
+    rank = np.sign(pos[it_pair] - pos[t_pair[it_term]]).astype(np.int8)  # −1 before, 0 self
+    keep = (rank == 0) | (gamma < (ad[it_term] + ang[it_blk]) * (1.0 + 1e-9) + 1e-12)
+    it_term, it_blk, rank, gamma = it_term[keep], it_blk[keep], rank[keep], gamma[keep]
     ref = _azimuth_ref(ref, wd, it_term, it_blk, gamma, direction, ang)
-    n = int(np.clip(BUDGET // max(it_term.size, 1), MIN_SAMPLES, n_max))
-    nr, na = _rings(n)
-    n = nr * na
     first = np.searchsorted(it_term, np.arange(t_pair.size + 1))  # each term's interactions
     value = np.zeros(t_pair.size)
     lo = 0
-    while lo < t_pair.size:  # chunks of terms: interactions × samples within the budget
-        hi = int(np.searchsorted(first, first[lo] + BUDGET // n, side="right")) - 1
-        hi = min(max(hi, lo + 1), t_pair.size)
+    while lo < t_pair.size:  # chunks of one level's terms: interactions × samples bounded
+        nr = int(levels[lv[lo]])
+        na = 2 * nr
+        end = int(np.searchsorted(lv, lv[lo], side="right"))
+        hi = int(np.searchsorted(first, first[lo] + BUDGET // (nr * na), side="right")) - 1
+        hi = min(max(hi, lo + 1), end)
         value[lo:hi] = _terms(
             slice(lo, hi),
             slice(first[lo], first[hi]),
             it_term,
             it_blk,
-            is_self,
+            rank,
             wd,
             ad,
             ref,
@@ -448,7 +531,7 @@ def _terms(
     its,
     it_term,
     it_blk,
-    is_self,
+    rank,
     wd,
     ad,
     ref,
@@ -467,26 +550,33 @@ def _terms(
     interactions ``its`` (sorted by term)."""
     wd, ad, own, w, alpha = wd[ts], ad[ts], own[ts], w[ts], alpha[ts]
     off = cap_offsets(wd, ad, ref[ts], nr, na)  # s − wd, (T, N, 3)
-    h = _ramp_width(ad, nr, na)
+    ring, arc = _cell_sides(ad, nr, na)
+    off_len = np.sqrt(np.einsum("pni,pni->pn", off, off))
     d_lens = (wd - w)[:, None, :] + off
+    h = _ramp_along(off, off_len, d_lens, ring, arc)
     in_lens = np.where(
         own[:, None], coverage(np.einsum("pni,pni->pn", d_lens, d_lens), alpha, h), 1.0
     )
     lt = it_term[its] - ts.start  # each interaction's term, local
-    blk, me = it_blk[its], is_self[its]
+    blk, rk = it_blk[its], rank[its]
+    me = rk == 0
     diff = (wd[lt] - direction[blk])[:, None, :] + off[lt]
     chord2 = np.einsum("pni,pni->pn", diff, diff)
+    h = _ramp_along(off[lt], off_len[lt], diff, ring[lt], arc[lt])
     share, cover = passed_share(
-        chord2, np.maximum(ang[blk], 1e-300), glass[blk], ior[blk], kt[blk], h[lt]
+        chord2, np.maximum(ang[blk], 1e-300), glass[blk], ior[blk], kt[blk], h
     )
     cover = np.where((me & own[lt])[:, None], 1.0, cover)  # its own grid lies inside it
-    passed = 1.0 - cover * (1.0 - share)
+    # term k = in_k (1 − share_k ∏_{j after k} passed_j) ∏_{j before k} (1 − in_j): linear
+    # in each blocker's coverage, so each ramp's error stays second order in the cell
+    # (dividing by the number of holders was not linear: first order at the rims)
+    before = (rk < 0)[:, None]
+    passed = np.where(me[:, None], share, 1.0 - cover * (1.0 - share))
     starts = np.flatnonzero(np.r_[True, lt[1:] != lt[:-1]])
-    with np.errstate(divide="ignore"):
-        log_passed = np.add.reduceat(np.log(passed), starts, axis=0)
-    holders = np.add.reduceat(cover, starts, axis=0)
+    outside = np.multiply.reduceat(np.where(before, 1.0 - cover, 1.0), starts, axis=0)
+    through = np.multiply.reduceat(np.where(before, 1.0, passed), starts, axis=0)
     in_k = cover[me]  # one self interaction per term, in term order
-    term = in_lens * in_k * (1.0 - np.exp(log_passed)) / np.maximum(holders, 1e-12)
+    term = in_lens * in_k * outside * (1.0 - through)
     ratio = (np.sin(0.5 * ad) / np.sin(0.5 * alpha)) ** 2
     return ratio * term.mean(axis=1)
 
@@ -710,11 +800,14 @@ def _pair_block(geo, ang, glass, ior, kt, nr):
     m = ci + m_off
     m /= np.linalg.norm(m, axis=1)[:, None]
     off = cap_offsets(m, rho, ref, nr, na)
-    h = _ramp_width(rho, nr, na)
+    ring, arc = _cell_sides(rho, nr, na)
+    off_len = np.sqrt(np.einsum("pni,pni->pn", off, off))
     value = np.ones(off.shape[:2])
     for blk, to_c, mine in ((bi, m_off, None), (bj, m_off - d_ij, own_j)):
+        h = _ramp_along(off, off_len, to_c[:, None, :] + off, ring, arc)
         value *= _passes_not(to_c, off, ang[blk], glass[blk], ior[blk], kt[blk], h, mine)
     d = (m_off + ci - w)[:, None, :] + off
+    h = _ramp_along(off, off_len, d, ring, arc)
     in_lens = coverage(np.einsum("pni,pni->pn", d, d), alpha, h)
     value *= np.where(on_lens[:, None], 1.0, in_lens)
     return size * size * value.mean(axis=1)
@@ -733,6 +826,6 @@ def _passes_not(to_c, off, beta, glass, ior, kt, h, mine):
         cov[mine] = 1.0
     g = np.flatnonzero(glass)
     if g.size:
-        sin_iota = 2.0 * half[g] * cos_half[g] / np.sin(np.maximum(beta[g], 1e-300))[:, None]
-        cov[g] *= 1.0 - _share(sin_iota, ior[g][:, None], kt[g][:, None])
+        sb = np.sin(np.maximum(beta[g], 1e-300))
+        cov[g] *= 1.0 - _cell_share(half[g], cos_half[g], sb, h[g], ior[g], kt[g])
     return cov
