@@ -12,16 +12,20 @@ averaged over what it covers of the lens' cap by a 1-D quadrature (`glass_passed
 Rows whose blockers' caps overlap are sampled (`_sampled_blocked`): each blocker's
 meeting with the lens' cap on a deterministic grid of directions equal in solid angle
 over the smaller of the two caps (rings uniform in 1 − cos θ × azimuths, anti-aliased
-edges; a direction inside several blockers' caps counts once in all), each direction
-passed by the product of its blockers' shares (0 behind an opaque one). The glass
+edges as wide as the cell along each rim's normal; a direction inside several
+blockers' caps counts once, for the widest of them), each direction passed by the
+product of its blockers' shares (0 behind an opaque one; a glass one's averaged over
+the cell's width, from a table of ∫ T). Each grid's resolution follows from its size
+against the lens' cap (its error a share of the lens' flux), not from a budget. The glass
 blocker's own focusing (it deflects what it passes: a tertiary source) is out of scope:
 what passes is counted as if undeflected.
 
 `ray_passes` tells what blockers pass of given rays (the Exact profile's mask,
 `emission_mask.py`, and the caustic layer's beam, `caustic_sheet/shadow.py`).
 
-Each grid's azimuth starts toward the other cap, so the result does not depend on how
-the scene is turned or in which order its spheres come.
+Each grid's azimuth starts toward the other cap, and blockers are ranked by their
+size, so the result does not depend on how the scene is turned or in which order its
+spheres come (but for ties).
 """
 
 from __future__ import annotations
