@@ -1,13 +1,14 @@
 """The unblocked share's precision (README Limits: a few 1e-4 of the share where
 blockers overlap) on hard cases for `shadow_mask`'s samplers: glass blockers whose caps
 overlap in thin slivers, three mutually (a row sampled whole; 1.0e-4 off when this was
-written) or two (a pair's overlap sampled alone; 4e-6). The aim of 5e-5 everywhere is
+written) or two (a pair's overlap sampled alone; 7e-7). The aim of 5e-5 everywhere is
 not met on the three (README Limits).
 
 The expected share is integrated here, independently of `shadow_mask`: ring by ring
-about the lens' axis (Gauss–Legendre in 1 − cos θ on panels), each ring split in φ
-where it crosses a blocker's rim (the cosine law, by atan2) and each arc integrated by
-Gauss–Legendre in a variable crowded at both ends (the Fresnel share's √ at grazing),
+about the lens' axis (Gauss–Legendre in 1 − cos θ, crowded at both ends of each
+interval between the rings that touch a rim or pass where two rims cross), each ring
+split in φ where it crosses a blocker's rim (the cosine law, by atan2) and each arc
+integrated by Gauss–Legendre crowded at both ends (the Fresnel share's √ at grazing),
 each direction passed by the product of what the blockers holding it pass (the Fresnel
 equations written out below)."""
 
