@@ -312,7 +312,7 @@ def _end_rule(m):
 
 #: 8 nodes: on the dense grid's 0.5 M glass blockers within 1.7e-5 (× their cover: the
 #: error in the unblocked share) of a 128-node reference, 10 within 5e-6, 16 within 8e-7.
-#: The error target is 5e-5 on a source's unblocked share (README Limits).
+#: README Limits: a glass blocker's share within 2e-5 of the lens' share.
 _END_T, _END_W = _end_rule(8)
 #: Blockers per block of the quadrature (its arrays stay in cache).
 _CHUNK = 2048
