@@ -11,7 +11,7 @@ SPEC.md §3 gives the thesis' formulas, §4 the stable forms used here:
 
 Everything is vectorised over lights × lenses (and × obstacles for the obstruction
 tests); the only Python loop is over lights, each handling all spheres at once (on
-several cores, lights side by side in threads).
+several cores, lights side by side in threads, for scenes of 50 000 spheres or more).
 No inf or NaN leaves this module: invalid input becomes a skipped pair with a reason.
 """
 
@@ -411,8 +411,10 @@ def compute_phase1(
     return Phase1Result(_concat_sources(parts), _skip_table(skips), a)
 
 
-#: Spheres below which one thread does all lights (a thread's start-up would not pay).
-THREADED_SPHERES = 2_000
+#: Spheres below which one thread does all lights: a light's numpy steps are then too
+#: short for the GIL to be let go long (16 lights × 10 000 droplets: wall 0.99 → 0.88 s
+#: for 1.0 → 1.5 s CPU; 2 lights × 100 489 glass balls: wall 3.4–3.8 → 2.1–2.3 s).
+THREADED_SPHERES = 50_000
 
 
 def _default_workers(n_lights: int, n_spheres: int) -> int:
