@@ -373,21 +373,23 @@ ATTRIBUTION = [
     "matrices in one `foreach_get` (`_InstanceWalk.walk`); the table above gives both "
     "against the reference read. The plan 0.08–0.09 s (the rays that keep the "
     "beams clear meet groups of spheres first, `ray_hits.sphere_clusters`: it was "
-    "1.7 s); phase 1 5.1–6.6 s for the two lights, of which the glass blockers' Fresnel "
-    "shares (`shadow_mask.glass_passed`) about 2.4 s, the broad phase about 0.9 s and "
-    "the other exact shares the rest (standalone cProfile of `compute_phase1` on this "
-    "grid; it was 130–205 s wall before the quadrature of the glass shares was "
-    "rewritten).",
+    "1.7 s); phase 1 2.6–3.3 s wall for the two lights, computed side by side in two "
+    "threads (3.4–3.8 s in one; it was 5.1–6.6 s before the broad phase on a cube's "
+    "faces and the glass shares with 8 nodes: `bench/scale.floating_grid`, this grid as "
+    "arrays, CPU: union of shadows 1.75 s of which the glass blockers' Fresnel shares "
+    "(`shadow_mask.glass_passed`) about 1.4 s, broad phase about 0.9 s; it was 130–205 s "
+    "wall before the quadrature of the glass shares was rewritten).",
     "* **The caustic layer** (Auto in EEVEE): reading the receivers and the bake, about "
     "constant in the number of spheres (it works on the 4 × maximum strongest sources); "
     "`--energy-model FITTED` measures the lights alone.",
     "",
-    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): not met. "
-    "On a quiet machine (load about 1), four runs of the 100 489 case: 15.4, 15.5, 17.3 "
-    "and 19.4 s; Blender's depsgraph rebuild and evaluation after the lights are added and "
-    "the undo push 7.6–9.6 s of it, the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s "
-    "(before the bulk read: the check and the read are now about half, the table above). "
-    "The goal needs phase 1 at 100 k in about 2 s (or Blender's update gone).",
+    "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): met. "
+    "On a quiet machine (load 0.0–0.7), three runs of the 100 489 case on 2026-12-02: "
+    "11.9, 11.0 and the table's; Blender's depsgraph rebuild and evaluation after the "
+    "lights are added and the undo push 7.2–7.8 s of it (about two thirds), the check and "
+    "the read 0.9–1.0 s, phase 1 2.6–3.3 s. The same morning, before the bulk read, the "
+    "cube-face broad phase, the 8-node glass shares and the lights in threads: 15.4, "
+    "15.5, 17.3 and 19.4 s (the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s).",
     "",
     "What is left of the read on collection-instance empties (2026-12-02, CPU, 100 000 "
     "instances, numpy alone): the assembly (`scene_read.assemble`) about 0.38 s — the "
@@ -395,8 +397,7 @@ ATTRIBUTION = [
     "`einsum` over all instances' corners; a `matmul` is faster still but rounds the "
     "last bit differently, so it is not used), the names 0.08 s, the uniform scales "
     "0.05 s (an `einsum` too) —; the bulk read itself about one Python step per "
-    "instancing empty (its collection and name). The report's 100 489 row was run "
-    "before the world boxes' change. Against the read before issue 16 (`--read-only "
+    "instancing empty (its collection and name). Against the read before issue 16 (`--read-only "
     "--extension` a checkout of it; CPU, best of 3, load 2.1–3): at 100 000 empties "
     "the check 0.31 → 0.21 s and the read 2.56 → 0.87 s (2.9 ×); at 20 164 empties the "
     "check and the read 0.39–0.54 → 0.19–0.21 s, at 20 164 geometry-nodes instances "
