@@ -155,7 +155,7 @@ def main(argv=None) -> int:
         f"(every light), CPU seconds, best of {args.repeat}, {malloc_note()}; error: |Δ unblocked share| "
         f"against the same code at a finer resolution ({', '.join(f'{k} {v}' for k, v in FINE.items())}, "
         f"{FINE_NODES} nodes per glass share), as max / 99th percentile (rows) per kind of row. "
-        "The README promises a few 1e-4, up to about 1e-3 in slivers thinner than a cell.",
+        "The README promises a few 1e-4, up to 1.2e-3 in slivers thinner than a cell.",
         "",
         "| scene | union (CPU s) | fine (CPU s) | max error | plain rows | pairs | three deep | crowded (product) |",
         "| --- | ---: | ---: | ---: | --- | --- | --- | --- |",
