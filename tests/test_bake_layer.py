@@ -3,7 +3,8 @@ receiver plane over the frames, one packed image of slices, keyed slice index;
 each frame's slice carries Generate's layer of that frame (flux and centroid, and
 the exact optics' flux); Clear and one undo step remove the objects, materials,
 image and actions; a glossy receiver's Fitted spots stay one per frame;
-a baked frame renders in EEVEE in a Blender process without the extension, its
+a floor with warped UVs bakes as a vertex grid carrying its UVs; a baked frame renders
+in EEVEE in a Blender process without the extension, its
 caustic where and as bright as the exact optics says.
 
 Scene: the measuring scene (white floor albedo 0.8, glass ball R = 0.5, n = 1.5 at
@@ -291,3 +292,68 @@ def test_baked_layer_frame_renders_in_eevee_without_the_extension(extension, tmp
     )
     assert off <= VIEW / PX  # one pixel
     assert abs(ratio - 1.0) <= 0.15
+
+
+def warp_floor_uvs(floor, cuts=8):
+    """The floor cut into (cuts + 1)² quads, u = ((x + 30)/60)² at its vertices (not
+    affine in the plane: the bake's vertex-grid path), v = (y + 30)/60."""
+    import bmesh
+
+    me = floor.data
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=cuts, use_grid_fill=True)
+    bm.to_mesh(me)
+    bm.free()
+    n = len(me.loops)
+    vi = np.empty(n, dtype=np.int64)
+    me.loops.foreach_get("vertex_index", vi)
+    co = np.empty(3 * len(me.vertices))
+    me.vertices.foreach_get("co", co)
+    xy = co.reshape(-1, 3)[vi, :2] * floor.scale[0]
+    uv = np.stack([((xy[:, 0] + 30.0) / 60.0) ** 2, (xy[:, 1] + 30.0) / 60.0], axis=1)
+    me.uv_layers.active.data.foreach_set("uv", uv.astype(np.float32).ravel())
+    me.update()
+    return np.unique(np.round(xy[:, 0], 9))  # the grid's lines along x
+
+
+def test_a_floor_with_warped_uvs_bakes_one_vertex_grid_with_its_uvs(extension):
+    """Where the receiver's UVs are not affine, the baked layer is Generate's vertex grid
+    (one topology for all frames), its UVs the floor's UVs interpolated on the floor's
+    faces (u = x² is linear between the grid lines), and each frame's slice is that
+    frame's layer."""
+    built = make_scene()
+    lines_x = warp_floor_uvs(built.floor)
+    generated = {f: generated_layer(f) for f in (1, 3)}
+    bpy.context.scene.frame_set(1)
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    (ob,) = layer_objects()
+    me = ob.data
+    counts = set()
+    for f in (1, 3):
+        bpy.context.scene.frame_set(f)
+        counts.add((len(me.vertices), len(me.polygons)))
+        flux, c = baked_layer(ob, f)
+        g_flux, g_c = generated[f]
+        assert flux == pytest.approx(g_flux, rel=0.005)
+        assert np.linalg.norm(c - g_c) <= 0.01 * R
+    ((n_verts, n_faces),) = counts
+    res = round(math.sqrt(n_faces))
+    assert n_faces == res * res > 1 and n_verts == (res + 1) ** 2  # the vertex grid
+    # its UVs: the floor's, interpolated linearly between the grid lines
+    vi = np.empty(len(me.loops), dtype=np.int64)
+    me.loops.foreach_get("vertex_index", vi)
+    co = np.empty(3 * n_verts)
+    me.vertices.foreach_get("co", co)
+    world = np.array(ob.matrix_world)
+    xy = (co.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3])[vi, :2]
+    uv = np.empty(2 * len(me.loops), dtype=np.float32)
+    me.uv_layers["UVMap"].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    u_lines = ((lines_x + 30.0) / 60.0) ** 2
+    expected_u = np.interp(xy[:, 0], lines_x, u_lines)
+    assert np.abs(uv[:, 0] - expected_u).max() < 2e-5
+    assert np.abs(uv[:, 1] - (xy[:, 1] + 30.0) / 60.0).max() < 2e-5
+    # and not the affine fit: somewhere the piecewise-linear u departs from a line
+    fit = np.polyval(np.polyfit(xy[:, 0], uv[:, 0], 1), xy[:, 0])
+    assert np.abs(uv[:, 0] - fit).max() > 1e-4
