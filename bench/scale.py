@@ -28,7 +28,10 @@ import time
 import tracemalloc
 from pathlib import Path
 
-import numpy as np
+# As `./lens-lights phase1` runs phase 1 (scripts/cli.py): one BLAS thread.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -567,8 +570,9 @@ def main(argv=None) -> int:
         "cumulative-sum index, a leaner start-up (no render script for `phase1`, "
         "one BLAS thread), and glibc keeping freed memory for reuse (the launcher sets "
         "MALLOC_MMAP_THRESHOLD_ and MALLOC_TRIM_THRESHOLD_ for `phase1`: numpy's large "
-        "temporaries no longer fault fresh pages in, each time; the in-process stages "
-        "below run without it). Since the third round phase 1 also takes the union of "
+        "temporaries no longer fault fresh pages in, each time; since the sixth round "
+        "`./lens-lights bench scale` runs its in-process stages so too, and with one BLAS "
+        "thread, as the command runs them). Since the third round phase 1 also takes the union of "
         "the blockers' shadows with a glass blocker's Fresnel share "
         "(`shadow_mask`): most of its time in these scenes of glass droplets.",
         "",

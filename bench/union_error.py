@@ -13,9 +13,9 @@ overlapping only in pairs), three deep (sampled over their caps), crowded (more 
 
     ./lens-lights bench union_error [--repeat N] [--scenes droplets dense floating]
 
-(with MALLOC_MMAP_THRESHOLD_=1073741824 MALLOC_TRIM_THRESHOLD_=4294967296 in the
-environment as `./lens-lights phase1` runs: numpy's large temporaries then fault no
-fresh pages in, about a fifth of the union's time here.)
+(The launcher sets glibc's MALLOC_MMAP_THRESHOLD_ and MALLOC_TRIM_THRESHOLD_ for it as
+for `./lens-lights phase1`: numpy's large temporaries then fault no fresh pages in,
+about a fifth of the union's time here.)
 """
 
 from __future__ import annotations
@@ -25,7 +25,10 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
+# As `./lens-lights phase1` runs phase 1 (scripts/cli.py): one BLAS thread.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
