@@ -36,6 +36,7 @@ import numpy as np
 
 from .exact_optics import fresnel_transmittance
 from .ranges import concat_ranges
+from .parallel import MIN_ROWS, map_slices
 
 #: Rings of a sampled term's grid (× 2·rings azimuths): the fewest of these ≥
 #: `_TERM_FULL` × the grid's radius against the lens' cap (its edge error, a share
@@ -333,11 +334,16 @@ def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
     out = np.zeros(beta.size)
     # an index above 1 (the common glass): one fused pass; any other by the general one
     usual = np.isfinite(ior) & (ior > 1.0)
+    jobs = []
     for sel, block in ((usual, _glass_usual_block), (~usual, _glass_passed_block)):
         idx = np.flatnonzero(sel)
-        for s in range(0, idx.size, _CHUNK):
-            k = idx[s : s + _CHUNK]
+        jobs.extend((block, idx[s : s + _CHUNK]) for s in range(0, idx.size, _CHUNK))
+
+    def run(part):  # the blocks are row by row: any thread computes its rows alike
+        for block, k in jobs[part]:
             out[k] = block(alpha[k], beta[k], gamma[k], ior[k], kt[k])
+
+    map_slices(run, len(jobs), min_rows=MIN_ROWS // _CHUNK)
     return out
 
 
