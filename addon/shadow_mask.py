@@ -35,8 +35,8 @@ import functools
 import numpy as np
 
 from .exact_optics import fresnel_transmittance
-from .ranges import concat_ranges
 from .parallel import MIN_ROWS, map_slices
+from .ranges import concat_ranges
 
 #: Rings of a sampled term's grid (× 2·rings azimuths): the fewest of these ≥
 #: `_TERM_FULL` × the grid's radius against the lens' cap (its edge error, a share
