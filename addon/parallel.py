@@ -43,9 +43,10 @@ def inline():
         _state.inline = before
 
 
-def workers(n_rows: int, min_rows: int = MIN_ROWS) -> int:
-    """Threads a map over `n_rows` rows uses: 1 when inline or small, else the cores
-    (at most one per `min_rows // 2` rows: each chunk stays large)."""
+def workers(n_rows: int, min_rows: int | None = None) -> int:
+    """Threads a map over `n_rows` rows uses: 1 when inline or below `min_rows`
+    (None: `MIN_ROWS`), else the cores (at most one per `min_rows // 2` rows)."""
+    min_rows = MIN_ROWS if min_rows is None else min_rows
     if getattr(_state, "inline", False) or n_rows < min_rows:
         return 1
     return max(1, min(cores(), n_rows // max(1, min_rows // 2)))
@@ -57,7 +58,7 @@ def split(n_rows: int, parts: int) -> list[slice]:
     return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
-def map_slices(fn: Callable[[slice], object], n_rows: int, min_rows: int = MIN_ROWS) -> list:
+def map_slices(fn: Callable[[slice], object], n_rows: int, min_rows: int | None = None) -> list:
     """`[fn(s) for s in slices]` over contiguous slices of range(n_rows), in order;
     one slice (inline) when small or inside :func:`inline`, else one per thread."""
     n = workers(n_rows, min_rows)

@@ -34,8 +34,9 @@ import functools
 
 import numpy as np
 
+from . import parallel
 from .exact_optics import fresnel_transmittance
-from .parallel import MIN_ROWS, map_slices
+from .parallel import map_slices
 from .ranges import concat_ranges
 
 #: Rings of a sampled term's grid (× 2·rings azimuths): the fewest of these ≥
@@ -297,8 +298,13 @@ def _overlapping_rows(rows, obst, count, direction, ang, n_rows):
 
 def _mark_overlaps(out, rows, obst, p, q, direction, ang):
     """out[row] = True where the caps of the pairs (p, q) of its blockers overlap."""
-    gap = _angle(direction[obst[p]], direction[obst[q]])
-    out[rows[p[gap < ang[obst[p]] + ang[obst[q]]]]] = True
+
+    def mark(s):  # only ever sets True: slices may write side by side
+        ps, qs = obst[p[s]], obst[q[s]]
+        gap = _angle(direction[ps], direction[qs])
+        out[rows[p[s][gap < ang[ps] + ang[qs]]]] = True
+
+    map_slices(mark, p.size)
 
 
 def _end_rule(m):
@@ -343,7 +349,7 @@ def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
         for block, k in jobs[part]:
             out[k] = block(alpha[k], beta[k], gamma[k], ior[k], kt[k])
 
-    map_slices(run, len(jobs), min_rows=MIN_ROWS // _CHUNK)
+    map_slices(run, len(jobs), min_rows=max(1, parallel.MIN_ROWS // _CHUNK))
     return out
 
 
