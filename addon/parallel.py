@@ -58,10 +58,16 @@ def split(n_rows: int, parts: int) -> list[slice]:
     return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
-def map_slices(fn: Callable[[slice], object], n_rows: int, min_rows: int | None = None) -> list:
+def map_slices(
+    fn: Callable[[slice], object],
+    n_rows: int,
+    min_rows: int | None = None,
+    threads: int | None = None,
+) -> list:
     """`[fn(s) for s in slices]` over contiguous slices of range(n_rows), in order;
-    one slice (inline) when small or inside :func:`inline`, else one per thread."""
-    n = workers(n_rows, min_rows)
+    one slice (inline) when small or inside :func:`inline`, else one per thread
+    (`threads`: that many, as :func:`workers` chose them for the caller)."""
+    n = workers(n_rows, min_rows) if threads is None else max(1, min(threads, n_rows))
     if n <= 1:
         return [fn(slice(0, n_rows))]
     parts = split(n_rows, n)

@@ -323,6 +323,9 @@ def _end_rule(m):
 _END_T, _END_W = _end_rule(8)
 #: Blockers per block of the quadrature (its arrays stay in cache).
 _CHUNK = 2048
+#: The same in threads: fewer, longer numpy steps hold the GIL less often (494 k dense
+#: grid blockers on 2 cores: wall 0.35 s at 2048, 0.24 s at 8192; inline 0.37 s).
+_THREADED_CHUNK = 8192
 
 
 def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
@@ -340,16 +343,18 @@ def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
     out = np.zeros(beta.size)
     # an index above 1 (the common glass): one fused pass; any other by the general one
     usual = np.isfinite(ior) & (ior > 1.0)
+    threads = parallel.workers(beta.size)
+    chunk = _CHUNK if threads == 1 else _THREADED_CHUNK
     jobs = []
     for sel, block in ((usual, _glass_usual_block), (~usual, _glass_passed_block)):
         idx = np.flatnonzero(sel)
-        jobs.extend((block, idx[s : s + _CHUNK]) for s in range(0, idx.size, _CHUNK))
+        jobs.extend((block, idx[s : s + chunk]) for s in range(0, idx.size, chunk))
 
     def run(part):  # the blocks are row by row: any thread computes its rows alike
         for block, k in jobs[part]:
             out[k] = block(alpha[k], beta[k], gamma[k], ior[k], kt[k])
 
-    map_slices(run, len(jobs), min_rows=max(1, parallel.MIN_ROWS // _CHUNK))
+    map_slices(run, len(jobs), threads=threads)
     return out
 
 

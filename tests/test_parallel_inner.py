@@ -74,7 +74,7 @@ def test_map_runs_inline_below_the_threshold_and_inside_inline(threaded):
 
 def test_cap_overlap_and_glass_share_threaded_equal_inline(threaded):
     rng = np.random.default_rng(7)
-    n = 5000
+    n = 20_000  # three threaded chunks of glass_passed
     alpha = rng.uniform(1e-4, 0.5, n)
     beta = rng.uniform(1e-4, 0.5, n)
     gamma = rng.uniform(0.0, 1.0, n) * (alpha + beta)
@@ -109,9 +109,9 @@ def test_light_threads_run_every_light_inline(threaded, monkeypatch):
     calls = []
     real = parallel.map_slices
 
-    def spy(fn, n_rows, min_rows=None):
-        calls.append(parallel.workers(n_rows, min_rows))
-        return real(fn, n_rows, min_rows)
+    def spy(fn, n_rows, min_rows=None, threads=None):
+        calls.append(parallel.workers(n_rows, min_rows) if threads is None else threads)
+        return real(fn, n_rows, min_rows, threads)
 
     for mod in ("addon.geometry", "addon.shadow_mask", "addon.obstruction"):
         monkeypatch.setattr(f"{mod}.map_slices", spy)
