@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .parallel import map_slices
+
 
 def radial_angle(distance, radius):
     """Half-angle under which a point at `distance` from a centre sees a sphere.
@@ -51,14 +53,27 @@ def cap_overlap_fraction(alpha, beta, gamma):
     out[inside] = 1.0
     out[contained] = _cap_area(beta[contained]) / cap_a[contained]
     if np.any(partial):
-        a, b, g = alpha[partial], beta[partial], gamma[partial]
-        out[partial] = (_segment_area(a, b, g) + _segment_area(b, a, g)) / cap_a[partial]
+        a, b, g, ca = alpha[partial], beta[partial], gamma[partial], cap_a[partial]
+
+        def overlap(s):  # elementwise: a slice's rows are bit for bit the whole's
+            return _segments(a[s], b[s], g[s]) / ca[s]
+
+        out[partial] = np.concatenate(map_slices(overlap, a.size))
     return np.clip(out, 0.0, 1.0)
 
 
 def _cap_area(a):
     """Solid angle of a cap of angular radius a: `2π(1 − cos a) = 4π sin²(a/2)`."""
     return 4.0 * np.pi * np.sin(0.5 * a) ** 2
+
+
+def _segments(a, b, g):
+    """`_segment_area(a, b, g) + _segment_area(b, a, g)`, bit for bit: both share the
+    half-perimeter's four sines (b's s_a is a's s_b and the reverse)."""
+    s = 0.5 * (a + b + g)
+    s_a, s_b, s_g = 0.5 * (b + g - a), 0.5 * (a + g - b), 0.5 * (a + b - g)
+    sin_s, sin_a, sin_b, sin_g = np.sin(s), np.sin(s_a), np.sin(s_b), np.sin(s_g)
+    return _segment(a, sin_s, sin_a, sin_b, sin_g) + _segment(b, sin_s, sin_b, sin_a, sin_g)
 
 
 def _segment_area(a, b, g):
@@ -75,8 +90,13 @@ def _segment_area(a, b, g):
     """
     s = 0.5 * (a + b + g)
     s_a, s_b, s_g = 0.5 * (b + g - a), 0.5 * (a + g - b), 0.5 * (a + b - g)
-    sin_half = np.sqrt(np.maximum(np.sin(s_a) * np.sin(s_g), 0.0))
-    cos_half = np.sqrt(np.maximum(np.sin(s) * np.sin(s_b), 0.0))
+    return _segment(a, np.sin(s), np.sin(s_a), np.sin(s_b), np.sin(s_g))
+
+
+def _segment(a, sin_s, sin_sa, sin_sb, sin_sg):
+    """`_segment_area` of cap `a` from the sines of s, s − a, s − b, s − γ."""
+    sin_half = np.sqrt(np.maximum(sin_sa * sin_sg, 0.0))
+    cos_half = np.sqrt(np.maximum(sin_s * sin_sb, 0.0))
     omega = 2.0 * np.arctan2(sin_half, cos_half)
     t2 = np.tan(0.5 * a) ** 2
     excess = 2.0 * np.arctan2(t2 * np.sin(2.0 * omega), 1.0 + t2 * np.cos(2.0 * omega))

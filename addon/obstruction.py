@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import cap_overlap_fraction
+from .parallel import map_slices
 from .ranges import concat_ranges
 from .shadow_mask import union_unblocked
 
@@ -84,14 +85,24 @@ def find_blockers(
 
     found = []
     batches = _candidate_batches(direction, ang, obstacle, row_of >= 0, useful, window)
-    for a, b in batches:
+    cols = tuple(np.ascontiguousarray(direction[:, c]) for c in range(3))
+
+    def exact(a, b):
+        """The pairs (a, b) that overlap, as (lens, obst, α, β, γ); row by row."""
         # Only the farther sphere of a pair (longer tangent) can be blocked by the other.
         far_a = tlen[a] > tlen[b]
         lens, obst = np.where(far_a, a, b), np.where(far_a, b, a)
         alpha, beta = ang[lens], ang[obst]
-        gamma = _angle_between_rows(direction, lens, obst)
+        gamma = _angle_between_rows(direction, lens, obst, cols)
         blocks = alpha + beta >= gamma
-        lens, obst, alpha, beta, gamma = (x[blocks] for x in (lens, obst, alpha, beta, gamma))
+        return tuple(x[blocks] for x in (lens, obst, alpha, beta, gamma))
+
+    for a, b in batches:
+        parts = map_slices(lambda s, a=a, b=b: exact(a[s], b[s]), a.size)
+        if len(parts) == 1:
+            lens, obst, alpha, beta, gamma = parts[0]
+        else:
+            lens, obst, alpha, beta, gamma = (np.concatenate(x) for x in zip(*parts, strict=True))
         total = beta >= gamma + alpha
         np.minimum.at(hidden_at, lens[total], tlen[obst[total]])
         found.append((lens, obst, alpha, beta, gamma, total))
@@ -125,11 +136,13 @@ def find_blockers(
     return Blockers(total_blocker, offsets, obst, unblocked)
 
 
-def _angle_between_rows(direction, i, k):
+def _angle_between_rows(direction, i, k, cols=None):
     """`geometry.angle_between(direction[i], direction[k])`, bit for bit, from the
     columns (no (N, 3) gathers and no `np.cross` overhead: it is most of the
-    exact test's cost in a crowded view)."""
-    x, y, z = (np.ascontiguousarray(direction[:, c]) for c in range(3))
+    exact test's cost in a crowded view). `cols`: direction's columns, if made."""
+    if cols is None:
+        cols = tuple(np.ascontiguousarray(direction[:, c]) for c in range(3))
+    x, y, z = cols
     ax, ay, az, bx, by, bz = x[i], y[i], z[i], x[k], y[k], z[k]
     cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import skip_reasons
+from . import parallel, skip_reasons
 from .geometry import (
     radial_angle,
     tangent_length,
@@ -396,8 +396,14 @@ def compute_phase1(
     if workers is None:
         workers = _default_workers(lit.size, n_spheres)
     if workers > 1 and lit.size > 1:
+
+        def one_light_inline(j):  # lights in threads: no threads inside a light
+            with parallel.inline():
+                return one_light(j)
+
         with ThreadPoolExecutor(min(workers, lit.size)) as pool:
-            done = dict(zip(lit.tolist(), pool.map(one_light, lit.tolist()), strict=True))
+            lights = pool.map(one_light_inline, lit.tolist())
+            done = dict(zip(lit.tolist(), lights, strict=True))
     else:
         done = {j: one_light(j) for j in lit.tolist()}
     parts, skips = [], []

@@ -34,7 +34,9 @@ import functools
 
 import numpy as np
 
+from . import parallel
 from .exact_optics import fresnel_transmittance
+from .parallel import map_slices
 from .ranges import concat_ranges
 
 #: Rings of a sampled term's grid (× 2·rings azimuths): the fewest of these ≥
@@ -296,8 +298,13 @@ def _overlapping_rows(rows, obst, count, direction, ang, n_rows):
 
 def _mark_overlaps(out, rows, obst, p, q, direction, ang):
     """out[row] = True where the caps of the pairs (p, q) of its blockers overlap."""
-    gap = _angle(direction[obst[p]], direction[obst[q]])
-    out[rows[p[gap < ang[obst[p]] + ang[obst[q]]]]] = True
+
+    def mark(s):  # only ever sets True: slices may write side by side
+        ps, qs = obst[p[s]], obst[q[s]]
+        gap = _angle(direction[ps], direction[qs])
+        out[rows[p[s][gap < ang[ps] + ang[qs]]]] = True
+
+    map_slices(mark, p.size)
 
 
 def _end_rule(m):
@@ -316,6 +323,9 @@ def _end_rule(m):
 _END_T, _END_W = _end_rule(8)
 #: Blockers per block of the quadrature (its arrays stay in cache).
 _CHUNK = 2048
+#: The same in threads: fewer, longer numpy steps hold the GIL less often (494 k dense
+#: grid blockers on 2 cores: wall 0.35 s at 2048, 0.24 s at 8192; inline 0.37 s).
+_THREADED_CHUNK = 8192
 
 
 def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
@@ -333,11 +343,18 @@ def glass_passed(alpha, beta, gamma, ior, kt) -> np.ndarray:
     out = np.zeros(beta.size)
     # an index above 1 (the common glass): one fused pass; any other by the general one
     usual = np.isfinite(ior) & (ior > 1.0)
+    threads = parallel.workers(beta.size)
+    chunk = _CHUNK if threads == 1 else _THREADED_CHUNK
+    jobs = []
     for sel, block in ((usual, _glass_usual_block), (~usual, _glass_passed_block)):
         idx = np.flatnonzero(sel)
-        for s in range(0, idx.size, _CHUNK):
-            k = idx[s : s + _CHUNK]
+        jobs.extend((block, idx[s : s + chunk]) for s in range(0, idx.size, chunk))
+
+    def run(part):  # the blocks are row by row: any thread computes its rows alike
+        for block, k in jobs[part]:
             out[k] = block(alpha[k], beta[k], gamma[k], ior[k], kt[k])
+
+    map_slices(run, len(jobs), threads=threads)
     return out
 
 
