@@ -385,8 +385,9 @@ ATTRIBUTION = [
     "",
     "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): met. "
     "On a quiet machine (load 0.0–0.7), three runs of the 100 489 case on 2026-12-02: "
-    "11.9, 11.0 and 11.2 s; Blender's depsgraph rebuild and evaluation after the "
-    "lights are added and the undo push 7.0–7.5 s of it (about two thirds), the check and "
+    "11.9, 11.0 and 11.2 s, then 12.4 s after the threads inside one light were added "
+    "(`addon/parallel.py`); Blender's depsgraph rebuild and evaluation after the "
+    "lights are added and the undo push 7.0–8.2 s of it (about two thirds), the check and "
     "the read 0.9–1.2 s, phase 1 2.6–3.3 s. The same morning, before the bulk read, the "
     "cube-face broad phase, the 8-node glass shares and the lights in threads: 15.4, "
     "15.5, 17.3 and 19.4 s (the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s).",
