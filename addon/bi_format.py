@@ -580,13 +580,18 @@ def _decode(data: bytes, path: str) -> str:
         ) from exc
 
 
-def _read_text(path: PathLike) -> tuple[str, str]:
+def _read_bytes(path: PathLike) -> tuple[bytes, str]:
+    """The file's bytes and its name; a file that cannot be opened is a BiFormatError."""
     name = os.fspath(path)
     try:
         with open(name, "rb") as f:
-            data = f.read()
+            return f.read(), name
     except OSError as exc:
         raise BiFormatError(name, None, f"cannot read the file: {exc.strerror or exc}") from exc
+
+
+def _read_text(path: PathLike) -> tuple[str, str]:
+    data, name = _read_bytes(path)
     return _decode(data, name), name
 
 
@@ -603,12 +608,7 @@ def read_bi_arrays(path: PathLike):
     `format_bi` writes them): numpy on the file's bytes (`_arrays_from_bytes`),
     else on its text (`_arrays_in_layout`). Anything else, and every error, goes
     through `read_bi`'s record reader: the same scene, the same messages."""
-    name = os.fspath(path)
-    try:
-        with open(name, "rb") as f:
-            data = f.read()
-    except OSError as exc:
-        raise BiFormatError(name, None, f"cannot read the file: {exc.strerror or exc}") from exc
+    data, name = _read_bytes(path)
     arrays = _arrays_or_none(_arrays_from_bytes, data, name)
     return arrays if arrays is not None else _parse_arrays_text(_decode(data, name), name)
 
