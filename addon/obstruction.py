@@ -13,9 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import parallel
 from .geometry import cap_overlap_fraction
 from .parallel import map_slices
-from .ranges import concat_ranges
+from .ranges import expand_ranges
 from .shadow_mask import union_unblocked
 
 #: Smallest grid cell (in units of direction-vector length): keeps cell keys in int64.
@@ -116,11 +117,13 @@ def find_blockers(
 
     total_blocker = np.full(n_rows, -1, dtype=np.int64)
     if np.any(total):
+        # per lens the nearest (hidden_at holds its tangent length), then lowest index
         tl, to = lens[total], obst[total]
-        order = np.lexsort((to, tlen[to], tl))  # per lens: nearest, then lowest index
-        tl, to = tl[order], to[order]
-        first = np.r_[True, tl[1:] != tl[:-1]]
-        total_blocker[row_of[tl[first]]] = to[first]
+        nearest = tlen[to] == hidden_at[tl]
+        tl, to = tl[nearest], to[nearest]
+        pick = np.full(direction.shape[0], np.iinfo(np.int64).max)
+        np.minimum.at(pick, tl, to)
+        total_blocker[row_of[tl]] = pick[tl]
 
     partial = total_blocker[row_of[lens]] < 0
     rows = row_of[lens[partial]]
@@ -214,18 +217,32 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         themselves, each pair from the lower corner or, both at corner 0, from the
         one sorted first). The owners' columns are read in their own order, the
         query's repeated: no scattered reads per meeting."""
-        total = np.cumsum(count)
-        if not total.size or not total[-1]:
+        has = np.flatnonzero(count)
+        if not has.size:
             return
+        lo, count = lo[has], count[has]
+        total = np.cumsum(count)
         # In pieces of about _PIECE meetings: their temporaries stay in cache.
         cuts = np.searchsorted(total, np.arange(_PIECE, int(total[-1]), _PIECE))
-        for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True):
-            if t > s:
-                meet_piece(q, e, lo[s:t], count[s:t], s, faces, corners)
+        pieces = [
+            (s, t) for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True) if t > s
+        ]
 
-    def meet_piece(q, e, lo, count, s, faces, corners):
-        at = concat_ranges(lo, count)
-        row = np.repeat(np.arange(s, s + count.size), count)
+        def run(part):  # pieces are independent: threads take contiguous runs of them
+            return [
+                meet_piece(q, e, has[s:t], lo[s:t], count[s:t], faces, corners)
+                for s, t in pieces[part]
+            ]
+
+        threads = parallel.workers(int(total[-1]), min_rows=4 * _PIECE)
+        for found in map_slices(run, len(pieces), threads=threads):
+            for a, b in found:
+                pa.append(a)
+                pb.append(b)
+
+    def meet_piece(q, e, rows, lo, count, faces, corners):
+        which, at = expand_ranges(lo, count)
+        row = rows[which]
         if corners is not None:
             # A few owners per cell: all of a cell's met, those of the wrong corners
             # dropped here, before the columns are read.
@@ -256,8 +273,7 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         if useful is not None:
             ok = useful(a, b)
             a, b = a[ok], b[ok]
-        pa.append(a)
-        pb.append(b)
+        return a, b
 
     def side(keys, ids):
         return _Side(keys, ids, wx[ids], wy[ids], wz[ids], rho[ids])

@@ -4,6 +4,10 @@
   (`shadow_mask.glass_passed`, a 1-D quadrature in 1 − cos θ over the pieces that hold
   any of the cap) against a brute-force midpoint grid over the blocker's disc in its
   own polar angles, with the Fresnel equations written out here;
+- in a crowded view (`shadow_mask.MAX_INTERACTIONS`), rows whose blockers overlap
+  as the product of what each leaves, their glass shares by the coarse 4-node rule
+  (`shadow_mask._CROWDED_RULE`), rows whose blockers are apart as the sum with the
+  8-node rule, against the same brute-force grid;
 - the rows whose blockers' caps overlap (`shadow_mask._overlapping_rows`, consecutive
   blockers first) against every pair of every row;
 - the broad phase (`obstruction._candidate_pairs`, boxes sorted by level, queries cut
@@ -19,9 +23,15 @@ import math
 import numpy as np
 import pytest
 
-from addon.geometry import angle_between, radial_angle
+from addon.geometry import angle_between, cap_overlap_fraction, radial_angle
 from addon.obstruction import _candidate_pairs
-from addon.shadow_mask import _overlapping_rows, glass_passed
+from addon.shadow_mask import (
+    _CROWDED_RULE,
+    MAX_INTERACTIONS,
+    _overlapping_rows,
+    glass_passed,
+    union_unblocked,
+)
 
 
 def fresnel_two_surfaces(sin_i, n):
@@ -86,6 +96,82 @@ def test_glass_share_of_index_one_is_kt_squared_and_many_at_once_equal_one_by_on
         )
         assert single[0] == all_at_once[i]
     assert np.all((all_at_once >= 0.0) & (all_at_once <= kt * kt + 1e-15))
+
+
+def axis_at(gamma, phi):
+    return np.array([np.sin(gamma) * np.cos(phi), np.sin(gamma) * np.sin(phi), np.cos(gamma)])
+
+
+def crowded_view(n_blockers=70, seed=3):
+    """Sphere 0: a lens on the z axis (α = 0.1) behind `n_blockers` glass blockers
+    scattered over its cap (overlapping one another); sphere 1: a lens far off with
+    one blocker (sphere 2) across its rim, alone in its row."""
+    rng = np.random.default_rng(seed)
+    alpha = 0.1
+    beta = rng.uniform(0.01, 0.04, n_blockers)
+    gamma = rng.uniform(0.0, 1.0, n_blockers) * (alpha + beta) * 0.95
+    phi = rng.uniform(0.0, 2.0 * np.pi, n_blockers)
+    blockers = np.array([axis_at(g, p) for g, p in zip(gamma, phi, strict=True)])
+    far = axis_at(1.0, 0.3)
+    lone = np.cross(far, [0.0, 0.0, 1.0])
+    lone = np.cos(0.07) * far + np.sin(0.07) * lone / np.linalg.norm(lone)
+    direction = np.vstack([[0.0, 0.0, 1.0], far, lone, blockers])
+    ang = np.concatenate([[alpha, 0.05, 0.04], beta])
+    ior = np.concatenate([[1.5, 1.5, 1.33], rng.choice([1.33, 1.5, 1.9], n_blockers)])
+    kt = np.concatenate([[1.0, 1.0, 0.9], rng.uniform(0.5, 1.0, n_blockers)])
+    rows = np.r_[np.zeros(n_blockers, dtype=np.int64), 1]
+    obst = np.r_[np.arange(3, 3 + n_blockers), 2]
+    return rows, obst, np.array([0, 1]), direction, ang, ior, kt
+
+
+def shares(rows, obst, lens_rows, direction, ang, ior, kt):
+    lens = lens_rows[rows]
+    gamma = np.array(
+        [angle_between(direction[i], direction[k]) for i, k in zip(lens, obst, strict=True)]
+    )
+    cover = cap_overlap_fraction(ang[lens], ang[obst], gamma)
+    return lens, gamma, cover
+
+
+def test_crowded_rows_are_the_product_with_coarse_shares_and_apart_rows_the_sum():
+    rows, obst, lens_rows, direction, ang, ior, kt = crowded_view()
+    assert np.bincount(rows)[0] ** 2 > MAX_INTERACTIONS  # a crowded view
+    lens, gamma, cover = shares(rows, obst, lens_rows, direction, ang, ior, kt)
+    got = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt, gamma=gamma)
+    crowd = rows == 0
+    # a coarse grid suffices for the product's 2e-3 (each share to ~1e-4 of its cover)
+    brute = np.array(
+        [
+            brute_passed(ang[i], ang[k], g, ior[k], kt[k], steps=300 if c else 1500)
+            for i, k, g, c in zip(lens, obst, gamma, crowd, strict=True)
+        ]
+    )
+    product = np.prod(1.0 - cover[crowd] * (1.0 - brute[crowd]))
+    # 70 coarse shares, each within ~1e-3 of its cover: the product within 2e-3
+    assert got[0] == pytest.approx(product, abs=2e-3)
+    coarse = glass_passed(
+        *(x[crowd] for x in (ang[lens], ang[obst], gamma, ior[obst], kt[obst])), rule=_CROWDED_RULE
+    )
+    assert got[0] == pytest.approx(np.prod(1.0 - cover[crowd] * (1.0 - coarse)), rel=1e-12)
+    # the row alone keeps the sum and the 8-node rule: within 2e-5 (README Limits)
+    assert got[1] == pytest.approx(1.0 - cover[~crowd][0] * (1.0 - brute[~crowd][0]), abs=2e-5)
+
+
+@pytest.mark.parametrize(
+    "alpha, beta, gamma, n, kt",
+    [
+        (0.1, 0.05, 0.09, 1.5, 1.0),
+        (0.1, 0.06, 0.05, 1.5, 0.9),
+        (0.1, 0.03, 0.02, 1.5, 1.0),
+        (3e-3, 4e-3, 5e-3, 1.5, 1.0),
+        (0.1, 0.06, 0.09, 0.8, 1.0),
+    ],
+)
+def test_coarse_rule_share_is_within_its_stated_error(alpha, beta, gamma, n, kt):
+    args = (np.array([x]) for x in (alpha, beta, gamma, n, kt))
+    got = glass_passed(*args, rule=_CROWDED_RULE)[0]
+    cover = float(cap_overlap_fraction(alpha, beta, gamma))
+    assert abs(got - brute_passed(alpha, beta, gamma, n, kt)) * cover < 1.5e-3
 
 
 def test_overlapping_rows_equal_every_pair_of_every_row():
