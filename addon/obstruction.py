@@ -9,6 +9,7 @@ identical to the full loop: the broad phase is conservative (see `_candidate_pai
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -224,19 +225,9 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         total = np.cumsum(count)
         # In pieces of about _PIECE meetings: their temporaries stay in cache.
         cuts = np.searchsorted(total, np.arange(_PIECE, int(total[-1]), _PIECE))
-        pieces = [
-            (s, t) for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True) if t > s
-        ]
-
-        def run(part):  # pieces are independent: threads take contiguous runs of them
-            return [
-                meet_piece(q, e, has[s:t], lo[s:t], count[s:t], faces, corners)
-                for s, t in pieces[part]
-            ]
-
-        threads = parallel.workers(int(total[-1]), min_rows=4 * _PIECE)
-        for found in map_slices(run, len(pieces), threads=threads):
-            for a, b in found:
+        for s, t in zip(np.r_[0, cuts], np.r_[cuts, count.size], strict=True):
+            if t > s:
+                a, b = meet_piece(q, e, has[s:t], lo[s:t], count[s:t], faces, corners)
                 pa.append(a)
                 pb.append(b)
 
@@ -280,9 +271,9 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
 
     box_lo = [wx - rho, wy - rho, wz - rho]
     box_hi = [wx + rho, wy + rho, wz + rho]
-    for lvl in np.unique(level)[::-1]:
-        pa.clear()
-        pb.clear()
+
+    def owner_side(lvl):
+        """A level's owners on their grid (what does not depend on what is hidden)."""
         cell = c0 * 2.0**lvl
         end = int(ends[lvl])
         start = int(ends[lvl - 1]) if lvl else 0
@@ -292,11 +283,6 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         for lo, hi in zip(box_lo, box_hi, strict=True):
             meets &= hi[:start] >= lo[start:end].min()
             meets &= lo[:start] <= hi[start:end].max()
-        finer = np.flatnonzero(meets)
-        if window is not None:
-            depth_n, depth_f = window(active)
-            lvl_n, lvl_f = depth_n[start:end].min(), depth_f[start:end].max()
-            finer = finer[(depth_n[finer] <= lvl_f) | (depth_f[finer] >= lvl_n)]
         on_faces = np.nonzero(_faces_near(w[start:end], rho[start:end] + 0.5 * cell))
         on_faces = (on_faces[0] + start, on_faces[1])
         grid = cell
@@ -311,50 +297,76 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
                 break
             grid = cell / 2.0
         own = side(code, e_idx[order])
-        own_bits, own_face = e_bits[order], e_face[order]
-        q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
-        ask = side(q_keys * 4, q_idx)
-        if grid == cell:
-            # Not crowded: each key meets its cell's owners of every corner; those
-            # whose corners share a bit are dropped before the chord test.
-            for q, corners, faces in ((ask, q_bits, None), (own, own_bits, own_face)):
-                cell_of = q.keys - (corners if q is own else 0)
-                lo = np.searchsorted(code, cell_of)
-                count = np.searchsorted(code, cell_of + 4) - lo
-                meet(q, own, lo, count, faces, (corners, own_bits))
+        cells = None
+        if grid < cell:
+            cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
+        finer = np.flatnonzero(meets)
+        return start, end, cell, grid, finer, own, e_bits[order], e_face[order], cells
+
+    levels = np.unique(level)[::-1].tolist()
+    # With a core to spare, a second thread lays out the next levels' owners (sorts
+    # and searches of whole arrays: they let go of the GIL) while this one meets.
+    ahead = ThreadPoolExecutor(1) if parallel.workers(active.size) > 1 else None
+    try:
+        laid = [ahead.submit(owner_side, lvl) for lvl in levels] if ahead else None
+        for k, lvl in enumerate(levels):
+            pa.clear()
+            pb.clear()
+            start, end, cell, grid, finer, own, own_bits, own_face, cells = (
+                laid[k].result() if ahead else owner_side(lvl)
+            )
+            if window is not None:
+                depth_n, depth_f = window(active)
+                lvl_n, lvl_f = depth_n[start:end].min(), depth_f[start:end].max()
+                finer = finer[(depth_n[finer] <= lvl_f) | (depth_f[finer] >= lvl_n)]
+            q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
+            ask = side(q_keys * 4, q_idx)
+            if cells is None:
+                # Not crowded: each key meets its cell's owners of every corner; those
+                # whose corners share a bit are dropped before the chord test.
+                for q, corners, faces in ((ask, q_bits, None), (own, own_bits, own_face)):
+                    cell_of = q.keys - (corners if q is own else 0)
+                    lo = np.searchsorted(own.keys, cell_of)
+                    count = np.searchsorted(own.keys, cell_of + 4) - lo
+                    meet(q, own, lo, count, faces, (corners, own_bits))
+                if pa:
+                    yield np.concatenate(pa), np.concatenate(pb)
+                continue
+            q_runs, q_cell = cells.runs(ask.keys)
+            own_runs = cells.own_runs
+            if window is not None:
+                # A key whose box can make no useful pair with any owner of its cell
+                # meets none of them.
+                first_of = cells.bounds[:, 0]
+                cell_n = np.minimum.reduceat(depth_n[own.ids], first_of)
+                cell_f = np.maximum.reduceat(depth_f[own.ids], first_of)
+                for runs, ids, at in (
+                    (q_runs, ask.ids, q_cell),
+                    (own_runs, own.ids, cells.of_code),
+                ):
+                    idle = (depth_n[ids] > cell_f[at]) & (depth_f[ids] < cell_n[at])
+                    runs[idle] = runs[idle, :1]
+            # Crowded: each key meets only the owners at corners it shares no bit with.
+            for be in range(4):
+                lo = q_runs[:, be]
+                count = q_runs[:, be + 1] - lo
+                count[(q_bits & be) != 0] = 0
+                meet(ask, own, lo, count)
+                # The owners among themselves: from the lower corner bits only.
+                lo = own_runs[:, be]
+                count = own_runs[:, be + 1] - lo
+                count[((own_bits & be) != 0) | (own_bits >= be)] = 0
+                meet(own, own, lo, count, own_face)
+            # Both in their first cells: each with the ones sorted after it.
+            first = np.flatnonzero(own_bits == 0)
+            head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
+            count = np.maximum(own_runs[first, 1] - first - 1, 0)
+            meet(head, own, first + 1, count, own_face[first])
             if pa:
                 yield np.concatenate(pa), np.concatenate(pb)
-            continue
-        cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
-        q_runs, q_cell = cells.runs(ask.keys)
-        own_runs = cells.bounds[cells.of_code]
-        if window is not None:
-            # A key whose box can make no useful pair with any owner of its cell
-            # meets none of them.
-            first_of = cells.bounds[:, 0]
-            cell_n = np.minimum.reduceat(depth_n[own.ids], first_of)
-            cell_f = np.maximum.reduceat(depth_f[own.ids], first_of)
-            for runs, ids, at in ((q_runs, ask.ids, q_cell), (own_runs, own.ids, cells.of_code)):
-                idle = (depth_n[ids] > cell_f[at]) & (depth_f[ids] < cell_n[at])
-                runs[idle] = runs[idle, :1]
-        # Crowded: each key meets only the owners at corners it shares no bit with.
-        for be in range(4):
-            lo = q_runs[:, be]
-            count = q_runs[:, be + 1] - lo
-            count[(q_bits & be) != 0] = 0
-            meet(ask, own, lo, count)
-            # The owners among themselves: from the lower corner bits only.
-            lo = own_runs[:, be]
-            count = own_runs[:, be + 1] - lo
-            count[((own_bits & be) != 0) | (own_bits >= be)] = 0
-            meet(own, own, lo, count, own_face)
-        # Both in their first cells: each with the ones sorted after it.
-        first = np.flatnonzero(own_bits == 0)
-        head = _Side(*(x[first] for x in (own.keys, own.ids, own.x, own.y, own.z, own.r)))
-        count = np.maximum(own_runs[first, 1] - first - 1, 0)
-        meet(head, own, first + 1, count, own_face[first])
-        if pa:
-            yield np.concatenate(pa), np.concatenate(pb)
+    finally:
+        if ahead is not None:
+            ahead.shutdown(cancel_futures=True)
 
 
 @dataclass
@@ -418,7 +430,8 @@ def _face_keys(w, rho, cell, rows, face):
 class _Cells:
     """The occupied cells of a crowded level's sorted owner codes (cell key × 4 +
     corner bits): per cell, where each corner's run of owners starts and where the
-    cell ends (`bounds`, (cells, 5)), and the cell of each code (`of_code`).
+    cell ends (`bounds`, (cells, 5)), the cell of each code (`of_code`) and its bounds
+    (`own_runs`).
     `runs(codes)` gives the bounds for query codes of corner 0 (all equal for an
     empty cell) and their cells (0 for an empty one), through a table of all `keys`
     cells where it is small beside the codes, else by binary search among the
@@ -429,6 +442,7 @@ class _Cells:
         self.of_code = np.cumsum(new) - 1
         self.cell = codes[new] & ~np.int64(3)
         self.bounds = np.searchsorted(codes, self.cell[:, None] + np.arange(5))
+        self.own_runs = self.bounds[self.of_code]  # the bounds of each code's cell
         self.table = None
         if keys <= 16 * codes.size:
             self.table = np.full(keys, -1, dtype=np.int64)

@@ -415,6 +415,7 @@ def _glass_usual_block(alpha, beta, gamma, n, kt, rule):
         c /= np.sqrt(sin2[:, :nb]) * np.sin(gb)
         np.clip(c, -1.0, 1.0, out=c)
         ratio = (1.0 - c) / np.maximum(1.0 + c, 1e-300)
+        np.minimum(ratio, 1e30, out=ratio)  # single's range (its atan is π/2 there)
         half = np.sqrt(ratio.astype(np.float32))
         wts[:, :nb] = np.arctan(half, out=half)
         wts[:, :nb] *= np.float32(2.0)
