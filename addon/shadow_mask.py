@@ -340,15 +340,18 @@ def _end_rule(m):
 #: error in the unblocked share) of a 128-node reference, 10 within 5e-6, 16 within 8e-7.
 #: README Limits: a glass blocker's share within 2e-5 of the lens' share.
 _END_RULE = _end_rule(8)
-#: Glass shares of rows taken as a product in a crowded view (`MAX_INTERACTIONS`): 4
-#: nodes, on the dense grid's rows within 1.1e-3 of 8 (mean 4e-4), where the product
-#: itself is off by 1.1e-2 (median; up to 7e-2) against the sampled union.
+#: Glass shares of rows taken as a product in a crowded view (`MAX_INTERACTIONS`): 6
+#: nodes, a row's product within 1.6e-4 of 8 nodes' on the dense grid (mean 8e-5) and
+#: 2.7e-4 on the 1 × 100 000 droplets, where the product itself is off by 1.1e-2 and
+#: 1.1e-3 (medians; up to 7e-2 and 1.7e-2) against the sampled union (`bench
+#: union_error`). 4 nodes: 1.1e-3 and 2.1e-3.
 _CROWDED_RULE = _end_rule(6)
-#: Blockers per block of the quadrature (its arrays stay in cache).
-_CHUNK = 2048
-#: The same in threads: fewer, longer numpy steps hold the GIL less often (494 k dense
-#: grid blockers on 2 cores: wall 0.35 s at 2048, 0.24 s at 8192; inline 0.37 s).
-_THREADED_CHUNK = 8192
+#: Blockers per block of the quadrature ((nodes, rows) arrays of a few hundred kB).
+#: 494 k dense grid blockers, wall: inline 0.27 s at 1024, 0.23 at 2048, 0.19 at 8192;
+#: in 2 threads 0.24 s at 2048, 0.15 at 8192, 0.13 at 16384.
+_CHUNK = 8192
+#: The same in threads: fewer, longer numpy steps hold the GIL less often.
+_THREADED_CHUNK = 16384
 
 
 def glass_passed(alpha, beta, gamma, ior, kt, rule=None) -> np.ndarray:

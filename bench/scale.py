@@ -516,7 +516,8 @@ def main(argv=None) -> int:
     dense = None if args.quick else dense_case(args.repeat)
     if dense:
         print(
-            f"dense grid: {dense['time']:.2f} s per light, {dense['pairs']:,} tested "
+            f"dense grid: {dense['time']:.2f} s CPU ({dense['wall']:.2f} s wall) per light, "
+            f"{dense['pairs']:,} tested "
             f"pairs, {dense['blocks']:,} blocks; broad phase {dense['pairs_s']:.2f} s, "
             f"union of shadows {dense['union_s']:.2f} s",
             flush=True,

@@ -74,7 +74,7 @@ def test_map_runs_inline_below_the_threshold_and_inside_inline(threaded):
 
 def test_cap_overlap_and_glass_share_threaded_equal_inline(threaded):
     rng = np.random.default_rng(7)
-    n = 20_000  # three threaded chunks of glass_passed
+    n = 60_000  # several chunks of glass_passed, threaded and inline
     alpha = rng.uniform(1e-4, 0.5, n)
     beta = rng.uniform(1e-4, 0.5, n)
     gamma = rng.uniform(0.0, 1.0, n) * (alpha + beta)
