@@ -418,9 +418,11 @@ def compute_phase1(
 
 
 #: Spheres below which one thread does all lights: a light's numpy steps are then too
-#: short for the GIL to be let go long (16 lights × 10 000 droplets: wall 0.99 → 0.88 s
-#: for 1.0 → 1.5 s CPU; 2 lights × 100 489 glass balls: wall 3.4–3.8 → 2.1–2.3 s).
-THREADED_SPHERES = 50_000
+#: short for the GIL to be let go long. Droplets, wall best of 5, one thread → two:
+#: 16 × 10 000 1.37 → 1.05 s, 16 × 7 000 1.03 → 0.82 s, 2 × 20 000 0.20 → 0.16 s,
+#: 16 × 5 000 0.53 → 0.51 s, 10 × 3 000 0.22 → 0.30 s (slower); 2 × 100 489 glass
+#: balls 3.4–3.8 → 2.1–2.3 s.
+THREADED_SPHERES = 7_000
 
 
 def _default_workers(n_lights: int, n_spheres: int) -> int:
