@@ -301,7 +301,16 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         if grid < cell:
             cells = _Cells(code, 6 * (int(math.ceil(2.5 / grid)) + 2) ** 2)
         finer = np.flatnonzero(meets)
-        return start, end, cell, grid, finer, own, e_bits[order], e_face[order], cells
+        # In the second thread, the finer boxes' keys too (the hidden ones dropped after)
+        asked = query_side(finer, grid, cells) if ahead is not None else None
+        return start, end, cell, grid, finer, own, e_bits[order], e_face[order], cells, asked
+
+    def query_side(finer, grid, cells):
+        """The finer boxes' keys on the level's grid, with their cells' owner runs."""
+        q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
+        ask = side(q_keys * 4, q_idx)
+        q_runs, q_cell = cells.runs(ask.keys) if cells is not None else (None, None)
+        return ask, q_bits, q_runs, q_cell
 
     levels = np.unique(level)[::-1].tolist()
     # With a core to spare, a second thread lays out the next levels' owners (sorts
@@ -312,15 +321,21 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
         for k, lvl in enumerate(levels):
             pa.clear()
             pb.clear()
-            start, end, cell, grid, finer, own, own_bits, own_face, cells = (
+            start, end, cell, grid, finer, own, own_bits, own_face, cells, asked = (
                 laid[k].result() if ahead else owner_side(lvl)
             )
+            all_finer = finer.size
             if window is not None:
                 depth_n, depth_f = window(active)
                 lvl_n, lvl_f = depth_n[start:end].min(), depth_f[start:end].max()
                 finer = finer[(depth_n[finer] <= lvl_f) | (depth_f[finer] >= lvl_n)]
-            q_keys, q_idx, q_bits, _ = _face_keys(w, rho, grid, finer, home[finer])
-            ask = side(q_keys * 4, q_idx)
+            if asked is None:
+                asked = query_side(finer, grid, cells)
+            elif finer.size < all_finer:  # keys of the boxes dropped above: out
+                kept = np.zeros(active.size, dtype=bool)
+                kept[finer] = True
+                asked = _kept_keys(asked, np.flatnonzero(kept[asked[0].ids]))
+            ask, q_bits, q_runs, q_cell = asked
             if cells is None:
                 # Not crowded: each key meets its cell's owners of every corner; those
                 # whose corners share a bit are dropped before the chord test.
@@ -332,7 +347,6 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
                 if pa:
                     yield np.concatenate(pa), np.concatenate(pb)
                 continue
-            q_runs, q_cell = cells.runs(ask.keys)
             own_runs = cells.own_runs
             if window is not None:
                 # A key whose box can make no useful pair with any owner of its cell
@@ -367,6 +381,15 @@ def _candidate_batches(direction, ang, obstacle, lens_mask, useful=None, window=
     finally:
         if ahead is not None:
             ahead.shutdown(cancel_futures=True)
+
+
+def _kept_keys(asked, k):
+    """`query_side`'s output for its keys `k` only."""
+    ask, q_bits, q_runs, q_cell = asked
+    ask = _Side(*(x[k] for x in (ask.keys, ask.ids, ask.x, ask.y, ask.z, ask.r)))
+    if q_runs is not None:
+        q_runs, q_cell = q_runs[k], q_cell[k]
+    return ask, q_bits[k], q_runs, q_cell
 
 
 @dataclass
