@@ -200,8 +200,10 @@ def main(argv=None) -> int:
     lines += [
         "",
         "Crowded rows are the product of what each blocker leaves (README Limits): "
-        "their error against the finer run is the glass shares' quadrature only (4 nodes "
-        "there, 8 elsewhere: `shadow_mask._CROWDED_RULE`), not the product's own error "
+        "their error against the finer run is the glass shares' quadrature only "
+        f"({len(shadow_mask._CROWDED_RULE[0])} nodes there, "
+        f"{len(shadow_mask._END_RULE[0])} elsewhere: `shadow_mask._CROWDED_RULE`), "
+        "not the product's own error "
         "against the union; that is the last column, the product against the sampled "
         "union (`shadow_mask._sampled_blocked`, a few 1e-4) on a seeded sample of "
         "crowded rows.",
