@@ -32,6 +32,7 @@ import argparse
 import json
 import os
 import sys
+import threading
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -450,6 +451,29 @@ def _gather(src, start, length, work=None) -> bytes:
 COMPACT_CHUNK = 8192
 
 
+def _in_order(fn, items):
+    """`fn` over `items`, results in order, one item per core computed side by side
+    (threads: numpy's gathers let go of the GIL; 16 × 10 000 droplets' 94 MB of JSON
+    0.72 → 0.45 s), at most one result per core waiting: memory stays a few chunks."""
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    from addon.parallel import cores
+
+    n = min(cores(), len(items))
+    if n < 2:
+        yield from map(fn, items)
+        return
+    with ThreadPoolExecutor(n) as pool:
+        pending = deque()
+        for item in items:
+            pending.append(pool.submit(fn, item))
+            if len(pending) > n:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+
+
 def phase1_compact_json(result, lights, model: str):
     """The compact JSON of `phase1 --json` as chunks of bytes (one document,
     streamed COMPACT_CHUNK sources at a time), printed by orjson straight from the
@@ -530,7 +554,7 @@ def phase1_compact_json(result, lights, model: str):
     const_len = np.array([len(c) for c in const], dtype=np.int64)
     const_start = np.cumsum(const_len) - const_len
     reasons = _skip_reasons(result)
-    work = [np.empty(0, dtype=np.int64)]  # `_gather`'s index buffer
+    per_thread = threading.local()  # `_gather`'s index buffer, one per thread
 
     def rows(a, b):
         n = b - a
@@ -569,13 +593,15 @@ def phase1_compact_json(result, lights, model: str):
             else:
                 start[:, 2 * p + 1] = base[source] + other[source].start
                 length[:, 2 * p + 1] = other[source].length
-        return _gather(np.concatenate(bufs), start.ravel(), length.ravel(), work)
+        if not hasattr(per_thread, "work"):
+            per_thread.work = [np.empty(0, dtype=np.int64)]
+        return _gather(np.concatenate(bufs), start.ravel(), length.ravel(), per_thread.work)
 
     def chunks():
         yield b'{"model":' + orjson.dumps(model) + b',"sources":['
         n = len(t)
-        for a in range(0, n, COMPACT_CHUNK):
-            text = rows(a, min(a + COMPACT_CHUNK, n))
+        spans = [(a, min(a + COMPACT_CHUNK, n)) for a in range(0, n, COMPACT_CHUNK)]
+        for (a, _), text in zip(spans, _in_order(lambda ab: rows(*ab), spans), strict=True):
             yield text[1:] if a == 0 else text  # no comma before the first row
         yield b'],"skipped":['
         for a in range(0, len(reasons), JSON_CHUNK):
