@@ -243,8 +243,8 @@ def union_unblocked(
             gamma_g = _angle(direction[lens[g]], direction[obst[g]])
         else:
             gamma_g = np.asarray(gamma, dtype=float)[g]
-        # Rows taken as a product are off by ~1e-2 (the overlaps' double count): their
-        # glass shares need not be closer than the coarse rule's 1e-3.
+        # Rows taken as a product are off by ~5e-3–1e-2 (the overlaps counted twice):
+        # their glass shares need be no closer than the coarse rule's 3e-4.
         coarse = hard[rows[g]] if crowded else np.zeros(gamma_g.size, dtype=bool)
         o = obst[g]
         for sel, rule in ((~coarse, _END_RULE), (coarse, _CROWDED_RULE)):

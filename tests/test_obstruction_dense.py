@@ -5,7 +5,7 @@
   any of the cap) against a brute-force midpoint grid over the blocker's disc in its
   own polar angles, with the Fresnel equations written out here;
 - in a crowded view (`shadow_mask.MAX_INTERACTIONS`), rows whose blockers overlap
-  as the product of what each leaves, their glass shares by the coarse 4-node rule
+  as the product of what each leaves, their glass shares by the coarse 6-node rule
   (`shadow_mask._CROWDED_RULE`), rows whose blockers are apart as the sum with the
   8-node rule, against the same brute-force grid;
 - the rows whose blockers' caps overlap (`shadow_mask._overlapping_rows`, consecutive
@@ -139,7 +139,7 @@ def test_crowded_rows_are_the_product_with_coarse_shares_and_apart_rows_the_sum(
     lens, gamma, cover = shares(rows, obst, lens_rows, direction, ang, ior, kt)
     got = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt, gamma=gamma)
     crowd = rows == 0
-    # a coarse grid suffices for the product's 2e-3 (each share to ~1e-4 of its cover)
+    # a coarse grid suffices for the product's 3e-4 (each share to ~1e-5 of its cover)
     brute = np.array(
         [
             brute_passed(ang[i], ang[k], g, ior[k], kt[k], steps=300 if c else 1500)
@@ -147,8 +147,9 @@ def test_crowded_rows_are_the_product_with_coarse_shares_and_apart_rows_the_sum(
         ]
     )
     product = np.prod(1.0 - cover[crowd] * (1.0 - brute[crowd]))
-    # 70 coarse shares, each within ~1e-3 of its cover: the product within 2e-3
-    assert got[0] == pytest.approx(product, abs=2e-3)
+    # 70 coarse shares (each within ~3e-5 × its cover): the product within 3e-4, as
+    # README Limits says of a crowded view's rows (here 6e-5)
+    assert got[0] == pytest.approx(product, abs=3e-4)
     coarse = glass_passed(
         *(x[crowd] for x in (ang[lens], ang[obst], gamma, ior[obst], kt[obst])), rule=_CROWDED_RULE
     )
@@ -171,7 +172,7 @@ def test_coarse_rule_share_is_within_its_stated_error(alpha, beta, gamma, n, kt)
     args = (np.array([x]) for x in (alpha, beta, gamma, n, kt))
     got = glass_passed(*args, rule=_CROWDED_RULE)[0]
     cover = float(cap_overlap_fraction(alpha, beta, gamma))
-    assert abs(got - brute_passed(alpha, beta, gamma, n, kt)) * cover < 1.5e-3
+    assert abs(got - brute_passed(alpha, beta, gamma, n, kt)) * cover < 1e-4  # 8e-7–3e-5
 
 
 def test_overlapping_rows_equal_every_pair_of_every_row():
