@@ -165,9 +165,12 @@ def scene_size(arrays: SceneArrays, valid_lights, valid_spheres) -> float:
         lo.append(p.min(axis=0))
         hi.append(p.max(axis=0))
     if np.any(valid_spheres):
-        c, r = arrays.center[valid_spheres], arrays.radius[valid_spheres, None]
-        lo.append((c - r).min(axis=0))
-        hi.append((c + r).max(axis=0))
+        # column by column: numpy's reductions over an (N, 3) array's rows are slow
+        c, r = arrays.center, arrays.radius
+        if not np.all(valid_spheres):
+            c, r = c[valid_spheres], r[valid_spheres]
+        lo.append(np.array([(c[:, k] - r).min() for k in range(3)]))
+        hi.append(np.array([(c[:, k] + r).max() for k in range(3)]))
     if not lo:
         return 1.0
     with np.errstate(over="ignore", invalid="ignore"):
@@ -211,12 +214,7 @@ def sphere_problems(a: SceneArrays) -> np.ndarray:
     code[(a.kt > 1) | (a.kt < 0)] = INVALID_KT
     code[a.kt == 0] = OPAQUE
     code[a.radius <= 0] = INVALID_SPHERE_RADIUS
-    finite = (
-        np.all(np.isfinite(a.center), axis=1)
-        & np.isfinite(a.radius)
-        & np.isfinite(a.ior)
-        & np.isfinite(a.kt)
-    )
+    finite = _finite_rows(a.center) & np.isfinite(a.radius) & np.isfinite(a.ior) & np.isfinite(a.kt)
     code[~finite] = INVALID_SPHERE_NONFINITE
     return code
 
@@ -442,7 +440,7 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
         to_center = a.center - light  # (S, 3)
         dist = _norm(to_center)
     rad = a.radius
-    overflow = valid_sphere & ~(np.isfinite(dist) & np.all(np.isfinite(to_center), axis=1))
+    overflow = valid_sphere & ~(np.isfinite(dist) & _finite_rows(to_center))
     if overflow.any():
         skips.append(
             (
@@ -531,9 +529,18 @@ def _light_sources(a: SceneArrays, j: int, problem, valid_sphere, far, skips) ->
 
 def _norm(v: np.ndarray) -> np.ndarray:
     """Row norms that do not overflow before the result does (huge coordinates)."""
-    scale = np.max(np.abs(v), axis=1)
+    # column by column (numpy's reductions along rows of 3 are slow), summed in the
+    # order np.linalg.norm sums them
+    x, y, z = (np.abs(v[:, k]) for k in range(3))
+    scale = np.maximum(np.maximum(x, y), z)
     safe = np.where(scale > 0, scale, 1.0)
-    return scale * np.linalg.norm(v / safe[:, None], axis=1)
+    x, y, z = x / safe, y / safe, z / safe
+    return scale * np.sqrt(x * x + y * y + z * z)
+
+
+def _finite_rows(v: np.ndarray) -> np.ndarray:
+    """Rows of an (N, 3) array whose three numbers are all finite."""
+    return np.isfinite(v[:, 0]) & np.isfinite(v[:, 1]) & np.isfinite(v[:, 2])
 
 
 def _concat_sources(parts: list[dict]) -> SourceTable:
