@@ -32,7 +32,7 @@ def angle_between(a, b):
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
-def cap_overlap_fraction(alpha, beta, gamma):
+def cap_overlap_fraction(alpha, beta, gamma, halves=None):
     """Share of a spherical cap (angular radius α) covered by another (β) at γ apart.
 
     Both caps live on the unit sphere of directions around the light; because an
@@ -41,39 +41,51 @@ def cap_overlap_fraction(alpha, beta, gamma):
     atan2 of stable quantities (no acos of numbers near 1): the overlap is the
     sum of two "cap segments" cut by the plane through both circles' intersection.
     Works elementwise on broadcastable arrays; caps must have radius < π/2.
+    `halves`, if given: each pair's `cap_halves(alpha)` and `cap_halves(beta)`, the
+    same values made once per sphere by a caller with many pairs of each (they are
+    a third of the sines and tangents).
     """
     alpha, beta, gamma = np.broadcast_arrays(
         *(np.asarray(x, dtype=float) for x in (alpha, beta, gamma))
     )
+    if halves is None:
+        halves = (*cap_halves(alpha), *cap_halves(beta))
+    s2_a, t2_a, s2_b, t2_b = np.broadcast_arrays(*halves)
     out = np.zeros(alpha.shape)
-    cap_a = _cap_area(alpha)
+    cap_a = 4.0 * np.pi * s2_a
     inside = beta >= gamma + alpha  # obstacle covers the lens
     contained = (alpha >= gamma + beta) & ~inside  # obstacle within the lens
     partial = (alpha + beta > gamma) & ~inside & ~contained
     out[inside] = 1.0
-    out[contained] = _cap_area(beta[contained]) / cap_a[contained]
+    out[contained] = 4.0 * np.pi * s2_b[contained] / cap_a[contained]
     if np.any(partial):
         a, b, g, ca = alpha[partial], beta[partial], gamma[partial], cap_a[partial]
+        h = tuple(x[partial] for x in (s2_a, t2_a, s2_b, t2_b))
 
         def overlap(s):  # elementwise: a slice's rows are bit for bit the whole's
-            return _segments(a[s], b[s], g[s]) / ca[s]
+            return _segments(a[s], b[s], g[s], *(x[s] for x in h)) / ca[s]
 
         out[partial] = np.concatenate(map_slices(overlap, a.size))
     return np.clip(out, 0.0, 1.0)
 
 
-def _cap_area(a):
-    """Solid angle of a cap of angular radius a: `2π(1 − cos a) = 4π sin²(a/2)`."""
-    return 4.0 * np.pi * np.sin(0.5 * a) ** 2
+def cap_halves(a):
+    """sin²(a/2) and tan²(a/2) of caps of angular radius a (a cap's area is 4π sin²(a/2))."""
+    return np.sin(0.5 * a) ** 2, np.tan(0.5 * a) ** 2
 
 
-def _segments(a, b, g):
+def _segments(a, b, g, s2_a=None, t2_a=None, s2_b=None, t2_b=None):
     """`_segment_area(a, b, g) + _segment_area(b, a, g)`, bit for bit: both share the
-    half-perimeter's four sines (b's s_a is a's s_b and the reverse)."""
+    half-perimeter's four sines (b's s_a is a's s_b and the reverse); the caps'
+    `cap_halves`, if given, are not computed again."""
+    if s2_a is None:
+        (s2_a, t2_a), (s2_b, t2_b) = cap_halves(a), cap_halves(b)
     s = 0.5 * (a + b + g)
     s_a, s_b, s_g = 0.5 * (b + g - a), 0.5 * (a + g - b), 0.5 * (a + b - g)
     sin_s, sin_a, sin_b, sin_g = np.sin(s), np.sin(s_a), np.sin(s_b), np.sin(s_g)
-    return _segment(a, sin_s, sin_a, sin_b, sin_g) + _segment(b, sin_s, sin_b, sin_a, sin_g)
+    return _segment(sin_s, sin_a, sin_b, sin_g, s2_a, t2_a) + _segment(
+        sin_s, sin_b, sin_a, sin_g, s2_b, t2_b
+    )
 
 
 def _segment_area(a, b, g):
@@ -90,14 +102,14 @@ def _segment_area(a, b, g):
     """
     s = 0.5 * (a + b + g)
     s_a, s_b, s_g = 0.5 * (b + g - a), 0.5 * (a + g - b), 0.5 * (a + b - g)
-    return _segment(a, np.sin(s), np.sin(s_a), np.sin(s_b), np.sin(s_g))
+    return _segment(np.sin(s), np.sin(s_a), np.sin(s_b), np.sin(s_g), *cap_halves(a))
 
 
-def _segment(a, sin_s, sin_sa, sin_sb, sin_sg):
-    """`_segment_area` of cap `a` from the sines of s, s − a, s − b, s − γ."""
+def _segment(sin_s, sin_sa, sin_sb, sin_sg, s2, t2):
+    """`_segment_area` of cap `a` from the sines of s, s − a, s − b, s − γ and its
+    `cap_halves` s2 = sin²(a/2), t2 = tan²(a/2)."""
     sin_half = np.sqrt(np.maximum(sin_sa * sin_sg, 0.0))
     cos_half = np.sqrt(np.maximum(sin_s * sin_sb, 0.0))
     omega = 2.0 * np.arctan2(sin_half, cos_half)
-    t2 = np.tan(0.5 * a) ** 2
     excess = 2.0 * np.arctan2(t2 * np.sin(2.0 * omega), 1.0 + t2 * np.cos(2.0 * omega))
-    return 4.0 * omega * np.sin(0.5 * a) ** 2 - excess
+    return 4.0 * omega * s2 - excess

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
-from .geometry import cap_overlap_fraction
+from .geometry import cap_halves, cap_overlap_fraction
 from .parallel import map_slices
 from .ranges import expand_ranges
 from .shadow_mask import union_unblocked
@@ -132,7 +132,10 @@ def find_blockers(
     # by row, then sphere (one sort of a unique integer key, as lexsort((obst, rows)))
     order = np.argsort(rows * direction.shape[0] + obst, kind="stable")
     rows, obst, gamma = rows[order], obst[order], gamma[order]
-    cover = cap_overlap_fraction(alpha[order], beta[order], gamma)
+    s2, t2 = cap_halves(ang)  # once per sphere, not per pair
+    lens_o = lens_rows[rows]
+    halves = (s2[lens_o], t2[lens_o], s2[obst], t2[obst])
+    cover = cap_overlap_fraction(alpha[order], beta[order], gamma, halves)
     unblocked = union_unblocked(rows, obst, cover, lens_rows, direction, ang, ior, kt, gamma=gamma)
     unblocked[total_blocker >= 0] = 0.0
     offsets = np.zeros(n_rows + 1, dtype=np.int64)
