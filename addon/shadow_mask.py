@@ -390,10 +390,10 @@ def _glass_usual_block(alpha, beta, gamma, n, kt, rule):
     """`_glass_passed_block` for indices above 1 (no total reflection): both pieces in
     one array (piece A's rows after piece B's, without an arc), rows of no width left
     out, T(ι) from sin²ι = v (2 − v) / sin²β (no square root for sin θ).
-    Arrays are (nodes, rows): a row's sum adds whole rows of memory. The nodes' v and
-    what cancels (1 − sin²ι, the arc's (1 − c)/(1 + c)) are double; the square roots,
-    the arc's atan and Fresnel's products single (within 2e-7 of double throughout:
-    far below the rule's 1e-5), which halves their memory and their SIMD time."""
+    Arrays are (nodes, rows), steps in place: a row's sum adds whole rows of memory.
+    (Single precision for the roots and Fresnel's products was 20 % faster and within
+    2e-7 of double, but a turn of the scene, moving the inputs in their last bits, can
+    flip its roundings by more than the 1e-9 tests/test_stability.py allows.)"""
     v0 = _v(np.minimum(np.abs(alpha - gamma), beta))
     v1 = _v(np.minimum(alpha + gamma, beta))
     b_rows = np.flatnonzero(v1 > v0)  # piece B: circles crossing the lens' rim
@@ -407,7 +407,7 @@ def _glass_usual_block(alpha, beta, gamma, n, kt, rule):
     v += lo
     sin2 = 2.0 - v
     sin2 *= v  # sin²θ
-    wts = np.empty(v.shape, dtype=np.float32)
+    wts = np.empty(v.shape)
     if nb:
         # cos φ ≥ c on the circle θ: c = (v cos γ − 2 sin((α−γ)/2) sin((α+γ)/2)) /
         # (sin θ sin γ), the cosine law with cos α − cos γ as a product; γ = 0 leaves no
@@ -418,23 +418,23 @@ def _glass_usual_block(alpha, beta, gamma, n, kt, rule):
         c /= np.sqrt(sin2[:, :nb]) * np.sin(gb)
         np.clip(c, -1.0, 1.0, out=c)
         ratio = (1.0 - c) / np.maximum(1.0 + c, 1e-300)
-        np.minimum(ratio, 1e30, out=ratio)  # single's range (its atan is π/2 there)
-        half = np.sqrt(ratio.astype(np.float32))
-        wts[:, :nb] = np.arctan(half, out=half)
-        wts[:, :nb] *= np.float32(2.0)
+        np.sqrt(ratio, out=ratio)
+        wts[:, :nb] = np.arctan(ratio, out=ratio)
+        wts[:, :nb] *= 2.0
     wts[:, nb:] = np.pi  # piece A: the whole circle (the arc's π)
-    wts *= end_w.astype(np.float32)[:, None]
+    wts *= end_w[:, None]
     n_r = n[rows]
     s2 = sin2
     s2 *= 1.0 / np.sin(beta[rows]) ** 2  # sin²ι
-    c_i = np.sqrt(np.maximum(1.0 - s2, 0.0).astype(np.float32))
+    c_i = 1.0 - s2
+    np.maximum(c_i, 0.0, out=c_i)
+    np.sqrt(c_i, out=c_i)
     s2 *= -1.0 / (n_r * n_r)
     s2 += 1.0
-    c_t = np.sqrt(s2.astype(np.float32))
-    n_f = n_r.astype(np.float32)
-    nc_t, nc_i = c_t * n_f, c_i * n_f
+    c_t = np.sqrt(s2, out=s2)
+    nc_t, nc_i = c_t * n_r, c_i * n_r
     tsp = nc_t * c_i
-    tsp *= np.float32(4.0)  # t_s (c_i + n c_t)² = t_p (c_t + n c_i)²
+    tsp *= 4.0  # t_s (c_i + n c_t)² = t_p (c_t + n c_i)²
     nc_t += c_i
     nc_t *= nc_t
     t_s = tsp / nc_t
@@ -445,10 +445,15 @@ def _glass_usual_block(alpha, beta, gamma, n, kt, rule):
     tsp *= tsp
     t_s += tsp  # 2 T
     t_s *= wts
-    # row by row sums (not a matrix product: one blocker's share must not depend on
-    # how many are computed with it)
-    num_r = t_s.sum(axis=0, dtype=np.float64) * width
-    den_r = wts.sum(axis=0, dtype=np.float64) * width
+    # node by node sums, in node order (not a matrix product nor numpy's sum, whose
+    # order changes with the shape: one blocker's share must not depend on how many
+    # are computed with it)
+    num_r, den_r = t_s[0].copy(), wts[0].copy()
+    for k in range(1, t_s.shape[0]):
+        num_r += t_s[k]
+        den_r += wts[k]
+    num_r *= width
+    den_r *= width
     num, den = np.zeros(alpha.size), np.zeros(alpha.size)
     num[b_rows], den[b_rows] = num_r[:nb], den_r[:nb]
     num[a_rows] += num_r[nb:]
@@ -663,6 +668,13 @@ def _terms(
     return ratio * term.mean(axis=1)
 
 
+def _off_axis(ref, alt, axis):
+    """``ref``, or ``alt`` where ``ref`` lies along the unit ``axis`` (within 1e-9)."""
+    perp = ref - np.einsum("pi,pi->p", ref, axis)[:, None] * axis
+    on = np.linalg.norm(perp, axis=1) <= 1e-9
+    return np.where(on[:, None], alt, ref)
+
+
 def _azimuth_ref(ref, wd, it_term, it_blk, gamma, direction, ang):
     """Where each grid's azimuth starts: toward the other cap (the lens', or blocker k's);
     if that one is centred on the grid, toward the widest blocker that is not (every
@@ -825,6 +837,11 @@ def _pair_overlap_blocked(p, q, rows, obst, lens_rows, direction, ang, glass, io
         rho = np.where(on_lens, alpha, b)[round_]
         m_off_r = np.where(on_lens[:, None], w - ci, d_ij)[round_]
         ref = np.where(on_lens[:, None], 0.5 * (ci + cj) - w, w - cj)[round_]
+        # a reference centred on the grid sets no azimuth (cap_offsets would fall back on
+        # the world's axes, which turn with the scene): toward a cap that is not centred
+        axis = np.where(on_lens[:, None], w, cj)[round_]
+        for alt in (np.where(on_lens[:, None], ci - w, ci - cj), cj - w):
+            ref = _off_axis(ref, alt[round_], axis)
         own_j = (nested & ~on_lens)[round_]
         size = np.sin(0.5 * rho) / np.sin(0.5 * alpha[round_])  # against the lens' cap
         r = round_
