@@ -1,17 +1,17 @@
-"""Lens Lights: the caustics of glass spheres as spot lights (Blender extension).
+"""Lens Lights: the caustics of glass as lights and caustic layers (Blender extension).
 
-Register/unregister only; the Blender side lives in `operators/`, the bpy-free core
-in `addon/`.
+Register/unregister only; the Blender side lives in `blender/`, the bpy-free core
+in `core/`.
 """
 
 
 def register():
-    from . import operators
+    from . import blender
 
-    operators.register()
+    blender.register()
 
 
 def unregister():
-    from . import operators
+    from . import blender
 
-    operators.unregister()
+    blender.unregister()

@@ -8,8 +8,8 @@ against mitsuba.  Writes reports/accuracy.md and reports/accuracy_*.png.
 Grid (issue item 3): light distances D/R in {1.2, 1.5, 2, 3, 5, 10, 50}, n in
 {1.33, 1.5, 1.7}, 15 receiving planes 0.5–10 R behind the sphere (log-spaced),
 each measured over the lens's shadow disc.  Tiers: THESIS and PHYSICAL
-(addon/tiers/thesis.py, physical.py, as the add-on makes them), FITTED
-(addon/tiers/fitted.py, the shipped table), EXACT_PROFILE (the 2-D table).  For information: the direct
+(core/tiers/thesis.py, physical.py, as the add-on makes them), FITTED
+(core/tiers/fitted.py, the shipped table), EXACT_PROFILE (the 2-D table).  For information: the direct
 fit (no table), the 1-D angular profile, and a two-spot fit (an experiment, not
 a tier).  The fits use 9 receivers; the measure uses 15 others.
 """
@@ -28,8 +28,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as xo
-from addon.beam_error import (
+from core.lens import ball_optics as xo
+from core.phase1.point_lights import compute_phase1
+from core.scene.blender_spot import one_minus_cos_of_radius, spot_mask_integral
+from core.scene.model import Light, Scene, Sphere, Surface
+from core.scene.primaries import PrimaryLight
+from core.tiers import exact_profile as xp
+from core.tiers import fitted as ft
+from core.tiers import make_blender_light
+from core.tiers import spot_fit as sf
+from core.tiers.beam_error import (
     D_OVER_R,
     IORS,
     PEAK_DISC,
@@ -40,13 +48,6 @@ from addon.beam_error import (
     evaluate_case,
     model_from_light,
 )
-from addon.blender_spot import one_minus_cos_of_radius, spot_mask_integral
-from addon.phase1 import compute_phase1
-from addon.scene import Light, Scene, Sphere, Surface
-from addon.tiers import PrimaryLight, make_blender_light
-from addon.tiers import exact_profile as xp
-from addon.tiers import fitted as ft
-from addon.tiers import spot_fit as sf
 
 REPORTS = ROOT / "reports"
 P_PRIMARY = 4.0 * math.pi  # W: primary intensity 1 W/sr
@@ -104,7 +105,7 @@ def fit_two_spots(D, n, one: sf.SpotFit):
     """Experiment: the best pair of spots (Nelder–Mead from 12 starts around the
     one-spot fit).  Returns (mean L1 over FIT_RECEIVERS, params)."""
     beam = ExactBeam(1.0, D, 1.0, n, n_fan=8000)
-    ob = sf._SpotObjective(beam)
+    ob = sf.SpotObjective(beam)
 
     def obj(x):
         if not np.all(np.isfinite(x)) or np.any(np.abs(x[[0, 1, 2, 4, 5, 6]]) > 40):
@@ -140,7 +141,7 @@ def fit_two_spots(D, n, one: sf.SpotFit):
             x0 = np.concatenate(
                 [x1 - np.array([0, 0.3, 0, 0]), [math.log(dd), x1[1] + 1.0, math.log(rr), 0.5]]
             )
-            x, fx = sf._nelder_mead(obj, x0, [0.3] * 8, max_iter=1500)
+            x, fx = sf.nelder_mead(obj, x0, [0.3] * 8, max_iter=1500)
             if fx < best[0]:
                 best = (fx, x)
     return best[0], (ob.unpack(best[1][:4]), ob.unpack(best[1][4:]))
@@ -608,7 +609,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
         "largest — where the caustic is brightest; the error is |model − exact| in R. Every "
         "tier's light is made exactly as the add-on makes it (primary 4π W, clear glass, "
         "THESIS/PHYSICAL with their default blend 0.15) and modelled as Blender renders it "
-        "(`addon/blender_spot.py`: intensity energy/4π × smoothstep in the cosine, the "
+        "(`core/scene/blender_spot.py`: intensity energy/4π × smoothstep in the cosine, the "
         "Cycles 4+/EEVEE spot mask). The fits (FITTED, the 1-D profile, two spots) use 9 other "
         "receiver planes than the 15 measured.\n"
     )
@@ -704,7 +705,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
         + ", ".join(
             f"{LABEL[t]} {fmt_time(float(np.median(times[t])))}" for t in TIERS + EXTRA if times[t]
         )
-        + ". FITTED interpolates the shipped table (`addon/tiers/fitted_table.json`, made by "
+        + ". FITTED interpolates the shipped table (`core/tiers/fitted_table.json`, made by "
         "`bench/make_fitted_table.py` in about a minute); EXACT_PROFILE traces the lens "
         "exactly (8000 rays) and bins 256 distances × 256 angles.\n"
     )
@@ -750,7 +751,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
     L.append("## Checked in Blender\n")
     L.append(
         "`bench/blender_light_check.py` ([blender_light_check.md](blender_light_check.md)) renders "
-        "with Cycles (bpy 5.0.1) (1) a spot light with blend, against `addon/blender_spot.py` "
+        "with Cycles (bpy 5.0.1) (1) a spot light with blend, against `core/scene/blender_spot.py` "
         "at the same pixels, and (2) the EXACT_PROFILE light with the node tree the add-on builds "
         "(`operators/light_builder.build_profile_nodes`), "
         "against the pure model and the exact beam. Both pure models are what Cycles renders (to "
@@ -768,7 +769,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
     )
     L.append("## What the Blender side must do\n")
     L.append(
-        "What the add-on builds for each tier is in `operators/light_builder.py`: "
+        "What the add-on builds for each tier is in `blender/build/lights.py`: "
         "`create_light` (every tier's spot) and `build_profile_nodes`/`profile_image` (the "
         "EXACT_PROFILE light node tree and its 32-bit float, Non-Color, packed image).\n"
     )

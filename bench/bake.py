@@ -80,7 +80,7 @@ def build_scene(lenses: int, lights: int, frames: int, engine: str):
 
 
 def run_bake(frames: int, use_viewport: bool):
-    from lens_lights.operators import bake
+    from lens_lights.blender.commands import bake
 
     t = time.perf_counter()
     result = bpy.ops.lens_lights.bake(frame_start=1, frame_end=frames, use_viewport=use_viewport)
@@ -157,8 +157,8 @@ def slice_error_rows(d_over_r_values=(3.0, 4.5, 8.0), n=1.5):
     import math
 
     import numpy as np
-    from lens_lights.addon import bake_plan
-    from lens_lights.addon.tiers.exact_profile import (
+    from lens_lights.core.animation import light_tracks
+    from lens_lights.core.tiers.exact_profile import (
         PROFILE_ANGLES,
         PROFILE_DISTANCES,
         PROFILE_GAMMA_MAX_DEG,
@@ -171,12 +171,12 @@ def slice_error_rows(d_over_r_values=(3.0, 4.5, 8.0), n=1.5):
     _, h_min, h_max = table_geometry(None)  # the rows' distances (R), as BeamProfile's
     h = h_min * (h_max / h_min) ** ((np.arange(PROFILE_DISTANCES) + 0.5) / PROFILE_DISTANCES)
     rows = []
-    for ratio in (bake_plan.SLICE_RATIO, bake_plan.SLICE_RATIO**2):
+    for ratio in (light_tracks.SLICE_RATIO, light_tracks.SLICE_RATIO**2):
         for dr in d_over_r_values:
             k = math.floor(math.log(dr) / math.log(ratio))
             lo, hi = ratio**k, ratio ** (k + 1)
             mid = math.sqrt(lo * hi)
-            a, b, exact = (bake_plan.profile_slice_table(x, n, False) for x in (lo, hi, mid))
+            a, b, exact = (light_tracks.profile_slice_table(x, n, False) for x in (lo, hi, mid))
             blend = 0.5 * (a.astype(float) + b.astype(float))
             diff = (np.abs(blend - exact) * omega).sum(axis=1)
             norm = (np.abs(exact) * omega).sum(axis=1)
@@ -295,8 +295,9 @@ def per_frame_layer_bake(frames: int):
     """The bake as it was before the fixed topology (main at ca817e7): the same
     plans (`Baker.plan_next`), then each frame's Generate layers, keyed visible on
     their frame only. Returns LAST_BAKE-like figures."""
-    from lens_lights.addon import bake_plan
-    from lens_lights.operators import bake, layer_generate, light_builder
+    from lens_lights.blender.build import lights as light_builder
+    from lens_lights.blender.commands import bake, layer_stage
+    from lens_lights.core.animation import light_tracks
 
     scene = bpy.context.scene
     t0 = time.perf_counter()
@@ -308,8 +309,8 @@ def per_frame_layer_bake(frames: int):
     light_builder.clear(scene)
     objects = 0
     for f, work in zip(baker.frames, baker.works, strict=True):
-        for ob in layer_generate.build(scene, work):
-            bake.key_visibility(ob, bake_plan.single_frame_visibility(f, 1, frames))
+        for ob in layer_stage.build(scene, work):
+            bake.key_visibility(ob, light_tracks.single_frame_visibility(f, 1, frames))
             objects += 1
     t2 = time.perf_counter()
     return dict(objects=objects, images=0, timings=dict(plan=t1 - t0, build=t2 - t1))
@@ -398,7 +399,7 @@ def layer_accuracy(px: int, frames: int = 9):
     over `frames` frames, linear keys; orthographic camera 1 m wide straight down on
     the middle frame's axis point): the middle frame rendered in EEVEE (`px`²) from
     the baked file by a process without the extension, and with Generate's layer of
-    that frame; each against the exact optics (`exact_optics.irradiance_on_plane`
+    that frame; each against the exact optics (`ball_optics.irradiance_on_plane`
     around the axis point, and the axis point itself) and against each other."""
     import math
     import subprocess
@@ -406,7 +407,7 @@ def layer_accuracy(px: int, frames: int = 9):
     import numpy as np
     from measuring_scene import build_measuring_scene
 
-    from addon import exact_optics
+    from core.lens import ball_optics
 
     R, N, P, A, VIEW = 0.5, 1.5, 1000.0, 0.8, 1.0
     center = np.array([0.0, 0.0, 2.5])
@@ -473,9 +474,7 @@ def layer_accuracy(px: int, frames: int = 9):
     y = np.broadcast_to(hit[1] + coords[:, None], (px, px))
     patch_r = 1.5 * VIEW / 32  # the test's measuring disc (1.5 px at 32 px)
     d = float(np.linalg.norm(center - light))
-    e = exact_optics.irradiance_on_plane(
-        P / (4 * math.pi), d, R, N, center[2] / -u[2], [0, patch_r]
-    )
+    e = ball_optics.irradiance_on_plane(P / (4 * math.pi), d, R, N, center[2] / -u[2], [0, patch_r])
     radiance = A * float(e[0]) * -u[2] / math.pi
     patch = np.hypot(x - hit[0], y - hit[1]) <= patch_r
     rows = []
@@ -554,7 +553,7 @@ def write_layer_report(rows, acc, args, _t):
         "caustic's centroid (the beam is tilted 21° on that frame): compare the rows. "
         "Centroid: distance of the radiance-weighted centroid over the view from the "
         "axis point. Brightness: mean radiance within 0.047 m of the axis point over "
-        "the exact optics' there (`exact_optics.irradiance_on_plane` × albedo × "
+        "the exact optics' there (`ball_optics.irradiance_on_plane` × albedo × "
         "cos tilt / π).",
         "",
         "| render | centroid from the axis point (m) | brightness / exact |",

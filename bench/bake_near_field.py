@@ -5,13 +5,13 @@ contact point, the lens' D/R between two slices of the bake's grid.
     $PY bench/bake_near_field.py        # about a minute, one core
 
 For each D/R: the ring-mean irradiance on the table (rings 0–0.15 R around the
-contact point, as tests/test_near_field_profile.py) of
-* "bake": the slices the bake tabulates now (`bake_plan.profile_slice_table` with
-  the receiver's row, h_min `bake_plan.slice_h_min`), blended at the frame's slice
+contact point, as tests/core/tiers/test_near_field_profile.py) of
+* "bake": the slices the bake tabulates now (`light_tracks.profile_slice_table` with
+  the receiver's row, h_min `light_tracks.slice_h_min`), blended at the frame's slice
   coordinate, as `light_builder.build_profile_nodes(slices=)` reads them;
 * "bake, receiver +x %": slices made for a receiver x % farther than the frame's
   (what a track with more distinct receiver distances than slices reads: its
-  nearest quantile's, `bake_plan.near_slices`), their rows as made (h_min the
+  nearest quantile's, `light_tracks.near_slices`), their rows as made (h_min the
   table's: what the bake keys) or scaled so that the table's receiver row lies on
   the frame's receiver (not done: worse);
 * "bake before": the receiver-less near slices the bake used before (256 rows from
@@ -32,12 +32,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import bake_plan  # noqa: E402
-from addon import exact_optics as xo  # noqa: E402
-from addon.phase1 import compute_phase1  # noqa: E402
-from addon.scene import Light, Scene, Sphere, Surface  # noqa: E402
-from addon.tiers import PrimaryLight, make_blender_light  # noqa: E402
-from addon.tiers.exact_profile import _cached_profile  # noqa: E402
+from core.animation import light_tracks  # noqa: E402
+from core.lens import ball_optics as xo  # noqa: E402
+from core.phase1.point_lights import compute_phase1  # noqa: E402
+from core.scene.model import Light, Scene, Sphere, Surface  # noqa: E402
+from core.scene.primaries import PrimaryLight
+from core.tiers import make_blender_light
+from core.tiers.exact_profile import cached_profile  # noqa: E402
 
 N, R = 1.5, 0.01
 EDGES_R = np.array([0.0, 0.02, 0.04, 0.06, 0.1, 0.15])
@@ -109,8 +110,8 @@ def main():
     ]
     z = 1.0  # resting: the table 1 R from the centre
     for d_over_r in (20.0, 100.0, 1000.0):
-        grid = bake_plan.slice_grid([d_over_r / 1.02, d_over_r * 1.02])
-        s = float(bake_plan.slice_coordinate([d_over_r], grid)[0])
+        grid = light_tracks.slice_grid([d_over_r / 1.02, d_over_r * 1.02])
+        s = float(light_tracks.slice_coordinate([d_over_r], grid)[0])
         D = d_over_r * R
         scene = Scene(
             lights=[Light((0.0, 0.0, D))],
@@ -126,9 +127,9 @@ def main():
         )
         want = xo.irradiance_on_plane(1.0, D, R, N, z * R, EDGES_R * R, n_psi=100_000)
         info = light.profile_info
-        tables = [bake_plan.profile_slice_table(g, N, True, z) for g in grid]
+        tables = [light_tracks.profile_slice_table(g, N, True, z) for g in grid]
         bake = table_lookup(
-            tables, s, bake_plan.slice_h_min(z) * R, info["h_max"], info["gamma_max_deg"]
+            tables, s, light_tracks.slice_h_min(z) * R, info["h_max"], info["gamma_max_deg"]
         )
         # slices made for a receiver 0.5, 2 or 10 % farther than this frame's
         offs = []
@@ -136,15 +137,18 @@ def main():
             z_off = round(z * (1 + pct / 100), 6)
             scale = z / z_off if scaled else 1.0
             f_off = table_lookup(
-                [bake_plan.profile_slice_table(g, N, True, z_off) for g in grid],
+                [light_tracks.profile_slice_table(g, N, True, z_off) for g in grid],
                 s,
-                bake_plan.slice_h_min(z_off) * R * scale,
-                info["h_max"] * bake_plan.slice_h_min(z_off) / bake_plan.slice_h_min(z) * scale,
+                light_tracks.slice_h_min(z_off) * R * scale,
+                info["h_max"]
+                * light_tracks.slice_h_min(z_off)
+                / light_tracks.slice_h_min(z)
+                * scale,
                 info["gamma_max_deg"],
             )
             how = "rows scaled to the frame's receiver" if scaled else "rows as made"
             offs.append((f"bake, receiver +{pct:g} %, {how}", f_off))
-        old_profiles = [_cached_profile(round(float(g), 9), N, True) for g in grid]
+        old_profiles = [cached_profile(round(float(g), 9), N, True) for g in grid]
         old_tables = [
             p.table / (p.flux / (2 * math.pi)) for p in old_profiles
         ]  # as the bake normalised them

@@ -37,12 +37,12 @@ sys.path.insert(0, str(ROOT / "scripts"))
 from dev_extension import load_extension
 from measuring_scene import build_measuring_scene
 
-from addon.beam_error import ExactBeam
-from addon.blender_spot import spot_irradiance
-from addon.phase1 import compute_phase1
-from addon.scene import Light, Scene, Sphere, Surface
-from addon.tiers import PrimaryLight
-from addon.tiers import exact_profile as lt
+from core.phase1.point_lights import compute_phase1
+from core.scene.blender_spot import spot_irradiance
+from core.scene.model import Light, Scene, Sphere, Surface
+from core.scene.primaries import PrimaryLight
+from core.tiers import exact_profile as lt
+from core.tiers.beam_error import ExactBeam
 
 REPORTS = ROOT / "reports"
 RES = 400
@@ -103,11 +103,11 @@ def build_profile_light(light: lt.ProfileLight, name="lens_light"):
     the image and the light node tree of lens_tiers.NODE_TREE_RECIPE); it shines
     along world −z here (unrotated)."""
     load_extension()
-    from lens_lights.operators import light_builder
+    from lens_lights.blender.build import lights
 
     ob = add_spot(name, light.energy_w, 180.0, 0.0, light.location, light.radius)
-    image = light_builder.profile_image(light.profile)
-    light_builder.build_profile_nodes(ob.data, light.profile, image)
+    image = lights.profile_image(light.profile)
+    lights.build_profile_nodes(ob.data, light.profile, image)
     return ob
 
 
@@ -209,7 +209,7 @@ def main() -> int:
             flush=True,
         )
     lines.append(
-        "\nThe node tree is the one the add-on builds (`operators/light_builder.py`, "
+        "\nThe node tree is the one the add-on builds (`operators/lights.py`, "
         "following `lens_tiers.NODE_TREE_RECIPE`). Against the pure model Cycles reproduces the table to "
         "the table's own precision (the node tree is right); against the exact beam the "
         "remaining error is the table's resolution, as in the EXACT_PROFILE row of "

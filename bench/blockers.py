@@ -9,7 +9,7 @@ centre is 1.5 above a white floor (albedo 0.8, seen straight down, 64 px over 1.
 * overlap: two opaque spheres R = 0.1 whose shadows on the lens overlap;
 * glass: the issue's sphere made of glass (n = 1.5): it passes its Fresnel share.
 
-Per scene: phase 2's reference (addon/reference/phase2.py: exact rays light → blockers
+Per scene: phase 2's reference (reference/phase2.py: exact rays light → blockers
 → lens → floor, binned into the pixels), Cycles (AUTO: the Exact profile with its shadow
 mask; and the same light without the mask, the dimming of before), EEVEE (AUTO: the
 Caustic layer with the shadow list drawn in its beam). Figures: L1 of the floor's
@@ -46,8 +46,8 @@ from measuring_scene import (  # noqa: E402
     render_grey,
 )
 
-from addon.reference import Blocker, GlassSphere, PointLight, ReceiverPlane  # noqa: E402
-from addon.reference.phase2 import phase2_irradiance  # noqa: E402
+from reference import Blocker, GlassSphere, PointLight, ReceiverPlane  # noqa: E402
+from reference.phase2 import phase2_irradiance  # noqa: E402
 
 R, N, HEIGHT, D, POWER, ALBEDO = 0.5, 1.5, 1.5, 3.0, 1000.0, 0.8
 VIEW = 1.2
@@ -119,8 +119,8 @@ def figures(img, ref):
 
 
 def run_scene(name, px, samples, tmp):
-    from lens_lights.operators import mask_nodes
-    from lens_lights.operators.generate import generate
+    from lens_lights.blender.build import mask_nodes
+    from lens_lights.blender.commands.generate import generate
 
     blockers = SCENES[name]
     out = {"reference": reference(px, blockers)}
@@ -174,8 +174,9 @@ def phase1_cost(sizes=(1000, 5000, 20000), n_lights=2, seed=0):
     """Phase 1's time on random crowded scenes (spheres R 0.05–0.3 in a 20 m box, 70 %
     glass): the union of shadows as built, and with the product of shares it replaced
     (`shadow_mask.union_unblocked` swapped for the old line), best of 2."""
-    from addon import obstruction
-    from addon.phase1 import SceneArrays, compute_phase1
+    from core.phase1 import obstruction
+    from core.phase1.point_lights import compute_phase1
+    from core.scene.arrays import SceneArrays
 
     def product(rows, obst, cover, lens_rows, *args, **kwargs):
         out = np.ones(len(lens_rows))
@@ -220,7 +221,7 @@ def write_report(results, args, path, cost=()):
         "",
         "`./lens-lights bench blockers` (bench/blockers.py; its docstring has the scenes). "
         f"{args.px} px over {VIEW} m, Cycles {args.samples} samples. Reference: phase 2 "
-        "(addon/reference/phase2.py, exact rays light → blockers → lens → floor). L1 = "
+        "(reference/phase2.py, exact rays light → blockers → lens → floor). L1 = "
         "Σ|E − E_ref| / Σ E_ref over the view; L/R = light in the left half over the right "
         "half; flux = light in view over the reference's. *Dimmed*: the Exact profile light "
         "without its mask (what Lens Lights did before: the power scaled by the unblocked "

@@ -1,7 +1,7 @@
 """Caustic layer benchmark → reports/caustic_layer.md and reports/caustic_layer.png.
 
 The caustic layer (addon/caustic_sheet) against the exact one-dimensional integral of
-SPEC §6 (addon.exact_optics.irradiance_on_plane) for a glass ball floating above a
+SPEC §6 (core.lens.ball_optics.irradiance_on_plane) for a glass ball floating above a
 plane and a marble resting on it: the layer's irradiance image beside the exact one,
 the relative L1 over the lens' shadow disc (rings) and the flux ratio; then the time to
 build the layers of 64 lens lights on a table scene of 10 000 triangles; and the
@@ -26,16 +26,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as eo
-from addon import layer_plan
-from addon import reference as ref
-from addon.caustic_sheet.beam_trace import trace_beam, trace_beams
-from addon.caustic_sheet.caustic_layer import build_layer
-from addon.caustic_sheet.emitters import Lens, PointLight
-from addon.caustic_sheet.layer_metrics import relative_l1, ring_irradiance
-from addon.caustic_sheet.meshes import merge, rectangle
-from addon.caustic_sheet.pipeline import Camera, SheetSource, bake
-from addon.caustic_sheet.receiver_index import build_index
+import reference as ref
+from core.caustic_layer import plan
+from core.caustic_layer.beam_trace import trace_beam, trace_beams
+from core.caustic_layer.emitters import Lens, PointLight
+from core.caustic_layer.pipeline import Camera, SheetSource, bake
+from core.caustic_layer.rasters import build_layer
+from core.caustic_layer.receiver_index import build_index
+from core.lens import ball_optics as eo
+from reference.layer_metrics import relative_l1, ring_irradiance
+from reference.meshes import merge, rectangle
 
 REPORTS = ROOT / "reports"
 R, N_IOR, D = 1.0, 1.5, 10.0
@@ -128,7 +128,7 @@ def timing_case(nr, na, res, repeats=3):
 def generate_case(repeats=3):
     """The table scene as Generate bakes it: the ray budget and the rasters from each
     lens' size on screen (a 1920-px, 40° camera 3 m away, as bench/layer_render.py's)
-    and the caps of `addon.layer_plan`. CPU seconds (best of ``repeats``)."""
+    and the caps of `core.caustic_layer.plan`. CPU seconds (best of ``repeats``)."""
     mesh, lenses, light = table_scene()
     cam = Camera(np.array([0.0, -2.5, 2.2]), math.radians(39.6), 1920)
     sources = [SheetSource(light, lens) for lens in lenses]
@@ -140,11 +140,11 @@ def generate_case(repeats=3):
             sources,
             index,
             cam,
-            total_rays=layer_plan.TOTAL_RAYS,
-            max_rays=layer_plan.MAX_RAYS_PER_SOURCE,
-            min_rays=layer_plan.MIN_RAYS_PER_SOURCE,
-            rays_per_pixel=layer_plan.RAYS_PER_PIXEL,
-            resolution=lambda e, _p: layer_plan.raster_resolution(sources, cam, e),
+            total_rays=plan.TOTAL_RAYS,
+            max_rays=plan.MAX_RAYS_PER_SOURCE,
+            min_rays=plan.MIN_RAYS_PER_SOURCE,
+            rays_per_pixel=plan.RAYS_PER_PIXEL,
+            resolution=lambda e, _p: plan.raster_resolution(sources, cam, e),
         )
         row = {
             "cpu": time.process_time() - c0,
@@ -247,10 +247,10 @@ def extended_cases(n_rays=2e6):
         frame = _rs_frame(emitter, lens_ref, plane, position)
         truth = _rs_trace(emitter, lens_ref, plane, frame, int(n_rays))
         view_cam = SimpleNamespace(position=(frame[0], frame[1], 0.52), fov_deg=(45.0,))
-        cam = layer_plan.sheet_camera(view_cam, PX, frame[2], [lens.center])
+        cam = plan.sheet_camera(view_cam, PX, frame[2], [lens.center])
         for version in ("now", "before"):
             now = version == "now"
-            k = (layer_plan.SOURCE_SAMPLES if now else 7) if radius > 0 else 1
+            k = (plan.SOURCE_SAMPLES if now else 7) if radius > 0 else 1
             src = SheetSource(PointLight(position, power, radius=radius), lens, n_source=k)
             c0 = time.process_time()
             if now:
@@ -258,16 +258,16 @@ def extended_cases(n_rays=2e6):
                     [src],
                     index,
                     cam,
-                    total_rays=layer_plan.TOTAL_RAYS,
-                    max_rays=layer_plan.MAX_RAYS_PER_SOURCE,
-                    min_rays=layer_plan.MIN_RAYS_PER_SOURCE,
-                    rays_per_pixel=layer_plan.RAYS_PER_PIXEL,
-                    resolution=lambda e, _p, src=src, cam=cam: layer_plan.raster_resolution(
+                    total_rays=plan.TOTAL_RAYS,
+                    max_rays=plan.MAX_RAYS_PER_SOURCE,
+                    min_rays=plan.MIN_RAYS_PER_SOURCE,
+                    rays_per_pixel=plan.RAYS_PER_PIXEL,
+                    resolution=lambda e, _p, src=src, cam=cam: plan.raster_resolution(
                         [src], cam, e
                     ),
                 )
             else:  # the former defaults: 1 ray per pixel² of the lens, its texels
-                res = layer_plan.raster_resolution([src], cam)
+                res = plan.raster_resolution([src], cam)
                 nr = round(
                     math.sqrt(min(max((2 * MARBLE / (frame[2] / PX)) ** 2, 1024), 16384) / 4)
                 )
@@ -353,7 +353,7 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
         + (f" and `--lightsheet {lightsheet[0]}`" if lightsheet else "")
         + f"; load average during the run {load[0]:.1f} on 2 shared cores.",
         "",
-        "The caustic layer (`addon/caustic_sheet/`) traces each lens light's beam exactly as",
+        "The caustic layer (`core/caustic_layer/`) traces each lens light's beam exactly as",
         "a grid of rays over the lens' lit disc, lands it on the receivers' triangles and",
         "accumulates the landed cells' flux into an irradiance raster per planar receiver",
         "patch (folds add). Reference: the exact one-dimensional integral of SPEC §6",
@@ -453,7 +453,7 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
         "",
         "Every raster of a bake has the same resolution: one texel per pixel of the",
         "largest caustic on screen, at most 128, and at most √(65 536 / sources) so that",
-        "all layers together keep within 65 536 faces (`addon/layer_plan.py`). With many",
+        "all layers together keep within 65 536 faces (`addon/plan.py`). With many",
         "lenses the share is small (64 lenses: 32² each) whatever the screen size of each",
         "caustic, so a caustic seen close up shows its texels as blocks, while a distant",
         "one wastes them. Following the screen per receiver needs a resolution per raster",
@@ -499,7 +499,7 @@ def speed_section(timings, gen) -> list[str]:
     lines += [
         "",
         f"As Generate bakes it (budget from the screen: a 1920-px 40° camera 3 m away, "
-        f"`addon/layer_plan.py`'s caps): {gen['grid']} rays per lens, {gen['rays']} rays, "
+        f"`addon/plan.py`'s caps): {gen['grid']} rays per lens, {gen['rays']} rays, "
         f"{gen['res']}² texels × {gen['rasters']} rasters, flux in rasters "
         f"{gen['flux_ratio']:.4f}: **{gen['cpu']:.3f} s CPU** ({gen['wall']:.3f} s wall).",
         "",

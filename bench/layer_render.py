@@ -5,7 +5,7 @@ sections of reports/caustic_layer.md (printed; pasted by hand).
    (Z = 5 R) and the resting marble (Z = R): glass R = 0.5, n = 1.5, a point light
    D = 10 R above the centre, a white floor (albedo 0.8) seen straight down. The
    rendered radiance (with − without lens lights) × π / 0.8 is the irradiance; its
-   ring averages about the axis against `exact_optics.irradiance_on_plane` over the
+   ring averages about the axis against `ball_optics.irradiance_on_plane` over the
    lens' shadow disc (the resting marble: r < R/2), 40 rings: relative L1 and the
    flux ratio over the same disc.
 2. Generate's time for 64 marbles (R = 2 cm) resting on a table top of about 10 000
@@ -35,8 +35,8 @@ import numpy as np  # noqa: E402
 from dev_extension import load_extension  # noqa: E402
 from measuring_scene import build_measuring_scene, new_material  # noqa: E402
 
-from addon import exact_optics  # noqa: E402
-from addon.caustic_sheet.layer_metrics import relative_l1  # noqa: E402
+from core.lens import ball_optics  # noqa: E402
+from reference.layer_metrics import relative_l1  # noqa: E402
 
 R, N, ALBEDO, POWER = 0.5, 1.5, 0.8, 1000.0
 D = 10 * R
@@ -52,7 +52,7 @@ def render(sc, path):
 
 
 def render_case(name, Z, px, tmp, rings=40):
-    from lens_lights.operators.generate import generate
+    from lens_lights.blender.commands.generate import generate
 
     alpha = math.asin(R / D)
     shadow = (D + Z) * math.tan(alpha)
@@ -87,9 +87,7 @@ def render_case(name, Z, px, tmp, rings=40):
     flux = np.bincount(k[inside], weights=E[inside], minlength=rings) * step * step
     area = np.pi * np.diff(edges**2)
     measured = flux / area
-    exact = exact_optics.irradiance_on_plane(
-        POWER / (4 * math.pi), D, R, N, Z, edges, n_psi=200_000
-    )
+    exact = ball_optics.irradiance_on_plane(POWER / (4 * math.pi), D, R, N, Z, edges, n_psi=200_000)
     l1 = relative_l1(measured, exact, area)
     ratio = float(flux.sum() / (exact * area).sum())
     return name, Z / R, px, l1, ratio, t_gen, message
@@ -130,7 +128,7 @@ def table_scene(n_side=8, radius=0.02):
 
 
 def table_timing(repeat=3):
-    from lens_lights.operators import generate as gen
+    from lens_lights.blender.commands import generate as gen
 
     table_scene()
     tris = sum(

@@ -3,7 +3,7 @@
 Builds, in the bpy module, a floor, two point lights (one keyed to move every frame)
 and N glass spheres (separate objects sharing one mesh, on a grid 1 above the floor),
 turns ``scene.lens_lights.live_update`` on, and times ``scene.frame_set(k)`` over a
-few frames: the update itself (`operators.live_update.LAST_FIGURES`: reading the
+few frames: the update itself (`blender.commands.live_update.LAST_FIGURES`: reading the
 viewport depsgraph, phase 1, planning, applying to the Blender lights in place) and
 the whole ``frame_set`` with and without live update (Blender's own evaluation).
 
@@ -100,11 +100,11 @@ def set_engine(engine):
 
 
 def run_case(n, tier, max_lights, frames):
-    from lens_lights.addon.tiers import exact_profile
-    from lens_lights.operators import live_update
+    from lens_lights.blender.commands import live_update
+    from lens_lights.core.tiers import exact_profile
 
     # Each case from cold caches: a row must not reuse the profiles of the one before.
-    exact_profile._cached_profile.cache_clear()
+    exact_profile.cached_profile.cache_clear()
     exact_profile._beam_summary.cache_clear()
     build_scene(n, frames)
     scene = bpy.context.scene

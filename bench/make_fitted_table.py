@@ -1,10 +1,10 @@
-"""Make `addon/tiers/fitted_table.json`: the FITTED tier's spot for every node of
-a grid over x = R/D and n (see `addon/tiers/fitted.py`).
+"""Make `core/tiers/fitted_table.json`: the FITTED tier's spot for every node of
+a grid over x = R/D and n (see `core/tiers/fitted.py`).
 
     $(scripts/ensure_env.sh) bench/make_fitted_table.py      # about 1–2 minutes
 
 One process, one core. The table is data (JSON, one row per line: small and
-diffable), read once by `addon.tiers.fitted.fitted_table`.
+diffable), read once by `core.tiers.fitted.fitted_table`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.tiers.fitted import TABLE_COLUMNS, TABLE_FILE, TABLE_N, TABLE_X
-from addon.tiers.spot_fit import SUN_DISTANCE, fit_spot
+from core.tiers.fitted import TABLE_COLUMNS, TABLE_FILE, TABLE_N, TABLE_X
+from core.tiers.spot_fit import SUN_DISTANCE, fit_spot
 
 
 def table_json(columns: dict) -> str:

@@ -8,7 +8,7 @@ the plane Z from the centre across the axis (Z = R: a marble resting on a table;
 1.5 R, 2 R: a ball close to a wall). Each tier's light is made as the add-on
 makes it (with the receiver's distance where the checkout takes it) and measured
 on that plane: the relative L1 error over the lens's shadow disc and the flux
-ratio there (`addon.beam_error`). A light at or behind the receiver's plane puts
+ratio there (`core.tiers.beam_error`). A light at or behind the receiver's plane puts
 nothing on its lit side (L1 = 1, flux 0).
 """
 
@@ -27,11 +27,12 @@ ap.add_argument("--ior", type=float, default=1.5)
 ARGS = ap.parse_args()
 sys.path.insert(0, ARGS.root)
 
-from addon import beam_error as acc
-from addon.phase1 import compute_phase1
-from addon.scene import Light, Scene, Sphere, Surface
-from addon.tiers import TIERS, PrimaryLight, make_blender_light
-from addon.tiers import exact_profile as xp
+from core.phase1.point_lights import compute_phase1
+from core.scene.model import Light, Scene, Sphere, Surface
+from core.scene.primaries import PrimaryLight
+from core.tiers import TIERS, make_blender_light
+from core.tiers import beam_error as acc
+from core.tiers import exact_profile as xp
 
 R = 0.01
 
@@ -48,9 +49,9 @@ def _model(light, src, Z):
     if light.model == "EXACT_PROFILE":
         key = (round(src.distance / R, 9), round(src.ior, 9))
         try:
-            prof = xp._cached_profile(*key, bool(apex < R))
+            prof = xp.cached_profile(*key, bool(apex < R))
         except TypeError:  # a checkout without the near table
-            prof = xp._cached_profile(*key)
+            prof = xp.cached_profile(*key)
         I0 = light.energy_w / (4 * math.pi) / (prof.flux / (2 * math.pi))
         return xp._Profile2D(prof, R, I0)
     return acc.model_from_light(light, src)

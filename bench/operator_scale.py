@@ -4,7 +4,7 @@ Builds, in the bpy module, a floor, two point lights and N glass spheres instanc
 by geometry nodes (a grid of points, "Instance on Points" of a UV sphere with a
 glass material) or by collection instances (N empties instancing a collection with
 one glass sphere), runs ``bpy.ops.lens_lights.generate()`` and reports the time of
-each step (`operators.generate.LAST_FIGURES["timings"]`):
+each step (`blender.commands.generate.LAST_FIGURES["timings"]`):
 
 * ``probe`` — the probe render that hands over the render depsgraph, less the work
   done inside it (copy of the scene, render pipeline, evaluation);
@@ -181,7 +181,7 @@ class _Marks:
 
 
 def run_case(n, kind, layout, max_lights, merge, repeat, energy_model="AUTO"):
-    from lens_lights.operators import generate as gen
+    from lens_lights.blender.commands import generate as gen
 
     t = time.perf_counter()
     spheres = build_scene(n, kind, layout)
@@ -262,7 +262,8 @@ def read_cpu(repeat=3) -> dict:
     read of collection-instance empties, else the walk), beside the reference read
     (`_InstanceWalk.add`, every RNA value read per instance, as before issue 16),
     both less the check."""
-    from lens_lights.operators import render_probe, scene_reader
+    from lens_lights.blender.read import render_probe
+    from lens_lights.blender.read import scene as scene_reader
 
     ctx, scene = bpy.context, bpy.context.scene
 
@@ -308,7 +309,8 @@ def read_only(args) -> int:
     else:
         root = ROOT
         load_extension()
-    from lens_lights.operators import render_probe, scene_reader
+    from lens_lights.blender.read import render_probe
+    from lens_lights.blender.read import scene as scene_reader
 
     kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)
     cases = [(n, k, "floating") for n in args.counts for k in kinds]
@@ -386,7 +388,7 @@ ATTRIBUTION = [
     "Goal (issue 16: Generate on 100 000 collection-instance empties under 15 s): met. "
     "On a quiet machine (load 0.0–0.7), three runs of the 100 489 case on 2026-12-02: "
     "11.9, 11.0 and 11.2 s, then 12.4 s after the threads inside one light were added "
-    "(`addon/parallel.py`); Blender's depsgraph rebuild and evaluation after the "
+    "(`core/shared/parallel.py`); Blender's depsgraph rebuild and evaluation after the "
     "lights are added and the undo push 7.0–8.2 s of it (about two thirds), the check and "
     "the read 0.9–1.2 s, phase 1 2.6–3.3 s. The same morning, before the bulk read, the "
     "cube-face broad phase, the 8-node glass shares and the lights in threads: 15.4, "
@@ -407,7 +409,7 @@ ATTRIBUTION = [
 
 
 def _path(how) -> str:
-    from lens_lights.operators.render_probe import VIEWPORT_AS_RENDER
+    from lens_lights.blender.read.render_probe import VIEWPORT_AS_RENDER
 
     return {"render": "probe", VIEWPORT_AS_RENDER: "viewport"}.get(how, f"fallback: {how}")
 
@@ -546,7 +548,7 @@ def main(argv=None):
     ext = load_extension()
     ext.register()
     if args.force_probe:  # the probe render on every scene (before the viewport path)
-        from lens_lights.operators import render_probe
+        from lens_lights.blender.read import render_probe
 
         render_probe.viewport_differs = lambda context: "forced by --force-probe"
     kinds = ("gn", "collection") if args.kind == "both" else (args.kind,)

@@ -47,7 +47,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 from measuring_scene import build_measuring_scene  # noqa: E402
 
-from addon import reference as ref  # noqa: E402
+import reference as ref  # noqa: E402
 
 REPORTS = ROOT / "reports"
 IOR = 1.5
@@ -357,7 +357,7 @@ def render(sc, path):
 
 def generate(replace=True):
     import bpy
-    from lens_lights.operators.generate import generate as run
+    from lens_lights.blender.commands.generate import generate as run
 
     sc = bpy.context.scene
     sc.lens_lights.energy_model = "AUTO"

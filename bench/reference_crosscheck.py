@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.reference import (
+from reference import (
     AreaLight,
     GlassSphere,
     PointLight,
@@ -408,7 +408,7 @@ def report(results, wall, quick):
     L.append(
         "- mitsuba's `directional` emitter has no angular size: the sun case has angle 0 "
         "(the reference's angular blur is tested against the exact optics in "
-        "tests/test_reference_emitters.py)."
+        "tests/reference/test_reference_emitters.py)."
     )
     L.append(
         "- mitsuba's `ptracer` also counts light reflected off the sphere's outside (depth "

@@ -24,7 +24,7 @@ square), Standard view transform, exposure 0, no denoising, float EXR.
 
 Reference (d): the light's axis is perpendicular to the table, so the beam is
 rotationally symmetric and its exact irradiance on the table is the 1-D integral
-of SPEC §6 (`addon.accuracy.ExactBeam`: Fresnel at both surfaces, internal
+of SPEC §6 (`core.accuracy.ExactBeam`: Fresnel at both surfaces, internal
 reflections ignored), plus the direct light outside the ball's shadow; a pixel
 is albedo/π × its mean irradiance (16 × 16 sub-samples over fine rings).
 Caustic region: the pixels entirely inside the ball's shadow disc. Error:
@@ -52,12 +52,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon import exact_optics as xo
-from addon.beam_error import ExactBeam, model_from_light
-from addon.phase1 import compute_phase1
-from addon.scene import Light, Scene, Sphere, Surface
-from addon.tiers import PrimaryLight, make_blender_light
-from addon.tiers import exact_profile as lt
+from core.lens import ball_optics as xo
+from core.phase1.point_lights import compute_phase1
+from core.scene.model import Light, Scene, Sphere, Surface
+from core.scene.primaries import PrimaryLight
+from core.tiers import exact_profile as lt
+from core.tiers import make_blender_light
+from core.tiers.beam_error import ExactBeam, model_from_light
 
 sys.path.insert(0, str(ROOT / "scripts"))
 from measuring_scene import build_measuring_scene
@@ -208,7 +209,7 @@ def pure_source():
 def tier_model_map(tier):
     """The pixel map (radiance, region only: the beam) of the tier's *pure* model,
     the light the add-on's code makes for this source, as Blender renders it
-    (`addon.spot_irradiance` / the profile): what the renders converge to."""
+    (`core.spot_irradiance` / the profile): what the renders converge to."""
     src = pure_source()
     primary = PrimaryLight(POWER)
     if tier == "EXACT_PROFILE":
@@ -361,7 +362,7 @@ def generate_lens_lights(tier):
     """Run the operator's work with the given tier; (seconds, the lens light's
     parameters, message)."""
     import bpy
-    from lens_lights.operators.generate import generate
+    from lens_lights.blender.commands.generate import generate
 
     sc = bpy.context.scene
     sc.lens_lights.energy_model = tier

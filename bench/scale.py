@@ -36,9 +36,10 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.bi_format import format_bi, read_bi, read_bi_arrays
-from addon.phase1 import SceneArrays, compute_phase1
-from addon.scene import Light, Scene, Sphere, Surface
+from core.bi.format import format_bi, read_bi, read_bi_arrays
+from core.phase1.point_lights import compute_phase1
+from core.scene.arrays import SceneArrays
+from core.scene.model import Light, Scene, Sphere, Surface
 
 sys.path.insert(0, str(ROOT / "scripts"))
 import cli
@@ -402,7 +403,7 @@ DENSE_NOTE = (
     "8 192 blockers per block: inline 0.30 → 0.22 s with glibc keeping freed memory, "
     "0.43 → 0.23 s without it (as in Blender; single precision for their roots and "
     "products was 20 % more, within 2e-7, but its roundings can flip when the scene is "
-    "only turned, beyond the 1e-9 tests/test_stability.py allows); rows taken as a product in a crowded view (`MAX_INTERACTIONS`) have "
+    "only turned, beyond the 1e-9 tests/core/phase1/test_stability.py allows); rows taken as a product in a crowded view (`MAX_INTERACTIONS`) have "
     "their glass shares by 6 nodes instead of 8 (a row within 1.7e-4 of 8 nodes here, "
     "3.1e-4 on the floating grid, where the product itself is off by a median 8.5e-3 "
     "and 4.7e-3 against the sampled union: [union_error.md](union_error.md)); the rows "
@@ -428,8 +429,8 @@ DENSE_NOTE = (
 
 
 def dense_case(repeat: int) -> dict:
-    from addon import obstruction
-    from addon.phase1 import TOTALLY_BLOCKED
+    from core.phase1 import obstruction
+    from core.phase1.point_lights import TOTALLY_BLOCKED
 
     a = dense_grid()
     t = best_of(lambda: compute_phase1(a), repeat)

@@ -1,11 +1,11 @@
-"""The union of the blockers' shadows (`addon/shadow_mask.py`): time and error.
+"""The union of the blockers' shadows (`core/phase1/shadow_mask.py`): time and error.
 
 Phase 1's own inputs to `union_unblocked` are captured on three scenes (the
 droplets 16 × 10 000, the dense grid and the floating grid of Generate's 100 k
 benchmark, from bench/scale.py), then the union is timed at the shipped resolution
 and compared with the same code at a much finer one (256 rings per sampled term,
 192 rings or cells per pair grid, 128 quadrature nodes for a glass blocker's share;
-tests/test_blockers_error_target.py checks that finer code against an independent
+tests/core/phase1/test_blockers_error_target.py checks that finer code against an independent
 integration). Errors are |Δ unblocked share| per source, by kind of row: plain
 (blockers' caps apart: closed forms and the 1-D glass quadrature), pairs (blockers
 overlapping only in pairs), three deep (sampled over their caps), crowded (more than
@@ -36,8 +36,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from scale import best_of, cpu_time, dense_grid, droplet_scene, floating_grid
 
-from addon import obstruction, shadow_mask
-from addon.phase1 import compute_phase1
+from core.phase1 import obstruction, shadow_mask
+from core.phase1.point_lights import compute_phase1
 
 SCENES = {
     "droplets": ("droplets 16 × 10 000", lambda: droplet_scene(16, 10_000)),

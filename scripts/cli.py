@@ -61,7 +61,7 @@ def _fmt_vec(v) -> str:
     return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
 
 
-#: `--model` values (lower case) → tiers of `addon.tiers`.
+#: `--model` values (lower case) → tiers of `core.tiers`.
 PHASE1_MODELS = ("thesis", "physical", "fitted", "exact_profile")
 #: The default: the most accurate tier that renders in both EEVEE and Cycles
 #: (reports/accuracy.md); EXACT_PROFILE is more accurate but Cycles only.
@@ -77,8 +77,10 @@ def blender_lights(scene, result, model: str) -> list:
     the scene's bounds are those of its lights and spheres."""
     import numpy as np
 
-    from addon.bi_conversions import watts_from_brightness
-    from addon.tiers import LensOptics, PrimaryLight, make_blender_light
+    from core.bi.conversions import watts_from_brightness
+    from core.lens.glass import LensOptics
+    from core.scene.primaries import PrimaryLight
+    from core.tiers import make_blender_light
 
     pts = [np.asarray(lt.position, dtype=float) for lt in scene.lights]
     for o in scene.objects:
@@ -165,8 +167,8 @@ def bi_scene_light_table(arrays, table, model: str, light_radius=None):
     weight, the bounds of the lights and spheres, no receiver known)."""
     import numpy as np
 
-    from addon.bi_conversions import watts_from_brightness
-    from addon.tiers import Primaries, make_light_table
+    from core.bi.conversions import watts_from_brightness
+    from core.tiers import Primaries, make_light_table
 
     j, i = table.light, table.lens
     radius = (
@@ -198,7 +200,7 @@ def _split(flat: list, offsets: list) -> list[list]:
 def _skip_reasons(result) -> list[tuple[int, int, str]]:
     """(light, lens, reason) of each skipped pair; a text made once per distinct
     (code, the numbers it names)."""
-    from addon import phase1 as p1
+    from core.phase1 import point_lights as p1
 
     a, k = result._arrays, result.skip_table
     memo: dict = {}
@@ -458,7 +460,7 @@ def _in_order(fn, items):
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
-    from addon.parallel import cores
+    from core.shared.parallel import cores
 
     n = min(cores(), len(items))
     if n < 2:
@@ -615,8 +617,8 @@ def phase1_compact_json(result, lights, model: str):
 
 
 def cmd_phase1(args) -> int:
-    from addon.bi_format import BiFormatError, read_bi_arrays
-    from addon.phase1 import compute_phase1
+    from core.bi.format import BiFormatError, read_bi_arrays
+    from core.phase1.point_lights import compute_phase1
 
     try:
         # Columns straight from the file: no Python object per sphere.

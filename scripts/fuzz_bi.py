@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from addon.bi_format import BiFormatError, parse_bi
-from addon.phase1 import compute_phase1
+from core.bi.format import BiFormatError, parse_bi
+from core.phase1.point_lights import compute_phase1
 
 TOKENS = [
     "0",

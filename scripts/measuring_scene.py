@@ -4,8 +4,8 @@ light above it; no world light, Standard view transform, exposure 0, linear
 32-bit OpenEXR output, so that a pixel is the floor's radiance
 ``albedo · E / π`` (E the irradiance in W/m²).
 
-Used by the render tests and benches (tests/test_blender_render.py,
-tests/test_blockers_render.py, bench/render_compare.py, bench/blockers.py,
+Used by the render tests and benches (tests/blender/build/test_blender_render.py,
+tests/blender/build/test_blockers_render.py, bench/render_compare.py, bench/blockers.py,
 bench/blender_light_check.py …; import it with `scripts/` on `sys.path`, as
 tests/conftest.py puts it). The samplers (Cycles' bounces, samples, pixel filter,
 EEVEE's options) differ between them and stay with each caller, but for

@@ -19,8 +19,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from addon.tiers import TIERS
-from addon.tiers.base import ENGINE_NAMES
+from core.tiers import TIERS
+from core.tiers.base import ENGINE_NAMES
 
 README = ROOT / "README.md"
 

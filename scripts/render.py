@@ -52,7 +52,7 @@ if str(ROOT) not in sys.path:
 import image_strip
 from image_strip import allowed_extensions, apply_format, image_format
 
-from addon.bake_plan import frame_path, parse_frames
+from core.animation.light_tracks import frame_path, parse_frames
 
 PACKAGE = "lens_lights"
 EXIT_BAD_INPUT = 2

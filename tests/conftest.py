@@ -1,4 +1,5 @@
-"""Make the repository root importable so tests can `import addon` without Blender."""
+"""Make the repository root importable so tests can `import core` without Blender, and the
+tests' helpers (tests/helpers/) and the scripts importable by name."""
 
 import sys
 from pathlib import Path
@@ -8,6 +9,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 sys.path.insert(0, str(ROOT / "scripts"))
+sys.path.insert(0, str(ROOT / "tests" / "helpers"))
 
 import pytest  # noqa: E402
 from dev_extension import load_extension  # noqa: E402
@@ -37,8 +39,8 @@ def empty_blend(extension):
 def auto_builds_lights(extension, monkeypatch):
     """AUTO in EEVEE builds Fitted lights, as before the Caustic layer tier: for the
     tests of the light pipeline (reading, planning, building, clearing lights), which
-    run in the factory scene's EEVEE. The layer's own: tests/test_blender_layer.py."""
-    from lens_lights.addon import tiers
+    run in the factory scene's EEVEE. The layer's own: tests/blender/build/test_blender_layer.py."""
+    from lens_lights.core import tiers
 
     for engine in ("BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"):
         monkeypatch.setitem(tiers.AUTO_RESOLUTION, engine, tiers.FITTED)

@@ -1,0 +1,79 @@
+"""Turn Cycles' own caustics of the lenses off on Generate and back on on Clear
+(what and why: `core.plan.cycles_caustics`). The original values are kept in
+``scene.lens_lights.replaced`` (one item per change), so Clear restores them
+and Undo restores them with the rest of the scene."""
+
+from __future__ import annotations
+
+from ...core.plan.cycles_caustics import (
+    LENS_SETTINGS,
+    SCENE,
+    SCENE_SETTINGS,
+    Change,
+    describe,
+    double_light_warning,
+    planned_changes,
+    should_restore,
+)
+
+
+def _settings(owner):
+    return getattr(owner, "cycles", None)  # None without the Cycles add-on
+
+
+def scene_values(scene) -> dict:
+    cy = _settings(scene)
+    return {p: getattr(cy, p) for p, _ in SCENE_SETTINGS if cy is not None and hasattr(cy, p)}
+
+
+def replace(scene, lens_objects) -> list[Change]:
+    """Turn the Cycles caustics of `lens_objects` (and the scene's) off; record
+    each change. Returns the changes."""
+    lenses = {ob.name: ob for ob in lens_objects if ob is not None}
+    lens_values = {}
+    for name, ob in lenses.items():
+        cy = _settings(ob)
+        if cy is not None:
+            lens_values[name] = {p: getattr(cy, p) for p, _ in LENS_SETTINGS if hasattr(cy, p)}
+    changes = planned_changes(scene_values(scene), lens_values)
+    record = scene.lens_lights.replaced
+    for c in changes:
+        owner = scene if c.owner == SCENE else lenses[c.owner]
+        setattr(_settings(owner), c.prop, c.new)
+        item = record.add()
+        item.object = None if c.owner == SCENE else owner
+        item.prop, item.old, item.new = c.prop, c.old, c.new
+    return changes
+
+
+def restore(scene) -> list[Change]:
+    """Put back what `replace` changed (each value still as it was set); forget the
+    record. Returns the changes undone."""
+    undone = []
+    record = scene.lens_lights.replaced
+    for item in record:
+        owner = scene if item.object is None else item.object
+        cy = _settings(owner)
+        if cy is None or not hasattr(cy, item.prop):
+            continue
+        change = Change(
+            SCENE if item.object is None else item.object.name, item.prop, item.old, item.new
+        )
+        if should_restore(change, getattr(cy, item.prop)):
+            setattr(cy, item.prop, change.old)
+            undone.append(change)
+    record.clear()
+    return undone
+
+
+def after_build(scene, plan, read, made: int) -> str:
+    """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
+    Cycles' own caustics of the lenses that got lens lights off; else say when they
+    will be rendered twice. Returns the report's words ('' for nothing)."""
+    if not made:
+        return ""
+    if scene.lens_lights.replace_cycles_caustics:
+        lenses = {read.sphere_objects[p.source.lens] for p in plan.lights}
+        note = describe(replace(scene, sorted(lenses, key=lambda ob: ob.name)))
+        return note + (" (Clear restores them)" if note else "")
+    return double_light_warning(scene.render.engine, scene_values(scene), made)

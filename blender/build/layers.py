@@ -1,0 +1,239 @@
+"""The Caustic layer tier's Blender objects: one emissive mesh per `PatchLayer`.
+
+Each layer is a mesh object "Lens caustic <receiver> <k>" in the "Lens Lights"
+collection, at the identity transform (the core's vertices are in world space,
+already lifted off the receiver along its normal: no z-fighting), marked and
+listed like a lens light (`object.lens_lights.is_lens_light`, the scene's
+`created_objects`), so Clear removes it and its mesh; its material is marked
+(`properties.COLLECTION_MARK` = "layer") and removed by Clear once unused
+(`remove_unused_layer_materials`). No images: the irradiance is a face attribute.
+
+Material (one per receiver object): radiance = irradiance × the receiver's diffuse
+colour / π, the colour being the receiver's own (a constant, or its image texture
+sampled through the layer's UV map, which holds the receiver's UVs); emission added
+to a white Transparent BSDF, so where the irradiance is 0 the layer is invisible
+and elsewhere it only adds light over the receiver (EEVEE: blended render method,
+sorted). Ray visibility: the camera, glossy and transmission rays (a mirror shows
+the caustic on the floor it reflects; no spot light paints it any more); no shadow
+(the layer sits between the receiver and its lights), no diffuse (it must not
+light other objects).
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+
+from ..ui.properties import COLLECTION_MARK
+from .lights import create_light, lights_collection
+
+LAYER_PREFIX = "Lens caustic "
+MATERIAL_PREFIX = "Lens caustic material "
+INCLUDE_PREFIX = "Lens fallback: "
+#: The face attribute holding the irradiance (W per unit², RGB).
+IRRADIANCE = "lens_irradiance"
+UV_NAME = "UVMap"
+
+
+def _is_layer_material(mat) -> bool:
+    return mat.get(COLLECTION_MARK) == "layer"
+
+
+def layer_material(info, cache: dict):
+    """The layer material for receiver `info` (`receiver_reader.ReceiverInfo`)."""
+    key = (info.name, info.image.name if info.image is not None else None)
+    mat = cache.get(key)
+    if mat is not None:
+        return mat
+    mat = bpy.data.materials.new(MATERIAL_PREFIX + info.name)
+    mat[COLLECTION_MARK] = "layer"
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    if hasattr(mat, "surface_render_method"):
+        mat.surface_render_method = "BLENDED"
+    else:  # EEVEE Legacy
+        mat.blend_method = "BLEND"
+    if hasattr(mat, "use_transparent_shadow"):
+        mat.use_transparent_shadow = True
+    nt = mat.node_tree
+    nt.nodes.clear()
+    attr = nt.nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = "GEOMETRY"
+    attr.attribute_name = IRRADIANCE
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    nt.links.new(attr.outputs["Color"], mix.inputs["A"])
+    if info.image is not None:
+        uv = nt.nodes.new("ShaderNodeUVMap")
+        uv.uv_map = UV_NAME
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = info.image
+        tex.interpolation = info.interpolation
+        tex.extension = info.extension
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        nt.links.new(tex.outputs["Color"], mix.inputs["B"])
+    else:
+        mix.inputs["B"].default_value = (*info.color[:3], 1.0)
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0 / math.pi  # Lambertian: L = ρE/π
+    nt.links.new(mix.outputs["Result"], em.inputs["Color"])
+    tr = nt.nodes.new("ShaderNodeBsdfTransparent")
+    tr.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(em.outputs[0], add.inputs[0])
+    nt.links.new(tr.outputs[0], add.inputs[1])
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(add.outputs[0], out.inputs["Surface"])
+    cache[key] = mat
+    return mat
+
+
+def layer_mesh(name, patch, shapes: dict | None = None):
+    """A mesh of `patch` (`PatchLayer`): its quads, its UVs (per corner), and the
+    irradiance as a face attribute (face k = texel k). ``shapes``: meshes made before
+    by topology; a patch of the same faces starts as a copy of one (Blender copies a
+    mesh's topology at memory speed, which is 5–6× faster than setting it) and only its
+    positions, UVs and irradiance are set."""
+    faces = np.asarray(patch.faces, dtype=np.int32)
+    n_f = len(faces)
+    key = (len(patch.vertices), n_f, patch.uvs is not None)
+    like = shapes.get(key) if shapes is not None else None
+    if like is not None and np.array_equal(like[1], faces):
+        me = like[0].copy()
+        me.name = name
+        me.materials.clear()
+        _set_positions_uvs(me, patch, faces)
+        me.attributes[IRRADIANCE].data.foreach_set("color", _rgba(patch).ravel())
+        me.update()
+        return me
+    me = bpy.data.meshes.new(name)
+    me[COLLECTION_MARK] = "layer"
+    me.vertices.add(len(patch.vertices))
+    me.loops.add(4 * n_f)
+    me.loops.foreach_set("vertex_index", faces.ravel())
+    me.polygons.add(n_f)
+    me.polygons.foreach_set("loop_start", np.arange(0, 4 * n_f, 4, dtype=np.int32))
+    if patch.uvs is not None:
+        me.uv_layers.new(name=UV_NAME)
+    _set_positions_uvs(me, patch, faces)
+    me.attributes.new(IRRADIANCE, "FLOAT_COLOR", "FACE").data.foreach_set(
+        "color", _rgba(patch).ravel()
+    )
+    me.update()
+    if shapes is not None:
+        shapes[key] = (me, faces)
+    return me
+
+
+def _set_positions_uvs(me, patch, faces):
+    """The vertices' positions and the corners' UVs through the generic attributes:
+    their arrays are set whole (MeshVertex.co and MeshUVLoop.uv go element by element,
+    15–50× slower)."""
+    co = np.asarray(patch.vertices, dtype=np.float32).ravel()
+    pos = me.attributes.get("position")
+    if pos is not None and pos.data_type == "FLOAT_VECTOR":
+        pos.data.foreach_set("vector", co)
+    else:
+        me.vertices.foreach_set("co", co)
+    if patch.uvs is not None:
+        uv = np.asarray(patch.uvs, dtype=np.float32)[faces].ravel()
+        attr = me.attributes.get(UV_NAME)
+        if attr is not None and attr.data_type == "FLOAT2" and attr.domain == "CORNER":
+            attr.data.foreach_set("vector", uv)
+        else:
+            me.uv_layers[UV_NAME].data.foreach_set("uv", uv)
+
+
+def _rgba(patch) -> np.ndarray:
+    rgba = np.ones((len(patch.faces), 4), dtype=np.float32)
+    rgba[:, :3] = patch.face_irradiance
+    return rgba
+
+
+def _visibility(ob):
+    ob.visible_camera = True
+    ob.visible_glossy = True
+    ob.visible_transmission = True
+    ob.visible_diffuse = False
+    ob.visible_shadow = False
+    ob.visible_volume_scatter = False
+
+
+def create_layer(scene, patch, info, collection, materials, k, shapes=None):
+    """One layer object (registered and marked like a lens light); ``shapes``: see
+    `layer_mesh`."""
+    name = f"{LAYER_PREFIX}{info.name} {k}"
+    ob = bpy.data.objects.new(name, layer_mesh(name, patch, shapes))
+    ob.data.materials.append(layer_material(info, materials))
+    collection.objects.link(ob)
+    _visibility(ob)
+    meta = ob.lens_lights
+    meta.is_lens_light = True
+    meta.energy_model = "CAUSTIC_LAYER"
+    meta.source_lens = info.name  # the receiver it lies on
+    meta.relative_brightness = float(patch.flux)
+    meta.note = f"caustic layer: {patch.resolution}² faces, {patch.flux:.4g} W"
+    scene.lens_lights.created_objects.add().object = ob
+    return ob
+
+
+def _include_collection(scene, objects, tag):
+    """A linking collection that lights only `objects` (the fallback receivers)."""
+    coll = bpy.data.collections.new(INCLUDE_PREFIX + tag)
+    coll[COLLECTION_MARK] = "link"
+    for ob in objects:
+        coll.objects.link(ob)
+    for member in coll.collection_objects:
+        member.light_linking.link_state = "INCLUDE"
+    scene.lens_lights.created_collections.add().collection = coll
+    return coll
+
+
+def build(scene, bake, receivers, planned, lens_objects, progress=None):
+    """The layers of `bake` (`pipeline.SheetBake`) on `receivers`
+    (`receiver_reader.Receivers`); for the sources whose caustic lands on a receiver
+    a layer cannot show, their Fitted spot (`planned[i]`), lighting only those
+    receivers. Returns (layer objects, fallback lights, fallback receiver names)."""
+    collection = lights_collection(scene)
+    materials: dict = {}
+    shapes: dict = {}  # one topology per raster resolution: later meshes copy it
+    layers, fallback_sources, fallback_objects = [], set(), {}
+    patches = bake.layer.patches
+    for k, patch in enumerate(patches):
+        info = receivers.objects[patch.object_id]
+        if info.fallback:
+            fallback_sources.update(int(s) for s in patch.sources)
+            fallback_objects[info.name] = info.original
+            continue
+        layers.append(create_layer(scene, patch, info, collection, materials, k, shapes))
+        if progress is not None and k % 8 == 7:
+            progress((k + 1) / max(len(patches), 1))
+    lights = []
+    if fallback_sources:
+        include = _include_collection(scene, list(fallback_objects.values()), "receivers")
+        links: dict = {}
+        for s in sorted(fallback_sources):
+            p = planned[s]
+            ob = create_light(
+                scene, p, lens_objects[p.source.lens], collection, links, model_name="CAUSTIC_LAYER"
+            )
+            ob.light_linking.receiver_collection = include
+            ob.lens_lights.note = "; ".join(
+                x
+                for x in (ob.lens_lights.note, "Fitted spot for glossy or transparent receivers")
+                if x
+            )
+            lights.append(ob)
+    return layers, lights, sorted(fallback_objects)
+
+
+def remove_unused_layer_materials() -> int:
+    """Remove the extension's layer materials (marked) that nothing uses."""
+    unused = [m for m in bpy.data.materials if _is_layer_material(m) and m.users == 0]
+    if unused:
+        bpy.data.batch_remove(unused)
+    return len(unused)

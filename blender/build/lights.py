@@ -1,0 +1,513 @@
+"""Create and remove the lens lights (bpy).
+
+Every lens light is a SPOT light object in the collection "Lens Lights" (created on
+demand, under the scene's collection), placed, turned and shaped from a
+`BlenderLight` (`core/tiers/base.py`):
+
+* location and rotation: the light's local −Z along `direction`;
+* scale (k, k, 1) when the cone is narrower than Blender's 1° minimum;
+* energy, colour, spot_size, spot_blend, radius (`shadow_soft_size`), and EEVEE's
+  custom influence distance;
+* light linking and shadow linking: both the receiver and the blocker collection
+  are a collection "Lens link: <lens>" holding the lens with state EXCLUDE, so the
+  light neither lights nor is blocked by its own lens (everything else as usual).
+  One such collection per lens, shared by all of its lights. Objects instanced
+  from one original share its linking: all instances of that original are
+  excluded (Blender links objects, not instances).
+* `object.lens_lights` records the origin: primary light, lens, kind, full,
+  unblocked share, the tier it was made with (`energy_model`), relative
+  brightness, notes.
+* EXACT_PROFILE lights (`tiers.exact_profile.ProfileLight`, Cycles only) also get
+  the light node tree of `build_profile_nodes` (this module is its one description;
+  `bench/blender_light_check.py` renders it): a SPOT of 180°, blend 0, whose emission
+  strength is read from a 32-bit float, Non-Color, packed image of the profile.
+  The node tree is the light's own (embedded in the light data, removed with it);
+  the image is named "Lens profile <key>", marked with the custom property
+  `properties.COLLECTION_MARK` = "profile" and its cache key, and shared by every
+  light with the same key (same D/R and n: same pixels).
+
+The values (all but the name, linking and origin) are put by `apply_light`, on a new
+light or on one live update keeps (`live_update`): only what differs is written.
+
+Everything created is listed in `scene.lens_lights.created_*` and marked
+(`object.lens_lights.is_lens_light`, collection custom property
+`properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
+and then the marked profile images nothing uses any more.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+from mathutils import Vector
+
+from ..ui.properties import COLLECTION_MARK
+from . import mask_nodes
+
+COLLECTION_NAME = "Lens Lights"
+LINK_PREFIX = "Lens link: "
+PROFILE_PREFIX = "Lens profile "
+#: Custom property of a profile image: its cache key (see `profile_image`).
+PROFILE_KEY = "lens_lights_profile_key"
+
+
+def _register_collection(settings, coll):
+    item = settings.created_collections.add()
+    item.collection = coll
+
+
+def lights_collection(scene):
+    """The extension's "Lens Lights" collection in `scene`, created if needed."""
+    settings = scene.lens_lights
+    for item in settings.created_collections:
+        coll = item.collection
+        if coll is not None and coll.get(COLLECTION_MARK) == "lights":
+            if coll.name not in scene.collection.children:
+                scene.collection.children.link(coll)
+            return coll
+    coll = bpy.data.collections.new(COLLECTION_NAME)
+    coll[COLLECTION_MARK] = "lights"
+    scene.collection.children.link(coll)
+    _register_collection(settings, coll)
+    return coll
+
+
+def link_collection(scene, lens_object, cache):
+    """The linking collection that excludes `lens_object` (one per lens, per run)."""
+    coll = cache.get(lens_object.name)
+    if coll is None:
+        coll = bpy.data.collections.new(LINK_PREFIX + lens_object.name)
+        coll[COLLECTION_MARK] = "link"
+        coll.objects.link(lens_object)
+        for member in coll.collection_objects:
+            member.light_linking.link_state = "EXCLUDE"
+        _register_collection(scene.lens_lights, coll)
+        cache[lens_object.name] = coll
+    return coll
+
+
+def shader_math(nt, op, *inputs):
+    """A Math node of `nt` doing `op` on `inputs` (numbers become its default values,
+    sockets are linked; None leaves an input as it is); its output socket."""
+    n = nt.nodes.new("ShaderNodeMath")
+    n.operation = op
+    for k, v in enumerate(inputs):
+        if v is None:
+            continue
+        if isinstance(v, (int, float)):
+            n.inputs[k].default_value = float(v)
+        else:
+            nt.links.new(v, n.inputs[k])
+    return n.outputs[0]
+
+
+def packed_exr(name: str, pixels, depth: str, file_name: str):
+    """A packed Non-Color image named `name` of `pixels` ((H, W) one channel or
+    (H, W, 3) RGB, row 0 at the bottom) as an OpenEXR of `depth` ("16" half, "32"
+    float), ZIP: written through a throw-away scene's output settings (the user's are
+    not touched) into a temporary folder, loaded and packed. A third of the size of
+    the RGBA image packed from memory."""
+    import os
+    import tempfile
+
+    import numpy as np
+
+    px = np.asarray(pixels, dtype=np.float32)
+    h, w = px.shape[:2]
+    tmp_scene = bpy.data.scenes.new("Lens Lights bake (temporary)")
+    src = bpy.data.images.new(name + " (temporary)", w, h, float_buffer=True, alpha=False)
+    try:
+        src.colorspace_settings.name = "Non-Color"  # before the pixels (see profile_image)
+        src.use_half_precision = False
+        rgba = np.ones((h, w, 4), dtype=np.float32)
+        rgba[..., :3] = px[..., None] if px.ndim == 2 else px
+        src.pixels.foreach_set(rgba.ravel())
+        src.update()
+        settings = tmp_scene.render.image_settings
+        settings.file_format = "OPEN_EXR"
+        settings.color_mode = "BW" if px.ndim == 2 else "RGB"
+        settings.color_depth = depth
+        settings.exr_codec = "ZIP"
+        with tempfile.TemporaryDirectory(prefix="lens-lights-") as folder:
+            path = os.path.join(folder, file_name)
+            src.save_render(path, scene=tmp_scene)
+            img = bpy.data.images.load(path)
+            img.colorspace_settings.name = "Non-Color"
+            img.pack()
+    finally:
+        bpy.data.images.remove(src)
+        bpy.data.scenes.remove(tmp_scene)
+    img.name = name
+    return img
+
+
+def linking_sets(scene) -> int:
+    """How many lens-linking collections this extension keeps in `scene` (each is
+    one of Blender's light-linking sets)."""
+    return sum(
+        1
+        for item in scene.lens_lights.created_collections
+        if item.collection is not None and item.collection.get(COLLECTION_MARK) == "link"
+    )
+
+
+def _is_profile_image(img) -> bool:
+    return img.get(COLLECTION_MARK) == "profile"
+
+
+def profile_image(profile: dict, image_cache: dict | None = None):
+    """The float image of an EXACT_PROFILE table (`ProfileLight.profile`), reusing
+    a marked image with the same key and size (from `image_cache`, then from
+    `bpy.data`); a table without a key gets an image of its own."""
+    import numpy as np
+
+    key = profile.get("key")
+    H, K = int(profile["height"]), int(profile["width"])
+    if key is not None:
+        if image_cache is not None and key in image_cache:
+            return image_cache[key]
+        for img in bpy.data.images:
+            if (
+                _is_profile_image(img)
+                and img.get(PROFILE_KEY) == key
+                and tuple(img.size) == (K, H)
+                and (img.packed_file is not None or img.has_data)
+            ):
+                if image_cache is not None:
+                    image_cache[key] = img
+                return img
+    img = bpy.data.images.new(
+        PROFILE_PREFIX + (key or "table"), width=K, height=H, float_buffer=True, alpha=False
+    )
+    img[COLLECTION_MARK] = "profile"
+    if key is not None:
+        img[PROFILE_KEY] = key
+    # Traps: the colour space first (changing it
+    # later regenerates the generated image and loses the pixels), and full float
+    # precision (the table spans about 20 decades, up to ~1e7).
+    img.colorspace_settings.name = "Non-Color"
+    img.use_half_precision = False
+    rgba = np.ones((H, K, 4), dtype=np.float32)
+    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    if profile.get("slope") is not None:  # near field: the rays' mean slope, green
+        rgba[..., 1] = np.asarray(profile["slope"], dtype=np.float32)
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    img.pack()  # kept in the .blend (as OpenEXR)
+    if image_cache is not None and key is not None:
+        image_cache[key] = img
+    return img
+
+
+#: A baked profile light's keyed Value nodes (`blender/commands/bake.py`): the slice
+#: coordinate and the table's first distance.
+SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+
+
+def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | None = None):
+    """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
+    ignores light nodes), the one description Generate, live update and the bake
+    share: emission strength = red(texture(u, v)) × strength_scale [× tilt factor],
+    with u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
+    Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
+    distance along the axis, Light Path ▸ Ray Length × cos γ); the image
+    (`profile_image`) read with linear interpolation, EXTEND. With the light's
+    energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
+    texture. The tilt factor (`_tilt_factor`) when the profile has a
+    ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
+
+    `slices` = (count, rows): the baked light's stacked image (`bake_plan`): v read
+    in slice s of `count` slices of `rows` rows each (clamped to the slice's first
+    and last row centres, `bake_plan.slice_row`), two neighbouring slices blended by
+    the fractional part of s; s and h_min are Value nodes (`SLICE_NODE`,
+    `H_MIN_NODE`) the bake keys per frame."""
+    if bpy.app.version < (5, 0, 0) or data.node_tree is None:
+        data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
+    nt = data.node_tree
+    nt.nodes.clear()
+
+    def math_node(op, a, b=None, c=None):
+        return shader_math(nt, op, a, b, c)
+
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(tc.outputs["Normal"], sep.inputs[0])
+    cosg = math_node("MULTIPLY", sep.outputs["Z"], -1.0)
+    # γ = atan2(sin γ, cos γ), not acos(cos γ): in 32-bit floats acos quantises the
+    # angles below ~0.02° (cos γ = 1 − γ²/2 rounds), which read the axial caustic's
+    # first texels far out from the axis (a 4× hot pixel at a sun's caustic centre)
+    x2 = math_node("MULTIPLY", sep.outputs["X"], sep.outputs["X"])
+    sin_g = math_node("SQRT", math_node("MULTIPLY_ADD", sep.outputs["Y"], sep.outputs["Y"], x2))
+    gam = math_node("ARCTAN2", sin_g, math_node("MAXIMUM", cosg, 0.0))
+    u = math_node("SQRT", math_node("DIVIDE", gam, math.radians(profile["gamma_max_deg"])))
+    lp = nt.nodes.new("ShaderNodeLightPath")
+    h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
+    h_min, h_max = float(profile["h_min"]), float(profile["h_max"])
+    log_range = math.log(h_max / h_min)
+    if slices is not None:
+        h_node = nt.nodes.new("ShaderNodeValue")
+        h_node.name = h_node.label = H_MIN_NODE
+        h_node.outputs[0].default_value = h_min
+        h_min = h_node.outputs[0]
+    ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
+    v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
+
+    def lookup(v):
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(v, comb.inputs["Y"])
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        tex.interpolation = "Linear"
+        tex.extension = "EXTEND"
+        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+        rgb = nt.nodes.new("ShaderNodeSeparateColor")  # red: the intensity
+        nt.links.new(tex.outputs["Color"], rgb.inputs[0])
+        return rgb
+
+    if slices is None:
+        rgb = lookup(v)
+        texel = rgb.outputs[0]
+    else:
+        count, rows = int(slices[0]), int(slices[1])
+        s_node = nt.nodes.new("ShaderNodeValue")
+        s_node.name = s_node.label = SLICE_NODE
+        s = s_node.outputs[0]
+        half = 0.5 / rows
+        v = math_node("MAXIMUM", math_node("MINIMUM", v, 1.0 - half), half)
+        base = math_node("MINIMUM", math_node("FLOOR", s), max(count - 2, 0))
+
+        def row(offset):
+            return math_node("DIVIDE", math_node("ADD", math_node("ADD", base, offset), v), count)
+
+        rgb = lookup(row(0.0))
+        texel = rgb.outputs[0]
+        if count > 1:
+            frac = math_node("SUBTRACT", s, base)
+            second = lookup(row(1.0)).outputs[0]
+            texel = math_node("MULTIPLY_ADD", math_node("SUBTRACT", second, texel), frac, texel)
+    strength = math_node("MULTIPLY", texel, float(profile.get("strength_scale", 1.0)))
+    if profile.get("receiver_normal") is not None:
+        strength = math_node("MULTIPLY", strength, _tilt_factor(profile, sep, sin_g, cosg, rgb))
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(strength, em.inputs["Strength"])
+    out = nt.nodes.new("ShaderNodeOutputLight")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return nt
+
+
+def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
+    """Near field, a receiver tilted against the axis (normal n along the beam,
+    `profile["receiver_normal"]`): the light's rays come from its apex (slope
+    tan γ), the beam's from the lens (mean slope T, the image's green channel), and
+    a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so the intensity is
+    scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω: the Normal
+    coordinate, a = −Z, in the light's frame as `create_light` turns it)."""
+    nt = sep.id_data
+    q = Vector(profile["axis"]).to_track_quat("-Z", "Y")
+    nx, ny, nz = q.inverted() @ Vector(profile["receiver_normal"])
+
+    def op(kind, *args):
+        return shader_math(nt, kind, *args)
+
+    x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
+    q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
+    n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
+    rho_n = op("DIVIDE", q_xy, op("MAXIMUM", sin_g, 1e-6))
+    beam = op("MULTIPLY_ADD", rgb.outputs[1], rho_n, -nz)  # n·a + T ρ̂·n
+    factor = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
+    return op("MINIMUM", op("MAXIMUM", factor, 0.0), 8.0)
+
+
+def create_light(
+    scene,
+    planned,
+    lens_object,
+    collection,
+    link_cache,
+    model_name="",
+    image_cache=None,
+    arrays=None,
+):
+    """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
+    tree, and its shadow mask given phase 1's `arrays`; `image_cache` shares
+    profile images within a run)."""
+    name = f"Lens light {planned.light_name} > {planned.lens_name}"
+    data = bpy.data.lights.new(name, "SPOT")
+    ob = bpy.data.objects.new(name, data)
+    try:
+        apply_light(ob, planned, image_cache, arrays)
+    except Exception:
+        bpy.data.objects.remove(ob)  # not registered yet: clear would miss them
+        bpy.data.lights.remove(data)
+        raise
+    collection.objects.link(ob)
+    if lens_object is not None:
+        link = link_collection(scene, lens_object, link_cache)
+        ob.light_linking.receiver_collection = link
+        ob.light_linking.blocker_collection = link
+    meta = ob.lens_lights
+    meta.is_lens_light = True
+    meta.source_light = planned.light_name
+    meta.source_lens = planned.lens_name
+    meta.kind = planned.light.kind
+    meta.energy_model = model_name or planned.light.model
+    item = scene.lens_lights.created_objects.add()
+    item.object = ob
+    return ob
+
+
+def _put(owner, attr, value):
+    """Set `owner.attr` only if it differs (float32 storage: a relative tolerance),
+    so that an unchanged lens light is not tagged for re-evaluation (live update)."""
+    old = getattr(owner, attr)
+    if isinstance(value, str) or isinstance(old, (bool, str)):
+        same = old == value
+    else:
+        olds = tuple(old) if hasattr(old, "__len__") else (old,)
+        news = tuple(value) if hasattr(value, "__len__") else (value,)
+        same = len(olds) == len(news) and all(
+            abs(a - b) <= 1e-6 * max(1.0, abs(b)) for a, b in zip(olds, news, strict=True)
+        )
+    if not same:
+        setattr(owner, attr, value)
+
+
+#: Custom properties of a profile light's data: what its node tree was built from,
+#: and whether it ends with a shadow mask.
+PROFILE_SIGNATURE = "lens_lights_profile_signature"
+MASKED = "lens_lights_masked"
+
+
+def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
+    """Put a `PlannedLight`'s values on the lens light `ob` (new, or kept by live
+    update): transform, energy, colour, cone, blend, radius, distance, the origin
+    notes, and for EXACT_PROFILE its node tree (rebuilt only when the profile
+    differs from the one it was built from), ending with the shadow mask of a
+    source with a shadow list (`mask_nodes.add_shadow_mask`; `arrays`: phase 1's
+    `SceneArrays`; the mask depends on the blockers' places, so such a tree is
+    rebuilt on every call). Writes only what changed; True if the tree was rebuilt."""
+    bl = planned.light
+    data = ob.data
+    _put(data, "energy", bl.energy_w)
+    _put(data, "color", bl.color)
+    _put(data, "spot_size", math.radians(bl.spot_size_deg))
+    _put(data, "spot_blend", bl.spot_blend)
+    _put(data, "shadow_soft_size", bl.radius)
+    _put(data, "use_custom_distance", True)
+    _put(data, "cutoff_distance", bl.cutoff_distance)
+    profile = getattr(bl, "profile", None)
+    if profile is not None:
+        signature = repr(
+            [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
+            + [profile.get(k) for k in ("h_max", "strength_scale")]
+        )
+        masked = arrays is not None and len(planned.source.shadow_list) > 0
+        rebuilt = (
+            masked
+            or profile.get("key") is None
+            or data.get(PROFILE_SIGNATURE) != signature
+            or data.get(MASKED, False)
+        )
+        if rebuilt:
+            build_profile_nodes(data, profile, profile_image(profile, image_cache))
+            data[PROFILE_SIGNATURE] = signature
+            data[MASKED] = bool(masked and mask_nodes.add_shadow_mask(ob, planned, arrays))
+    _put(ob, "location", bl.location)
+    _put(ob, "rotation_mode", "QUATERNION")
+    _put(ob, "rotation_quaternion", Vector(bl.direction).to_track_quat("-Z", "Y"))
+    _put(ob, "scale", (bl.scale_xy, bl.scale_xy, 1.0))
+    meta = ob.lens_lights
+    _put(meta, "full", bool(planned.source.full))
+    _put(meta, "unblocked_fraction", float(planned.source.unblocked_fraction))
+    _put(meta, "relative_brightness", bl.relative_brightness)
+    _put(meta, "note", bl.note)
+    return profile is not None and rebuilt
+
+
+def build(scene, plan, lens_objects, progress=None, arrays=None):
+    """Create the planned lights; `lens_objects[i]`: original object of sphere i.
+    `progress(k)` is called with the number of lights made so far. `arrays`: phase 1's
+    `SceneArrays` (a profile light of a non-full source gets its shadow mask)."""
+    collection = lights_collection(scene)
+    cache: dict = {}
+    images: dict = {}
+    made = []
+    for k, planned in enumerate(plan.lights):
+        made.append(
+            create_light(
+                scene,
+                planned,
+                lens_objects[planned.source.lens],
+                collection,
+                cache,
+                image_cache=images,
+                arrays=arrays,
+            )
+        )
+        if progress is not None and k % 16 == 15:
+            progress(k + 1)
+    return made
+
+
+def created_objects(scene):
+    """The extension's lights in `scene` (listed in the registry and marked)."""
+    out = []
+    for item in scene.lens_lights.created_objects:
+        ob = item.object
+        if ob is not None and ob.lens_lights.is_lens_light and ob not in out:
+            out.append(ob)
+    return out
+
+
+def clear(scene) -> int:
+    """Remove every lens light the extension created in `scene` (and its linking
+    collections; the "Lens Lights" collection too once nothing else is in it; the
+    profile images no light uses any more). Returns how many lights were removed.
+    Nothing else is touched."""
+    settings = scene.lens_lights
+    objects = created_objects(scene)
+    refs: dict = {}
+    for ob in objects:
+        if ob.data is not None:
+            refs[ob.data] = refs.get(ob.data, 0) + 1
+    # a datablock only these objects use goes with them, in the same pass (each
+    # batch_remove scans the whole file: slow with many objects); one that something
+    # else uses too (the user linked it) stays
+    owned = [d for d, k in refs.items() if d.users == k]
+    removed = len(objects)
+    if objects:
+        bpy.data.batch_remove(objects + owned)  # with their embedded node trees
+    remove_unused_profile_images()
+    from .layers import remove_unused_layer_materials  # (it imports this module)
+
+    remove_unused_layer_materials()
+    from ..commands.bake import remove_unused_bake_actions  # (it imports this module)
+
+    remove_unused_bake_actions()
+    settings.created_objects.clear()
+    keep = []
+    for item in settings.created_collections:
+        coll = item.collection
+        if coll is None or coll.get(COLLECTION_MARK) is None:
+            continue
+        if coll.get(COLLECTION_MARK) == "link" or (not coll.objects and not coll.children):
+            bpy.data.collections.remove(coll)
+        else:
+            keep.append(coll)  # the user put something of theirs in it
+    settings.created_collections.clear()
+    for coll in keep:
+        _register_collection(settings, coll)
+    return removed
+
+
+def remove_unused_profile_images() -> int:
+    """Remove the extension's profile images (marked) that nothing uses; an image
+    still used (by another scene's lens lights, or by something of the user's) is
+    kept. Returns how many were removed."""
+    unused = [img for img in bpy.data.images if _is_profile_image(img) and img.users == 0]
+    if unused:
+        bpy.data.batch_remove(unused)
+    return len(unused)

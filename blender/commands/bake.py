@@ -1,0 +1,582 @@
+"""Operator "Bake lens lights" (`lens_lights.bake`): lens lights keyed over a frame
+range, so that the .blend renders the animation with stock Blender (no extension:
+render-farm nodes). One undo step; from the UI it runs modal (a frame per timer
+tick, progress bar, Esc cancels and changes nothing); from Python or in the
+background it runs at once.
+
+Two stages, as Generate (`generate.py`), so that a failure or a cancel leaves the
+scene as it was:
+
+1. **Plan** every frame (nothing changes but the current frame, put back at the
+   end): `scene.frame_set(f)`, then Generate's planning (`generate.plan_scene`, and
+   the Caustic layer's bake `layer_stage.prepare`) on the render depsgraph of a
+   probe render where the render can differ from the viewport, else the viewport's
+   (`render_probe.as_rendered`, as Generate; `use_viewport=True`: always the
+   viewport depsgraph with the render rules). Each frame's lights become
+   `core.animation.light_tracks.FrameLight`s keyed by live update's
+   `core.animation.light_keys.LightKey` (primary, lens, kind, tier, occurrence;
+   variant "near" for the Exact profile's near field).
+2. **Build**: Clear (the previous lens lights, baked or not), then
+   * light tiers: one Blender object per key (`lights.create_light` from the
+     key's first frame), its transform (object action), energy, colour, cone,
+     blend and radius (light data action) keyed on every frame, LINEAR; on frames
+     without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
+   * Exact profile: per (lens, n, near field[, receiver]) one image of stacked D/R
+     slices (`light_tracks.slice_grid`; the near field: per track, a block of D/R
+     slices per receiver distance, `light_tracks.near_slices`), and Generate's
+     node tree in its slices mode (`lights.build_profile_nodes(slices=)`)
+     whose slice coordinate and first table distance are keyed Value nodes
+     (node-tree action): the number of images does not grow with the frames. Not
+     baked: the tilt correction and the shadow mask (both depend on the frame);
+   * Caustic layer: one mesh per receiver plane × lens lights whose topology is
+     fixed over the frames (`core.animation.layer_segments`: the union of the frames' rasters,
+     cut in time only where it would coarsen a frame's caustic core more than
+     `layer_segments.COARSEN_LIMIT` times; each frame's rays landed again on it), the
+     frames' irradiance as slices of one packed half-float image, read through
+     the mesh's raster UVs with a keyed slice index (`layer_bake_builder`).
+
+Live update (where the extension has it) is turned off for the bake and stays off
+after it (the keys drive the lights; a cancel or a failed plan puts it back).
+
+Every action made is marked (`properties.COLLECTION_MARK` = "bake") and removed by
+Clear once unused (`remove_unused_bake_actions`, called by `lights.clear`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+import traceback
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+from ...core.animation import layer_segments, light_tracks
+from ...core.animation.light_keys import keys_of
+from ...core.report.message import error_text
+from ...core.tiers import EXACT_PROFILE, builds_layer
+from ..build import baked_layers, cycles_caustics, layers, lights
+from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
+from ..ui.properties import COLLECTION_MARK
+from . import layer_stage
+from .generate import _options, plan_scene
+
+BAKE_MARK = "bake"
+SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
+#: The figures of the last bake (seconds per stage, counts).
+LAST_BAKE: dict = {}
+
+
+# --------------------------------------------------------------------------- keyframes
+
+
+def _fcurves(idb):
+    """The F-curves of `idb`'s action (its slot's channel bag from 4.4 on)."""
+    ad = idb.animation_data
+    slot = getattr(ad, "action_slot", None)
+    if slot is not None:
+        from bpy_extras.anim_utils import action_get_channelbag_for_slot
+
+        return action_get_channelbag_for_slot(ad.action, slot).fcurves
+    return ad.action.fcurves
+
+
+def key_column(idb, data_path, index, frames, values, interpolation="LINEAR"):
+    """Key `idb`'s `data_path[index]` to `values` on `frames` in one go:
+    `keyframe_insert` once (the action, slot and F-curve, on every release), then
+    all the points at once."""
+    frames = [float(f) for f in frames]
+    values = [float(v) for v in values]
+    idb.keyframe_insert(data_path, index=index, frame=frames[0])
+    ad = idb.animation_data
+    if ad.action.get(COLLECTION_MARK) is None:
+        ad.action[COLLECTION_MARK] = BAKE_MARK
+    fc = _fcurves(idb).find(data_path, index=max(index, 0))
+    points = fc.keyframe_points
+    points.add(len(frames) - len(points))
+    co = [x for pair in zip(frames, values, strict=True) for x in pair]
+    points.foreach_set("co", co)
+    for p in points:
+        p.interpolation = interpolation
+    fc.update()
+    return fc
+
+
+def key_visibility(ob, keys):
+    """`ob` hidden / shown at (frame, hidden) `keys` (render and viewport), CONSTANT."""
+    frames = [f for f, _ in keys]
+    hidden = [1.0 if h else 0.0 for _, h in keys]
+    for path in ("hide_render", "hide_viewport"):
+        key_column(ob, path, -1, frames, hidden, "CONSTANT")
+
+
+# --------------------------------------------------------------------------- profile
+
+
+def compact_profile_image(key: str, pixels):
+    """A marked profile image (as `lights.profile_image` makes, reused by
+    key) holding `pixels` (H, K) as a one-channel 32-bit float OpenEXR, ZIP, packed:
+    bit for bit the same values (`lights.packed_exr`)."""
+    H, K = pixels.shape
+    for img in bpy.data.images:
+        if (
+            img.get(COLLECTION_MARK) == "profile"
+            and img.get(lights.PROFILE_KEY) == key
+            and tuple(img.size) == (K, H)
+            and img.packed_file is not None
+        ):
+            return img
+    img = lights.packed_exr(lights.PROFILE_PREFIX + key, pixels, "32", "lens_profile.exr")
+    img[COLLECTION_MARK] = "profile"
+    img[lights.PROFILE_KEY] = key
+    return img
+
+
+def _profile_images(tracks, ratio) -> dict:
+    """Per Exact profile track key: (image, slices, rows, slice coordinate per
+    frame, h_min per frame in world units). Far field: the image stacks its group's
+    D/R slices (`light_tracks.profile_groups`); near field: the track's own image, a
+    block of D/R slices per receiver distance (`light_tracks.near_slices`)."""
+    out = {}
+    far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
+    groups = light_tracks.profile_groups(far, ratio)
+    by_key = {t.key: t for t in tracks}
+    for group, (keys, grid) in groups.items():
+        lens, n = group[:2]
+        tables = [light_tracks.profile_slice_table(g, n, False) for g in grid]
+        key = f"bake {lens} n {n:.9g} D/R " + " ".join(f"{g:.9g}" for g in grid)
+        image = compact_profile_image(key, light_tracks.stack_slices(tables))
+        for k in keys:
+            t = by_key[k]
+            s = light_tracks.slice_coordinate(t.d_over_r, grid)
+            out[k] = (image, len(grid), tables[0].shape[0], s, t.values["h_min"][:, 0])
+    for t in tracks:
+        if t.profile_group is None or not t.profile_group[2]:
+            continue
+        lens, n = t.profile_group[:2]
+        nodes, s = light_tracks.near_slices(t, ratio)
+        tables = [light_tracks.profile_slice_table(d, n, True, z) for d, z in nodes]
+        key = f"bake {lens} n {n:.9g} near " + " ".join(f"{d:.9g} {z:.6g}" for d, z in nodes)
+        image = compact_profile_image(key, light_tracks.stack_slices(tables))
+        h_min = np.array([light_tracks.slice_h_min(nodes[int(math.floor(k))][1]) for k in s])
+        out[t.key] = (
+            image,
+            len(nodes),
+            tables[0].shape[0],
+            s,
+            h_min * t.values["lens_radius"][:, 0],
+        )
+    return out
+
+
+# --------------------------------------------------------------------------- the bake
+
+
+def _frame_lights(work, firsts: dict) -> list:
+    """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
+    (PlannedLight, lens object)."""
+    out = []
+    nears = [
+        bool(
+            p.light.model == EXACT_PROFILE
+            and getattr(p.light, "profile_info", None) is not None
+            and p.light.inside_lens
+        )
+        for p in work.plan.lights
+    ]
+    keys = keys_of(
+        (p.light_name, p.lens_name, p.light.kind, p.light.model, "near" if near else "")
+        for p, near in zip(work.plan.lights, nears, strict=True)
+    )
+    for p, near, key in zip(work.plan.lights, nears, keys, strict=True):
+        bl = p.light
+        profile = bl.model == EXACT_PROFILE and getattr(bl, "profile_info", None) is not None
+        q = Vector(bl.direction).to_track_quat("-Z", "Y")
+        values = dict(
+            location=bl.location,
+            rotation_quaternion=tuple(q),
+            scale_xy=bl.scale_xy,
+            energy=bl.energy_w,
+            color=bl.color,
+            spot_size=math.radians(bl.spot_size_deg),
+            spot_blend=bl.spot_blend,
+            radius=bl.radius,
+        )
+        fl = light_tracks.FrameLight(key, values)
+        if profile:
+            src = p.source
+            fl.profile_group = (p.lens_name, round(float(src.ior), 9), near)
+            fl.d_over_r = float(src.distance) / float(src.lens_radius)
+            values["h_min"] = float(bl.profile_info["h_min"])
+            values["lens_radius"] = float(src.lens_radius)
+            if near:
+                values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
+        if key not in firsts:
+            firsts[key] = (p, work.read.sphere_objects[p.source.lens])
+        out.append(fl)
+    return out
+
+
+class Baker:
+    """One bake: `plan_next()` per frame, then `build()` (or `cancel()`)."""
+
+    def __init__(
+        self,
+        context,
+        frame_start: int,
+        frame_end: int,
+        use_viewport=False,
+        profile_step=light_tracks.SLICE_RATIO - 1.0,
+    ):
+        if frame_end < frame_start:
+            raise ValueError(f"the frame range {frame_start}–{frame_end} ends before it starts")
+        self.context, self.scene = context, context.scene
+        self.frames = list(range(int(frame_start), int(frame_end) + 1))
+        self.use_viewport = use_viewport
+        self.profile_step = float(profile_step)
+        self.options = _options(self.scene.lens_lights)
+        self.layer = builds_layer(self.options["energy_model"])
+        self.frame_before = (self.scene.frame_current, self.scene.frame_subframe)
+        # Live update (where the extension has it) would rebuild the lens lights on
+        # every frame the bake visits, and later overwrite the baked keys: off while
+        # baking, and after (the keys drive the lights); a cancel puts it back.
+        settings = self.scene.lens_lights
+        self.live_before = bool(getattr(settings, "live_update", False))
+        if self.live_before:
+            settings.live_update = False
+        self.per_frame, self.works, self.firsts = [], [], {}
+        self.lens_objects: set = set()
+        self.timings = dict(plan=0.0, build=0.0)
+        self.t0 = time.perf_counter()
+
+    @property
+    def done(self) -> bool:
+        return len(self.per_frame) == len(self.frames)
+
+    def plan_next(self):
+        """Plan the next frame (changes nothing but the current frame)."""
+        t = time.perf_counter()
+        f = self.frames[len(self.per_frame)]
+        scene, options = self.scene, self.options
+
+        def plan(dg):
+            return layer_stage.prepare(dg, plan_scene(dg, scene, options), options)
+
+        scene.frame_set(f)
+        if self.use_viewport:
+            work = plan(self.context.evaluated_depsgraph_get())
+            work.read.occluders.release()
+        else:  # the probe only where the render can differ from the viewport
+            work, how = as_rendered(self.context, plan)
+            if how == VIEWPORT_AS_RENDER:
+                work.read.occluders.release()
+        self.per_frame.append(_frame_lights(work, self.firsts))
+        self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
+        if self.layer:
+            self.works.append(work)  # built per frame (its meshes)
+        self.timings["plan"] += time.perf_counter() - t
+
+    def restore_frame(self):
+        self.scene.frame_set(self.frame_before[0], subframe=self.frame_before[1])
+
+    def cancel(self):
+        """Nothing changed: the frame and Live update as they were."""
+        self.restore_frame()
+        if self.live_before:
+            self.scene.lens_lights.live_update = True
+
+    def build(self) -> dict:
+        """Clear, then make the keyed lights (stage 2); figures for the report."""
+        t = time.perf_counter()
+        scene = self.scene
+        self.restore_frame()
+        lights.clear(scene)
+        cycles_caustics.restore(scene)
+        try:
+            figures = self._build_layers() if self.layer else self._build_lights()
+            if scene.lens_lights.replace_cycles_caustics and figures["objects"]:
+                cycles_caustics.replace(scene, sorted(self.lens_objects, key=lambda o: o.name))
+        except Exception:
+            lights.clear(scene)
+            cycles_caustics.restore(scene)
+            raise
+        self.timings["build"] = time.perf_counter() - t
+        figures.update(
+            frames=len(self.frames),
+            frame_start=self.frames[0],
+            frame_end=self.frames[-1],
+            energy_model=self.options["energy_model"],
+            seconds=time.perf_counter() - self.t0,
+            timings=dict(self.timings),
+        )
+        return figures
+
+    def _build_lights(self) -> dict:
+        scene = self.scene
+        tracks = light_tracks.build_tracks(self.frames, self.per_frame)
+        images = _profile_images(tracks, 1.0 + self.profile_step)
+        collection = lights.lights_collection(scene)
+        links: dict = {}
+        for track in tracks:
+            planned, lens_ob = self.firsts[track.key]
+            bl = planned.light
+            if track.profile_group is not None:  # no per-frame image: the nodes come below
+                bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
+            ob = lights.create_light(
+                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
+            )
+            self._key_track(ob, track, images)
+        return dict(objects=len(tracks), images=len({v[0].name for v in images.values()}))
+
+    def _key_track(self, ob, track, images):
+        frames, v = track.frames, track.values
+        for i in range(3):
+            key_column(ob, "location", i, frames, v["location"][:, i])
+        for i in range(4):
+            key_column(ob, "rotation_quaternion", i, frames, v["rotation_quaternion"][:, i])
+        for i in range(2):
+            key_column(ob, "scale", i, frames, v["scale_xy"][:, 0])
+        data = ob.data
+        key_column(data, "energy", -1, frames, v["energy"][:, 0])
+        for i in range(3):
+            key_column(data, "color", i, frames, v["color"][:, i])
+        key_column(data, "spot_size", -1, frames, v["spot_size"][:, 0])
+        key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
+        key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
+        if track.profile_group is not None:
+            image, count, rows, s, h_min = images[track.key]
+            info = self.firsts[track.key][0].light.profile_info
+            nt = lights.build_profile_nodes(data, info, image, slices=(count, rows))
+            path = 'nodes["{}"].outputs[0].default_value'
+            key_column(nt, path.format(SLICE_NODE), -1, frames, s)
+            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)
+        key_visibility(ob, light_tracks.visibility_keys(frames, track.present))
+
+    def _build_layers(self) -> dict:
+        """Fixed-topology layers (`core.animation.layer_segments`): per segment one mesh, its
+        slice, scale and colour keyed per frame (CONSTANT) and its visibility; the
+        frames' fallback spots (no receiver at all, or glossy / transparent ones)
+        are made per frame and shown on their frame only, as Generate makes them."""
+        scene = self.scene
+        first, last = self.frames[0], self.frames[-1]
+        inputs, spots = [], 0
+        for i, (f, work) in enumerate(zip(self.frames, self.works, strict=True)):
+            made = []
+            if work.layer_bake is None:  # no receiver: the Fitted spots stand in
+                made = layer_stage.build(scene, work)
+                inputs.append(layer_segments.FrameLayers([], None, [], []))
+            else:
+                infos = work.receivers.objects
+                skip = frozenset(k for k, info in enumerate(infos) if info.fallback)
+                keys = [fl.key for fl in self.per_frame[i]]
+                names = [info.name for info in infos]
+                inputs.append(
+                    layer_segments.FrameLayers(
+                        work.layer_sources, work.layer_bake, keys, names, skip
+                    )
+                )
+                if skip:
+                    patches = [p for p in work.layer_bake.layer.patches if p.object_id in skip]
+                    only = dataclasses.replace(
+                        work.layer_bake,
+                        layer=dataclasses.replace(work.layer_bake.layer, patches=patches),
+                    )
+                    _l, made, _n = layers.build(
+                        scene, only, work.receivers, work.plan.lights, work.read.sphere_objects
+                    )
+            for ob in made:
+                key_visibility(ob, light_tracks.single_frame_visibility(f, first, last))
+            spots += len(made)
+        t = time.perf_counter()
+        segments, res = layer_segments.bake_frames(inputs)
+        self.timings["layer re-landing"] = time.perf_counter() - t
+        infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
+        collection = lights.lights_collection(scene)
+        objects, keyed, images = baked_layers.build(scene, segments, res, infos, collection)
+        frames = np.asarray(self.frames)
+        path = 'nodes["{}"].outputs[0].default_value'
+        for seg, ob, (mat, slices, scales, colours) in zip(segments, objects, keyed, strict=True):
+            at = frames[seg.frames]
+            nt = mat.node_tree
+            key_column(nt, path.format(baked_layers.SLICE_NODE), -1, at, slices, "CONSTANT")
+            key_column(nt, path.format(baked_layers.SCALE_NODE), -1, at, scales, "CONSTANT")
+            for c in range(3):
+                col = [x[c] for x in colours]
+                key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
+            present = np.zeros(len(frames), dtype=bool)
+            present[seg.frames] = True
+            key_visibility(ob, light_tracks.visibility_keys(frames, present))
+        return dict(
+            objects=len(objects) + spots,
+            images=images,
+            layer_resolution=res,
+            layer_segments=[(len(s.frames), s.coarsening) for s in segments],
+        )
+
+
+def remove_unused_bake_actions() -> int:
+    """Remove the bake's actions (marked) that nothing uses (Clear's hook), and the
+    baked layer's images nothing uses."""
+    unused = [a for a in bpy.data.actions if a.get(COLLECTION_MARK) == BAKE_MARK and a.users == 0]
+    if unused:
+        bpy.data.batch_remove(unused)
+    baked_layers.remove_unused_bake_images()
+    return len(unused)
+
+
+def bake(
+    context,
+    frame_start=None,
+    frame_end=None,
+    use_viewport=False,
+    progress=None,
+    profile_step=light_tracks.SLICE_RATIO - 1.0,
+):
+    """Plan and build at once; returns (level, message, figures). Never raises."""
+    global LAST_BAKE
+    scene = context.scene
+    a = scene.frame_start if frame_start is None else frame_start
+    b = scene.frame_end if frame_end is None else frame_end
+    try:
+        baker = Baker(context, a, b, use_viewport, profile_step)
+    except ValueError as exc:
+        return "ERROR", str(exc), dict(changed=False)
+    try:
+        while not baker.done:
+            baker.plan_next()
+            if progress is not None:
+                progress(len(baker.per_frame) / len(baker.frames))
+    except Exception as exc:
+        traceback.print_exc()
+        baker.cancel()
+        return "ERROR", error_text("read the scene", exc), dict(changed=False)
+    return finish(baker)
+
+
+def finish(baker):
+    global LAST_BAKE
+    try:
+        figures = baker.build()
+    except Exception as exc:
+        traceback.print_exc()
+        message = error_text("bake the lens lights", exc) + " (the lens lights were removed)"
+        return "ERROR", message, dict(changed=True)
+    figures["changed"] = True
+    LAST_BAKE = figures
+    settings = baker.scene.lens_lights
+    settings.last_run = True
+    settings.last_created = figures["objects"]
+    settings.last_seconds = figures["seconds"]
+    settings.last_report = light_tracks.bake_message(figures)
+    if baker.live_before:
+        settings.last_report += "; Live update turned off (the keys drive the lens lights)"
+    return "INFO", settings.last_report, figures
+
+
+class LENS_LIGHTS_OT_bake(bpy.types.Operator):
+    """Key the lens lights on every frame of a range, so that the file renders the
+    animation without the extension (render farms). Esc cancels"""
+
+    bl_idname = "lens_lights.bake"
+    bl_label = "Bake Lens Lights"
+    bl_options = {"REGISTER", "UNDO"}
+
+    frame_start: bpy.props.IntProperty(
+        name="Start", description="First frame (default: the scene's)", default=0
+    )
+    frame_end: bpy.props.IntProperty(
+        name="End", description="Last frame (default: the scene's)", default=-1
+    )
+    use_viewport: bpy.props.BoolProperty(
+        name="Viewport Depsgraph",
+        description=(
+            "Read each frame from the viewport's evaluation with the render rules "
+            "instead of a probe render (faster; differs where the render settings do)"
+        ),
+        default=False,
+    )
+    profile_step: bpy.props.FloatProperty(
+        name="Profile Step",
+        description=(
+            "Exact profile: relative D/R step between the baked tables (smaller: closer "
+            "to the exact beam near the focus between tables; more tables, larger file)"
+        ),
+        default=100.0 * (light_tracks.SLICE_RATIO - 1.0),
+        min=0.5,
+        max=25.0,
+        subtype="PERCENTAGE",
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def _range(self, context):
+        scene = context.scene
+        a = self.frame_start if self.properties.is_property_set("frame_start") else None
+        b = self.frame_end if self.properties.is_property_set("frame_end") else None
+        return (scene.frame_start if a is None else a), (scene.frame_end if b is None else b)
+
+    def execute(self, context):
+        a, b = self._range(context)
+        self.frame_start, self.frame_end = a, b  # the redo panel shows what was baked
+        level, message, figures = bake(
+            context, a, b, self.use_viewport, profile_step=self.profile_step / 100.0
+        )
+        self.report({level}, message)
+        if level == "ERROR" and not figures.get("changed", True):
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        a, b = self._range(context)
+        try:
+            self._baker = Baker(context, a, b, self.use_viewport, self.profile_step / 100.0)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, len(self._baker.frames))
+        self._timer = wm.event_timer_add(0.001, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _end(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+
+    def modal(self, context, event):
+        baker = self._baker
+        if event.type == "ESC":
+            self._end(context)
+            baker.cancel()
+            self.report({"WARNING"}, "Bake cancelled: nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        try:
+            baker.plan_next()
+        except Exception as exc:
+            traceback.print_exc()
+            self._end(context)
+            baker.cancel()
+            self.report({"ERROR"}, error_text("read the scene", exc))
+            return {"CANCELLED"}
+        context.window_manager.progress_update(len(baker.per_frame))
+        if not baker.done:
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        level, message, _figures = finish(baker)
+        self.report({level}, message)
+        return {"FINISHED"}
+
+
+_CLASSES = (LENS_LIGHTS_OT_bake,)
+
+
+register, unregister = bpy.utils.register_classes_factory(_CLASSES)

@@ -1,0 +1,263 @@
+"""Operators "Generate lens lights" (`lens_lights.generate`) and "Clear lens lights"
+(`lens_lights.clear`), both undoable. Only what needs Blender is here; the
+planning (`core/plan/planning.py`) and the report (`core/report/message.py`) are pure.
+
+Generate works in two stages, so that a failure never leaves the scene half-done:
+
+1. **Plan** (nothing in the file changes): read the scene as the renderer sees it
+   (`render_probe.as_rendered`: the render depsgraph of the context scene and view
+   layer — the viewport one when nothing renders differently, else a probe
+   render's), run phase 1 for every light type
+   (`phase1_primaries.compute_phase1_primaries`), then `planning.plan_result`: pre-select the
+   sources (merging nearby ones if the scene's settings ask for it, then the
+   ``PRESELECT_FACTOR × max_lights`` strongest by estimated flux) and plan the
+   lights (energy model, merged sources' energy scale, brightness cut-off,
+   maximum number). The rays that keep a beam's spot clear of the geometry behind
+   its lens are cast against the geometry read from the same render depsgraph
+   (`occluders`).
+2. **Build**: remove the lights a previous run created (only those) and put back
+   the Cycles settings it changed, create the planned ones (`light_builder`), and
+   with "Replace Cycles' Caustics" on turn Cycles' own caustics of their lenses
+   off (`cycles_caustics`: recorded, restored by Clear and by the next Generate).
+
+A failure in stage 1 is reported and changes nothing (the operator is cancelled);
+one in stage 2 removes what was made and is reported. Generate never raises.
+
+The report (`report.report_message`) says how many lights were made, which pairs
+got none and why (the first few by name, then counts per reason), how many
+sources were merged, and which share of the lenses' estimated flux has no light.
+The figures are kept in `scene.lens_lights.last_*` for the panel and, with the
+time of each step, in `LAST_FIGURES`. A progress bar runs in the window (no-op
+without one).
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+
+import bpy
+
+from ...core.phase1.all_lights import compute_phase1_primaries
+from ...core.plan.cycles_caustics import describe as describe_caustics
+from ...core.plan.planning import PRESELECT_FACTOR, plan_result
+from ...core.report.message import error_text, linking_note, linking_sets_note, report_message
+from ...core.scene.assembly import RENDER
+from ...core.tiers import builds_layer, resolve_energy_model
+from ..build import cycles_caustics, lights
+from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
+from ..read.scene import read_depsgraph
+from ..ui.scene_state import has_lens_lights
+from . import layer_stage
+
+#: The figures of the last run of `generate` (with "timings": seconds per step).
+LAST_FIGURES: dict = {}
+
+
+class _Progress:
+    """`window_manager.progress_*` in percent; harmless without a window."""
+
+    def __init__(self, context):
+        self.wm = context.window_manager if context.window else None
+
+    def __enter__(self):
+        if self.wm:
+            self.wm.progress_begin(0, 100)
+        return self
+
+    def __call__(self, percent):
+        if self.wm:
+            self.wm.progress_update(int(percent))
+
+    def __exit__(self, *exc):
+        if self.wm:
+            self.wm.progress_end()
+
+
+def plan_scene(depsgraph, scene, options: dict):
+    """Stage 1 on `depsgraph` (see the module's docstring); changes nothing.
+    Returns a `planning.Work`."""
+    timings = {}
+    t = time.perf_counter()
+    read = read_depsgraph(depsgraph, scene)
+    timings["read"] = time.perf_counter() - t
+    t = time.perf_counter()
+    result = compute_phase1_primaries(read.arrays, read.primary_lights)
+    timings["phase1"] = time.perf_counter() - t
+    return plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
+
+
+def _options(settings) -> dict:
+    merge = bool(getattr(settings, "use_merge", False))
+    # The tier to build: AUTO → the most accurate for the scene's engine; Exact
+    # profile outside Cycles → Fitted, with a warning in the report.
+    model, model_warning = resolve_energy_model(
+        settings.energy_model, settings.id_data.render.engine
+    )
+    return dict(
+        energy_model=model,
+        model_warning=model_warning,
+        min_brightness=float(settings.min_brightness),
+        max_lights=int(settings.max_lights),
+        spot_blend=float(settings.spot_blend),
+        merge_distance=float(settings.merge_distance) if merge else None,
+    )
+
+
+def _store(settings, message, figures):
+    settings.last_run = True
+    settings.last_created = figures.get("created", 0)
+    settings.last_sources = figures.get("sources", 0)
+    settings.last_skipped = figures.get("skipped", 0)
+    settings.last_primaries = figures.get("primaries", 0)
+    settings.last_lenses = figures.get("lenses", 0)
+    settings.last_left_out = figures.get("left_out", 0)
+    settings.last_seconds = figures.get("seconds", 0.0)
+    settings.last_report = message
+
+
+def generate(context):
+    """Do the work of the generate operator; returns (level, message, figures).
+    Never raises: an error is returned as level "ERROR" (figures["changed"] says
+    whether the file was changed)."""
+    global LAST_FIGURES
+    scene = context.scene
+    settings = scene.lens_lights
+    t0 = time.perf_counter()
+    with _Progress(context) as progress:
+        # 1. Plan (nothing changes).
+        try:
+            options = _options(settings)
+            t = time.perf_counter()
+            work, how = as_rendered(
+                context,
+                lambda dg: layer_stage.prepare(dg, plan_scene(dg, scene, options), options),
+            )
+            work.read.how = how
+            work.timings["probe_total"] = time.perf_counter() - t
+        except Exception as exc:  # reported, never raised
+            message = error_text("read the scene", exc)
+            traceback.print_exc()
+            figures = dict(changed=False, seconds=time.perf_counter() - t0)
+            LAST_FIGURES = figures
+            settings.last_run = True
+            settings.last_report = message
+            return "ERROR", message, figures
+        progress(60)
+        # 2. Build.
+        t = time.perf_counter()
+        plan = work.plan
+        total = max(len(plan.lights), 1)
+        try:
+            lights.clear(scene)
+            cycles_caustics.restore(scene)
+            if builds_layer(options["energy_model"]):  # the layers replace the lights
+                made = layer_stage.build(scene, work, lambda f: progress(60 + 40 * f))
+            else:
+                made = lights.build(
+                    scene,
+                    plan,
+                    work.read.sphere_objects,
+                    progress=lambda k: progress(60 + 40 * k / total),
+                    arrays=work.read.arrays,
+                )
+            caustics_note = cycles_caustics.after_build(scene, plan, work.read, len(made))
+        except Exception as exc:  # whatever failed: remove what was made, report it
+            traceback.print_exc()
+            try:
+                lights.clear(scene)
+                cycles_caustics.restore(scene)
+            except Exception:
+                traceback.print_exc()
+            message = error_text("create the lens lights", exc) + " (the lens lights were removed)"
+            figures = dict(changed=True, created=0, seconds=time.perf_counter() - t0)
+            LAST_FIGURES = figures
+            _store(settings, message, figures)
+            return "ERROR", message, figures
+        work.timings["build"] = time.perf_counter() - t
+        progress(100)
+
+    try:
+        level, message, figures = report_message(
+            work, len(made), read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER)
+        )
+    except Exception as exc:  # the lights are made: say so
+        traceback.print_exc()
+        level, figures = "WARNING", dict(created=len(made))
+        message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
+    if getattr(work, "layer_figures", None) is not None:
+        message = f"{message}; {work.layer_figures.text()}"
+        figures["layer"] = vars(work.layer_figures)
+    if options["model_warning"]:
+        level = "WARNING" if level == "INFO" else level
+        message = f"{message}; {options['model_warning']}"
+    inside = sum(1 for p in work.plan.lights if getattr(p.light, "inside_lens", False))
+    eevee_note = linking_note(bpy.app.version, scene.render.engine, inside)
+    if eevee_note:
+        level = "WARNING" if level == "INFO" else level
+        message = f"{message}; {eevee_note}"
+    sets_note = linking_sets_note(lights.linking_sets(scene))
+    if sets_note:
+        level = "WARNING" if level == "INFO" else level
+        message = f"{message}; {sets_note}"
+    if caustics_note:
+        message = f"{message}; {caustics_note}"
+        if caustics_note.startswith("Cycles' refractive caustics are on"):
+            level = "WARNING" if level == "INFO" else level
+    figures["energy_model"] = options["energy_model"]
+    figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
+    LAST_FIGURES = figures
+    _store(settings, message, figures)
+    return level, message, figures
+
+
+class LENS_LIGHTS_OT_generate(bpy.types.Operator):
+    """Turn every light × glass sphere into a spot light that paints its caustic"""
+
+    bl_idname = "lens_lights.generate"
+    bl_label = "Generate Lens Lights"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        level, message, figures = generate(context)
+        self.report({level}, message)
+        if level == "ERROR" and not figures.get("changed", True):
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+class LENS_LIGHTS_OT_clear(bpy.types.Operator):
+    """Remove the lens lights this extension created (and nothing else)"""
+
+    bl_idname = "lens_lights.clear"
+    bl_label = "Clear Lens Lights"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or not has_lens_lights(context.scene):
+            cls.poll_message_set("Nothing to clear: this scene has no lens lights")
+            return False
+        return True
+
+    def execute(self, context):
+        context.scene.lens_lights.live_update = False  # else the lights come back at once
+        removed = lights.clear(context.scene)
+        restored = cycles_caustics.restore(context.scene)
+        settings = context.scene.lens_lights
+        settings.last_created = 0
+        settings.last_report = f"Removed {removed} lens light{'s' if removed != 1 else ''}"
+        if restored:
+            settings.last_report += "; " + describe_caustics(restored, verb="restored")
+        self.report({"INFO"}, settings.last_report)
+        return {"FINISHED"}
+
+
+_CLASSES = (LENS_LIGHTS_OT_generate, LENS_LIGHTS_OT_clear)
+
+
+register, unregister = bpy.utils.register_classes_factory(_CLASSES)

@@ -1,0 +1,170 @@
+"""One call from lens lights to caustic layers: budget, trace, land, accumulate.
+
+What the Blender side calls once per bake (or per frame): the (light, lens) pairs of
+phase 1 as :mod:`.emitters` data, the receivers as a :class:`.ReceiverMesh` (or an index
+built once per scene), and a camera estimate for the ray budget.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .beam_trace import BeamGrid, trace_beams
+from .emitters import Lens
+from .rasters import CausticLayer, RasterFrame, build_layer, grouped_quantiles, land_beams
+from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
+from .receiver_bvh import ReceiverMesh
+from .receiver_index import ReceiverIndex, build_index
+
+
+@dataclass(frozen=True)
+class SheetSource:
+    """One secondary source: a primary (PointLight, SpotLight, SunLight or AreaLight),
+    its lens, how many samples of an extended emitter, and the object id of the lens'
+    own mesh among the receivers (−1: not there)."""
+
+    emitter: object
+    lens: Lens
+    n_source: int = 1
+    own_object: int = -1
+    blockers: object = None  # shadow.ShadowList: the shadow list drawn in the beam
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A perspective camera estimate: position, horizontal field of view (rad), width in
+    pixels."""
+
+    position: np.ndarray
+    fov: float
+    width_px: int
+
+
+@dataclass
+class SheetBake:
+    layer: CausticLayer
+    budgets: list[RayBudget]  # per source, (Nr, Na) and its node-ray count
+    resolution: int
+    index: ReceiverIndex | None = None  # the receivers' index it landed on
+
+
+def bake(
+    sources: list[SheetSource],
+    receivers: ReceiverMesh | ReceiverIndex,
+    camera: Camera | None = None,
+    rays_per_pixel: float = 1.0,
+    max_rays: int = 65536,
+    total_rays: int = 1_000_000,
+    min_rays: int = 1024,
+    texel_fraction: float = 0.5,
+    grid: tuple[int, int] | None = None,
+    blur_shares: bool = True,
+    resolution: int | Callable[[list[float], list[float]], int] | None = None,
+    budgets: list[RayBudget] | None = None,
+    raster_frames: list[RasterFrame] | None = None,
+) -> SheetBake:
+    """Caustic layers of ``sources`` on ``receivers``. The grid per source comes from
+    :func:`.ray_budget.allocate` (flux share and caustic extent from a coarse 4 × 16
+    trace landed on the receivers, pixel size at the lens from ``camera``) unless
+    ``grid`` = (Nr, Na) is given; the raster resolution from :func:`.layer_resolution`
+    of the largest extent, or ``resolution(extents, pixels)`` if a callable; no texel
+    finer than ``texel_fraction`` of a pixel (a renderer would only alias it).
+    ``budgets`` (per source, e.g. an earlier bake's) replace the allocation, and
+    ``raster_frames`` the rasters fitted to the landings (`build_layer`): the bake of
+    an animation re-lands each frame's beams on rasters fixed over the frames."""
+    index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
+    extents = spans = [2.0 * s.lens.radius for s in sources]
+    if budgets is not None:
+        pixels = [math.inf] * len(sources)
+    elif grid is not None:
+        budgets = [RayBudget(int(grid[0]), int(grid[1])) for _ in sources]
+        pixels = [math.inf] * len(sources)
+    else:
+        coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16)
+        own = [s.own_object for s in sources]
+        # the rays go where the bulk of the flux is; the texels span nearly all of it
+        extents, spans = caustic_extents(coarse, index, own, extents, bulks=(0.9, 0.99))
+        pixels = [
+            pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px)
+            if camera is not None
+            else 2.0 * s.lens.radius / 64.0
+            for s in sources
+        ]
+        budgets = allocate(
+            [b.total_flux for b in coarse],
+            extents,
+            pixels,
+            total_rays=total_rays,
+            rays_per_pixel=rays_per_pixel,
+            max_rays=max_rays,
+            min_rays=min_rays,
+            samples=[s.n_source for s in sources],
+        )
+    if callable(resolution):
+        resolution = resolution(spans, pixels)
+    elif resolution is None:
+        resolution = max(
+            (layer_resolution(e, p) for e, p in zip(spans, pixels, strict=True)), default=16
+        )
+    # one vectorised trace per grid shared by several sources
+    beams = [None] * len(sources)
+    groups: dict[tuple[int, int, int], list[int]] = {}
+    for i, (s, b) in enumerate(zip(sources, budgets, strict=True)):
+        groups.setdefault((b.n_radial, b.n_azimuth, s.n_source), []).append(i)
+    for (nr, na, k), ids in groups.items():
+        traced = trace_beams(
+            [(sources[i].emitter, sources[i].lens) for i in ids],
+            nr,
+            na,
+            k,
+            [sources[i].blockers for i in ids],
+        )
+        for i, beam in zip(ids, traced, strict=True):
+            beams[i] = beam
+    own = [s.own_object for s in sources]
+    layer = build_layer(
+        beams,
+        index,
+        resolution=resolution,
+        own_objects=own if any(o >= 0 for o in own) else None,
+        min_texel=[texel_fraction * p if math.isfinite(p) else 0.0 for p in pixels],
+        blur_shares=blur_shares,
+        raster_frames=raster_frames,
+    )
+    return SheetBake(layer, budgets, int(resolution), index)
+
+
+def caustic_extents(
+    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters, bulks=(0.9,)
+) -> list[list[float]]:
+    """Per share in ``bulks``, per coarse beam, the size of its caustic on the
+    receivers: the lens' diameter, or the span of that central share of its landed
+    flux if larger (per world axis; a grazing receiver stretches the caustic far beyond
+    the lens)."""
+    if not coarse:
+        return [[] for _ in bulks]
+    own = list(own_objects)
+    landed = land_beams(coarse, index, own if any(o >= 0 for o in own) else None)
+    beam = np.concatenate([np.full(len(lb.patch), i) for i, lb in enumerate(landed)])
+    on = np.concatenate([lb.patch >= 0 for lb in landed])
+    pts = np.concatenate([lb.point for lb in landed])[on]
+    w = np.concatenate([lb.node_flux for lb in landed])[on] + 1e-300
+    beam = beam[on]
+    hit = np.bincount(beam, minlength=len(coarse)) > 1
+    # beams with fewer than two landings keep their diameter (a dummy landing each)
+    missing = np.nonzero(~hit)[0]
+    beam = np.concatenate([beam, missing])
+    pts = np.concatenate([pts, np.zeros((len(missing), 3))])
+    w = np.concatenate([w, np.ones(len(missing))])
+    qs = [q for b in bulks for q in (0.5 * (1.0 - b), 0.5 * (1.0 + b))]
+    per_axis = [grouped_quantiles(pts[:, a], w, beam, len(coarse), qs) for a in range(3)]
+    diam = np.asarray(diameters, dtype=float)
+    out = []
+    for k in range(len(bulks)):
+        span = np.max([q[:, 2 * k + 1] - q[:, 2 * k] for q in per_axis], axis=0)
+        out.append([float(v) for v in np.maximum(np.where(hit, span, 0.0), diam)])
+    return out

@@ -1,0 +1,159 @@
+"""The Caustic layer tier's plain-data side (no bpy): planned lens lights →
+caustic-sheet sources (`core.caustic_layer.pipeline.SheetSource`), the camera
+estimate of the ray budget, which receivers a layer cannot show, and the report.
+
+Every primary reaches the layer as the point light that stands for it toward the
+lens (`tiers.base.effective_primary`: a spot's cone share, an area light's
+Lambertian intensity, a sun as a far point light at its equivalent distance), at
+``lens centre − D·axis``. Its power carries the lens material's transmission
+weight² and the unblocked share of the lit cap, as the spot tiers do; the lens
+tint and the axial Beer–Lambert colour (`tiers.base.glass_color`) are its colour.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..lens.glass import LensOptics
+from ..tiers.base import effective_primary, glass_color, unblocked_share
+from .emitters import Lens, PointLight
+from .pipeline import Camera, SheetSource
+from .ray_budget import layer_resolution, pixel_size
+from .shadow import ShadowList
+
+#: Node rays for all sources together, and per source (the ray budget's caps); rays
+#: per pixel² of a caustic's extent on screen (the sub-cells interpolate between them).
+TOTAL_RAYS = 400_000
+MAX_RAYS_PER_SOURCE = 16_384
+MIN_RAYS_PER_SOURCE = 256
+RAYS_PER_PIXEL = 0.5
+#: Texels per side of a layer raster at most (faces per layer: its square), and the
+#: faces of all layers together (many lenses: coarser rasters, a fast build).
+MAX_RESOLUTION = 128
+FACE_BUDGET = 65_536
+#: Samples of an extended primary's disc (they share its ray budget).
+SOURCE_SAMPLES = 16
+#: A receiver this metallic or transmissive is no diffuse surface: a Fitted spot.
+GLOSSY_METALLIC = 0.5
+TRANSPARENT_TRANSMISSION = 0.5
+
+
+def sheet_source(planned, primary, optics: LensOptics | None = None, arrays=None) -> SheetSource:
+    """The caustic-sheet source of one `planning.PlannedLight` (`arrays`: phase 1's
+    `SceneArrays`, for the shadow list drawn in the beam)."""
+    src = planned.source
+    optics = optics or LensOptics()
+    eff = effective_primary(src, primary)
+    axis = np.asarray(src.axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    center = np.asarray(src.lens_center, dtype=float)
+    wgt = min(max(float(optics.transmission_weight), 0.0), 1.0)
+    power = eff.power_w * wgt * wgt * unblocked_share(src)
+    color = glass_color(src, eff, optics)
+    emitter = PointLight(
+        position=center - float(src.distance) * axis,
+        power=float(power),
+        radius=float(eff.radius),
+        color=tuple(float(c) for c in color),
+    )
+    lens = Lens(center=center, radius=float(src.lens_radius), ior=float(src.ior))
+    # An extended primary blurs the caustic (SPEC §10): samples of its disc, each
+    # image spread over its share (`caustic_layer._splat_cells`).
+    n_source = 1 if eff.radius <= 0.0 else SOURCE_SAMPLES
+    return SheetSource(emitter, lens, n_source=n_source, blockers=ShadowList.of(src, arrays))
+
+
+def sheet_sources(planned_lights, primaries, lens_optics=None, arrays=None) -> list[SheetSource]:
+    return [
+        sheet_source(
+            p,
+            primaries[p.source.light],
+            lens_optics[p.source.lens] if lens_optics else None,
+            arrays,
+        )
+        for p in planned_lights
+    ]
+
+
+def sheet_camera(camera, width_px: int, ortho_scale: float | None = None, targets=None) -> Camera:
+    """The ray budget's camera from the read's `core.scene.model.Camera` (horizontal fov).
+    An orthographic camera (`ortho_scale`: the width it sees) has the same pixel
+    everywhere: the perspective camera whose pixel matches it at the mean distance
+    of `targets` (the lens centres) stands for it."""
+    pos = np.asarray(camera.position, dtype=float)
+    fov = math.radians(float(camera.fov_deg[0])) if camera.fov_deg else math.radians(45.0)
+    if ortho_scale and targets is not None and len(targets):
+        dist = float(np.mean(np.linalg.norm(np.asarray(targets, float) - pos, axis=1)))
+        if dist > 0:
+            fov = 2.0 * math.atan(0.5 * float(ortho_scale) / dist)
+    return Camera(pos, fov, max(int(width_px), 16))
+
+
+def raster_resolution(sources, camera: Camera, extents=None) -> int:
+    """One texel per pixel of the largest caustic (`ray_budget.layer_resolution`; its
+    extent per source, by default the lens' diameter), at most `MAX_RESOLUTION` and so
+    that all layers keep within `FACE_BUDGET` faces."""
+    if extents is None:
+        extents = [2.0 * s.lens.radius for s in sources]
+    res = max(
+        layer_resolution(e, pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px))
+        for s, e in zip(sources, extents, strict=True)
+    )
+    share = math.isqrt(FACE_BUDGET // max(len(sources), 1))
+    return int(min(res, MAX_RESOLUTION, max(share, 16)))
+
+
+def fallback_reason(metallic: float, transmission: float, glossy_only: bool) -> str:
+    """Why a receiver cannot take a layer ("" if it can): the layer is a diffuse
+    radiance (irradiance × albedo / π); a mirror or glass shows no such thing."""
+    if glossy_only or metallic >= GLOSSY_METALLIC:
+        return "glossy"
+    if transmission >= TRANSPARENT_TRANSMISSION:
+        return "transparent"
+    return ""
+
+
+@dataclass
+class LayerFigures:
+    """What a bake made, for the report."""
+
+    layers: int = 0
+    faces: int = 0
+    rays: int = 0
+    flux_emitted: float = 0.0
+    flux_in_layers: float = 0.0
+    flux_lost: float = 0.0  # missed every receiver, or landed beyond a raster
+    fallback_lights: int = 0
+    fallback_receivers: tuple = ()
+
+    def text(self) -> str:
+        lost = self.flux_lost / self.flux_emitted if self.flux_emitted > 0 else 0.0
+        out = (
+            f"{self.layers} caustic layer{'s' if self.layers != 1 else ''} "
+            f"({self.faces} faces, {self.rays} rays; {100 * lost:.2g} % of the flux "
+            "missed the receivers)"
+        )
+        if self.fallback_receivers:
+            n = self.fallback_lights
+            out += (
+                f"; {n} Fitted spot{'s' if n != 1 else ''} for glossy or transparent "
+                f"receivers ({', '.join(self.fallback_receivers)})"
+            )
+        return out
+
+
+def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFigures:
+    layer = bake.layer
+    return LayerFigures(
+        layers=len(layer.patches),
+        faces=sum(p.resolution**2 for p in layer.patches),
+        rays=int(layer.n_rays),
+        flux_emitted=float(layer.flux_emitted),
+        flux_in_layers=float(layer.flux_in_rasters),
+        flux_lost=float(layer.flux_lost + layer.flux_outside),
+        fallback_lights=fallback_lights,
+        fallback_receivers=tuple(fallback_receivers),
+    )

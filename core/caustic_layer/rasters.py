@@ -1,0 +1,845 @@
+"""The caustic layer: the landed ray grids accumulated into irradiance rasters.
+
+Each beam's node rays are landed on the receivers (nearest hit beyond the exit point).
+A grid cell whose four corners land on the same planar patch spreads its flux over the
+landed quad: it is cut into m × m sub-cells (m from the quad's landed size, 2 per
+texel, up to 8 per side freely and beyond that as its share of the flux allows), each
+placed by bilinear interpolation of the four landed corners and weighted by
+the bilinear interpolation of the corners' flux densities, normalised to the cell's
+flux. Sub-cells are deposited into a regular raster in the patch's plane, so where the
+landed quads overlap (past the focus, at the caustic's folds) their flux adds instead of
+z-fighting. A cell whose corners land on different patches (an edge between receivers)
+gives each corner its density-weighted share; corners that miss every receiver carry
+their share into ``flux_lost``. Flux that lands on a patch beyond its raster is
+``flux_outside``. So emitted = rasters + outside + lost.
+
+One raster per patch that any ray reaches, or per cluster of beams whose footprints
+overlap on it (so rasters never overlap and each resolves its own caustics):
+``resolution`` × ``resolution`` texels over the flux-weighted extent of the landings
+(the quantiles ``clip_fraction/2`` and ``1 − clip_fraction/2``: a few grazing rays land
+very far away). A lens beam is a small
+bright core in a wide faint halo, so the texel lines are spaced by a separable sinh warp,
+``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
+median distance from it: texels are fine in the core and grow in the halo, and the faces
+stay rectangles that do not overlap. The resolution is a parameter, so the layer's
+topology is fixed while a light moves. Per patch the output is plain data for one
+emissive mesh: a grid of vertices lifted by ``offset`` along the normal toward the light
+(no z-fighting), quad faces, the irradiance per face (W/m², RGB = flux × light colour ×
+lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo / π).
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .beam_trace import BeamGrid
+from .emitters import perpendicular_frame, share_offsets
+from .receiver_index import ReceiverIndex, intersect
+from .receiver_patches import ReceiverPatch
+
+
+@dataclass
+class PatchLayer:
+    """The caustic on one planar receiver patch (texel (iy, ix) = face iy·res + ix)."""
+
+    patch: int  # index into the patch list
+    sources: np.ndarray  # indices of the beams whose caustic this raster holds
+    object_id: int
+    normal: np.ndarray  # (3,) unit, toward the side the light arrives from
+    axis_u: np.ndarray  # (3,) in-plane; axis_u × axis_v = normal
+    axis_v: np.ndarray
+    origin: np.ndarray  # (3,) the plane's point at (u, v) = (0, 0)
+    edges_u: np.ndarray  # (res+1,) texel lines: world = origin + u·axis_u + v·axis_v
+    edges_v: np.ndarray  # (res+1,)
+    resolution: int
+    irradiance: np.ndarray  # (res, res, 3) W/length² per texel (rows: v, columns: u)
+    flux: float  # W (uncoloured) deposited in the raster
+    flux_outside: float  # W landed on the patch beyond the raster
+    vertices: np.ndarray  # ((res+1)², 3) lifted by the offset along ``normal``
+    faces: np.ndarray  # (res², 4) vertex indices, counter-clockwise about normal
+    uvs: np.ndarray | None  # ((res+1)², 2) the receiver's UV at each vertex
+    uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
+    #                               None: the patch's UV is affine, valid everywhere
+    axes: tuple | None = None  # ((c, s, ξ0, dξ) along u, along v): the texel lines' warp
+
+    @property
+    def face_irradiance(self) -> np.ndarray:
+        return self.irradiance.reshape(-1, 3)
+
+    def texel_areas(self) -> np.ndarray:
+        """(res, res) areas of the faces (length²)."""
+        return np.diff(self.edges_v)[:, None] * np.diff(self.edges_u)[None, :]
+
+    def texel_centers(self) -> np.ndarray:
+        """World positions (res, res, 3) of the texel centres, on the plane."""
+        cu = 0.5 * (self.edges_u[1:] + self.edges_u[:-1])
+        cv = 0.5 * (self.edges_v[1:] + self.edges_v[:-1])
+        return self.origin + cu[None, :, None] * self.axis_u + cv[:, None, None] * self.axis_v
+
+    def texel_flux(self) -> np.ndarray:
+        """(res, res, 3) flux (W) of each texel."""
+        return self.irradiance * self.texel_areas()[..., None]
+
+
+#: The fields of a raster axis's texel lines c + s·sinh(ξ0 + i·dξ), in `PatchLayer.axes`.
+AXIS_FIELDS = ("c", "s", "xi0", "dxi")
+
+
+@dataclass(frozen=True)
+class RasterFrame:
+    """A raster given to :func:`build_layer` instead of the one it would fit to this
+    frame's landings (the bake's fixed topology, ``core/animation/layer_segments.py``): on patch
+    ``patch`` of the index, for the beams ``beams``, in the plane frame (``normal``,
+    ``axis_u``, ``axis_v``) with the texel lines ``axes`` (as ``PatchLayer.axes``)."""
+
+    patch: int
+    beams: tuple
+    normal: np.ndarray
+    axis_u: np.ndarray
+    axis_v: np.ndarray
+    axes: tuple
+
+
+@dataclass
+class CausticLayer:
+    patches: list[PatchLayer]
+    flux_emitted: float  # W leaving the lenses (all beams)
+    flux_in_rasters: float
+    flux_outside: float  # landed on a patch, beyond its raster
+    flux_lost: float  # missed every receiver
+    n_rays: int
+    n_cells: int
+    n_subcells: int
+    timings: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Landed:
+    beam: BeamGrid
+    patch: np.ndarray  # (N,) patch of each node ray, −1 = miss
+    point: np.ndarray  # (N, 3)
+    dirs: np.ndarray  # (N, 3)
+    node_flux: np.ndarray  # (N,) a quarter of each adjacent cell's flux
+
+
+def cell_corners(shape) -> np.ndarray:
+    """Flat node indices (K·Nr·Na, 4) of each cell's corners, in the order
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1), for a beam of cell shape (K, Nr, Na).
+    Read-only, shared between beams of one shape."""
+    return _cell_corners(tuple(int(n) for n in shape))
+
+
+@functools.lru_cache(maxsize=32)
+def _cell_corners(shape) -> np.ndarray:
+    k, nr, na = shape
+    kk, ii, jj = np.meshgrid(np.arange(k), np.arange(nr), np.arange(na), indexing="ij")
+    jn = (jj + 1) % na
+
+    def flat(i, j):
+        return ((kk * (nr + 1) + i) * na + j).reshape(-1)
+
+    out = np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+    out.setflags(write=False)
+    return out
+
+
+def weighted_quantile(x, w, q):
+    o = np.argsort(x)
+    cw = np.cumsum(w[o])
+    return float(np.interp(q * cw[-1], cw, x[o]))
+
+
+def _group_order(x, groups, n_groups: int) -> np.ndarray:
+    """np.lexsort((x, groups)): the order by group, then by x (stable). Groups already
+    in order (contiguous runs, as the rasters' and beams' landings are) and long are
+    sorted run by run: twice as fast as one two-key lexsort."""
+    groups = np.asarray(groups)
+    # short runs: one lexsort is cheaper than a sort call per run
+    if len(groups) < 64 * max(n_groups, 1) or not np.all(groups[1:] >= groups[:-1]):
+        return np.lexsort((x, groups))
+    bounds = np.searchsorted(groups, np.arange(n_groups + 1)).tolist()
+    return np.concatenate(
+        [np.zeros(0, dtype=np.intp)]
+        + [
+            a + np.argsort(x[a:b], kind="stable")
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
+    )
+
+
+def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+    """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
+    group non-empty): (n_groups, len(qs)), the values where the group's cumulative
+    weight first reaches each share (one sort for all groups)."""
+    o = _group_order(x, groups, n_groups)
+    g, xs, ws = groups[o], x[o], w[o]
+    cw = np.cumsum(ws)
+    total = np.bincount(g, weights=ws, minlength=n_groups)
+    start = np.concatenate([[0.0], np.cumsum(total)[:-1]])
+    share = (cw - start[g]) / np.where(total > 0, total, 1.0)[g]  # (0, 1] per group
+    key = g + np.minimum(share, 1.0 - 1e-12)
+    ends = np.cumsum(np.bincount(g, minlength=n_groups))
+    out = np.empty((n_groups, len(qs)))
+    for j, q in enumerate(qs):
+        i = np.searchsorted(key, np.arange(n_groups) + q * (1.0 - 1e-12))
+        out[:, j] = xs[np.minimum(i, ends - 1)]
+    return out
+
+
+def land_beams(
+    beams: list[BeamGrid], index: ReceiverIndex, own_objects=None, t_min_rel: float = 1e-7
+) -> list[_Landed]:
+    """Land every node ray of every beam (all beams in one vectorised cast): nearest hit
+    with t > −t_min_rel × the exit points' spread, so a receiver touching the sphere (a
+    resting marble) still counts. ``own_objects``: per beam the object id of its lens'
+    own mesh if the receivers include it (or −1): hits on it are skipped, the ray goes
+    on from there (a lens is not its own receiver; other lenses may be receivers)."""
+    o = np.concatenate([b.exit_points.reshape(-1, 3) for b in beams])
+    d = np.concatenate([b.exit_dirs.reshape(-1, 3) for b in beams])
+    sizes = [len(b.exit_points.reshape(-1, 3)) for b in beams]
+    # each beam's spread of exit points, all beams by one reduceat per bound
+    first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    spread = np.maximum.reduceat(o, first) - np.minimum.reduceat(o, first)
+    scale = np.repeat(np.maximum(spread.max(axis=1), 1e-300), sizes)
+    h = intersect(index, o, d, t_min=-t_min_rel * scale)
+    tri, point = h.triangle, h.point
+    if own_objects is not None:
+        own = np.repeat(np.asarray(own_objects, dtype=np.int64), sizes)
+        ids = index.mesh.ids
+        for _ in range(4):  # a convex lens mesh: at most a few hits
+            again = np.nonzero((tri >= 0) & (ids[np.maximum(tri, 0)] == own))[0]
+            if not len(again):
+                break
+            h2 = intersect(index, o[again], d[again], t_min=h.t[again] * (1 + 1e-9) + 1e-12)
+            tri[again], point[again] = h2.triangle, h2.point
+            h.t[again] = h2.t
+    patch = np.where(tri >= 0, index.patch_of[np.maximum(tri, 0)], -1)
+    # a sample with no beam (its light inside the sphere) lands nowhere
+    valid = np.repeat(
+        np.concatenate([b.valid for b in beams]),
+        np.concatenate(
+            [np.full(len(b.valid), n // len(b.valid)) for b, n in zip(beams, sizes, strict=True)]
+        ),
+    )
+    patch = np.where(valid, patch, -1)
+    # each node a quarter of its cells' flux: one bincount over all beams' corners
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    corners = np.concatenate(
+        [cell_corners(b.shape) + s for b, s in zip(beams, starts[:-1].tolist(), strict=True)]
+    )
+    quarter = np.concatenate([0.25 * b.cell_flux.reshape(-1) for b in beams])
+    node_flux = np.bincount(
+        corners.reshape(-1), weights=np.repeat(quarter, 4), minlength=int(starts[-1])
+    )
+    out = []
+    for b, a, e in zip(beams, starts[:-1].tolist(), starts[1:].tolist(), strict=True):
+        out.append(_Landed(b, patch[a:e], point[a:e], d[a:e], node_flux[a:e]))
+    return out
+
+
+def build_layer(
+    beams: list[BeamGrid],
+    index: ReceiverIndex,
+    resolution: int = 128,
+    clip_fraction: float = 1e-3,
+    warp: bool = True,
+    subcells_per_texel: float = 2.0,
+    max_subdivision: int = 16,
+    max_subcells: int = 8_000_000,
+    flux_subcells_per_texel: float = 8.0,
+    offset: float | None = None,
+    merge_footprints: bool = True,
+    own_objects=None,
+    min_texel=None,
+    blur_shares: bool = True,
+    raster_frames: list[RasterFrame] | None = None,
+) -> CausticLayer:
+    """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
+    into per-patch irradiance rasters. ``offset``:
+    lift of the layer along the normal (default 0.1 of the smallest texel). ``warp``:
+    sinh-spaced texel lines (else uniform). ``merge_footprints``: one raster per cluster
+    of beams with overlapping footprints on a patch (disjoint rasters, each resolving its
+    own caustics); False: one raster per patch for all beams. ``own_objects``: per beam
+    the object id of its own lens among the receivers (see :func:`land_beams`).
+    ``min_texel``: per beam the smallest texel its raster may have (e.g. half a pixel
+    on screen there): a renderer point-samples the layer a few times per pixel, so
+    texels far below a pixel show as noise, not detail. ``blur_shares``: spread each
+    sample of an extended source over its share (False: K sharp images, for
+    comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
+    beam's flux on a patch without one is lost), instead of fitting them here."""
+    t0 = time.perf_counter()
+    plist = index.patches
+    if not beams:
+        return CausticLayer([], 0.0, 0.0, 0.0, 0.0, 0, 0, 0, {"total": 0.0})
+    landed = land_beams(beams, index, own_objects)
+    t1 = time.perf_counter()
+    res = int(resolution)
+
+    # Which patches receive anything, their light side, and per patch the clusters of
+    # beams whose footprints overlap: one raster per (patch, cluster).
+    bid = np.concatenate([np.full(len(x.patch), i) for i, x in enumerate(landed)])
+    pid = np.concatenate([x.patch for x in landed])
+    pts = np.concatenate([x.point for x in landed])
+    dirs = np.concatenate([x.dirs for x in landed])
+    wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
+    slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
+    frames, members, slot_pts, floors = [], [], [], []
+    on = np.nonzero(pid >= 0)[0]
+    on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
+    p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
+    for k, start in enumerate(p_starts if raster_frames is None else []):  # per patch
+        idx = on[start : p_starts[k + 1] if k + 1 < len(p_starts) else len(on)]
+        p = int(pid[idx[0]])
+        n = plist[p].normal
+        side = -np.sign(np.sum(wts[idx] * (dirs[idx] @ n))) or 1.0
+        n_out = n * side
+        au, av = perpendicular_frame(n_out)
+        x, y = pts[idx] @ au, pts[idx] @ av
+        b_starts = np.nonzero(np.diff(np.concatenate([[-1], bid[idx]])))[0]
+        b_ends = np.append(b_starts[1:], len(idx))
+        w_here = wts[idx]
+        local = np.repeat(np.arange(len(b_starts)), b_ends - b_starts)
+        qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+        boxes = np.concatenate(
+            [grouped_quantiles(c, w_here, local, len(b_starts), qs) for c in (x, y)], axis=1
+        )  # (beams here, 4): u_lo, u_hi, v_lo, v_hi
+        comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
+        for comp in comps:
+            sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
+            beams_here = bid[idx[b_starts[comp]]]
+            slot_of[beams_here, p] = len(frames)
+            floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
+            frames.append((p, n_out, au, av))
+            members.append(beams_here)
+            slot_pts.append((x[sel], y[sel], w_here[sel]))
+            floors.append(floor)
+    given = raster_frames or []
+    for rf in given:  # the bake's fixed rasters
+        slot_of[np.asarray(rf.beams, dtype=np.int64), rf.patch] = len(frames)
+        frames.append((rf.patch, rf.normal, rf.axis_u, rf.axis_v))
+        members.append(np.asarray(rf.beams, dtype=np.int64))
+    fr = {
+        "au": np.array([f[2] for f in frames]).reshape(-1, 3),
+        "av": np.array([f[3] for f in frames]).reshape(-1, 3),
+    }
+    for k, key in enumerate(("u", "v") if given else ()):  # the given texel lines
+        for j, name in enumerate(AXIS_FIELDS):
+            fr[key + name] = np.array([float(rf.axes[k][j]) for rf in given])
+    if not given:  # every raster's texel lines at once (one sort per axis for all)
+        gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
+        w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
+    for key, k in (("u", 0), ("v", 1)) if not given else ():
+        c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
+        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, res, warp, floors)
+        for name, val in zip(AXIS_FIELDS, axis, strict=True):
+            fr[key + name] = val
+
+    n_slots = len(frames)
+    rgb = np.zeros((n_slots * res * res, 3))
+    flux_in = np.zeros(n_slots)
+    flux_out = np.zeros(n_slots)
+    lost = 0.0
+    n_sub = 0
+    # One vectorised pass per light colour (beams of one colour share the arithmetic).
+    colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
+    uniq, group = np.unique(colors, axis=0, return_inverse=True)
+    for gi, color in enumerate(uniq):  # loop over colours, usually one or two
+        members_g = [landed[i] for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        ids = [i for i in np.nonzero(group.reshape(-1) == gi)[0]]
+        base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
+        point = np.concatenate([lb.point for lb in members_g])
+        slot = np.concatenate(
+            [
+                np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
+                for i, lb in zip(ids, members_g, strict=True)
+            ]
+        )
+        corners = np.concatenate(
+            [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
+        )
+        cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+        # the samples' shares matter only to blur an extended source's images
+        blurred = blur_shares and any(
+            lb.beam.rotations is not None and np.any(lb.beam.rotations) for lb in members_g
+        )
+        if blurred:
+            rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
+        dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
+        acc = np.zeros(n_slots * res * res)
+        out_acc = np.zeros(n_slots)
+        cs = slot[corners]
+        same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
+        # cells across receivers (or missing): each corner its density-weighted share
+        mixed = ~same & (cflux > 0.0)
+        dsum = dens[mixed].sum(axis=1, keepdims=True)
+        share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
+        share = (share * cflux[mixed, None]).reshape(-1)
+        cm = corners[mixed].reshape(-1)
+        sm = cs[mixed].reshape(-1)
+        lost += float(share[sm < 0].sum())
+        on = sm >= 0
+        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr, res)
+        # cells on one patch: m × m bilinear sub-cells
+        cidx = np.nonzero(same)[0]
+        if len(cidx):
+            jitter = shares = None
+            if blurred and np.any(rot[cidx]):
+                direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
+                jitter = _share_offsets(
+                    point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
+                )
+                shares = (disc[cidx], share_cells[cidx], share_grid[cidx])
+            # each node in its raster's plane coordinates once, then per cell corner
+            ns = np.maximum(slot, 0)
+            node_x = np.einsum("ij,ij->i", point, fr["au"][ns])
+            node_y = np.einsum("ij,ij->i", point, fr["av"][ns])
+            n_sub += _splat_cells(
+                acc,
+                out_acc,
+                (node_x[corners[cidx]], node_y[corners[cidx]]),
+                cs[cidx, 0],
+                dens[cidx],
+                cflux[cidx],
+                fr,
+                res,
+                subcells_per_texel,
+                max_subdivision,
+                max_subcells,
+                flux_subcells_per_texel,
+                jitter=jitter,
+                shares=shares,
+            )
+        flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
+        flux_out += out_acc
+        rgb += acc[:, None] * color
+    t2 = time.perf_counter()
+
+    layers = []
+    uv_fits = {}
+    # all rasters' texel lines, areas, irradiance and vertices in one pass each
+    eu_all, ev_all = (
+        _edges(
+            (
+                fr[k + "c"][:, None],
+                fr[k + "s"][:, None],
+                fr[k + "xi0"][:, None],
+                fr[k + "dxi"][:, None],
+            ),
+            res,
+        )
+        for k in ("u", "v")
+    )
+    du, dv = np.diff(eu_all, axis=1), np.diff(ev_all, axis=1)
+    irr_all = rgb.reshape(n_slots, res, res, 3) / (dv[:, :, None] * du[:, None, :])[..., None]
+    offs = 0.1 * np.minimum(du.min(axis=1, initial=np.inf), dv.min(axis=1, initial=np.inf))
+    n_all = np.array([f[1] for f in frames]).reshape(-1, 3)
+    origins = n_all * np.array(
+        [plist[p].offset * (n_out @ plist[p].normal) for p, n_out, _, _ in frames]
+    ).reshape(-1, 1)
+    verts_all = (
+        origins[:, None, None, :]
+        + eu_all[:, None, :, None] * fr["au"][:, None, None, :]
+        + ev_all[:, :, None, None] * fr["av"][:, None, None, :]
+    ).reshape(n_slots, (res + 1) ** 2, 3)
+    faces = _grid_faces(res)
+    for s, (p, n_out, au, av) in enumerate(frames):
+        eu, ev, origin, verts = eu_all[s], ev_all[s], origins[s], verts_all[s]
+        off = offs[s] if offset is None else offset
+        irr = irr_all[s]
+        if p not in uv_fits:  # one fit per patch, shared by its rasters
+            uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
+        uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
+        layers.append(
+            PatchLayer(
+                patch=int(p),
+                sources=members[s],
+                object_id=plist[p].object_id,
+                normal=n_out,
+                axis_u=au,
+                axis_v=av,
+                origin=origin,
+                edges_u=eu,
+                edges_v=ev,
+                resolution=res,
+                irradiance=irr,
+                flux=float(flux_in[s]),
+                flux_outside=float(flux_out[s]),
+                vertices=verts + off * n_out,
+                faces=faces,
+                uvs=uvs,
+                uv_inside=inside,
+                axes=tuple(tuple(float(fr[k + n][s]) for n in AXIS_FIELDS) for k in ("u", "v")),
+            )
+        )
+    t3 = time.perf_counter()
+    return CausticLayer(
+        patches=layers,
+        flux_emitted=float(sum(b.total_flux for b in beams)),
+        flux_in_rasters=float(flux_in.sum()),
+        flux_outside=float(flux_out.sum()),
+        flux_lost=lost,
+        n_rays=sum(b.n_rays for b in beams),
+        n_cells=sum(b.n_cells for b in beams),
+        n_subcells=n_sub,
+        timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0},
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _grid_faces(res: int) -> np.ndarray:
+    """(res², 4) quads of a (res+1)² vertex grid, counter-clockwise; read-only, shared
+    by every raster of that resolution."""
+    a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
+    out = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
+    out.setflags(write=False)
+    return out
+
+
+def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
+    """Group boxes (m, 4: u_lo, u_hi, v_lo, v_hi) into clusters whose merged boxes do
+    not overlap: connected components of the overlap graph, repeated on the merged
+    boxes until they are disjoint (m is the number of beams on one patch: small)."""
+    groups = [np.array([i]) for i in range(len(boxes))]
+    cur = boxes.copy()
+    while True:
+        over = (
+            (cur[:, None, 0] <= cur[None, :, 1])
+            & (cur[None, :, 0] <= cur[:, None, 1])
+            & (cur[:, None, 2] <= cur[None, :, 3])
+            & (cur[None, :, 2] <= cur[:, None, 3])
+        )
+        label = np.arange(len(cur))
+        while True:  # label propagation to the smallest index
+            new = np.where(over, label[None, :], len(cur)).min(axis=1)
+            if np.array_equal(new, label):
+                break
+            label = new
+        if len(np.unique(label)) == len(cur):
+            return groups
+        keys = np.unique(label)
+        groups = [np.concatenate([groups[i] for i in np.nonzero(label == k)[0]]) for k in keys]
+        cur = np.array(
+            [
+                [
+                    cur[label == k, 0].min(),
+                    cur[label == k, 1].max(),
+                    cur[label == k, 2].min(),
+                    cur[label == k, 3].max(),
+                ]
+                for k in keys
+            ]
+        )
+
+
+def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+    """:func:`weighted_quantile` (interpolated in the cumulative weight, as np.interp)
+    of ``x`` within each group (ids 0..n_groups−1, every group non-empty), for each
+    share in ``qs``: (n_groups, len(qs)), one sort for all groups."""
+    o = _group_order(x, groups, n_groups)
+    g, xs = groups[o], x[o]
+    cw = np.cumsum(w[o])
+    ends = np.cumsum(np.bincount(g, minlength=n_groups))
+    starts = ends - np.bincount(g, minlength=n_groups)
+    base = np.where(starts > 0, cw[np.maximum(starts - 1, 0)], 0.0)
+    total = cw[ends - 1] - base
+    out = np.empty((n_groups, len(qs)))
+    for k, q in enumerate(qs):
+        target = base + q * total
+        j = np.searchsorted(cw, target, side="right") - 1  # cw[j] ≤ target < cw[j+1]
+        j = np.clip(j, starts - 1, ends - 1)
+        lo = np.maximum(j, starts)
+        hi = np.minimum(j + 1, ends - 1)
+        c0 = np.where(j >= starts, cw[lo], base)
+        gap = cw[hi] - c0
+        frac = np.where(
+            (j >= starts) & (j < ends - 1) & (gap > 0),
+            (target - c0) / np.where(gap > 0, gap, 1.0),
+            0.0,
+        )
+        out[:, k] = np.where(j < starts, xs[starts], xs[lo] + frac * (xs[hi] - xs[lo]))
+    return out
+
+
+def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
+    """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
+    ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
+    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median; the
+    warp is flattened (s grown) until the finest texel, s·dξ, is the group's
+    ``min_texel`` (or the texels are uniform)."""
+    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+    q = grouped_interp_quantiles(x, w, groups, n_groups, qs)
+    lo, hi, c = q[:, 0], q[:, 1], q[:, 2]
+    span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
+    lo, hi = lo - span / res, hi + span / res  # a texel of margin
+    if warp:
+        mad = grouped_interp_quantiles(np.abs(x - c[groups]), w, groups, n_groups, (0.5,))[:, 0]
+        s = np.maximum(mad, 1e-3 * span)
+    else:
+        s = 1e3 * span
+    min_texel = np.asarray(min_texel, dtype=float).reshape(-1)
+
+    def finest(s):
+        return s * (np.arcsinh((hi - c) / s) - np.arcsinh((lo - c) / s)) / res
+
+    need = finest(s) < min_texel  # grows with s, toward the uniform texel (hi − lo)/res
+    flat = need & ((hi - lo) / res <= min_texel)
+    s = np.where(flat, 1e3 * span, s)
+    bis = need & ~flat
+    if np.any(bis):
+        a, b = s.copy(), 1e3 * span
+        for _ in range(60):  # bisection in log s
+            m = np.sqrt(a * b)
+            low = finest(m) < min_texel
+            a, b = np.where(low, m, a), np.where(low, b, m)
+        s = np.where(bis, b, s)
+    xi0, xi1 = np.arcsinh((lo - c) / s), np.arcsinh((hi - c) / s)
+    return c, s, xi0, (xi1 - xi0) / res
+
+
+def _edges(axis, res):
+    c, s, xi0, dxi = axis
+    return c + s * np.sinh(xi0 + dxi * np.arange(res + 1))
+
+
+def _asinh(u):
+    """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
+    a few ulps)."""
+    a = np.abs(u)
+    return np.copysign(np.log(a + np.sqrt(a * a + 1.0)), u)
+
+
+def _texel_index(x, fr, key, slots):
+    xi = _asinh((x - fr[key + "c"][slots]) / fr[key + "s"][slots])
+    return np.floor((xi - fr[key + "xi0"][slots]) / fr[key + "dxi"][slots]).astype(np.int64)
+
+
+def _local_texel(x, fr, key, slots):
+    """Texel width at ``x``: dx/dξ · dξ = sqrt(s² + (x − c)²) · dξ."""
+    return np.hypot(fr[key + "s"][slots], x - fr[key + "c"][slots]) * fr[key + "dxi"][slots]
+
+
+def _deposit(acc, out_acc, points, slots, flux, fr, res):
+    """Add ``flux`` at world ``points`` into the rasters of ``slots`` (their texel)."""
+    if len(points) == 0:
+        return
+    x = np.einsum("ij,ij->i", points, fr["au"][slots])
+    y = np.einsum("ij,ij->i", points, fr["av"][slots])
+    _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res)
+
+
+def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
+    """``x``, ``y``, ``flux`` (…) in the rasters' planes; ``slots`` broadcast against them
+    (a cell's sub-cells: (C, 1) against (C, q), so each raster's warp is gathered once
+    per cell, not per sub-cell)."""
+    ix = _texel_index(x, fr, "u", slots)
+    iy = _texel_index(y, fr, "v", slots)
+    _accumulate(acc, out_acc, ix, iy, slots, flux, res)
+
+
+def _accumulate(acc, out_acc, ix, iy, slots, flux, res):
+    """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them);
+    beyond a raster, to its ``out_acc``."""
+    n = len(acc)
+    # unsigned: a negative index compares as huge (one test per side); the texels
+    # beyond a raster go to bin n + slot, so one bincount takes both
+    inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
+    idx = np.where(inside, (slots * res + iy) * res + ix, n + slots)
+    both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
+    acc += both[:n]
+    out_acc += both[n:]
+
+
+def _splat_cells(
+    acc,
+    out_acc,
+    corner_xy,
+    slots,
+    dens,
+    flux,
+    fr,
+    res,
+    per_texel,
+    m_max,
+    max_subcells,
+    flux_subcells_per_texel,
+    m_free=8,
+    jitter=None,
+    shares=None,
+):
+    """Spread each cell's flux over its landed quad by m × m bilinear sub-cells;
+    ``corner_xy``: the corners' plane coordinates (x, y), each (C, 4), along the axes of
+    the cell's raster ``slots``.
+
+    ``jitter`` (C, 2, 2): per cell the plane offsets (u, v) of a unit step along each
+    axis of the emitter's shape (:func:`_share_offsets`); ``shares``: per cell (disc,
+    grid cell, grid size) of its sample's share. Each sub-cell is moved by a point of
+    that share from a low-discrepancy sequence, so the K images of an extended source
+    blend into its continuous blur instead of K separate copies."""
+    x, y = corner_xy  # (C, 4)
+    # sub-cells per side: the quad's extent in local texels at its centre
+    tx = _local_texel(x.mean(1), fr, "u", slots)
+    ty = _local_texel(y.mean(1), fr, "v", slots)
+    size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
+    m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
+    # A dim cell's sampling error is a small share of the image: the cells that need
+    # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
+    # them by flux too, about ``flux_subcells_per_texel`` per texel of the rasters in all.
+    budget = flux_subcells_per_texel * res * res * (len(fr["au"]) if len(fr["au"]) else 1)
+    m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300))).astype(np.int64)
+    m = np.where(m <= m_free, m, np.maximum(m_free, np.minimum(m, m_flux)))
+    total = int(np.sum(m * m))
+    if total > max_subcells:  # keep memory bounded: coarser sub-cells
+        m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
+    dsum = dens.sum(axis=1)
+    dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
+    dsum = dens.sum(axis=1)
+    # The warp's argument (x − c)/s at the corners: the bilinear sub-cells commute with
+    # that affine map, so they are placed in it directly (per raster constants gathered
+    # once per cell, not per sub-cell).
+    su, sv = fr["us"][slots], fr["vs"][slots]
+    xn = (x - fr["uc"][slots][:, None]) / su[:, None]
+    yn = (y - fr["vc"][slots][:, None]) / sv[:, None]
+    xi0u, dxiu = fr["uxi0"][slots], fr["udxi"][slots]
+    xi0v, dxiv = fr["vxi0"][slots], fr["vdxi"][slots]
+    n_sub = 0
+    for mm in np.unique(m):  # loop over subdivision levels
+        sel = np.nonzero(m == mm)[0]
+        g = (np.arange(mm) + 0.5) / mm
+        s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
+        bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
+        px = _rows_matmul(xn[sel], bw.T)  # (c, q)
+        py = _rows_matmul(yn[sel], bw.T)
+        if jitter is not None:
+            a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
+            j = jitter[sel]
+            px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
+            py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
+        # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
+        w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
+        ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
+        iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
+        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, res)
+        n_sub += w.size
+    return n_sub
+
+
+def _rows_matmul(a, b, limit: int = 1 << 18):
+    """``a @ b`` in blocks of rows small enough (rows × b's size ≤ ``limit``) that
+    OpenBLAS runs each on one thread: for a product 4 deep its threads cost far more
+    than they save (measured 4.4 ms CPU, 8.9 ms wall for (4145, 4) @ (4, 64) against
+    0.22 ms in blocks, worst on a busy machine)."""
+    n = max(1, limit // max(b.shape[0] * b.shape[1], 1))
+    if len(a) <= n:
+        return a @ b
+    out = np.empty((len(a), b.shape[1]), dtype=np.result_type(a, b))
+    for i in range(0, len(a), n):
+        np.matmul(a[i : i + n], b, out=out[i : i + n])
+    return out
+
+
+#: Roberts' R2 sequence (the plastic number): well spread points in the unit square.
+_R2 = 1.0 / np.array([1.32471795724474602596, 1.32471795724474602596**2])
+
+
+def _share_points(start: int, shape, disc, cells, grid) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets (shape coordinates of the emitter) to points of each cell's sample's
+    share for ``shape`` = (cells, sub-cells), the sub-cells numbered from ``start`` along
+    a low-discrepancy sequence. Deterministic, so an animation does not flicker."""
+    i = start + np.arange(shape[0] * shape[1], dtype=float).reshape(shape)
+    s = np.modf(0.5 + i * _R2[0])[0]
+    t = np.modf(0.5 + i * _R2[1])[0]
+    return share_offsets(cells, grid, disc, s, t)
+
+
+def _cell_shares(landed: list[_Landed]):
+    """Per cell of the landed beams: its sample's rotation vectors (C, 2, 3), its lens
+    centre (C, 3), whether the emitter is a disc (C,), its share's grid cell (C, 2) and
+    the grid's size (C,)."""
+    rot, ctr, disc, cells, grid = [], [], [], [], []
+    for lb in landed:
+        b = lb.beam
+        k, nr, na = b.shape
+        n = nr * na
+        r = b.rotations if b.rotations is not None else np.zeros((k, 2, 3))
+        rot.append(np.repeat(r, n, axis=0))
+        c = b.center if b.center is not None else np.zeros(3)
+        ctr.append(np.broadcast_to(c, (k * n, 3)))
+        disc.append(np.full(k * n, bool(b.share_disc)))
+        sc = b.share_cells if b.share_cells is not None else np.zeros((k, 2), dtype=np.int64)
+        cells.append(np.repeat(sc, n, axis=0))
+        grid.append(np.full(k * n, int(b.share_grid)))
+    return (
+        np.concatenate(rot),
+        np.concatenate(ctr),
+        np.concatenate(disc),
+        np.concatenate(cells),
+        np.concatenate(grid),
+    )
+
+
+def _share_offsets(corner_pts, corner_dirs, rot, centers, slots, fr):
+    """(C, 2, 2): per cell, the plane offsets (u, v) of its landing for a unit step along
+    each axis of its sample's share. The beam turns about the lens centre by α, so the
+    landing q moves by α × q; that move is carried back onto the receiver's plane along
+    the cell's ray direction (a grazing receiver stretches it, at most 20×)."""
+    au, av = fr["au"][slots], fr["av"][slots]
+    nrm = np.cross(au, av)
+    q = corner_pts.mean(axis=1) - centers
+    d = corner_dirs.mean(axis=1)
+    d /= np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    delta = np.cross(rot, q[:, None, :])  # (C, 2, 3)
+    dn = np.einsum("ci,ci->c", d, nrm)
+    dn = np.where(dn >= 0.0, 1.0, -1.0) * np.maximum(np.abs(dn), 0.05)
+    delta = delta - d[:, None, :] * (np.einsum("cki,ci->ck", delta, nrm) / dn[:, None])[..., None]
+    return np.stack(
+        [np.einsum("cki,ci->ck", delta, au), np.einsum("cki,ci->ck", delta, av)], axis=-1
+    )
+
+
+def _affine_uv_fit(index: ReceiverIndex, patch: ReceiverPatch, n_out):
+    """Least-squares affine map (plane coordinates → UV) over the patch's vertices and
+    whether it is exact; None without UVs."""
+    mesh = index.mesh
+    if mesh.uvs is None:
+        return None
+    used = np.zeros(len(mesh.vertices), dtype=bool)
+    used[np.asarray(mesh.triangles)[patch.triangles].reshape(-1)] = True
+    vi = np.nonzero(used)[0]  # the patch's vertices, sorted (a mask: no sort needed)
+    uv = np.asarray(mesh.uvs, dtype=float)
+    pv = np.asarray(mesh.vertices, dtype=float)[vi]
+    au, av = perpendicular_frame(n_out)
+    a = np.column_stack([pv @ au, pv @ av, np.ones(len(pv))])
+    coef = np.linalg.lstsq(a, uv[vi], rcond=None)[0]
+    scale = max(float(np.ptp(uv[vi], axis=0).max()), 1e-300)
+    # Blender stores UVs in float32: affine to its precision counts as affine
+    return coef, bool(np.abs(a @ coef - uv[vi]).max() <= 1e-6 * scale)
+
+
+def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
+    """The receiver's UV at each layer vertex. A plane's UVs are usually affine in the
+    plane: then the least-squares affine fit is exact and used everywhere (``inside`` is
+    None). Otherwise barycentric interpolation on the patch's triangle under each vertex,
+    the affine fit beyond the patch (``inside`` False there)."""
+    if uv_fit is None:
+        return None, None
+    coef, exact = uv_fit
+    au, av = perpendicular_frame(n_out)
+    fit = np.column_stack([verts @ au, verts @ av, np.ones(len(verts))]) @ coef
+    if exact:
+        return fit, None
+    mesh = index.mesh
+    uv = np.asarray(mesh.uvs, dtype=float)
+    h = 1e-6 * max(float(np.ptp(verts, axis=0).max()), 1e-300)
+    hits = intersect(
+        index, verts + h * n_out, np.broadcast_to(-n_out, verts.shape), t_min=0.0, t_max=2.0 * h
+    )
+    tri = hits.triangle
+    inside = (tri >= 0) & (index.patch_of[np.maximum(tri, 0)] == p)
+    tv = np.asarray(mesh.triangles)[np.maximum(tri, 0)]
+    bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], axis=1)
+    out = np.einsum("nk,nkj->nj", bary, uv[tv])
+    return np.where(inside[:, None], out, fit), inside

@@ -1,0 +1,6 @@
+"""Phase 1 (the thesis' method for ball lenses): image points, spreading angles, brightness,
+obstruction and shadow lists.
+
+May import core.shared, core.lens, core.scene, core.plan.budget; never tiers, plans or
+Blender.
+"""

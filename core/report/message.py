@@ -1,0 +1,163 @@
+"""The generate report: its text and its figures, from a `planning.Work` (pure).
+
+Skipped pairs are counted by their reason's code (`skip_reasons`): phase 1's from
+its skip table, planning's from `Plan.skipped`, the pre-selection's from the
+budget.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+import numpy as np
+
+from ..phase1.point_lights import Phase1Result, SkipTable
+from ..phase1.skip_reasons import Reason, reason_kind, reason_text
+
+#: How many skipped pairs / left-out objects a report names.
+REPORT_FIRST = 3
+
+
+def skip_report(work):
+    """(skipped count, first few "light × lens: reason", counts per reason)."""
+    read, result, sel, plan = work.read, work.result, work.selection, work.plan
+    s = result.skip_table
+    cand = read.lens_candidates[s.lens] if len(s) else np.zeros(0, dtype=bool)
+    first, counts = [], {}
+    a = read.arrays
+    for k in np.flatnonzero(cand)[:REPORT_FIRST]:
+        i = int(s.lens[k])
+        details = dict(
+            radius=float(a.radius[i]), ior=float(a.ior[i]), kt=float(a.kt[i]), other=int(s.other[k])
+        )
+        first.append(
+            f"{read.light_sources[int(s.light[k])]} × {read.sphere_sources[i]}: "
+            + reason_text(int(s.code[k]), details)
+        )
+    if cand.any():
+        sub = SkipTable(s.light[cand], s.lens[cand], s.code[cand], s.other[cand])
+        counts.update(Phase1Result(result.table, sub, a).skip_counts())
+    for pair in plan.skipped:
+        light, lens, why = pair
+        if len(first) < REPORT_FIRST:
+            first.append(f"{light} × {lens}: {why}")
+        counts[pair.kind] = counts.get(pair.kind, 0) + 1
+    if sel.budget.over_cap:
+        kind = reason_kind(Reason.NOT_AMONG_STRONGEST, dict(count=sel.preselect))
+        counts[kind] = sel.budget.over_cap
+    total = sum(counts.values())
+    return total, first, counts
+
+
+def plural(n, word, many=None):
+    return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
+def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[str, str, dict]:
+    """(level, message, figures) of a run that made `made` lights;
+    `read_as_rendered`: False when the scene was read as the viewport shows it
+    (`work.read.how` says why)."""
+    read, result, sel, plan = work.read, work.result, work.selection, work.plan
+    lights = len(read.light_sources)
+    lenses = int(np.count_nonzero(read.lens_candidates))
+    skipped, first, counts = skip_report(work)
+    # Flux without a light: every source's estimated flux minus the built lights'.
+    rows = {id(src): t for t, src in enumerate(sel.sources)}
+    built = sum(
+        float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights if id(p.source) in rows
+    )
+    left_share = (1.0 - built / sel.flux_total) if sel.flux_total > 0 else 0.0
+    left_share = min(max(left_share, 0.0), 1.0) if made else (1.0 if sel.flux_total > 0 else 0.0)
+
+    level = "INFO"
+    parts = [
+        f"Created {plural(made, 'lens light')} ({plural(lights, 'light')}"
+        f" × {plural(lenses, 'lens', 'lenses')})"
+    ]
+    if not lights:
+        level = "WARNING"
+        parts.append("no light with power is enabled for rendering")
+    elif lenses == 0:
+        level = "WARNING"
+        parts.append("no glass sphere found")
+    if skipped:
+        text = f"skipped {plural(skipped, 'pair')}: " + "; ".join(first)
+        if skipped > len(first):
+            text += f"; and {skipped - len(first)} more"
+        parts.append(text)
+        if len(counts) > 1 or skipped > len(first):
+            parts.append(
+                "by reason: "
+                + ", ".join(
+                    f"{n} {kind}" for kind, n in sorted(counts.items(), key=lambda kv: -kv[1])
+                )
+            )
+    if sel.budget.merged:
+        parts.append(f"merged {plural(sel.budget.merged, 'source')} into nearby lens lights")
+    if left_share > 0 and len(result.table):
+        parts.append(f"{100.0 * left_share:.3g}% of the lenses' flux has no lens light")
+    if read.left_out_lenses:
+        shown = "; ".join(f"{n}: {why}" for n, why in read.left_out_lenses[:REPORT_FIRST])
+        more = len(read.left_out_lenses) - REPORT_FIRST
+        parts.append(
+            f"left out {plural(len(read.left_out_lenses), 'object')}: {shown}"
+            + (f"; and {more} more" if more > 0 else "")
+        )
+    notes = getattr(read, "light_notes", [])
+    if notes:
+        shown = "; ".join(f"{n}: {why}" for n, why in notes[:REPORT_FIRST])
+        more = len(notes) - REPORT_FIRST
+        parts.append("not modelled: " + shown + (f"; and {more} more" if more > 0 else ""))
+    if not read_as_rendered:
+        parts.append(f"scene read as the {read.how}")
+    figures = dict(
+        created=made,
+        sources=len(result.table),
+        skipped=skipped,
+        skipped_by_reason=counts,
+        merged=sel.budget.merged,
+        primaries=lights,
+        lenses=lenses,
+        left_out=len(read.left_out_lenses),
+        light_notes=list(getattr(read, "light_notes", [])),
+        flux_left_out=left_share,
+        how=read.how,
+    )
+    return level, "; ".join(parts), figures
+
+
+def linking_note(version: tuple, engine: str, inside: int) -> str:
+    """The warning for lens lights inside their lens (`BlenderLight.inside_lens`)
+    where light and shadow linking do not work: EEVEE before Blender 4.3."""
+    if inside and engine.startswith("BLENDER_EEVEE") and tuple(version[:2]) < (4, 3):
+        return (
+            f"{plural(inside, 'lens light')} inside {'its' if inside == 1 else 'their'} "
+            "lens: EEVEE before Blender 4.3 ignores light and shadow linking, so the lens "
+            "shadows them (render in Cycles or Blender 4.3+)"
+        )
+    return ""
+
+
+#: Light-linking sets Blender keeps per scene (its message: "Maximum number of light
+#: linking sets (64) exceeded"); a lens's linking collection is one set.
+MAX_LINKING_SETS = 64
+
+
+def linking_sets_note(lenses: int) -> str:
+    """The warning when more lenses have lens lights than Blender has light-linking
+    sets: the lights of the lenses beyond them may not be excluded from their own lens."""
+    if lenses <= MAX_LINKING_SETS:
+        return ""
+    return (
+        f"{plural(lenses, 'lens', 'lenses')} have lens lights but Blender keeps {MAX_LINKING_SETS} "
+        f"light-linking sets per scene: the lights of {lenses - MAX_LINKING_SETS} of them "
+        "may not be excluded from their own lens, which can shadow them (lower Maximum "
+        "Lights, or use fewer lenses)"
+    )
+
+
+def error_text(stage, exc):
+    """'Lens Lights could not <stage>: <error> (<file>:<line>)'."""
+    where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    at = f" ({where.filename.rsplit('/', 1)[-1]}:{where.lineno})" if where else ""
+    return f"Lens Lights could not {stage}: {type(exc).__name__}: {exc}{at}"

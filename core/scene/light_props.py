@@ -1,0 +1,171 @@
+"""A Blender light's properties → a primary (`core.scene.primaries`), and what of it
+Lens Lights does not model (pure; `blender.read.scene` copies the properties).
+
+`LightProps` is what the reader copies of one light data block (Blender 4.2–5.2:
+``exposure`` and ``normalize`` exist from 4.3 on, 4.2 reads them as 0 and True).
+`primary_of` places it with the instance's world matrix. Power (SPEC §9, §10):
+
+* point, spot: ``energy × 2^exposure``, × the sphere's area ``4πr²`` when not
+  normalised (Blender's point and spot lights with a radius are spheres);
+* sun: the strength ``energy × 2^exposure`` in W/m² (no normalisation);
+* area: ``energy × 2^exposure``, × its area (object scale included) when not normalised.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .primaries import (
+    AREA,
+    ELLIPSE,
+    POINT,
+    RECTANGLE,
+    SHAPES,
+    SPOT,
+    SQUARE,
+    SUN,
+    AreaPrimary,
+    PointPrimary,
+    SpotPrimary,
+    SunPrimary,
+    area_of,
+    from_matrix,
+)
+
+
+@dataclass(frozen=True)
+class LightProps:
+    """The properties of one Blender light data block (and its object) that matter."""
+
+    type: str  # light.type
+    energy: float  # light.energy (W; a sun: W/m²)
+    color: tuple = (1.0, 1.0, 1.0)  # colour × blackbody colour
+    exposure: float = 0.0  # light.exposure (4.3+)
+    normalize: bool = True  # light.normalize (4.3+)
+    radius: float = 0.0  # shadow_soft_size (point, spot)
+    spot_size: float = math.pi / 4  # radians, full cone
+    spot_blend: float = 0.15
+    angle: float = 0.0  # sun: angular diameter, radians
+    shape: str = SQUARE  # area
+    size: float = 1.0
+    size_y: float = 1.0
+    spread: float = math.pi  # area: Cycles' spread (π: Lambertian)
+    uses_nodes: bool = False  # a light node tree drives its emission (Cycles)
+    linked: bool = False  # the light has light or shadow linking of its own
+
+
+#: The node tree every new light has from Blender 5.0 on (and `use_nodes` makes
+#: in 4.x): Emission (white, strength 1) → Light Output. It changes nothing.
+PLAIN_LIGHT_NODES = ("ShaderNodeEmission", "ShaderNodeOutputLight")
+
+
+def plain_light_nodes(kinds, color, strength, linked_inputs: int) -> bool:
+    """Whether a light's node tree is the plain one (`PLAIN_LIGHT_NODES`, nothing
+    linked into the Emission, its colour white and strength 1): then the light's
+    own power and colour are all there is."""
+    return (
+        sorted(kinds) == sorted(PLAIN_LIGHT_NODES)
+        and linked_inputs == 0
+        and tuple(color[:3]) == (1.0, 1.0, 1.0)
+        and strength == 1.0
+    )
+
+
+def light_power(energy: float, exposure: float, normalize: bool, radius: float) -> float:
+    """A point or spot light's power in W: ``energy × 2^exposure``, × the sphere's
+    area 4πr² when its power is not normalised."""
+    power = float(energy) * 2.0 ** float(exposure)
+    if not normalize and radius > 0:
+        power *= 4.0 * math.pi * radius * radius
+    return power
+
+
+def primary_of(props: LightProps, matrix, name: str = ""):
+    """(primary or None, why it is left out, notes on what is not modelled) of a
+    light with the world `matrix` (4 × 4)."""
+    m = np.asarray(matrix, dtype=float).reshape(4, 4)
+    if not np.all(np.isfinite(m)):
+        return None, "invalid transform (non-finite numbers)", []
+    if props.type not in (POINT, SPOT, SUN, AREA):
+        return None, f"{props.type.lower()} light: not a Blender light type Lens Lights knows", []
+    position, direction, axis_x, sx, sy = from_matrix(m)
+    scale = 2.0 ** float(props.exposure)
+    notes = []
+    if props.uses_nodes:
+        notes.append("its light nodes are ignored (Lens Lights uses its plain power and colour)")
+    if props.linked:
+        notes.append("its light linking is not copied to its lens lights")
+    color = tuple(float(c) for c in props.color)
+    if props.type == SUN:
+        strength = float(props.energy) * scale
+        if not strength > 0 or not math.isfinite(strength):
+            return None, f"sun without strength ({strength:g} W/m²)", notes
+        return (
+            SunPrimary(
+                direction=direction,
+                strength=strength,
+                angle=float(props.angle),
+                color=color,
+                name=name,
+            ),
+            "",
+            notes,
+        )
+    if props.type == AREA:
+        shape = props.shape if props.shape in SHAPES else SQUARE
+        size_x = float(props.size) * sx
+        size_y = float(props.size_y if shape in (RECTANGLE, ELLIPSE) else props.size) * sy
+        power = float(props.energy) * scale
+        if not props.normalize:
+            power *= float(area_of(shape, size_x, size_y))
+        if not (power > 0 and math.isfinite(power)) or not size_x * size_y > 0:
+            return None, f"area light without power or size ({power:g} W)", notes
+        if props.spread < math.pi - 1e-6:
+            notes.append(
+                f"its spread ({math.degrees(props.spread):.3g}°, Cycles only) is not "
+                "modelled: lit as a plain (Lambertian) area light"
+            )
+        return (
+            AreaPrimary(
+                position=position,
+                direction=direction,
+                axis_x=axis_x,
+                power_w=power,
+                shape=shape,
+                size_x=size_x,
+                size_y=size_y,
+                color=color,
+                name=name,
+            ),
+            "",
+            notes,
+        )
+    power = light_power(props.energy, props.exposure, props.normalize, props.radius)
+    kind = props.type.lower()
+    if not power > 0 or not math.isfinite(power):
+        return None, f"{kind} light without power ({power:g} W)", notes
+    if props.type == SPOT:
+        return (
+            SpotPrimary(
+                position=position,
+                direction=direction,
+                power_w=power,
+                spot_size=float(props.spot_size),
+                blend=float(props.spot_blend),
+                radius=float(props.radius),
+                color=color,
+                name=name,
+            ),
+            "",
+            notes,
+        )
+    return (
+        PointPrimary(
+            position=position, power_w=power, radius=float(props.radius), color=color, name=name
+        ),
+        "",
+        notes,
+    )

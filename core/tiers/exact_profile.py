@@ -1,0 +1,618 @@
+"""EXACT_PROFILE (Cycles only: it needs a light node tree): the exact beam,
+tabulated.
+
+A spot light (``spot_size`` 180°, blend 0) just behind the back pole (at the
+lens centre when the receiver is nearer than the table's first row: a marble
+resting on a table) whose
+intensity is a table over the angle ``gamma`` from the axis *and* the distance
+``h`` along the axis from the light, read in the light's node tree (Cycles gives
+a light shader the distance to the shading point: Light Path ▸ Ray Length). With
+``I(gamma, h) = E(h tan gamma; h) h^2 / cos^3 gamma`` the light puts on every
+plane perpendicular to the axis the exact irradiance (to the table's
+resolution), including the converging part and the focus. Beyond the table's
+last distance the intensity tends to the beam's far-field profile, which is
+exact for a far receiver whatever the apex. The table is computed per source
+from the exact trace (about 0.25 s; remembered per ``(D/R, n)``).
+
+The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
+has a row on the receiver's plane (right past the lens the beam changes by tens
+of per cent within a row), its texels inside the lens filled from outside (the
+texture blends them into the points just outside), and a second channel: the
+rays' mean slope per texel. A receiver tilted against the axis (a marble resting
+on a table, lit from the side) takes each ray's light by the ray's own slope,
+not the apex's; with the receiver's normal the node tree corrects for that
+(`_slope_table`, `tilted_normal`).
+
+It also carries a one-dimensional angular profile (``angular``): the best
+distance-independent profile about its own apex (a per-angle weighted median
+over the receivers, which minimises the L1 error averaged over them): usable as
+an IES file or a Float Curve where a 2-D table is not wanted; it cannot converge
+either, and the report measures it too.
+
+The Blender side — the image and the light node tree that reads it — is
+``operators/light_builder.build_profile_nodes`` (the one description of it).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..lens import ball_optics as xo
+from ..lens.glass import LensOptics
+from ..scene.primaries import PrimaryLight
+from . import beam_error as acc
+from .base import (
+    CUTOFF_FACTOR,
+    CYCLES,
+    SPOT,
+    Accuracy,
+    BlenderLight,
+    LightTable,
+    Primaries,
+    Tier,
+    axial_light_common,
+    glass_colors,
+    lens_light_radii,
+    lens_light_radius,
+    non_full_notes,
+    relative_brightness,
+    unblocked_columns,
+    unit_rows,
+)
+from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
+
+NAME = "EXACT_PROFILE"
+
+#: Table size: angle columns, distance rows.
+PROFILE_ANGLES = 256
+PROFILE_DISTANCES = 256
+#: The light sits this far (in R) behind the back pole; rows span these distances
+#: (in R) from it, log-spaced.
+PROFILE_OFFSET = 1e-3
+PROFILE_H_MIN, PROFILE_H_MAX = 0.2, 30.0
+PROFILE_APEX = 1.0 + PROFILE_OFFSET
+#: Near field (a receiver nearer than the first row, ``NEAR_RECEIVER`` R from the
+#: centre: a table the lens rests on, tilted or not): the light sits at the lens
+#: centre (inside the lens, which light and shadow linking leave out), so every
+#: point outside the sphere lies before it, with rows over these distances (light
+#: leaves the sphere at ``z ≥ 0.25 R`` but for near lights of low index). Not used
+#: farther: its rows are sparser near the lens (mean L1 0.044 instead of 0.024).
+NEAR_APEX = 0.0
+NEAR_H_MIN, NEAR_H_MAX = 0.25, 31.0
+#: The near table's rows: twice the far table's (a tilted receiver crosses many
+#: rows right past the lens, where the beam changes fastest: bench real_scenes'
+#: marble at 60°, L1 0.14 → 0.08 with the tilt correction).
+NEAR_DISTANCES = 512
+#: Fan intervals per exact-trace interval for the near table's slope channel.
+SLOPE_SUBDIVISION = 4
+NEAR_RECEIVER = PROFILE_APEX + PROFILE_H_MIN
+
+
+def table_geometry(
+    receiver: float | None, rows: int = PROFILE_DISTANCES, *, on_row: bool = False
+) -> tuple[float, float, float]:
+    """(apex, h_min, h_max) in R for a receiver `receiver` R from the centre (None:
+    unknown). With `on_row`, a near field's rows are shifted (by under half a row)
+    so that one of the `rows` row centres lies on the receiver: right past the
+    lens's surface the beam changes by tens of per cent within one row (the
+    crossing marginal rays: +50 % on the axis from 1.000 R to 1.017 R for
+    D = 100 R, n = 1.5), and a plane between two rows would read their blend."""
+    if receiver is None or receiver >= NEAR_RECEIVER:
+        return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
+    if not on_row:
+        return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
+    span = math.log(NEAR_H_MAX / NEAR_H_MIN)
+    h = max(float(receiver) - NEAR_APEX, 1e-9)
+    y = math.log(h / NEAR_H_MIN) / span * rows - 0.5
+    shift = math.exp((y - round(y)) * span / rows)
+    return NEAR_APEX, NEAR_H_MIN * shift, NEAR_H_MAX * shift
+
+
+#: Largest angle from the axis the table covers (degrees).
+PROFILE_GAMMA_MAX_DEG = 90.0
+
+
+@dataclass
+class BeamProfile:
+    """The exact beam as a light's intensity table (dimensionless: R = 1,
+    primary intensity 1).
+
+    ``apex``: the light's position from the lens centre (R).  Texel ``(i, j)``
+    (angle column ``i`` of ``K``, distance row ``j`` of ``M``) sits at the texture
+    coordinates ``u = (i + 0.5)/K``, ``v = (j + 0.5)/M``, i.e. at the angle
+    ``gamma = gamma_max u^2`` and the distance along the axis
+    ``h = h_min (h_max/h_min)^v`` from the light.  ``table[j, i]``: intensity
+    (W/sr per W/sr of the primary) toward ``gamma`` for points at ``h``; the last
+    column is 0 (so that clamping beyond ``gamma_max`` gives 0).
+    ``angular``: the 1-D profile over the same angles about ``angular_apex``.
+    """
+
+    apex: float
+    gamma_max_deg: float
+    h_min: float
+    h_max: float
+    table: np.ndarray = field(repr=False)  # (M, K)
+    flux: float = 0.0  # the beam's flux (W per W/sr of the primary)
+    angular_apex: float = 0.0
+    angular: np.ndarray = field(default=None, repr=False)  # (K,)
+    #: near field: the flux-weighted mean of tan(ray angle to the axis), signed
+    #: outward, of the rays through each texel (M, K) (`_slope_table`)
+    slope: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def angles_deg(self) -> np.ndarray:
+        K = self.table.shape[1]
+        u = (np.arange(K) + 0.5) / K
+        return self.gamma_max_deg * u * u
+
+    @property
+    def distances(self) -> np.ndarray:
+        M = self.table.shape[0]
+        v = (np.arange(M) + 0.5) / M
+        return self.h_min * (self.h_max / self.h_min) ** v
+
+    def intensity_at(self, h: float) -> np.ndarray:
+        """The angular profile (K values) the light has for points at distance
+        ``h`` along the axis: linear in ``v`` between rows, clamped at the ends,
+        as the image texture (linear interpolation, EXTEND) does."""
+        M = self.table.shape[0]
+        v = math.log(max(h, 1e-300) / self.h_min) / math.log(self.h_max / self.h_min)
+        y = min(max(v * M - 0.5, 0.0), M - 1.0)
+        j = min(int(y), M - 2)
+        t = y - j
+        return (1.0 - t) * self.table[j] + t * self.table[j + 1]
+
+
+def _bin_intensity(rf: acc.ReceiverFlux, h: float, gamma_edges: np.ndarray) -> np.ndarray:
+    """Mean intensity (flux / solid angle) in each angular bin about a point at
+    distance ``h`` before the receiver."""
+    flux = rf.flux_within_radius(h * np.tan(np.minimum(gamma_edges, 0.5 * np.pi - 1e-9)))
+    omega = 2.0 * np.pi * 2.0 * np.sin(0.5 * gamma_edges) ** 2
+    return np.diff(flux) / np.diff(omega)
+
+
+def _profile_nodes(intensity_bins: np.ndarray) -> np.ndarray:
+    """Bin means → node values at the bin centres (``angles_deg``); last node 0."""
+    out = np.array(intensity_bins, dtype=float)
+    out[-1] = 0.0
+    return out
+
+
+def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
+    """Texels whose angular bin reaches inside the lens (apex inside it: the near
+    field) get the value of their column's first texel wholly outside. No
+    receiver lies inside the lens, but the texture's linear interpolation blends
+    those texels into the points just outside: left as traced (no light yet, or
+    only part of the bin) they darken the caustic around the contact point of a
+    resting lens (a dark disc of about 4° at the back pole)."""
+    h = prof.distances[:, None]
+    inside = (prof.apex + h) ** 2 + (h * np.tan(g_edges[:-1])) ** 2 < 1.0
+    for i in np.flatnonzero(inside.any(axis=0)):
+        first = int(np.flatnonzero(inside[:, i]).max()) + 1
+        if first < prof.table.shape[0]:
+            prof.table[:first, i] = prof.table[first, i]
+            if prof.slope is not None:
+                prof.slope[:first, i] = prof.slope[first, i]
+
+
+def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
+    """The flux-weighted mean of ``tan α`` over the rays through each texel of the
+    table (``α``: the ray's angle to the axis, positive away from it): on a receiver
+    tilted against the axis the irradiance is ``E_perp (n·a + tan α ρ̂·n)`` per ray
+    (``n`` its normal, ``a`` the axis, ``ρ̂`` outward), linear in ``tan α``, so this
+    mean gives the exact tilted irradiance from the table's (`build_profile_nodes`'s
+    tilt correction). The apex's own rays have ``tan γ``: where no ray passes,
+    that (no correction)."""
+    M, K = prof.table.shape
+    iota = np.linspace(0.0, 0.5 * np.pi, int(n_fan) * SLOPE_SUBDIVISION + 1)
+    fan = xo.trace_rays_iota(iota, float(D_over_R), 1.0, float(n), float(absorption))
+    w = fan.transmission * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
+    c = np.cos(fan.theta_exit)
+    tan_exit = np.tan(fan.theta_exit)  # toward the axis: the signed height falls
+    z_exit = -np.cos(fan.exit_polar)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b_over_c = fan.b / c
+    out = np.tile(np.tan(np.radians(prof.angles_deg)), (M, 1))
+    for j, h in enumerate(prof.distances):
+        Z = prof.apex + h
+        height = b_over_c - Z * tan_exit
+        ok = (c > 0.0) & (Z >= z_exit) & np.isfinite(height) & (w > 0.0)
+        k = np.searchsorted(g_edges, np.arctan2(np.abs(height[ok]), h), side="right") - 1
+        keep = k < K
+        k, wk = k[keep], w[ok][keep]
+        tan_out = (-np.sign(height[ok]) * tan_exit[ok])[keep]
+        W = np.bincount(k, wk, K)
+        S = np.bincount(k, wk * tan_out, K)
+        out[j] = np.where(W > 0.0, S / np.where(W > 0.0, W, 1.0), out[j])
+    return out
+
+
+def exact_profile(
+    D_over_R: float,
+    n: float,
+    absorption: float = 0.0,
+    *,
+    n_fan: int = 8000,
+    K: int = PROFILE_ANGLES,
+    M: int = PROFILE_DISTANCES,
+    receivers=FIT_RECEIVERS,
+    near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
+) -> BeamProfile:
+    """The EXACT_PROFILE table of a lens (R = 1, primary intensity 1); `near`: the
+    near field's, its apex at the lens centre (`table_geometry`); `receiver` (R
+    from the centre, nearer than ``NEAR_RECEIVER``): the near field's with a row
+    on that plane; `slope` (near field): with the rays' slopes (`_slope_table`, for
+    a tilted receiver; as long again to compute)."""
+    beam = acc.ExactBeam(1.0, float(D_over_R), 1.0, n, absorption, n_fan=n_fan)
+    gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
+    u_edges = np.arange(K + 1) / K
+    g_edges = gmax * u_edges * u_edges
+    if receiver is not None:
+        apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
+    else:
+        apex, h_min, h_max = table_geometry(0.0 if near else None)
+    prof = BeamProfile(
+        apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)), flux=beam.lens_flux
+    )
+    for j, h in enumerate(prof.distances):
+        rf = beam.receiver(apex + h)
+        prof.table[j] = _profile_nodes(_bin_intensity(rf, h, g_edges))
+    if apex < 1.0 and slope:
+        prof.slope = _slope_table(prof, float(D_over_R), n, absorption, n_fan, g_edges)
+        _fill_inside_lens(prof, g_edges)
+    # 1-D profile: best apex among candidates, per-bin weighted median over receivers
+    best = None
+    z0 = 1.0 + FIRST_RECEIVER
+    for d in np.geomspace(0.05, z0 + min(float(D_over_R), 30.0), 16):
+        a = z0 - d
+        rows, wts = [], []
+        for s in receivers:
+            Z = beam.plane(s)
+            rf = beam.receiver(Z)
+            h = Z - a
+            rows.append(_bin_intensity(rf, h, g_edges))
+            inside = np.arctan2(beam.shadow_radius(Z), h)
+            tot = rf.flux_within_radius([beam.shadow_radius(Z)])[0]
+            wts.append(np.where(g_edges[1:] <= inside + 1e-12, 1.0 / tot, 0.0))
+        rows, wts = np.array(rows), np.array(wts)
+        med = _weighted_median(rows, wts)
+        omega = np.diff(2.0 * np.pi * 2.0 * np.sin(0.5 * g_edges) ** 2)
+        cost = float(np.sum(wts * np.abs(rows - med[None, :]) * omega[None, :]))
+        if best is None or cost < best[0]:
+            best = (cost, a, med)
+    prof.angular_apex = best[1]
+    prof.angular = _profile_nodes(best[2])
+    return prof
+
+
+@functools.lru_cache(maxsize=128)
+def cached_profile(
+    D_over_R: float,
+    n: float,
+    near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
+) -> BeamProfile:
+    """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
+    lenses and lights (frame changes, re-runs) pays once.  Do not modify the
+    returned table."""
+    M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
+    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Column-wise weighted median of ``values`` (R, K) with ``weights`` (R, K);
+    columns without weight get 0."""
+    order = np.argsort(values, axis=0)
+    v = np.take_along_axis(values, order, axis=0)
+    w = np.take_along_axis(weights, order, axis=0)
+    cw = np.cumsum(w, axis=0)
+    half = 0.5 * cw[-1]
+    idx = np.argmax(cw >= half[None, :], axis=0)
+    out = v[idx, np.arange(values.shape[1])]
+    return np.where(cw[-1] > 0.0, out, 0.0)
+
+
+class _Profile2D:
+    """Accuracy model of a :class:`BeamProfile` (the 2-D table) at scale ``R``,
+    primary intensity ``I0``."""
+
+    def __init__(self, prof: BeamProfile, R=1.0, I0=1.0):
+        self.p, self.R, self.I0 = prof, R, I0
+        self.g = np.concatenate([[0.0], np.radians(prof.angles_deg)])
+
+    def flux_within_radius(self, Z, radii):
+        h = Z / self.R - self.p.apex
+        i_h = self.p.intensity_at(h)
+        i_h = np.concatenate([[i_h[0]], i_h]) * self.I0
+        return acc.AxialProfile(self.p.apex * self.R, self.g, i_h).flux_within_radius(Z, radii)
+
+
+def profile_model(prof: BeamProfile, R=1.0, I0=1.0, angular: bool = False):
+    """The :mod:`core.tiers.beam_error` model of a profile: the 2-D table, or with
+    ``angular`` the 1-D angular profile about its own apex."""
+    if angular:
+        g = np.concatenate([[0.0], np.radians(prof.angles_deg)])
+        i_g = np.concatenate([[prof.angular[0]], prof.angular]) * I0
+        return acc.AxialProfile(prof.angular_apex * R, g, i_g)
+    return _Profile2D(prof, R, I0)
+
+
+@dataclass
+class ProfileLight(BlenderLight):
+    """A :class:`.base.BlenderLight` plus the EXACT_PROFILE table (world
+    units) for the light node tree (`operators/light_builder.build_profile_nodes`).
+
+    ``profile`` (the table, ``pixels`` and all) is made on first use (about 0.25 s
+    per new ``(D/R, n)``, then remembered), so that planning many candidate lights
+    (energy, brightness, ordering) costs only the exact trace (milliseconds);
+    ``profile_info`` (its sizes and distances) is known at once."""
+
+    profile_info: dict | None = None
+    receiver_distance: float | None = None  # from the lens centre, where known (shadow mask)
+    _profile: dict | None = field(default=None, repr=False)
+    _profile_maker: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def profile(self) -> dict | None:
+        if self._profile is None and self._profile_maker is not None:
+            self._profile = self._profile_maker()
+        return self._profile
+
+    def to_json(self) -> dict:
+        out = super().to_json()
+        if self.profile_info is not None:
+            out["profile"] = dict(self.profile_info)
+        return out
+
+
+@functools.lru_cache(maxsize=1024)
+def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
+    """(the beam's flux, its exact mean irradiance on the disc of ``PEAK_DISC`` R
+    around the axis at the first receiver), per unit primary intensity, R = 1.
+    The flux is the one :func:`exact_profile` records (same trace)."""
+    beam = acc.ExactBeam(1.0, D_over_R, 1.0, n, n_fan=8000)
+    Z = beam.plane(FIRST_RECEIVER)
+    disc = acc.PEAK_DISC
+    e = float(beam.flux_within_radius(Z, np.array([disc]))[0]) / (math.pi * disc * disc)
+    return beam.lens_flux, e
+
+
+def _profile_dict(
+    prof: BeamProfile, t_ref: float, R: float, center, axis, key, normal=None
+) -> dict:
+    ang = prof.angular / t_ref
+    out = {
+        # (height, width), row 0 = v at the bottom
+        "pixels": (prof.table / t_ref).astype(np.float32),
+        "width": prof.table.shape[1],
+        "height": prof.table.shape[0],
+        "gamma_max_deg": prof.gamma_max_deg,
+        "h_min": prof.h_min * R,
+        "h_max": prof.h_max * R,  # world units
+        "strength_scale": 1.0,
+        "angles_deg": prof.angles_deg.tolist(),
+        "angular_relative": ang.tolist(),  # 1-D profile / (energy/4π), about angular_apex
+        "angular_apex_location": tuple(float(v) for v in center + prof.angular_apex * R * axis),
+        # Lights with equal keys have equal pixels (one image may serve them all);
+        # None for a table passed in.
+        "key": key,
+    }
+    if prof.slope is not None:
+        out["slope"] = prof.slope.astype(np.float32)  # the image's green channel
+    if normal is not None and prof.slope is not None:
+        # a receiver tilted against the axis: the node tree's tilt correction
+        out["axis"] = tuple(float(v) for v in axis)
+        out["receiver_normal"] = tuple(float(v) for v in normal)
+    return out
+
+
+def tilted_normal(normal, axis, min_tilt_deg: float = 0.5):
+    """The receiver's unit normal turned along the beam (``n·axis > 0``), if it is
+    known and tilted more than `min_tilt_deg` against the axis; else None (a plane
+    square to the axis needs no tilt correction)."""
+    if normal is None:
+        return None
+    nrm = np.asarray(normal, dtype=float)
+    length = float(np.linalg.norm(nrm))
+    if not math.isfinite(length) or length == 0.0:
+        return None
+    nrm = nrm / length
+    c = float(nrm @ axis)
+    if c < 0.0:
+        nrm, c = -nrm, -c
+    if c > math.cos(math.radians(min_tilt_deg)) or c < 1e-3:
+        return None
+    return nrm
+
+
+def make_profile_light(
+    source,
+    primary: PrimaryLight,
+    *,
+    optics: LensOptics | None = None,
+    scene_size: float = 1.0,
+    profile: BeamProfile | None = None,
+    receiver_distance: float | None = None,
+    **_ignored,
+) -> ProfileLight:
+    """The EXACT_PROFILE tier's light: a 180° spot (blend 0) just behind the back
+    pole, or for a receiver nearer than ``NEAR_RECEIVER`` at the lens centre
+    (``inside_lens``: the lens is out of its linking), whose emission is
+    ``energy/(4π) × texture(u, v)``
+    (``profile["pixels"]``: float32, values from 0 to about 1e7 — the image must
+    be a 32-bit float image, ``use_half_precision = False``).  ``energy_w`` is
+    twice the beam's flux, so the light's nominal power (a 180° spot emits half
+    its energy) is the beam's.  Distances in ``profile`` are in world units.
+    ``reference_irradiance``: the exact mean irradiance on a disc of
+    ``PEAK_DISC`` R around the axis at the first receiver (0.5 R behind the
+    lens); ``relative_brightness`` that over the primary's at the lens."""
+    axis, R, D, scale, color, notes = axial_light_common(source, primary, optics)
+    n = float(source.ior)
+    key = (round(D / R, 9), round(n, 9))
+    flux, e_ref = _beam_summary(*key)
+    if profile is not None:
+        flux = profile.flux
+    # Normalise so that the light's nominal power is the beam's: a 180° spot of
+    # energy P emits P/2, so energy = 2 × beam flux and the texture holds the
+    # intensity in units of energy/(4π) (values above 1 where the beam is
+    # concentrated).  Cycles' light sampling then weighs this light by its real
+    # power, not by the peak of its caustic.
+    t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
+    I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
+    near = (
+        receiver_distance is not None
+        and table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
+    )
+    # the near table's rows are placed on the receiver (`table_geometry`): its key
+    # carries the receiver (R, to 1e-6: a table per distinct resting height)
+    z_near = round(float(receiver_distance) / R, 6) if near else None
+    apex = profile.apex if profile is not None else table_geometry(z_near)[0]
+    normal = tilted_normal(getattr(receiver_distance, "normal", None), axis) if near else None
+    center = np.asarray(source.lens_center, dtype=float)
+    location = center + apex * R * axis
+    notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
+    if near:
+        notes.append(
+            f"near field: light at the lens centre (receiver "
+            f"{float(receiver_distance) / R:.4g} R from it)"
+        )
+    irradiance = primary.intensity * scale * e_ref / R**2
+    primary_irr = primary.intensity / D**2
+    if profile is not None:
+        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, normal)
+        shape = profile.table.shape
+        info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
+    else:
+
+        def maker():
+            return _profile_dict(
+                cached_profile(*key, near, z_near, normal is not None),
+                t_ref,
+                R,
+                center,
+                axis,
+                f"D/R {key[0]:.9g} n {key[1]:.9g}"
+                + (f" near {z_near:.6g}" if near else "")
+                + (" tilted" if normal is not None else ""),
+                normal,
+            )
+
+        rows = NEAR_DISTANCES if near else PROFILE_DISTANCES
+        shape = (rows, PROFILE_ANGLES)
+        info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, rows, on_row=True)[1:])
+    profile_info = {
+        "gamma_max_deg": info[0],
+        "h_min": info[1] * R,
+        "h_max": info[2] * R,
+        "width": shape[1],
+        "height": shape[0],
+        "strength_scale": 1.0,
+    }
+    return ProfileLight(
+        type=SPOT,
+        energy_w=float(4.0 * math.pi * I_ref),
+        spot_size_deg=180.0,
+        spot_blend=0.0,
+        radius=float(lens_light_radius(source, primary, scene_size, receiver_distance)),
+        location=tuple(float(v) for v in location),
+        direction=tuple(float(v) for v in axis),
+        note="; ".join(notes),
+        color=color,
+        scale_xy=1.0,
+        cone_half_angle_deg=90.0,
+        cutoff_distance=float(CUTOFF_FACTOR * (R + float(scene_size or 1.0))),
+        kind=source.kind,
+        model=NAME,
+        reference_irradiance=float(irradiance),
+        relative_brightness=float(irradiance / primary_irr) if primary_irr > 0 else 0.0,
+        profile_info=profile_info,
+        receiver_distance=None if receiver_distance is None else float(receiver_distance),
+        _profile_maker=maker,
+        inside_lens=bool(apex < 1.0),
+    )
+
+
+def make_light(source, primary, *, optics=None, scene_size=1.0, receiver_distance=None, **_ignored):
+    return make_profile_light(
+        source, primary, optics=optics, scene_size=scene_size, receiver_distance=receiver_distance
+    )
+
+
+def make_table(table, p: Primaries, *, scene_size: float = 1.0, **_ignored) -> LightTable:
+    """:func:`make_light` for every source of a `phase1.SourceTable` at once, no
+    receiver known (the light just behind the back pole). The beam's flux and
+    reference irradiance are traced once per distinct ``(D/R, n)`` (`_beam_summary`,
+    remembered); ``light(t)`` is a `ProfileLight` without its table."""
+    axis = unit_rows(table.axis)
+    R, D = table.lens_radius, table.distance
+    unblocked, full = unblocked_columns(table)
+    scale = np.clip(p.transmission_weight, 0.0, 1.0) ** 2 * unblocked
+    keys = list(
+        zip(
+            [round(x, 9) for x in (D / R).tolist()],
+            [round(x, 9) for x in table.ior.tolist()],
+            strict=True,
+        )
+    )
+    summary = {k: _beam_summary(*k) for k in dict.fromkeys(keys)}
+    flux = np.array([summary[k][0] for k in keys], dtype=float).reshape(-1)
+    e_ref = np.array([summary[k][1] for k in keys], dtype=float).reshape(-1)
+    t_ref = np.where(flux > 0, flux / (2.0 * math.pi), 1.0)
+    I_ref = np.where(flux > 0, p.intensity * t_ref * scale, 0.0)
+    apex, h_min, h_max = table_geometry(None)
+    irradiance = p.intensity * scale * e_ref / R**2
+    n = len(table)
+    info = {
+        "gamma_max_deg": PROFILE_GAMMA_MAX_DEG,
+        "h_min": h_min * R,
+        "h_max": h_max * R,
+        "width": PROFILE_ANGLES,
+        "height": PROFILE_DISTANCES,
+        "strength_scale": 1.0,
+    }
+    cycles = "Cycles only: intensity from the light node tree (EEVEE ignores it)"
+    return LightTable(
+        model=NAME,
+        kind=table.kind,
+        energy_w=4.0 * math.pi * I_ref,
+        spot_size_deg=np.full(n, 180.0),
+        spot_blend=np.zeros(n),
+        radius=lens_light_radii(p.radius, D, table.vergence, scene_size),
+        location=table.lens_center + (apex * R)[:, None] * axis,
+        direction=axis,
+        color=glass_colors(R, p.color, p.tint, p.absorption),
+        scale_xy=np.ones(n),
+        cone_half_angle_deg=np.full(n, 90.0),
+        cutoff_distance=CUTOFF_FACTOR * (R + float(scene_size or 1.0)),
+        reference_irradiance=irradiance,
+        relative_brightness=relative_brightness(irradiance, p.intensity / D**2),
+        inside_lens=np.full(n, apex < 1.0),
+        note_parts=[non_full_notes(unblocked, full), lambda t: cycles],
+        profile_info=info,
+        light_class=ProfileLight,
+    )
+
+
+ACCURACY = Accuracy(0.024, 0.080)
+TIER = Tier(
+    name=NAME,
+    label="Exact profile (Cycles)",
+    description=(
+        "The exact beam tabulated over angle and distance in a light node tree: "
+        "Cycles only, EEVEE gets Fitted lights instead "
+        f"(relative L1 error {ACCURACY.l1_mean:.2g} for D ≥ 2R)"
+    ),
+    trades="Exact beam tabulated over angle and distance; Cycles only (light nodes)",
+    engines=(CYCLES,),
+    accuracy=ACCURACY,
+    number=3,
+    make=make_light,
+    make_table=make_table,
+)

@@ -1,0 +1,249 @@
+"""One Exact-profile node tree (`light_builder.build_profile_nodes`) for Generate,
+live update and the bake: a baked profile light and the light Generate makes on the
+same frame give the same emission toward the same directions, far field and near
+field (a marble resting on a table, then the table lowered: the baked slices carry
+their row on each frame's receiver). The trees are evaluated node by node in numpy
+(the image texture as Blender reads it: texels at (i + ½)/K, bilinear, EXTEND),
+from the images' pixels; the lens' D/R sits on the bake's slice grid (1.04^k) on
+each frame, so the baked slices are Generate's tables. And live update keeps a
+non-full source's shadow mask when it rebuilds a profile light's tree."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,
+    glass_material,
+    lens_lights,
+    set_engine,
+)
+
+pytestmark = pytest.mark.blender
+
+R = 0.5
+
+
+def _texture(pixels, x, y):
+    """Blender's Linear, EXTEND image texture at (x, y) of `pixels` (H, W, C)."""
+    H, W = pixels.shape[:2]
+
+    def corners(c, n):
+        t = float(c) * n - 0.5
+        i = math.floor(t)
+        return min(max(i, 0), n - 1), min(max(i + 1, 0), n - 1), t - i
+
+    i0, i1, s = corners(x, W)
+    j0, j1, t = corners(y, H)
+    row0 = (1 - s) * pixels[j0, i0] + s * pixels[j0, i1]
+    row1 = (1 - s) * pixels[j1, i0] + s * pixels[j1, i1]
+    return (1 - t) * row0 + t * row1
+
+
+_MATH = {
+    "ADD": lambda a, b, c: a + b,
+    "SUBTRACT": lambda a, b, c: a - b,
+    "MULTIPLY": lambda a, b, c: a * b,
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "DIVIDE": lambda a, b, c: a / b if b != 0.0 else 0.0,
+    "MAXIMUM": lambda a, b, c: max(a, b),
+    "MINIMUM": lambda a, b, c: min(a, b),
+    "SQRT": lambda a, b, c: math.sqrt(a) if a > 0.0 else 0.0,
+    "FLOOR": lambda a, b, c: float(math.floor(a)),
+    "ARCTAN2": lambda a, b, c: math.atan2(a, b),
+    "LOGARITHM": lambda a, b, c: math.log(a) / math.log(b) if a > 0.0 and b > 0.0 else 0.0,
+}
+
+
+def emission(nt, omega, ray_length):
+    """The light tree `nt`'s emission strength toward `omega` (the Texture
+    Coordinate's Normal) at the ray length `ray_length`."""
+    pixels: dict = {}
+
+    def image_pixels(img):
+        if img.name not in pixels:
+            w, h = img.size
+            px = np.empty(w * h * 4, dtype=np.float32)
+            img.pixels.foreach_get(px)
+            pixels[img.name] = px.reshape(h, w, 4).astype(float)
+        return pixels[img.name]
+
+    def value_in(socket):
+        if socket.is_linked:
+            link = socket.links[0]
+            return out(link.from_node, link.from_socket.name)
+        v = socket.default_value
+        return tuple(v) if hasattr(v, "__len__") else float(v)
+
+    def out(node, name):
+        kind = node.bl_idname
+        if kind == "ShaderNodeTexCoord":
+            assert name == "Normal", name
+            return tuple(omega)
+        if kind == "ShaderNodeLightPath":
+            assert name == "Ray Length", name
+            return float(ray_length)
+        if kind == "ShaderNodeValue":
+            return float(node.outputs[0].default_value)
+        if kind == "ShaderNodeSeparateXYZ":
+            return value_in(node.inputs[0])["XYZ".index(name)]
+        if kind == "ShaderNodeCombineXYZ":
+            return tuple(value_in(node.inputs[k]) for k in "XYZ")
+        if kind == "ShaderNodeSeparateColor":
+            assert node.mode == "RGB"
+            return value_in(node.inputs[0])[("Red", "Green", "Blue").index(name)]
+        if kind == "ShaderNodeTexImage":
+            assert (node.interpolation, node.extension) == ("Linear", "EXTEND")
+            x, y = value_in(node.inputs["Vector"])[:2]
+            return tuple(_texture(image_pixels(node.image), x, y)[:3])
+        if kind == "ShaderNodeMath":
+            a, b, c = (value_in(node.inputs[k]) for k in range(3))
+            return float(_MATH[node.operation](a, b, c))
+        raise AssertionError(f"node {kind} not evaluated by this test")
+
+    em = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission")
+    return value_in(em.inputs["Strength"])
+
+
+#: Emission directions (γ, φ) and distances along the axis h (in R): the axis
+#: (0.001°: the 32-bit acos used to read it far out), the caustic's core and ring.
+PROBES = [(0.001, 0.0, 3.0), (0.3, 1.0, 3.0), (2.0, 2.0, 5.0), (6.0, 0.5, 8.0), (15.0, 4.0, 2.0)]
+
+
+def _probe(ob):
+    """{probe: energy × emission} of the light object `ob` (the intensity over 1/(4π))."""
+    out = []
+    for g, phi, h in PROBES:
+        gr = math.radians(g)
+        omega = (math.sin(gr) * math.cos(phi), math.sin(gr) * math.sin(phi), -math.cos(gr))
+        out.append(ob.data.energy * emission(ob.data.node_tree, omega, h * R / math.cos(gr)))
+    return np.array(out)
+
+
+def _generated_on(frame):
+    from lens_lights.blender.commands.generate import generate
+
+    bpy.context.scene.frame_set(frame)
+    generate(bpy.context)
+    (ob,) = [o for o in lens_lights() if o.data.node_tree is not None]
+    got = (_probe(ob), tuple(ob.location))
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    return got
+
+
+def _lamp_keys(lamp, z0, ks):
+    """Key the lamp straight above the lens (centre height `z0`) at D/R = 1.04^k on
+    frame 1, 2, …: the bake's slice grid nodes."""
+    bpy.context.preferences.edit.keyframe_new_interpolation_type = "LINEAR"
+    for f, k in enumerate(ks, start=1):
+        lamp.location = (0.0, 0.0, z0 + R * 1.04**k)
+        lamp.keyframe_insert("location", frame=f)
+
+
+def _bake_agrees_with_generate(ks):
+    sc = bpy.context.scene
+    sc.frame_start, sc.frame_end = 1, len(ks)
+    expected = {f: _generated_on(f) for f in range(1, len(ks) + 1)}
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    (baked,) = lens_lights()
+    nodes = baked.data.node_tree.nodes
+    assert "Lens bake slice" in nodes  # Generate's tree in its slices mode
+    for f, (want, location) in expected.items():
+        sc.frame_set(f)
+        assert tuple(baked.location) == pytest.approx(location, abs=1e-6)
+        got = _probe(baked)
+        assert np.all(want > 0.0)
+        np.testing.assert_allclose(got, want, rtol=2e-3, err_msg=f"frame {f}")
+    return baked
+
+
+def test_baked_profile_tree_agrees_with_generate_far_field(empty_blend):
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere("Marble", (0.0, 0.0, 1.0), radius=R, material=glass_material())
+    bpy.ops.mesh.primitive_plane_add(size=20)  # 2 R below the centre: the far field
+    lamp = add_point_light("Lamp", (0.0, 0.0, 4.0))
+    _lamp_keys(lamp, 1.0, [45.0, 46.0, 47.0])
+    baked = _bake_agrees_with_generate([45.0, 46.0, 47.0])
+    (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
+    assert " near " not in img.name and baked.location.z < 1.0 - R  # past the back pole
+
+
+def test_baked_near_field_tree_agrees_with_generate(empty_blend):
+    """A marble resting on the table (receiver 1 R from the centre): the baked slices
+    carry the row on the receiver, as Generate's table (before: the receiver-less
+    near table, a dark disc at the caustic's centre)."""
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere("Marble", (0.0, 0.0, R), radius=R, material=glass_material())
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    floor = bpy.context.object
+    lamp = add_point_light("Lamp", (0.0, 0.0, 4.0))
+    _lamp_keys(lamp, R, [60.0, 61.0, 62.0])
+    # the table resting, then 2 % of R lower on frame 3 (still the near field): the
+    # near field's rows lie on each frame's receiver
+    bpy.context.preferences.edit.keyframe_new_interpolation_type = "CONSTANT"
+    for f, z in ((1, 0.0), (2, 0.0), (3, -0.02 * R)):
+        floor.location.z = z
+        floor.keyframe_insert("location", index=2, frame=f)
+    baked = _bake_agrees_with_generate([60.0, 61.0, 62.0])
+    (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
+    # a slice per receiver distance, 1 R and 1.02 R away
+    from lens_lights.blender.build.lights import PROFILE_KEY
+
+    key = img[PROFILE_KEY]  # (the name is cut at 63 characters before Blender 5)
+    assert " near " in key and key.endswith(" 1.02") and " 1 " in key
+    assert tuple(baked.location) == pytest.approx((0.0, 0.0, R), abs=1e-6)  # the centre
+
+
+def test_live_update_keeps_the_shadow_mask_of_a_non_full_source(empty_blend):
+    """An opaque ball shading one side of the lens (the scene of
+    tests/blender/build/test_blockers_render.py): the profile light ends with a mask (a second
+    image texture); a live update that rebuilds its tree (the lamp moved: another
+    D/R, another table) keeps it; with the blocker gone it goes."""
+    from lens_lights.blender.commands import live_update
+
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere("Lens", (0.0, 0.0, 1.5), radius=R, material=glass_material())
+    blocker = add_sphere("Blocker", (0.158, 0.0, 3.0), radius=0.12)  # no material: opaque
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    lamp = add_point_light("Lamp", (0.0, 0.0, 4.5))
+
+    def masks(ob):
+        return [
+            n.image.name
+            for n in ob.data.node_tree.nodes
+            if n.bl_idname == "ShaderNodeTexImage" and n.image.name.startswith("Lens mask ")
+        ]
+
+    def lens_light():
+        (ob,) = [
+            o
+            for o in lens_lights()
+            if o.lens_lights.source_light == "Lamp" and o.lens_lights.source_lens == "Lens"
+        ]
+        return ob
+
+    dg = bpy.context.evaluated_depsgraph_get()
+    live_update.update(sc, dg, force=True)
+    first = lens_light()
+    assert not first.lens_lights.full and len(masks(first)) == 1
+    lamp.location = (0.0, 0.0, 4.8)  # another D/R: the tree is rebuilt
+    sig = first.data.get("lens_lights_profile_signature")
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    ob = lens_light()
+    assert ob == first  # updated in place
+    assert ob.data.get("lens_lights_profile_signature") != sig
+    assert not ob.lens_lights.full and len(masks(ob)) == 1
+    # the previous mask removed once unused
+    assert all(i.users > 0 for i in bpy.data.images if i.name.startswith("Lens mask "))
+    blocker.location = (10.0, 10.0, 3.0)  # out of the way: a full source, no mask
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    ob = lens_light()
+    assert ob.lens_lights.full and masks(ob) == []

@@ -1,0 +1,87 @@
+"""The reference the columns path of `core.plan.planning.plan_result` is tested
+against (tests/core/plan/test_planning_speed_equivalence.py): the same pre-selection and plan,
+source by source."""
+
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+from core.phase1.point_lights import Phase1Result
+from core.plan.planning import (
+    PRESELECT_FACTOR,
+    Work,
+    free_distance_behind,
+    may_be_beam,
+    plan_lights,
+    receiver_distance,
+    select_sources,
+)
+from core.tiers import PHYSICAL, THESIS
+
+
+def plan_result_per_source(
+    read,
+    result: Phase1Result,
+    options: dict,
+    timings: dict | None = None,
+    *,
+    preselect_factor: int = PRESELECT_FACTOR,
+) -> Work:
+    """`planning.plan_result` source by source: the tier's per-source maker
+    (`plan_lights`), the rays one source at a time (`free_distance_behind`,
+    `receiver_distance`)."""
+    timings = {} if timings is None else timings
+    t = time.perf_counter()
+    selection = select_sources(
+        result,
+        read.arrays.light_brightness,
+        max_lights=options["max_lights"],
+        merge_distance=options["merge_distance"],
+        preselect_factor=preselect_factor,
+    )
+    timings["budget"] = time.perf_counter() - t
+    t = time.perf_counter()
+    model = options["energy_model"]
+    common = dict(
+        optics=read.lens_optics,
+        light_names=read.light_sources,
+        lens_names=read.sphere_sources,
+        min_brightness=options["min_brightness"],
+        max_lights=options["max_lights"],
+        spot_blend=options["spot_blend"],
+        scene_size=read.scene_size,
+        scene_bounds=read.bounds,
+    )
+    first = plan_lights(
+        SimpleNamespace(sources=selection.sources, skipped=[]),
+        read.primaries,
+        model,
+        energy_scale=selection.scale,
+        **common,
+    )
+    rows = {id(src): k for k, src in enumerate(selection.sources)}
+    chosen = [p.source for p in first.lights]
+    size = read.scene_size
+
+    def far_limit(src):
+        if model in (THESIS, PHYSICAL) and not may_be_beam(src, read.bounds, size):
+            return None
+        return free_distance_behind(read.occluders, src, size)
+
+    def receiver_limit(src):
+        return receiver_distance(read.occluders, src, size)
+
+    plan = plan_lights(
+        SimpleNamespace(sources=chosen, skipped=[]),
+        read.primaries,
+        model,
+        far_limit=far_limit,
+        receiver_limit=receiver_limit,
+        energy_scale=[selection.scale[rows[id(s)]] for s in chosen],
+        **common,
+    )
+    plan.skipped[:0] = first.skipped
+    timings["plan"] = time.perf_counter() - t
+    read.occluders.release()  # the depsgraph may go away after this
+    return Work(read, result, selection, plan, timings)
