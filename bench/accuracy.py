@@ -753,7 +753,7 @@ def write_report(results, times, extra_info, mitsuba, files, wall):
         "`bench/blender_light_check.py` ([blender_light_check.md](blender_light_check.md)) renders "
         "with Cycles (bpy 5.0.1) (1) a spot light with blend, against `core/scene/blender_spot.py` "
         "at the same pixels, and (2) the EXACT_PROFILE light with the node tree the add-on builds "
-        "(`operators/light_builder.build_profile_nodes`), "
+        "(`blender/build/lights.build_profile_nodes`), "
         "against the pure model and the exact beam. Both pure models are what Cycles renders (to "
         "about 1e-4); the spot model (intensity energy/4π, smoothstep in the cosine, no extra "
         "cosine) is also EEVEE's (same spot_mul/spot_bias in its source), not rendered here "

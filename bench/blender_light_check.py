@@ -99,7 +99,7 @@ def add_spot(name, energy, spot_size_deg, blend, location, radius=0.0):
 
 
 def build_profile_light(light: lt.ProfileLight, name="lens_light"):
-    """The EXACT_PROFILE light as the add-on builds it (operators/light_builder:
+    """The EXACT_PROFILE light as the add-on builds it (blender/build/lights:
     the image and the light node tree of lens_tiers.NODE_TREE_RECIPE); it shines
     along world −z here (unrotated)."""
     load_extension()

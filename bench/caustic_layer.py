@@ -1,12 +1,12 @@
 """Caustic layer benchmark → reports/caustic_layer.md and reports/caustic_layer.png.
 
-The caustic layer (addon/caustic_sheet) against the exact one-dimensional integral of
+The caustic layer (core/caustic_layer) against the exact one-dimensional integral of
 SPEC §6 (core.lens.ball_optics.irradiance_on_plane) for a glass ball floating above a
 plane and a marble resting on it: the layer's irradiance image beside the exact one,
 the relative L1 over the lens' shadow disc (rings) and the flux ratio; then the time to
 build the layers of 64 lens lights on a table scene of 10 000 triangles; and the
 extended and grazing sources of bench/real_scenes.py against the reference tracer
-(addon/reference) on the same pixel grid, the layer's raster box-filtered per pixel.
+(reference) on the same pixel grid, the layer's raster box-filtered per pixel.
 
     ./lens-lights bench caustic_layer [--quick]
 """
@@ -387,7 +387,7 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
         "bench/real_scenes.py's marble (R 1 cm resting on the table, n 1.5) under a sphere",
         "light (r 0.1 m), a disk area light (Ø 0.2 m; the layer sees it, as Generate does,",
         "as a sphere light of the same radius and its on-axis intensity P/π) and a point",
-        "light at 20° elevation (a grazing, stretched caustic). Truth: `addon/reference`",
+        "light at 20° elevation (a grazing, stretched caustic). Truth: `reference`",
         "(2e6 rays, Fresnel at both surfaces) on a 48 × 48 pixel grid fitted to the",
         "caustic (view); the layer's raster averaged over each pixel; the camera's pixel",
         "drives the ray budget and the texels as in Generate. L1 and flux as in",

@@ -1,5 +1,5 @@
 """Real scenes (issue 12): lens lights of every light type, rendered in Cycles and
-EEVEE (tier AUTO), against the reference tracer (`addon/reference`).
+EEVEE (tier AUTO), against the reference tracer (`reference`).
 
     ./lens-lights bench real_scenes [--quick] [--only NAME,...]
 
@@ -509,7 +509,7 @@ def write_report(table, args, total, version):
         "",
         "Caustic = render with lens lights − the same render without them (Cycles' "
         "refractive caustics off in both: Replace Cycles' Caustics); truth = "
-        "`addon/reference.trace_irradiance` on the same pixel grid, the camera's square "
+        "`reference.trace_irradiance` on the same pixel grid, the camera's square "
         "fitted to the caustic (view). L1: relative L1 over "
         "the caustic region (truth > 1 % of its peak, or the render > 5 % of it); flux: "
         "render / truth over that region; peak: brightest pixel / the truth's. Targets "

@@ -1,4 +1,4 @@
-"""The reference light tracer (addon/reference) against mitsuba 3 on the same scenes.
+"""The reference light tracer (reference) against mitsuba 3 on the same scenes.
 
     ./lens-lights bench reference_crosscheck          # a few minutes, one core
     ./lens-lights bench reference_crosscheck --quick  # fewer paths, to try it out
@@ -365,7 +365,7 @@ def report(results, wall, quick):
         f"(E = π L times the pixel's footprint) over the cell's area ({CELLS} × {CELLS} cells, "
         f"{WIDTH} × {WIDTH} pixels: a pixel straddling two cells counts in one of them, so "
         "pixels must be much smaller than cells). The reference tracer "
-        '(`addon/reference`) traces the same scene with `fresnel="per_surface"`, mitsuba\'s '
+        '(`reference`) traces the same scene with `fresnel="per_surface"`, mitsuba\'s '
         "convention (each surface depolarises: ((t_s + t_p)/2)² instead of the "
         "polarisation-tracking (t_s² + t_p²)/2 of SPEC 6; the column 'tracked/per-surface' "
         "gives the size of that choice).\n",

@@ -5,7 +5,7 @@
 
 Each table sits between ``<!-- BEGIN <name> … -->`` and ``<!-- END <name> -->``;
 only the lines between the markers are replaced. ``tiers``: the energy models
-(tiers) from their registry, `addon/tiers` (label, engines, accuracy figures of
+(tiers) from their registry, `core/tiers` (label, engines, accuracy figures of
 reports/accuracy.md, what each trades).
 """
 

@@ -30,7 +30,7 @@ an IES file or a Float Curve where a 2-D table is not wanted; it cannot converge
 either, and the report measures it too.
 
 The Blender side — the image and the light node tree that reads it — is
-``operators/light_builder.build_profile_nodes`` (the one description of it).
+``blender/build/lights.build_profile_nodes`` (the one description of it).
 """
 
 from __future__ import annotations
@@ -347,7 +347,7 @@ def profile_model(prof: BeamProfile, R=1.0, I0=1.0, angular: bool = False):
 @dataclass
 class ProfileLight(BlenderLight):
     """A :class:`.base.BlenderLight` plus the EXACT_PROFILE table (world
-    units) for the light node tree (`operators/light_builder.build_profile_nodes`).
+    units) for the light node tree (`blender/build/lights.build_profile_nodes`).
 
     ``profile`` (the table, ``pixels`` and all) is made on first use (about 0.25 s
     per new ``(D/R, n)``, then remembered), so that planning many candidate lights

@@ -1,6 +1,6 @@
-"""The reference tracer's emitters and blockers (addon/reference) against hand
+"""The reference tracer's emitters and blockers (reference) against hand
 values: conservation of flux, 1-D and 2-D deterministic quadratures over the lens's
-cone built on addon/exact_optics (tests/helpers/reference_quadrature.py), and the geometry
+cone built on core/lens/ball_optics (tests/helpers/reference_quadrature.py), and the geometry
 of a sun's caustic."""
 
 from __future__ import annotations

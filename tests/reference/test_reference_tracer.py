@@ -1,5 +1,5 @@
-"""The reference light tracer (addon/reference) against independent values: the 1-D
-exact integral of SPEC 6 (addon/exact_optics), hand geometry and conservation laws.
+"""The reference light tracer (reference) against independent values: the 1-D
+exact integral of SPEC 6 (core/lens/ball_optics), hand geometry and conservation laws.
 
 Monte-Carlo results are compared within a few standard errors (the tracer's own
 estimate of them); every case uses a fixed seed, so the tests are deterministic.

@@ -1,6 +1,6 @@
 """Rows whose blockers' caps overlap only in pairs (core/phase1/shadow_mask.py: the plain sum
 less each pair's overlap, sampled on a grid over that overlap alone) and rows with three
-overlapping (sampled whole), through addon/obstruction.find_blockers.
+overlapping (sampled whole), through core/phase1/obstruction.find_blockers.
 
 Expected values by hand: inclusion–exclusion with the closed-form overlap of two caps
 (`geometry.cap_overlap_fraction`) for opaque blockers inside the lens' disc, and

@@ -1,5 +1,5 @@
 """Phase 2's reference (reference/phase2.py) against independent values: the
-Monte-Carlo tracer of addon/reference on the issue's scene (an opaque sphere between a
+Monte-Carlo tracer of reference on the issue's scene (an opaque sphere between a
 point light and a glass ball), and the 1-D exact integral of SPEC 6 for the flux."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The unblocked share of a lens behind several blockers (core/phase1/shadow_mask.py through
-addon/obstruction.find_blockers): the union of their shadows, not the product of their
+core/phase1/obstruction.find_blockers): the union of their shadows, not the product of their
 shares, and a glass blocker's Fresnel transmission.
 
 Expected values by hand: cap solid angles 4π sin²(a/2), inclusion–exclusion with the

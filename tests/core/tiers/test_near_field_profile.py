@@ -1,6 +1,6 @@
 """The Exact profile's near field (a marble resting on a table: the light at the
 lens centre, `tiers.exact_profile`) read as its light node tree reads it
-(`operators/light_builder.build_profile_nodes`: u = sqrt(γ/γ_max), v = ln(h/h_min) /
+(`blender/build/lights.build_profile_nodes`: u = sqrt(γ/γ_max), v = ln(h/h_min) /
 ln(h_max/h_min), the image's texels at (i + ½)/K, linear interpolation, EXTEND), against
 the exact optics (`core/lens/ball_optics.py`) and the Monte-Carlo reference
 (`reference/`).
