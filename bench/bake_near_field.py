@@ -8,7 +8,7 @@ For each D/R: the ring-mean irradiance on the table (rings 0–0.15 R around the
 contact point, as tests/core/tiers/test_near_field_profile.py) of
 * "bake": the slices the bake tabulates now (`light_tracks.profile_slice_table` with
   the receiver's row, h_min `light_tracks.slice_h_min`), blended at the frame's slice
-  coordinate, as `light_builder.build_profile_nodes(slices=)` reads them;
+  coordinate, as `lights.build_profile_nodes(slices=)` reads them;
 * "bake, receiver +x %": slices made for a receiver x % farther than the frame's
   (what a track with more distinct receiver distances than slices reads: its
   nearest quantile's, `light_tracks.near_slices`), their rows as made (h_min the
@@ -17,7 +17,7 @@ contact point, as tests/core/tiers/test_near_field_profile.py) of
 * "bake before": the receiver-less near slices the bake used before (256 rows from
   0.25 R, no row on the receiver);
 * "generate": Generate's own table for that D/R and receiver;
-each over the exact optics' (`exact_optics.irradiance_on_plane`). Writes
+each over the exact optics' (`ball_optics.irradiance_on_plane`). Writes
 reports/bake_near_field.md.
 """
 

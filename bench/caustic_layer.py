@@ -357,7 +357,7 @@ def write_report(cases, timings, gen, extended, lightsheet, eevee, path):
         "a grid of rays over the lens' lit disc, lands it on the receivers' triangles and",
         "accumulates the landed cells' flux into an irradiance raster per planar receiver",
         "patch (folds add). Reference: the exact one-dimensional integral of SPEC §6",
-        "(`exact_optics.irradiance_on_plane`, `lens_flux`). Glass n = 1.5, R = 1, a point",
+        "(`ball_optics.irradiance_on_plane`, `lens_flux`). Glass n = 1.5, R = 1, a point",
         "light (I = 1 W/sr) on the axis at D = 10 R, a plane perpendicular to the axis at",
         "Z from the centre. L1: relative L1 of the ring irradiance over the lens' shadow",
         "disc (the resting marble: over r < R/2; 40 rings), flux ratio: flux in the",

@@ -1,8 +1,8 @@
 """The Caustic layer's animation bake with a fixed topology (the pure part of
 `blender/commands/bake.py`'s layer bake).
 
-Generate fits each frame's rasters to that frame's landings (`caustic_sheet.
-caustic_layer`): their extent and texel lines move with the caustic, so one mesh per
+Generate fits each frame's rasters to that frame's landings
+(`core.caustic_layer.rasters`): their extent and texel lines move with the caustic, so one mesh per
 frame would be needed. The bake instead keeps one mesh per **segment**:
 
 * **Tracks.** A raster of a frame is "the same" as one of another frame when it lies

@@ -65,7 +65,7 @@ class SecondarySource:
     magnification: float | None  # m = −(1/V)/D; None when collimated
     alpha_deg: float  # half-angle under which the light sees the lens
     unblocked_fraction: float  # share of the lit cap's flux no obstacle blocks
-    # Primaries other than point lights (`phase1_primaries`): the intensity toward
+    # Primaries other than point lights (`all_lights`): the intensity toward
     # the lens in units of the primary's P/(4π), and the radius of the disc the
     # primary looks like from the lens (NaN: the primary's own radius).
     emission: float = 1.0

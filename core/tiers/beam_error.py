@@ -1,6 +1,6 @@
 """How wrong is a lens light?  The error measure of the accuracy issue, item 3.
 
-The setting is the one of :mod:`.exact_optics`: a glass sphere of radius ``R`` and
+The setting is the one of :mod:`core.lens.ball_optics`: a glass sphere of radius ``R`` and
 index ``n`` centred at the origin, an isotropic point source of intensity ``I0``
 (W/sr) on the axis at ``z = -D``, receiving planes ``z = Z`` perpendicular to the
 axis behind the sphere.  A *receiver s R behind the sphere* is the plane
@@ -16,7 +16,7 @@ tier puts its light):
   an apex (the exact-profile tier, rendered by a light node tree in Cycles).
 
 Error measure, per receiver (SPEC/issue item 3): the relative L1 error of the
-irradiance over the lens's shadow disc (radius :func:`.exact_optics.lens_shadow_radius`)
+irradiance over the lens's shadow disc (radius :func:`core.lens.ball_optics.lens_shadow_radius`)
 
     L1 = integral_disc |E_model - E_true| dA / integral_disc E_true dA,
 
@@ -34,8 +34,8 @@ a small disc of radius ``PEAK_DISC * R`` around the axis is largest; the error i
 the difference between model and truth, in units of ``R``.
 
 The truth is :class:`ExactBeam`: the exact meridional trace of
-:mod:`.exact_optics` (the same piecewise-linear integral as
-:func:`.exact_optics.flux_within_radius`), rearranged so that one receiver costs
+:mod:`core.lens.ball_optics` (the same piecewise-linear integral as
+:func:`core.lens.ball_optics.flux_within_radius`), rearranged so that one receiver costs
 one sort of the ray fan (``O(N log N)``) and then any number of radii cost
 ``O(log N)`` each.
 """
@@ -92,7 +92,7 @@ class ReceiverFlux:
 
     Built by :meth:`ExactBeam.receiver`.  The landing height ``h(iota)`` and the
     flux density ``w(iota)`` are linear between fan samples (as in
-    :func:`.exact_optics.flux_within_radius`); segments that cross the axis are
+    :func:`core.lens.ball_optics.flux_within_radius`); segments that cross the axis are
     split there, so that ``|h|`` is linear on every piece.  Pieces are grouped
     into runs in which ``|h|`` is monotone (a run's pieces occupy disjoint radius
     intervals); for a radius ``rho`` each run contributes the flux of its pieces
@@ -144,9 +144,9 @@ class ExactBeam:
     """The exact beam of a ball lens (the truth), for any receiving plane.
 
     ``I0`` (W/sr), ``D``, ``R``, ``n``, ``absorption`` (1/length) as in
-    :mod:`.exact_optics`; ``n_fan``: intervals of the ray fan, uniform in the
+    :mod:`core.lens.ball_optics`; ``n_fan``: intervals of the ray fan, uniform in the
     incidence angle over ``[0, pi/2]`` (20 000 reproduces
-    :func:`.exact_optics.flux_within_radius` with 200 000 to about 1e-7).
+    :func:`core.lens.ball_optics.flux_within_radius` with 200 000 to about 1e-7).
     Receivers are cached by ``Z``.
     """
 

@@ -3,7 +3,7 @@ beam, :mod:`.paraxial`). On-axis intensity ``I0 · T(0) · m²`` seen from the i
 point, with the head-on Fresnel transmission of both surfaces
 ``T(0) = (4n/(n + 1)²)²``, the square of the material's transmission weight (it
 applies at entry and at exit) and, in the colour, the tint of a path through the
-sphere (`material_model`) and Beer–Lambert absorption over the axial chord ``2R``."""
+sphere (`core.lens.glass`) and Beer–Lambert absorption over the axial chord ``2R``."""
 
 from __future__ import annotations
 

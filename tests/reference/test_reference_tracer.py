@@ -71,7 +71,7 @@ def test_deterministic_given_the_seed():
 
 def test_resting_marble_lands_near_the_contact_point():
     """Light straight above, the table tangent to the sphere's bottom: the exact
-    meridional landing map on the plane z = R (exact_optics' frame) gives the flux
+    meridional landing map on the plane z = R (ball_optics. frame) gives the flux
     within each radius of the contact point."""
     D = 10.0
     plane = ReceiverPlane((0.0, 0.0, -R), (0.0, 0.0, 1.0))
@@ -164,7 +164,7 @@ def test_rejects_a_light_inside_the_lens():
 
 def test_lens_shadow_is_the_tangent_cone_disc():
     """A point light's shadow on a perpendicular plane is the disc of
-    exact_optics.lens_shadow_radius; a sun's, the disc of radius R; a sphere light
+    ball_optics.lens_shadow_radius; a sun's, the disc of radius R; a sphere light
     has a penumbra around it."""
     D, Z = 3.0, 4.0
     rs = xo.lens_shadow_radius(D, R, Z)

@@ -1,4 +1,4 @@
-"""One Exact-profile node tree (`light_builder.build_profile_nodes`) for Generate,
+"""One Exact-profile node tree (`lights.build_profile_nodes`) for Generate,
 live update and the bake: a baked profile light and the light Generate makes on the
 same frame give the same emission toward the same directions, far field and near
 field (a marble resting on a table, then the table lowered: the baked slices carry

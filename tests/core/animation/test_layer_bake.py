@@ -5,7 +5,7 @@ above it moving sideways over the frames. Generate's layer of a frame is
 `pipeline.bake` of that frame alone; the bake re-lands the same rays on rasters
 fixed over the frames. Checked against Generate's layer of each frame (flux in the
 raster, flux-weighted centroid, the exact optics' ring irradiance
-`exact_optics.irradiance_on_plane` around the frame's axis point) and, for a still
+`ball_optics.irradiance_on_plane` around the frame's axis point) and, for a still
 caustic, texel for texel."""
 
 import math

@@ -1,4 +1,4 @@
-"""caustic_sheet's beam tracing: flux per ray grid and exact exit rays, every emitter.
+"""The caustic layer's beam tracing: flux per ray grid and exact exit rays, every emitter.
 
 Expected values come from core.lens.ball_optics (the meridional closed forms of SPEC §6)
 and from one-dimensional quadratures written here, not from the grid code."""

@@ -1,4 +1,4 @@
-"""caustic_sheet's layer: landed ray grids → irradiance rasters on receivers.
+"""The caustic layer's layer: landed ray grids → irradiance rasters on receivers.
 
 References: core.lens.ball_optics' one-dimensional integrals (irradiance_on_plane,
 flux_within_radius, lens_flux, trace_rays), independent quadratures written here, and a
