@@ -34,7 +34,7 @@ import functools
 
 import numpy as np
 
-from ..lens.ball_optics import fresnel_transmittance
+from ..lens.refraction import fresnel_transmittance
 from ..shared import parallel
 from ..shared.parallel import map_slices
 from ..shared.ranges import concat_ranges
