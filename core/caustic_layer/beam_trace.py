@@ -83,15 +83,10 @@ class BeamGrid:
 
 
 def optics_of(lens: Lens):
-    """The `core.lens` lens of a scene record: its ``kind`` (default a ball) from
-    `kinds.LENS_KINDS` with its centre, radius, index, absorption and ``params``."""
+    """The `core.lens` lens of a scene record: its ``kind`` from `kinds.LENS_KINDS`
+    with its centre, radius, index, absorption and ``params``."""
     return kinds.make_lens(
-        getattr(lens, "kind", "ball"),
-        lens.center,
-        lens.radius,
-        lens.ior,
-        lens.absorption,
-        getattr(lens, "params", ()),
+        lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
     )
 
 
@@ -241,7 +236,8 @@ def _density(bt: _Batch, iota, phi, frames=None, dirs=None):
         trans = np.empty(d.shape[:3])
         for k in range(len(bt.optics)):
             a, b = bt.starts[k], bt.starts[k + 1]
-            trans[a:b] = _exit_rays(bt.part(k), origins[a:b], d[a:b]).weight
+            rays = _exit_rays(bt.part(k), origins[a:b], d[a:b])
+            trans[a:b] = np.where(rays.hit, rays.weight, 0.0)  # a miss is not the beam
     return bt.weights[:, None, None] * ang * (trans * jac)
 
 

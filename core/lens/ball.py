@@ -13,7 +13,7 @@ from .refraction import fresnel_from_cosines, refract
 from .sphere import intersect_sphere
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # array fields: compare by identity
 class BallLens(Lens):
     """Sphere of ``radius`` at ``center``, relative index ``ior``, Beer–Lambert
     ``absorption`` per unit length. Fields may be arrays ((…, 3) and (…)) that broadcast
