@@ -12,8 +12,11 @@ degenerate quads = triangles). Each cell carries the flux of its patch of (ι, �
 
 (T: unpolarised two-surface Fresnel transmission, which depends only on ι for a sphere;
 A: the spot mask or the area light's cosine), integrated by 3 × 3 Gauss–Legendre points
-per cell. The rays themselves are traced in 3-D world coordinates through the sphere with
-the robust intersection of SPEC §4.3 and the vector form of Snell's law. The topology
+per cell. The rays themselves are traced in 3-D world coordinates through the lens by its
+`core.lens.base.Lens` interface (a ball: the robust intersection of SPEC §4.3 and the
+vector form of Snell's law); the grid covers the lens' bounding sphere, and a kind whose
+transmission is not a function of ι alone is weighted by tracing the quadrature rays
+(2-D quadrature over ι × φ). The topology
 (K source samples × (Nr + 1) × Na rays, K × Nr × Na cells) depends only on the
 parameters, never on the geometry, so an animation bake can key it.
 """
@@ -26,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lens.ball_optics import two_surface_transmission
+from ..lens import kinds
+from ..lens.base import ExitRays
 from . import shadow
 from .emitters import (
     Lens,
@@ -78,58 +82,12 @@ class BeamGrid:
         return int(self.cell_flux.size)
 
 
-def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
-
-
-def refract(d, nrm, eta):
-    """Unit directions ``d`` refracted at unit normals ``nrm`` facing against them,
-    ``eta = n_from/n_to`` (a scalar or broadcastable to ``d``'s leading axes); rounding
-    past total reflection is clamped to grazing."""
-    eta = np.asarray(eta, dtype=float)
-    cos_i = np.clip(-_dot(d, nrm), 0.0, 1.0)
-    k = np.maximum(1.0 - eta * eta * (1.0 - cos_i) * (1.0 + cos_i), 0.0)
-    t = eta[..., None] * d + (eta * cos_i - np.sqrt(k))[..., None] * nrm
-    return t / np.linalg.norm(t, axis=-1)[..., None]
-
-
-def trace_through_sphere(origins, dirs, center, radius, ior):
-    """Exit points and directions of rays (…, 3) that enter the sphere from outside.
-
-    ``center`` (…, 3), ``radius`` and ``ior`` (…) broadcast against the rays (one
-    sphere, or one per ray batch). Entry: the near root ``c/q`` of the robust form
-    (SPEC §4.3, Haines et al. 2019) with the discriminant ``R² − |f − (f·d)d|²``
-    clamped at 0 (grazing rays of the grid's rim); inside: the far root ``q`` from the
-    entry point. Returns (exit point, exit direction, chord length)."""
-    c = np.asarray(center, dtype=float)
-    radius = np.asarray(radius, dtype=float)
-    ior = np.asarray(ior, dtype=float)
-    r3 = radius[..., None]
-    f = origins - c
-    beta = _dot(f, dirs)
-    perp = f - beta[..., None] * dirs
-    sq = np.sqrt(np.maximum(radius * radius - _dot(perp, perp), 0.0))
-    q = -beta - np.where(beta >= 0.0, 1.0, -1.0) * sq
-    ff = np.sqrt(_dot(f, f))
-    cc = (ff - radius) * (ff + radius)
-    t1 = cc / np.where(q != 0.0, q, 1.0)
-    p1 = origins + t1[..., None] * dirs
-    d2 = refract(dirs, (p1 - c) / r3, 1.0 / ior)
-    f2 = p1 - c
-    beta2 = _dot(f2, d2)
-    perp2 = f2 - beta2[..., None] * d2
-    chord = -beta2 + np.sqrt(np.maximum(radius * radius - _dot(perp2, perp2), 0.0))
-    p2 = p1 + chord[..., None] * d2
-    d3 = refract(d2, -(p2 - c) / r3, ior)
-    return p2, d3, chord
-
-
-def _transmission(iota, ior, absorption, radius):
-    """T(ι) · exp(−a · 2R cos r): the fraction of a ray's power on the direct path
-    (lens parameters broadcast against ``iota``)."""
-    cos_r = np.sqrt(np.maximum(1.0 - (np.sin(iota) / ior) ** 2, 0.0))
-    fres = two_surface_transmission(iota, ior)
-    return fres * np.exp(-absorption * 2.0 * radius * cos_r)
+def optics_of(lens: Lens):
+    """The `core.lens` lens of a scene record: its ``kind`` from `kinds.LENS_KINDS`
+    with its centre, radius, index, absorption and ``params``."""
+    return kinds.make_lens(
+        lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
+    )
 
 
 def frames_of(axes: np.ndarray) -> np.ndarray:
@@ -166,11 +124,32 @@ class _Batch:
     axes: np.ndarray  # (S, 3) unit, from the sample toward the lens
     weights: np.ndarray  # (S,)
     parallel: np.ndarray  # (S,) bool
-    center: np.ndarray  # (S, 3)
+    center: np.ndarray  # (S, 3) of the lens' bounding sphere
     radius: np.ndarray  # (S,)
-    ior: np.ndarray  # (S,)
-    absorption: np.ndarray  # (S,)
     valid: np.ndarray  # (S,) False: a point sample inside its sphere
+    optics: list  # `core.lens` Lens per pair
+
+    def counts(self) -> np.ndarray:
+        return np.diff(self.starts)
+
+    def stacked(self, extra_dims: int):
+        """One lens over all S samples (then ``extra_dims`` axes of 1), or None when
+        the pairs' kinds differ or the kind traces lens by lens."""
+        kind = type(self.optics[0])
+        if any(type(o) is not kind for o in self.optics):
+            return None
+        return kind.stack(self.optics, self.counts(), extra_dims)
+
+    def part(self, k: int) -> _Batch:
+        """The samples of pair ``k`` alone."""
+        a, b = self.starts[k], self.starts[k + 1]
+        sub = dataclasses.replace(
+            self, samples=[self.samples[k]], lenses=[self.lenses[k]], optics=[self.optics[k]]
+        )
+        sub.starts = np.array([0, b - a])
+        for name in ("points", "axes", "weights", "parallel", "center", "radius", "valid"):
+            setattr(sub, name, getattr(self, name)[a:b])
+        return sub
 
 
 def _batch(pairs, n_source: int) -> _Batch:
@@ -180,10 +159,12 @@ def _batch(pairs, n_source: int) -> _Batch:
         for sm, (e, lens) in zip(points, pairs, strict=True)
     ]
     lenses = [lens for _, lens in pairs]
+    optics = [optics_of(lens) for lens in lenses]
     counts = [len(sm.weights) for sm in samples]
     rep = lambda v: np.repeat(np.asarray(v, dtype=float), counts, axis=0)  # noqa: E731
-    center = rep([np.asarray(lens.center, dtype=float) for lens in lenses]).reshape(-1, 3)
-    radius = rep([lens.radius for lens in lenses])
+    spheres = [o.bounding_sphere() for o in optics]
+    center = rep([np.asarray(c, dtype=float).reshape(3) for c, _ in spheres]).reshape(-1, 3)
+    radius = rep([float(r) for _, r in spheres])
     points = np.concatenate([sm.points for sm in samples])
     parallel = np.repeat([sm.parallel for sm in samples], counts)
     dist = np.linalg.norm(points - center, axis=1)
@@ -197,9 +178,8 @@ def _batch(pairs, n_source: int) -> _Batch:
         parallel=parallel,
         center=center,
         radius=radius,
-        ior=rep([lens.ior for lens in lenses]),
-        absorption=rep([lens.absorption for lens in lenses]),
         valid=parallel | (dist > radius * (1.0 + 1e-9)),
+        optics=optics,
     )
 
 
@@ -239,16 +219,45 @@ def _incoming(bt: _Batch, iota, phi, frames=None):
 
 def _density(bt: _Batch, iota, phi, frames=None, dirs=None):
     """Flux per unit (ι, φ), shape (S, I, P)."""
-    _, d, jac = _incoming(bt, iota, phi, frames)
+    origins, d, jac = _incoming(bt, iota, phi, frames)
     dirs = d if dirs is None else dirs
     ang = np.ones(dirs.shape[:3])
     for k, sm in enumerate(bt.samples):  # only spots and area lights have a pattern
         if not sm.parallel and not is_isotropic(sm.emitter):
             a, b = bt.starts[k], bt.starts[k + 1]
             ang[a:b] = angular_factor(sm.emitter, dirs[a:b])
-    iota = np.asarray(iota, dtype=float)[None, :]
-    trans = _transmission(iota, bt.ior[:, None], bt.absorption[:, None], bt.radius[:, None])
-    return bt.weights[:, None, None] * ang * (trans * jac[..., 0])[..., None]
+    iota = np.asarray(iota, dtype=float)
+    lens = bt.stacked(2)  # (S, 1, 1) against ι (1, I, 1)
+    closed = None if lens is None else lens.incidence_transmission(iota[None, :, None])
+    if closed is not None:  # a function of ι alone (a ball): the same for every φ
+        trans = closed[..., 0][..., None]
+    else:
+        origins = np.broadcast_to(origins, d.shape)
+        trans = np.empty(d.shape[:3])
+        for k in range(len(bt.optics)):
+            a, b = bt.starts[k], bt.starts[k + 1]
+            rays = _exit_rays(bt.part(k), origins[a:b], d[a:b])
+            trans[a:b] = np.where(rays.hit, rays.weight, 0.0)  # a miss is not the beam
+    return bt.weights[:, None, None] * ang * (trans * jac)
+
+
+def _exit_rays(bt: _Batch, origins, dirs) -> ExitRays:
+    """The rays (S, …, 3) through each sample's lens: in one call when the kind stacks."""
+    lens = bt.stacked(dirs.ndim - 2)
+    if lens is not None:
+        return lens.trace(origins, dirs)
+    parts = []
+    for k, o in enumerate(bt.optics):
+        a, b = bt.starts[k], bt.starts[k + 1]
+        parts.append(o.trace(origins[a:b], dirs[a:b]))
+    return ExitRays(
+        *(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(ExitRays))
+    )
+
+
+def _symmetric(bt: _Batch, k: int) -> bool:
+    """Whether pair ``k``'s lens transmits as a function of ι alone (1-D quadrature)."""
+    return bt.optics[k].incidence_transmission(np.zeros(1)) is not None
 
 
 def trace_beam(
@@ -280,13 +289,8 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
     frames = frames_of(bt.axes)
     origins, dirs, _ = _incoming(bt, iota, phi, frames)
     origins = np.ascontiguousarray(np.broadcast_to(origins, dirs.shape))
-    exit_p, exit_d, _ = trace_through_sphere(
-        origins,
-        dirs,
-        bt.center[:, None, None, :],
-        bt.radius[:, None, None],
-        bt.ior[:, None, None],
-    )
+    rays = _exit_rays(bt, origins, dirs)
+    exit_p, exit_d = rays.points, rays.directions
     dens = _density(bt, iota, phi, frames, dirs)
 
     # 3 × 3 Gauss–Legendre points per cell; 1-D in ι where the sample is isotropic.
@@ -298,14 +302,9 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
     radial = (radial.reshape(n, nr, 3) * _GL_W).sum(-1) * 0.5 * di
     cell = np.repeat((radial * dp)[:, :, None], na, axis=2)
     for k, sm in enumerate(bt.samples):
-        if not sm.parallel and not is_isotropic(sm.emitter):
+        if (not sm.parallel and not is_isotropic(sm.emitter)) or not _symmetric(bt, k):
             a, b = bt.starts[k], bt.starts[k + 1]
-            sub = dataclasses.replace(bt, samples=[sm], starts=np.array([0, b - a]))
-            for name in ("points", "axes", "weights", "parallel", "center", "radius"):
-                setattr(sub, name, getattr(bt, name)[a:b])
-            for name in ("ior", "absorption", "valid"):
-                setattr(sub, name, getattr(bt, name)[a:b])
-            q = _density(sub, qi, qp, frames[a:b]).reshape(b - a, nr, 3, na, 3)
+            q = _density(bt.part(k), qi, qp, frames[a:b]).reshape(b - a, nr, 3, na, 3)
             cell[a:b] = np.einsum("kijab,j,b->kia", q, _GL_W, _GL_W) * 0.25 * di * dp
     for k, (sl, sm) in enumerate(zip(blockers or [None] * len(pairs), bt.samples, strict=True)):
         if sl is not None:

@@ -32,14 +32,18 @@ def _unit(v) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Lens:
-    """A glass sphere: centre, radius, relative index, Beer–Lambert absorption per
-    unit length (SPEC §3.4: ``1 − kt``) and a transmission tint (RGB multiplier)."""
+    """A lens: centre, radius, relative index, Beer–Lambert absorption per unit length
+    (SPEC §3.4: ``1 − kt``), a transmission tint (RGB multiplier), and its ``kind`` (a
+    key of `core.lens.kinds.LENS_KINDS`; a glass sphere by default) with the kind's
+    own ``params``."""
 
     center: np.ndarray
     radius: float
     ior: float
     absorption: float = 0.0
     tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    kind: str = "ball"
+    params: tuple = ()
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .refraction import fresnel_from_cosines, fresnel_transmittance, refract
+from .sphere import intersect_sphere
+
 __all__ = [
     "fresnel_transmittance",
     "two_surface_transmission",
@@ -73,46 +76,8 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------
-# Fresnel
+# Fresnel (the single surface's `fresnel_transmittance` is `refraction`'s, re-exported)
 # ---------------------------------------------------------------------------
-
-
-def fresnel_transmittance(cos_i, n1, n2):
-    """Single-surface power transmittances ``(t_s, t_p)`` of a smooth interface.
-
-    ``cos_i``: cosine of the angle of incidence (between the ray and the surface
-    normal on the incident side), in ``[0, 1]``; array-like.  ``n1``: index of the
-    medium the light comes from, ``n2``: the medium it enters (both > 0).
-
-    Returns the fractions of the incident *power* of the s-polarised (electric
-    field perpendicular to the plane of incidence) and the p-polarised parts that
-    are transmitted, each in ``[0, 1]``.  Forms without a division by zero:
-
-        t_s = 4 n1 c_i n2 c_t / (n1 c_i + n2 c_t)^2
-        t_p = 4 n1 c_i n2 c_t / (n1 c_t + n2 c_i)^2
-
-    with ``c_t`` the cosine of the refraction angle.  Grazing incidence (``c_i = 0``)
-    gives 0 (for ``n1 != n2``); total internal reflection (``n1 sin_i > n2``) gives 0;
-    ``n1 == n2`` gives exactly 1.
-    """
-    c_i = np.clip(np.asarray(cos_i, dtype=float), 0.0, 1.0)
-    n1 = np.asarray(n1, dtype=float)
-    n2 = np.asarray(n2, dtype=float)
-    eta = n1 / n2
-    sin2_i = (1.0 - c_i) * (1.0 + c_i)
-    k = 1.0 - eta * eta * sin2_i  # cos^2 of the refraction angle
-    tir = k < 0.0
-    c_t = np.sqrt(np.where(tir, 0.0, k))
-    num = 4.0 * n1 * c_i * n2 * c_t
-    den_s = (n1 * c_i + n2 * c_t) ** 2
-    den_p = (n1 * c_t + n2 * c_i) ** 2
-    same = np.broadcast_to(n1 == n2, num.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_s = np.where(den_s > 0.0, num / np.where(den_s > 0.0, den_s, 1.0), 0.0)
-        t_p = np.where(den_p > 0.0, num / np.where(den_p > 0.0, den_p, 1.0), 0.0)
-    t_s = np.where(tir, 0.0, np.where(same, 1.0, t_s))
-    t_p = np.where(tir, 0.0, np.where(same, 1.0, t_p))
-    return np.clip(t_s, 0.0, 1.0), np.clip(t_p, 0.0, 1.0)
 
 
 def two_surface_transmission(iota, n):
@@ -465,37 +430,6 @@ def irradiance_on_plane(I0, D, R, n, Z, radii, absorption=0.0, n_psi=200_000):
 # ---------------------------------------------------------------------------
 
 
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
-
-
-def _refract(d, nrm, eta):
-    """Refract unit directions ``d`` at unit normals ``nrm`` that face against
-    ``d`` (``d . nrm < 0``), ``eta = n_from / n_to``.  Returns the refracted unit
-    direction, the cosines of incidence and refraction, and a TIR mask."""
-    cos_i = np.clip(-_dot(d, nrm), 0.0, 1.0)
-    k = 1.0 - eta * eta * (1.0 - cos_i) * (1.0 + cos_i)
-    tir = k < 0.0
-    cos_t = np.sqrt(np.where(tir, 0.0, k))
-    t = eta * d + (eta * cos_i - cos_t)[:, None] * nrm
-    t /= np.linalg.norm(t, axis=1)[:, None]
-    return t, cos_i, cos_t, tir
-
-
-def _far_root(f, d, R):
-    """Far intersection parameter of the rays ``f + t d`` (``|d| = 1``, sphere at the
-    origin), Haines et al. (Ray Tracing Gems 2019): discriminant as
-    ``R^2 - |f - (f.d) d|^2``, far root ``q = -beta - sign(beta) sqrt(disc)``,
-    near root ``c / q``.  Returns (beta, disc, q)."""
-    beta = _dot(f, d)
-    perp = f - beta[:, None] * d
-    disc = R * R - _dot(perp, perp)
-    sq = np.sqrt(np.maximum(disc, 0.0))
-    sgn = np.where(beta >= 0.0, 1.0, -1.0)
-    q = -beta - sgn * sq
-    return beta, disc, q
-
-
 def monte_carlo_irradiance(
     I0, D, R, n, Z, radii_edges, n_rays, rng, absorption=0.0, chunk=500_000, return_stderr=False
 ):
@@ -525,7 +459,6 @@ def monte_carlo_irradiance(
     omc = cone_one_minus_cos(D, R)
     flux_per_ray = I0 * 2.0 * np.pi * omc / n_rays
     src = np.array([0.0, 0.0, -D])
-    c_out = (D - R) * (D + R)  # |src|^2 - R^2 without cancellation
     sum_w = np.zeros(edges.size - 1)
     sum_w2 = np.zeros(edges.size - 1)
     done = 0
@@ -537,21 +470,18 @@ def monte_carlo_irradiance(
         sin_psi = np.sqrt(v * (2.0 - v))
         d = np.stack([sin_psi * np.cos(phi), sin_psi * np.sin(phi), 1.0 - v], axis=1)
         f = np.broadcast_to(src, d.shape)
-        # entry: near root c/q
-        _, disc, q = _far_root(f, d, R)
-        hit = (disc >= 0.0) & (q != 0.0)
-        t1 = c_out / np.where(hit, q, 1.0)
-        p1 = f + t1[:, None] * d
-        n1 = p1 / R
-        d2, ci1, ct1, tir1 = _refract(d, n1, 1.0 / n)
-        ts1, tp1 = _fresnel_from_cos(ci1, ct1, 1.0, n)
-        # inside: far root from the entry point
-        _, _, chord = _far_root(p1, d2, R)
-        chord = np.maximum(chord, 0.0)
+        # entry: the near root; inside: the far root from the entry point
+        entry = intersect_sphere(f, d, np.zeros(3), R)
+        hit = entry.hit & (entry.far > 0.0)
+        p1 = f + np.where(hit, entry.near, 0.0)[:, None] * d
+        into = refract(d, p1 / R, 1.0 / n)
+        ts1, tp1 = fresnel_from_cosines(into.cos_i, into.cos_t, 1.0, n)
+        d2, tir1 = into.directions, into.tir
+        chord = np.maximum(intersect_sphere(p1, d2, np.zeros(3), R).far, 0.0)
         p2 = p1 + chord[:, None] * d2
-        n2 = p2 / R
-        d3, ci2, ct2, tir2 = _refract(d2, -n2, n)
-        ts2, tp2 = _fresnel_from_cos(ci2, ct2, n, 1.0)
+        out = refract(d2, -p2 / R, n)
+        ts2, tp2 = fresnel_from_cosines(out.cos_i, out.cos_t, n, 1.0)
+        d3, tir2 = out.directions, out.tir
         w = 0.5 * (ts1 * ts2 + tp1 * tp2) * np.exp(-absorption * chord)
         ok = hit & ~tir1 & ~tir2 & (d3[:, 2] > 0.0) & (p2[:, 2] <= Z)
         t3 = (Z - p2[:, 2]) / np.where(ok, d3[:, 2], 1.0)
@@ -569,15 +499,3 @@ def monte_carlo_irradiance(
     var = np.maximum(sum_w2 / n_rays - mean * mean, 0.0)
     err = flux_per_ray * np.sqrt(var * n_rays) / area
     return irr, err
-
-
-def _fresnel_from_cos(c_i, c_t, n1, n2):
-    """s/p power transmittances from both cosines (the 3-D tracer's own angles)."""
-    num = 4.0 * n1 * c_i * n2 * c_t
-    den_s = (n1 * c_i + n2 * c_t) ** 2
-    den_p = (n1 * c_t + n2 * c_i) ** 2
-    if n1 == n2:
-        return np.ones_like(c_i), np.ones_like(c_i)
-    t_s = num / np.where(den_s > 0.0, den_s, 1.0)
-    t_p = num / np.where(den_p > 0.0, den_p, 1.0)
-    return t_s, t_p

@@ -34,7 +34,8 @@ import functools
 
 import numpy as np
 
-from ..lens.ball_optics import fresnel_transmittance
+from ..lens.refraction import fresnel_transmittance
+from ..lens.sphere import intersect_sphere
 from ..shared import parallel
 from ..shared.parallel import map_slices
 from ..shared.ranges import concat_ranges
@@ -706,13 +707,9 @@ def ray_passes(origins, dirs, t_end, centers, radii, ior=None, kt=None) -> np.nd
     radii = np.asarray(radii, dtype=float).reshape(-1)
     glass = np.zeros(radii.size, dtype=bool) if ior is None or kt is None else is_glass(ior, kt)
     for b in range(radii.size):
-        f = o - centers[b]
-        beta = np.einsum("...i,...i->...", f, d)
-        perp = f - beta[..., None] * d
-        b2 = np.einsum("...i,...i->...", perp, perp)  # impact parameter²
-        r = radii[b]
-        half = np.sqrt(np.maximum(r * r - b2, 0.0))
-        hit = (b2 < r * r) & (-beta + half > 0.0) & (-beta - half < t_end)
+        h = intersect_sphere(o, d, centers[b], radii[b])
+        b2, r = h.perp2, radii[b]  # impact parameter²
+        hit = (b2 < r * r) & (h.far > 0.0) & (h.near < t_end)
         if glass[b]:
             n_b, kt_b = (float(np.asarray(x, dtype=float).reshape(-1)[b]) for x in (ior, kt))
             share = glass_share(np.sqrt(b2) / r, n_b, kt_b)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lens.ball_optics import fresnel_transmittance
+from ..lens.refraction import fresnel_transmittance, refract
 from ..phase1.shadow_mask import ray_passes
 
 
@@ -28,13 +28,6 @@ class EmissionMask:
     @property
     def size(self) -> int:
         return int(self.pixels.shape[0])
-
-
-def _refract(d, nrm, eta):
-    cos_i = np.clip(-np.einsum("...i,...i->...", d, nrm), 0.0, 1.0)
-    k = np.maximum(1.0 - eta * eta * (1.0 - cos_i) * (1.0 + cos_i), 0.0)
-    t = eta * d + (eta * cos_i - np.sqrt(k))[..., None] * nrm
-    return t / np.linalg.norm(t, axis=-1)[..., None]
 
 
 def emission_mask(
@@ -85,10 +78,10 @@ def emission_mask(
     d = cos_psi[:, None, None] * u + sin_psi[:, None, None] * radial[None]  # (I, P, 3)
     t1 = D * cos_psi - R * cos_i  # to the entry point
     p1 = P + t1[:, None, None] * d
-    d2 = _refract(d, (p1 - C) / R, 1.0 / n)
+    d2 = refract(d, (p1 - C) / R, 1.0 / n).directions
     cos_r = np.sqrt(np.maximum(1.0 - (sin_i / n) ** 2, 0.0))
     p2 = p1 + (2.0 * R * cos_r)[:, None, None] * d2
-    d3 = _refract(d2, -(p2 - C) / R, n)
+    d3 = refract(d2, -(p2 - C) / R, n).directions
     t_s, t_p = fresnel_transmittance(cos_i, 1.0, n)
     flux = sin_i * cos_i / cos_psi * 0.5 * (t_s * t_s + t_p * t_p)
     w = np.broadcast_to(flux[:, None], d.shape[:2])
