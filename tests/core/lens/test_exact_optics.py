@@ -9,7 +9,6 @@ from core.lens.ball_optics import (
     cone_half_angle,
     cone_one_minus_cos,
     flux_within_radius,
-    fresnel_transmittance,
     irradiance_on_plane,
     landing_radius,
     lens_flux,
@@ -20,6 +19,7 @@ from core.lens.ball_optics import (
     trace_rays,
     two_surface_transmission,
 )
+from core.lens.refraction import fresnel_transmittance
 
 # --------------------------------------------------------------------------- Fresnel
 
