@@ -55,7 +55,6 @@ from .refraction import fresnel_from_cosines, fresnel_transmittance, refract
 from .sphere import intersect_sphere
 
 __all__ = [
-    "fresnel_transmittance",
     "two_surface_transmission",
     "cone_half_angle",
     "cone_one_minus_cos",
@@ -76,7 +75,7 @@ __all__ = [
 
 
 # ---------------------------------------------------------------------------
-# Fresnel (the single surface's `fresnel_transmittance` is `refraction`'s, re-exported)
+# Fresnel through both surfaces (one surface's: `refraction.fresnel_transmittance`)
 # ---------------------------------------------------------------------------
 
 
