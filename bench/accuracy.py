@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from core.lens import ball_optics as xo
+from core.lens.refraction import fresnel_transmittance
 from core.phase1.point_lights import compute_phase1
 from core.scene.blender_spot import one_minus_cos_of_radius, spot_mask_integral
 from core.scene.model import Light, Scene, Sphere, Surface
@@ -223,7 +224,7 @@ class _MitsubaFresnelBeam(ExactBeam):
 
     def __init__(self, I0, D, R, n, **kw):
         super().__init__(I0, D, R, n, **kw)
-        ts, tp = xo.fresnel_transmittance(np.cos(self._fan.iota), 1.0, n)
+        ts, tp = fresnel_transmittance(np.cos(self._fan.iota), 1.0, n)
         with np.errstate(invalid="ignore", divide="ignore"):
             ratio = np.where(self._fan.fresnel > 0, (0.5 * (ts + tp)) ** 2 / self._fan.fresnel, 0.0)
         self._w = self._w * ratio
