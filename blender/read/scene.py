@@ -86,11 +86,7 @@ from ...core.scene.light_props import plain_light_nodes
 from ...core.scene.model import Camera
 from .materials import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
-from .render_probe import (
-    as_rendered,
-    reads_viewport_as_render,
-)
-from .render_probe import render_visible_objects as _render_visible_objects
+from .render_probe import as_rendered, reads_viewport_as_render, render_visible_objects
 
 GEOMETRY_TYPES = {
     "MESH",
@@ -111,7 +107,9 @@ READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 # --------------------------------------------------------------------------- visibility
 
 
-def _is_lens_light(ob) -> bool:
+def is_lens_light(ob) -> bool:
+    """Whether `ob` (an original object) is one the extension made (a lens light or
+    a caustic layer): the reads skip it."""
     settings = getattr(ob, "lens_lights", None)
     return bool(settings and settings.is_lens_light)
 
@@ -329,7 +327,7 @@ def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
 
 
 def _classify(ob, orig, groups, fit_cache, optics_cache) -> int:
-    if _is_lens_light(orig):  # lens lights and caustic layers
+    if is_lens_light(orig):  # lens lights and caustic layers
         return -1
     if ob.type == "LIGHT":
         group = _light_group(ob, orig)
@@ -703,7 +701,7 @@ def _walk(depsgraph, viewport) -> _InstanceWalk:
             walk = None
         if walk is not None:
             return walk
-    visible = _render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = _InstanceWalk(viewport, visible)
     if walk.walk(depsgraph.object_instances):
         return walk

@@ -67,8 +67,9 @@ def _mixed_scene():
 
 def _reference(depsgraph, viewport):
     from lens_lights.blender.read import scene as sr
+    from lens_lights.blender.read.render_probe import render_visible_objects
 
-    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = sr._InstanceWalk(viewport, visible)
     for inst in depsgraph.object_instances:
         walk.add(inst)
@@ -77,8 +78,9 @@ def _reference(depsgraph, viewport):
 
 def _fast(depsgraph, viewport):
     from lens_lights.blender.read import scene as sr
+    from lens_lights.blender.read.render_probe import render_visible_objects
 
-    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = sr._InstanceWalk(viewport, visible)
     assert walk.walk(depsgraph.object_instances)
     return walk
