@@ -87,12 +87,12 @@ def _fast(depsgraph, viewport):
 
 
 def _items(w):
-    """Per instance: its object (original, name, kind, why not a sphere) and instancer.
+    """Per instance: its object (original, name, record type) and instancer.
     (Group numbers are not compared: the reference's groups are keyed by the
     pointer of the Python object Blender hands out per instance, which its own
     caching of those objects may change between two instances of one object.)"""
     return [
-        (w.groups[g].orig, w.groups[g].name, w.groups[g].kind, w.groups[g].reason)
+        (w.records[g].orig, w.records[g].name, type(w.records[g]))
         + (w.parent_names[p] if p >= 0 else None,)
         for g, p in zip(w.gid, w.pid, strict=True)
     ]
@@ -137,7 +137,7 @@ def test_matrices_compose_as_blender_documents(empty_blend):
         rows = [
             i
             for i, (g, q) in enumerate(zip(walk.gid, walk.pid, strict=True))
-            if q == p and walk.groups[g].orig == bead
+            if q == p and walk.records[g].orig == bead
         ]
         assert len(rows) == 1
         expected = np.array(bpy.data.objects[name].matrix_world) @ offset
@@ -263,7 +263,7 @@ def test_bulk_read_matches_the_reference_walk(empty_blend):
     ref, bulk, read = _as_rendered(both)
     assert bulk is not None
     _same_walk(ref, bulk)
-    kinds = {ref.groups[g].name for g in ref.gid}
+    kinds = {ref.records[g].name for g in ref.gid}
     assert {"Bead", "Cube", "Bead lamp", "Inner bead", "Shared", "Drop", "Plain"} <= kinds
     assert len(ref.gid) > 16 * 4
     assembled = sr._assemble(bpy.context.scene, ref, "x")
