@@ -7,16 +7,21 @@ the scene; when that cannot run, the viewport depsgraph with the render-visibili
 rules applied by hand (``BlenderSceneRead.how`` says which).
 
 **Reading.** `read_depsgraph(depsgraph)` walks the depsgraph's object instances
-(modifiers, geometry nodes and instancing applied, world space).  The per-instance
-work is only to note which evaluated object/data/original it is and to copy its
-matrix; everything else is done once per *group* of instances that share these
-(an instanced sphere is fitted and its material evaluated once, however many
-instances there are), then in numpy over all instances (world centres and radii,
-the uniform-scale test, bounding boxes, names: `core.scene.assembly.assemble`,
-`core.scene.instances`).  Materials are read by `material_reader`.  It returns a
+once (modifiers, geometry nodes and instancing applied, world space). Per instance
+it only notes which evaluated object/data/original it is, its instancer, and copies
+its matrix (in one ``foreach_get``; `_bulk_walk` reads scenes of collection
+instances without a Python step per instance). Per *group* of instances sharing
+these it copies what Blender holds into one plain record, nothing decided yet
+(`core.scene.assembly.GeometryRecord`: type, local box, lens mode, material optics
+and colour; `core.scene.light_props.LightRecord`: a light's properties); materials
+are read by `materials`. After the walk each mesh is fitted once (`fit_meshes`: the
+boxes tested at once, a fit remembered by content across reads), and
+`core.scene.assembly.assemble` makes the read of all records and instances at once
+(what each record is, its lens material and surface; world centres and radii, the
+uniform-scale test, bounding boxes, names: `core.scene.instances`). It returns a
 :class:`BlenderSceneRead`:
 
-* ``arrays`` — `core.phase1.point_lights.SceneArrays`: the lights (position, a sun's NaN;
+* ``arrays`` — `core.scene.arrays.SceneArrays`: the lights (position, a sun's NaN;
   nominal power in W; colour) and the spheres (centre, radius, IOR, kt) for phase 1; ``scene`` — the
   same as an `core.scene.model.Scene` (made on first use; the `.bi` exporter's);
 * ``sphere_sources`` / ``light_sources`` — the object (or instance: "instancer/
@@ -205,7 +210,7 @@ def _camera(scene) -> Camera:
     return camera_from_matrix(np.array([list(row) for row in cam.matrix_world], dtype=float), fov)
 
 
-# --------------------------------------------------------------------------- groups
+# --------------------------------------------------------------------------- records
 
 
 def _linked(ob) -> bool:
@@ -329,8 +334,8 @@ def read_blender_scene(context_or_depsgraph) -> BlenderSceneRead:
 
 
 class _InstanceWalk:
-    """One pass over a depsgraph's instances: per instance its group (classified on
-    first sight), world matrix and instancer. `walk` is the pass (the matrices read
+    """One pass over a depsgraph's instances: per instance its group (a record read
+    on first sight: `record`), world matrix and instancer. `walk` is the pass (the matrices read
     in one go); `add`, one instance at a time, is the reference it falls back on."""
 
     def __init__(self, viewport, visible):

@@ -388,7 +388,7 @@ def _finite_rows(a: np.ndarray) -> np.ndarray:
 
 
 def add_lights(out: BlenderSceneRead, groups: Groups, gid, kind, M, names, left: LeftOut):
-    """Every light into `out` as a primary (`light_read.primary_of`; few: a Python
+    """Every light into `out` as a primary (`light_props.primary_of`; few: a Python
     loop); what cannot be one is left out, what is only partly modelled gets a note
     (both in ``light_notes``). Returns their positions (a sun's NaN), nominal powers
     (`primaries.nominal_power`) and colours (lists)."""

@@ -1,4 +1,4 @@
-"""The depsgraph walk (`scene_reader._InstanceWalk.walk`: per-object caches, the
+"""The depsgraph walk (`blender.read.scene._InstanceWalk.walk`: per-object caches, the
 matrices copied in one ``foreach_get``) gives exactly what the reference walk
 (`_InstanceWalk.add`, one instance at a time, every RNA value read per instance)
 gives, on scenes that mix every way an instance comes about."""
@@ -356,7 +356,7 @@ def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monke
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("n_groups", [1, 3, 100])
 def test_world_corners_are_the_einsums_numbers(dtype, n_groups):
-    """`scene_read._world_corners` (one 2-D einsum per group when they are few) gives
+    """`core.scene.assembly._world_corners` (one 2-D einsum per group when they are few) gives
     the numbers of the one einsum over all instances, bit for bit (signs of zeros,
     NaN and infinity included), for float32 matrices (Blender 5.x) and float64."""
     from lens_lights.core.scene.assembly import _world_corners
