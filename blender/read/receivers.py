@@ -19,8 +19,8 @@ import numpy as np
 from ...core.caustic_layer.plan import fallback_reason
 from ...core.caustic_layer.receiver_bvh import ReceiverMesh
 from .materials import main_material, node_tree
-from .render_probe import reads_viewport_as_render
-from .scene import _is_lens_light, _render_visible_objects
+from .render_probe import reads_viewport_as_render, render_visible_objects
+from .scene import is_lens_light
 
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
@@ -128,7 +128,7 @@ def read_receivers(depsgraph, exclude=()) -> Receivers:
     objects that are no receivers (the lenses)."""
     excluded = {ob.as_pointer() for ob in exclude if ob is not None}
     viewport = depsgraph.mode != "RENDER" and not reads_viewport_as_render(depsgraph)
-    visible = _render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     meshes: dict = {}
     ids: dict = {}
     infos: list[ReceiverInfo] = []
@@ -138,7 +138,7 @@ def read_receivers(depsgraph, exclude=()) -> Receivers:
         if ob.type != "MESH":
             continue
         orig = ob.original
-        if orig.as_pointer() in excluded or _is_lens_light(orig):
+        if orig.as_pointer() in excluded or is_lens_light(orig):
             continue
         if inst.is_instance and inst.parent.original.as_pointer() in excluded:
             continue

@@ -7,16 +7,21 @@ the scene; when that cannot run, the viewport depsgraph with the render-visibili
 rules applied by hand (``BlenderSceneRead.how`` says which).
 
 **Reading.** `read_depsgraph(depsgraph)` walks the depsgraph's object instances
-(modifiers, geometry nodes and instancing applied, world space).  The per-instance
-work is only to note which evaluated object/data/original it is and to copy its
-matrix; everything else is done once per *group* of instances that share these
-(an instanced sphere is fitted and its material evaluated once, however many
-instances there are), then in numpy over all instances (world centres and radii,
-the uniform-scale test, bounding boxes, names: `core.scene.assembly.assemble`,
-`core.scene.instances`).  Materials are read by `material_reader`.  It returns a
+once (modifiers, geometry nodes and instancing applied, world space). Per instance
+it only notes which evaluated object/data/original it is, its instancer, and copies
+its matrix (in one ``foreach_get``; `_bulk_walk` reads scenes of collection
+instances without a Python step per instance). Per *group* of instances sharing
+these it copies what Blender holds into one plain record, nothing decided yet
+(`core.scene.assembly.GeometryRecord`: type, local box, lens mode, material optics
+and colour; `core.scene.light_props.LightRecord`: a light's properties); materials
+are read by `materials`. After the walk each mesh is fitted once (`fit_meshes`: the
+boxes tested at once, a fit remembered by content across reads), and
+`core.scene.assembly.assemble` makes the read of all records and instances at once
+(what each record is, its lens material and surface; world centres and radii, the
+uniform-scale test, bounding boxes, names: `core.scene.instances`). It returns a
 :class:`BlenderSceneRead`:
 
-* ``arrays`` — `core.phase1.point_lights.SceneArrays`: the lights (position, a sun's NaN;
+* ``arrays`` — `core.scene.arrays.SceneArrays`: the lights (position, a sun's NaN;
   nominal power in W; colour) and the spheres (centre, radius, IOR, kt) for phase 1; ``scene`` — the
   same as an `core.scene.model.Scene` (made on first use; the `.bi` exporter's);
 * ``sphere_sources`` / ``light_sources`` — the object (or instance: "instancer/
@@ -62,35 +67,24 @@ import bpy
 import mathutils
 import numpy as np
 
-from ...core.lens.glass import LensOptics, MaterialOptics
+from ...core.lens.glass import MaterialOptics
 from ...core.lens.sphere_fit import fit_sphere
 from ...core.scene.assembly import (
-    LIGHT_GROUP,
-    OTHER_GROUP,
     RENDER,
-    SPHERE_GROUP,
     BlenderSceneRead,
-    InstanceGroup,
-    LightProps,
+    GeometryRecord,
     assemble,
     box_fit_failure,
+    box_fit_failures,
     camera_from_matrix,
-    lens_material,
-    light_color,
     perspective_fov,
     render_size,
-    surface_block,
 )
-from ...core.scene.instances import Indexed, InstanceNames  # noqa: F401  (re-exported)
-from ...core.scene.light_props import plain_light_nodes
+from ...core.scene.light_props import LightNodes, LightRecord
 from ...core.scene.model import Camera
 from .materials import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
-from .render_probe import (
-    as_rendered,
-    reads_viewport_as_render,
-)
-from .render_probe import render_visible_objects as _render_visible_objects
+from .render_probe import as_rendered, reads_viewport_as_render, render_visible_objects
 
 GEOMETRY_TYPES = {
     "MESH",
@@ -111,7 +105,9 @@ READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 # --------------------------------------------------------------------------- visibility
 
 
-def _is_lens_light(ob) -> bool:
+def is_lens_light(ob) -> bool:
+    """Whether `ob` (an original object) is one the extension made (a lens light or
+    a caustic layer): the reads skip it."""
     settings = getattr(ob, "lens_lights", None)
     return bool(settings and settings.is_lens_light)
 
@@ -150,26 +146,42 @@ def _face_centres_areas(mesh):
     return c.reshape(-1, 3), a
 
 
-def _local_fit(mesh, corners, cache):
-    """Sphere fit of an evaluated mesh in its local space (cached per mesh in a run,
-    and by content across runs)."""
-    key = mesh.as_pointer()
-    if key in cache:
-        return cache[key]
-    fit = None if corners is None else box_fit_failure(corners.max(axis=0) - corners.min(axis=0))
+def _content_fit(mesh):
+    """Sphere fit of an evaluated mesh in its local space, remembered by content
+    across reads (`_FITS`)."""
+    digest, v, normals = _fingerprint(mesh)
+    fit = _FITS.get(digest)
     if fit is None:
-        digest, v, normals = _fingerprint(mesh)
-        fit = _FITS.get(digest)
+        fit = box_fit_failure(v.max(axis=0) - v.min(axis=0)) if len(v) else None
         if fit is None:
-            fit = box_fit_failure(v.max(axis=0) - v.min(axis=0)) if len(v) else None
-            if fit is None:
-                centres, areas = _face_centres_areas(mesh)
-                fit = fit_sphere(v, centres, normals, areas)
-            if len(_FITS) >= _FITS_MAX:
-                _FITS.clear()
-            _FITS[digest] = fit
-    cache[key] = fit
+            centres, areas = _face_centres_areas(mesh)
+            fit = fit_sphere(v, centres, normals, areas)
+        if len(_FITS) >= _FITS_MAX:
+            _FITS.clear()
+        _FITS[digest] = fit
     return fit
+
+
+def fit_meshes(records, meshes) -> None:
+    """Fill in each mesh record's local sphere fit (`GeometryRecord.fit`; `meshes`:
+    the evaluated mesh of each record, None for the others), after the walk: the
+    bounding boxes are tested at once (`box_fit_failures`), then each mesh not ruled
+    out by the box of its first record is fitted once (`_content_fit`)."""
+    rows = [k for k, mesh in enumerate(meshes) if mesh is not None]
+    boxed = [k for k in rows if records[k].corners is not None]
+    corners = np.array([records[k].corners for k in boxed], dtype=float).reshape(-1, 8, 3)
+    extents = corners.max(axis=1) - corners.min(axis=1)
+    failed = dict(zip(boxed, box_fit_failures(extents), strict=True))
+    by_mesh: dict = {}
+    for k in rows:
+        key = meshes[k].as_pointer()
+        fit = by_mesh.get(key)
+        if fit is None:
+            fit = failed.get(k)
+            if fit is None:
+                fit = _content_fit(meshes[k])
+            by_mesh[key] = fit
+        records[k].fit = fit
 
 
 def _corners(ob):
@@ -198,7 +210,7 @@ def _camera(scene) -> Camera:
     return camera_from_matrix(np.array([list(row) for row in cam.matrix_world], dtype=float), fov)
 
 
-# --------------------------------------------------------------------------- groups
+# --------------------------------------------------------------------------- records
 
 
 def _linked(ob) -> bool:
@@ -206,43 +218,46 @@ def _linked(ob) -> bool:
     return bool(ll and (ll.receiver_collection or ll.blocker_collection))
 
 
-def _uses_nodes(ld) -> bool:
-    """Whether a light node tree changes the light (every light has a plain one
-    from 5.0 on: `core.scene.light_props.plain_light_nodes`; `use_nodes` is deprecated)."""
+def _light_nodes(ld) -> LightNodes | None:
+    """A light's node tree, if it has one and uses it (every light has a plain one
+    from 5.0 on: `core.scene.light_props.plain_light_nodes`; `use_nodes` is
+    deprecated)."""
     nt = getattr(ld, "node_tree", None)
     if nt is None:
-        return False
+        return None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         if not getattr(ld, "use_nodes", True):
-            return False
+            return None
+    kinds = tuple(n.bl_idname for n in nt.nodes)
     emission = [n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission"]
     if len(emission) != 1:
-        return True
+        return LightNodes(kinds, len(emission))
     e = emission[0].inputs
-    linked = sum(1 for i in e if i.is_linked)
-    return not plain_light_nodes(
-        [n.bl_idname for n in nt.nodes],
+    return LightNodes(
+        kinds,
+        1,
         tuple(e["Color"].default_value),
         float(e["Strength"].default_value),
-        linked,
+        sum(1 for i in e if i.is_linked),
     )
 
 
-def _light_group(ob, orig) -> InstanceGroup:
-    """The properties of a light (`core.scene.light_props.LightProps`); ``exposure`` and
+def _light_record(ob, orig) -> LightRecord:
+    """What a light holds (`core.scene.light_props.LightRecord`); ``exposure`` and
     ``normalize`` are 4.3+ (4.2: 0, True)."""
     ld = ob.data
     kind = ld.type
     props = dict(
         type=kind,
         energy=float(ld.energy),
-        color=light_color(
-            ld.color, ld.temperature_color if getattr(ld, "use_temperature", False) else None
+        color=tuple(ld.color[:3]),
+        temperature_color=(
+            tuple(ld.temperature_color[:3]) if getattr(ld, "use_temperature", False) else None
         ),
         exposure=float(getattr(ld, "exposure", 0.0)),
         normalize=bool(getattr(ld, "normalize", True)),
-        uses_nodes=_uses_nodes(ld),
+        nodes=_light_nodes(ld),
         linked=_linked(orig),
     )
     if kind in ("POINT", "SPOT"):
@@ -258,7 +273,7 @@ def _light_group(ob, orig) -> InstanceGroup:
             size_y=float(ld.size_y),
             spread=float(getattr(ld, "spread", math.pi)),
         )
-    return InstanceGroup(LIGHT_GROUP, ob.name, orig, light=LightProps(**props))
+    return LightRecord(ob.name, orig, **props)
 
 
 def _material_optics_cached(material, cache) -> MaterialOptics:
@@ -269,76 +284,33 @@ def _material_optics_cached(material, cache) -> MaterialOptics:
     return optics
 
 
-def _geometry_group(ob, orig, fit_cache, optics_cache) -> InstanceGroup | None:
+def _geometry_record(ob, orig, optics_cache) -> tuple[GeometryRecord | None, object]:
+    """(what a geometry object holds, its evaluated mesh to fit, or None): no record
+    for a mesh without vertices (nothing rendered, e.g. an instancer's own mesh)."""
     settings = getattr(orig, "lens_lights", None)
     mode = settings.lens_mode if settings else "AUTO"
+    override = settings.ior_override if settings and settings.use_ior_override else None
     corners = _corners(ob)
     if ob.type != "MESH":
         source = MeshSource.from_object(ob) if ob.type in MESHABLE_TYPES else None
-        return InstanceGroup(
-            OTHER_GROUP,
-            ob.name,
-            orig,
-            corners,
-            f"not a mesh ({ob.type.lower()})",
-            looks_like_lens=mode == "ALWAYS",
-            mesh_source=source,
-        )
+        return GeometryRecord(
+            ob.name, orig, ob.type, corners, mode, override, mesh_source=source
+        ), None
     mesh = ob.data
     if len(mesh.vertices) == 0:
-        return None  # nothing rendered (e.g. an instancer's own mesh)
-    source = MeshSource(mesh)
+        return None, None
     material = main_material(ob, mesh)
     optics = _material_optics_cached(material, optics_cache)
-    looks_like_lens = mode == "ALWAYS" or (mode == "AUTO" and optics.is_transmissive)
-    fit = _local_fit(mesh, corners, fit_cache)
-    if not fit.ok:
-        return InstanceGroup(
-            OTHER_GROUP, ob.name, orig, corners, fit.reason, looks_like_lens, mesh_source=source
-        )
-    override = settings.ior_override if settings and settings.use_ior_override else None
-    ior, kt, weight = lens_material(optics, mode, override)
-    surface_optics = MaterialOptics(
-        ior=ior, transmission=kt, tint=optics.tint, absorption=optics.absorption
-    )
     if material is None:
         color = (0.8, 0.8, 0.8)
     elif node_tree(material) is None:
         color = tuple(material.diffuse_color[:3])
     else:
         color = optics.color
-    return InstanceGroup(
-        SPHERE_GROUP,
-        ob.name,
-        orig,
-        corners,
-        "",
-        looks_like_lens,
-        mesh_source=source,
-        center=np.asarray(fit.center, dtype=float),
-        radius=float(fit.radius),
-        ior=float(ior),
-        kt=float(kt),
-        lens_like=kt > 0.0 and ior > 1.0,
-        optics=LensOptics(
-            transmission_weight=weight, tint=tuple(optics.tint), absorption=tuple(optics.absorption)
-        ),
-        surface=surface_block(surface_optics, color),
-        notes=list(optics.notes),
+    record = GeometryRecord(
+        ob.name, orig, ob.type, corners, mode, override, optics, color, mesh_source=MeshSource(mesh)
     )
-
-
-def _classify(ob, orig, groups, fit_cache, optics_cache) -> int:
-    if _is_lens_light(orig):  # lens lights and caustic layers
-        return -1
-    if ob.type == "LIGHT":
-        group = _light_group(ob, orig)
-    else:
-        group = _geometry_group(ob, orig, fit_cache, optics_cache)
-        if group is None:
-            return -1
-    groups.append(group)
-    return len(groups) - 1
+    return record, mesh
 
 
 # --------------------------------------------------------------------------- main
@@ -362,15 +334,17 @@ def read_blender_scene(context_or_depsgraph) -> BlenderSceneRead:
 
 
 class _InstanceWalk:
-    """One pass over a depsgraph's instances: per instance its group (classified on
-    first sight), world matrix and instancer. `walk` is the pass (the matrices read
+    """One pass over a depsgraph's instances: per instance its group (a record read
+    on first sight: `record`), world matrix and instancer. `walk` is the pass (the matrices read
     in one go); `add`, one instance at a time, is the reference it falls back on."""
 
     def __init__(self, viewport, visible):
         self.viewport, self.visible = viewport, visible
         self.keys: dict = {}
-        self.groups: list[InstanceGroup] = []
-        self.fit_cache: dict = {}
+        #: One record per group (`GeometryRecord`, `LightRecord`), and its evaluated
+        #: mesh to fit (`fit_meshes`) or None.
+        self.records: list = []
+        self.meshes: list = []
         self.optics_cache: dict = {}
         self.parent_ids: dict = {}
         self.parent_names: list[str] = []
@@ -397,10 +371,23 @@ class _InstanceWalk:
         key = (ob.as_pointer(), orig.as_pointer(), data.as_pointer() if data is not None else 0)
         gid = self.keys.get(key)
         if gid is None:
-            gid = self.keys[key] = _classify(
-                ob, orig, self.groups, self.fit_cache, self.optics_cache
-            )
+            gid = self.keys[key] = self.record(ob, orig)
         return gid
+
+    def record(self, ob, orig) -> int:
+        """The group of a new evaluated object: its record's index (−1: not read, as
+        the extension's own objects and meshes without vertices)."""
+        if is_lens_light(orig):  # lens lights and caustic layers
+            return -1
+        if ob.type == "LIGHT":
+            record, mesh = _light_record(ob, orig), None
+        else:
+            record, mesh = _geometry_record(ob, orig, self.optics_cache)
+            if record is None:
+                return -1
+        self.records.append(record)
+        self.meshes.append(mesh)
+        return len(self.records) - 1
 
     def add(self, inst):
         ob = inst.object
@@ -632,7 +619,7 @@ def _bulk_walk(depsgraph) -> _InstanceWalk | None:
         else:
             orig, ob = kid_read[c][k]
             if orig not in kid_gid:
-                kid_gid[orig] = _classify(ob, orig, walk.groups, walk.fit_cache, walk.optics_cache)
+                kid_gid[orig] = walk.record(ob, orig)
 
     # Per collection: the groups and local matrices of its instanced objects kept.
     kept_gid, kept_mat, n_read = [], [], []
@@ -676,7 +663,7 @@ def _bulk_agrees(depsgraph, walk) -> bool:
     """Whether the first `_BULK_CHECK` instances the reference walk reads off the
     depsgraph's iterator are the bulk read's (objects, instancers, matrices)."""
     ref = _InstanceWalk(False, None)
-    ref.fit_cache, ref.optics_cache = walk.fit_cache, walk.optics_cache
+    ref.optics_cache = walk.optics_cache
     for inst in depsgraph.object_instances:
         ref.add(inst)
         if len(ref.gid) >= _BULK_CHECK:
@@ -686,9 +673,9 @@ def _bulk_agrees(depsgraph, walk) -> bool:
         return False
 
     def items(w, k):
-        g = w.groups[w.gid[k]]
+        r = w.records[w.gid[k]]
         p = w.pid[k]
-        return g.orig, g.name, g.kind, w.parent_names[p] if p >= 0 else None
+        return r.orig, r.name, type(r), w.parent_names[p] if p >= 0 else None
 
     if any(items(ref, k) != items(walk, k) for k in range(m)):
         return False
@@ -703,7 +690,7 @@ def _walk(depsgraph, viewport) -> _InstanceWalk:
             walk = None
         if walk is not None:
             return walk
-    visible = _render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = _InstanceWalk(viewport, visible)
     if walk.walk(depsgraph.object_instances):
         return walk
@@ -723,11 +710,13 @@ def read_depsgraph(depsgraph, scene=None) -> BlenderSceneRead:
 
 
 def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
-    """Everything after the pass over the instances (`core.scene.assembly.assemble`),
-    and the occluders made of the instances' meshes."""
+    """Everything after the pass over the instances: the meshes' sphere fits
+    (`fit_meshes`), the read (`core.scene.assembly.assemble`), and the occluders made
+    of the instances' meshes."""
+    fit_meshes(walk.records, walk.meshes)
     width, height = _render_size(scene)
     read, blocking = assemble(
-        walk.groups,
+        walk.records,
         np.asarray(walk.gid, dtype=np.int64),
         np.array(walk.mats).reshape(-1, 4, 4),
         np.asarray(walk.pid, dtype=np.int64),

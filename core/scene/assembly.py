@@ -1,14 +1,17 @@
 """A Blender scene as read for phase 1: the read's data (`BlenderSceneRead`), the
-rules that turn one object's numbers into a light or a lens (`light_power`,
-`lens_material`, …), and the assembly of the read from its object instances,
+records the walk hands over (`GeometryRecord`, `core.scene.light_props.LightRecord`),
+the rules that turn an object's numbers into a light or a lens (`lens_materials`,
+`box_fit_failures`, …), and the assembly of the read from the object instances,
 vectorised over them (`assemble`).
 
 Pure (numpy only). The Blender side (`blender/read/scene.py`) walks the
-depsgraph: per distinct evaluated object it makes one `InstanceGroup` (the
-numbers read from Blender: a light's power, a sphere's local fit and material
-optics …), per instance it notes the group, the world matrix and the instancer;
-`assemble` does the rest. Objects (``orig``) and mesh sources are carried through
-without being looked at.
+depsgraph once: per distinct evaluated object it makes one plain record (what
+Blender holds: a light's properties, a mesh's bounding box, material optics and
+local sphere fit …), per instance it notes the record, the world matrix and the
+instancer; `assemble` does the rest, once: what each record is (light, sphere,
+other geometry, and why), its lens material and surface, then everything per
+instance. Objects (``orig``) and mesh sources are carried through without being
+looked at.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from ..lens.glass import LensOptics, MaterialOptics
 from ..lens.sphere_fit import BOX_RATIO, SphereFit, uniform_scales
 from .arrays import SceneArrays
 from .instances import Indexed, InstanceNames, LeftOut, instance_names, scale_codes, scale_reason
-from .light_props import LightProps, light_power, primary_of  # noqa: F401
+from .light_props import LightRecord, light_colors, light_props, primary_of
 from .model import Camera, Light, Scene, Sphere, Surface
 from .primaries import PointPrimary, PrimaryLight, SunPrimary, nominal_power, tier_primaries
 
@@ -37,27 +40,45 @@ LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP = range(3)
 
 
 @dataclass
-class InstanceGroup:
-    """What all instances of one evaluated object / data / original share."""
+class GeometryRecord:
+    """One geometry object as the walk reads it (shared by all instances of its
+    evaluated object / data / original): Blender's values, nothing decided."""
 
-    kind: int
-    name: str
-    orig: object
-    corners: np.ndarray | None = None  # local bounding box (8 × 3)
-    reason: str = ""  # OTHER_GROUP: why it is no sphere
-    looks_like_lens: bool = False
-    # SPHERE_GROUP
-    center: np.ndarray | None = None  # local
-    radius: float = 0.0
-    ior: float = 1.0
-    kt: float = 0.0
-    lens_like: bool = False
-    optics: LensOptics | None = None
-    surface: Surface | None = None
-    notes: list = field(default_factory=list)
-    # LIGHT_GROUP
-    light: LightProps | None = None
+    name: str  # the evaluated object's name
+    orig: object  # the original object (its lens mode and IOR override are read here)
+    type: str  # the object's type: "MESH", "CURVE", …
+    corners: np.ndarray | None = None  # local bounding box (8 × 3), if readable
+    mode: str = "AUTO"  # lens mode: AUTO, ALWAYS, NEVER
+    ior_override: float | None = None
+    optics: MaterialOptics | None = None  # its main material's (a mesh; else None)
+    color: tuple = (0.8, 0.8, 0.8)  # its main material's colour (a mesh)
+    #: Its local sphere fit, or why it is none (a mesh; filled after the walk, which
+    #: fits each mesh once: `blender.read.scene`).
+    fit: SphereFit | None = None
     mesh_source: object = None  # what blocks rays (`occluders`), or None
+
+
+@dataclass
+class Groups:
+    """What `assemble` makes of the records, one row per record: arrays of numbers,
+    lists of objects."""
+
+    kind: np.ndarray  # LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP
+    name: list
+    orig: list
+    corners: np.ndarray  # G × 8 × 3 (NaN: none)
+    reason: list  # OTHER_GROUP: why it is no sphere
+    looks_like_lens: np.ndarray
+    center: np.ndarray  # G × 3, local (spheres)
+    radius: np.ndarray
+    ior: np.ndarray
+    kt: np.ndarray
+    lens_like: np.ndarray
+    optics: list  # LensOptics (spheres)
+    surface: list  # Surface (spheres)
+    notes: list  # material notes (spheres)
+    light: list  # LightProps (lights)
+    mesh_source: list
 
 
 @dataclass
@@ -145,44 +166,57 @@ def render_size(resolution_x: int, resolution_y: int, percentage: int) -> tuple[
     return resolution_x * percentage // 100, resolution_y * percentage // 100
 
 
-def light_color(color, temperature_color=None) -> tuple:
-    """A light's colour, × its blackbody colour when it uses a temperature."""
-    c = np.array(color[:3], dtype=float)
-    if temperature_color is not None:
-        c = c * np.array(temperature_color[:3], dtype=float)
-    return tuple(float(x) for x in c)
+def box_fit_failures(extents: np.ndarray) -> list[SphereFit | None]:
+    """Why each mesh whose local bounding box has the sides `extents[k]` (K × 3)
+    cannot be a sphere (None: it may be one, fit it)."""
+    e = np.asarray(extents, dtype=float).reshape(-1, 3)
+    finite = np.all(np.isfinite(e), axis=1)
+    with np.errstate(invalid="ignore"):
+        hi, lo = e.max(axis=1), e.min(axis=1)
+        flat = ~(hi > 0)
+        thin = lo < BOX_RATIO * hi
+    out: list[SphereFit | None] = [None] * len(e)
+    for k in np.flatnonzero(~finite | flat | thin).tolist():
+        if not finite[k]:
+            reason = "not a sphere: non-finite vertex coordinates"
+        elif flat[k]:
+            reason = "zero size: all its vertices are at one point"
+        else:
+            dims = " × ".join(f"{x:.3g}" for x in e[k])
+            reason = f"not a sphere: its bounding box ({dims}) is not a cube"
+        out[k] = SphereFit(False, np.zeros(3), 0.0, reason)
+    return out
 
 
 def box_fit_failure(extent: np.ndarray) -> SphereFit | None:
-    """Why a mesh whose local bounding box has the sides `extent` cannot be a
-    sphere (None: it may be one, fit it)."""
-    if not np.all(np.isfinite(extent)):
-        return SphereFit(False, np.zeros(3), 0.0, "not a sphere: non-finite vertex coordinates")
-    if not extent.max() > 0:
-        return SphereFit(False, np.zeros(3), 0.0, "zero size: all its vertices are at one point")
-    if extent.min() < BOX_RATIO * extent.max():
-        dims = " × ".join(f"{e:.3g}" for e in extent)
-        return SphereFit(
-            False, np.zeros(3), 0.0, f"not a sphere: its bounding box ({dims}) is not a cube"
-        )
-    return None
+    """`box_fit_failures` of one box."""
+    return box_fit_failures(np.reshape(extent, (1, 3)))[0]
+
+
+def lens_materials(ior, kt, mode, ior_override):
+    """(ior, kt, transmission weight), arrays, of spheres whose materials have the
+    IORs `ior` and transmissions `kt`, with the lens modes `mode` (AUTO: the material
+    decides; ALWAYS: a lens even if opaque, transmission 1 and IOR 1.5 unless known;
+    NEVER: opaque) and the IOR overrides `ior_override` (None: none; not with NEVER).
+    The weight is the transmission (kept apart: the optics' and the surface's)."""
+    ior = np.array(ior, dtype=float).reshape(-1)
+    kt = np.array(kt, dtype=float).reshape(-1)
+    mode = np.array(mode, dtype=object).reshape(-1)
+    has = np.array([o is not None for o in ior_override], dtype=bool).reshape(-1)
+    override = np.array([o if o is not None else 0.0 for o in ior_override], dtype=float)
+    transmissive = (kt > 0.0) & (ior > 1.0)
+    never = mode == "NEVER"
+    forced = (mode == "ALWAYS") & ~transmissive
+    kt = np.where(never, 0.0, np.where(forced, 1.0, kt))
+    ior = np.where(forced, DEFAULT_LENS_IOR, ior)
+    ior = np.where(has & ~never, override.reshape(-1), ior)
+    return ior, kt, kt.copy()
 
 
 def lens_material(optics: MaterialOptics, mode: str, ior_override: float | None = None):
-    """(ior, kt, transmission weight) of a sphere with the material `optics` and
-    the lens mode `mode` (AUTO: the material decides; ALWAYS: a lens even if
-    opaque, transmission 1 and IOR 1.5 unless known; NEVER: opaque); the IOR
-    override (not with NEVER) replaces the IOR."""
-    ior, kt = optics.ior, optics.transmission
-    weight = kt
-    if mode == "NEVER":
-        kt = weight = 0.0
-    elif mode == "ALWAYS" and not optics.is_transmissive:
-        kt = weight = 1.0
-        ior = DEFAULT_LENS_IOR
-    if ior_override is not None and mode != "NEVER":
-        ior = float(ior_override)
-    return ior, kt, weight
+    """`lens_materials` of one sphere (floats)."""
+    ior, kt, weight = lens_materials([optics.ior], [optics.transmission], [mode], [ior_override])
+    return float(ior[0]), float(kt[0]), float(weight[0])
 
 
 def surface_block(optics: MaterialOptics, color) -> Surface:
@@ -224,16 +258,97 @@ def camera_from_matrix(m: np.ndarray, fov=(45.0, 45.0)) -> Camera:
     )
 
 
+# --------------------------------------------------------------------------- all records
+
+
+def groups_of(records: Sequence) -> Groups:
+    """What each record is (`Groups`), all records at once: a light (its
+    `LightProps`), a sphere (its local centre and radius, lens material, optics and
+    surface), or other geometry (why it is no sphere); whether it looks like a lens
+    (lens mode ALWAYS, or AUTO and a refracting material)."""
+    g = len(records)
+    lights = [k for k, r in enumerate(records) if isinstance(r, LightRecord)]
+    geo = [k for k, r in enumerate(records) if not isinstance(r, LightRecord)]
+    meshes = [k for k in geo if records[k].optics is not None]
+    out = Groups(
+        kind=np.full(g, OTHER_GROUP, dtype=np.int64),
+        name=[r.name for r in records],
+        orig=[r.orig for r in records],
+        corners=np.array(
+            [
+                r.corners if getattr(r, "corners", None) is not None else np.full((8, 3), np.nan)
+                for r in records
+            ]
+        ).reshape(-1, 8, 3),
+        reason=[""] * g,
+        looks_like_lens=np.zeros(g, dtype=bool),
+        center=np.zeros((g, 3)),
+        radius=np.zeros(g),
+        ior=np.ones(g),
+        kt=np.zeros(g),
+        lens_like=np.zeros(g, dtype=bool),
+        optics=[None] * g,
+        surface=[None] * g,
+        notes=[[] for _ in range(g)],
+        light=[None] * g,
+        mesh_source=[getattr(r, "mesh_source", None) for r in records],
+    )
+    out.kind[lights] = LIGHT_GROUP
+    for k, color in zip(lights, light_colors([records[k] for k in lights]), strict=True):
+        out.light[k] = light_props(records[k], color)
+
+    mode = np.array([records[k].mode for k in geo], dtype=object)
+    out.looks_like_lens[geo] = mode == "ALWAYS"
+    for k in geo:
+        if records[k].optics is None:
+            out.reason[k] = f"not a mesh ({records[k].type.lower()})"
+    if meshes:
+        optics = [records[k].optics for k in meshes]
+        m_ior = np.array([o.ior for o in optics], dtype=float)
+        m_kt = np.array([o.transmission for o in optics], dtype=float)
+        m_mode = np.array([records[k].mode for k in meshes], dtype=object)
+        transmissive = (m_kt > 0.0) & (m_ior > 1.0)
+        out.looks_like_lens[meshes] = (m_mode == "ALWAYS") | ((m_mode == "AUTO") & transmissive)
+    spheres = [k for k in meshes if records[k].fit.ok]
+    for k in meshes:
+        if not records[k].fit.ok:
+            out.reason[k] = records[k].fit.reason
+    if not spheres:
+        return out
+    out.kind[spheres] = SPHERE_GROUP
+    out.center[spheres] = np.array(
+        [np.asarray(records[k].fit.center, dtype=float) for k in spheres]
+    ).reshape(-1, 3)
+    out.radius[spheres] = [float(records[k].fit.radius) for k in spheres]
+    optics = [records[k].optics for k in spheres]
+    ior, kt, weight = lens_materials(
+        [o.ior for o in optics],
+        [o.transmission for o in optics],
+        [records[k].mode for k in spheres],
+        [records[k].ior_override if records[k].mode != "NEVER" else None for k in spheres],
+    )
+    out.ior[spheres], out.kt[spheres] = ior, kt
+    out.lens_like[spheres] = (kt > 0.0) & (ior > 1.0)
+    rows = zip(spheres, optics, ior.tolist(), kt.tolist(), weight.tolist(), strict=True)
+    for k, o, ior_k, kt_k, weight_k in rows:
+        surface_optics = MaterialOptics(
+            ior=ior_k, transmission=kt_k, tint=o.tint, absorption=o.absorption
+        )
+        out.surface[k] = surface_block(surface_optics, records[k].color)
+        out.optics[k] = LensOptics(
+            transmission_weight=weight_k, tint=tuple(o.tint), absorption=tuple(o.absorption)
+        )
+        out.notes[k] = list(o.notes)
+    return out
+
+
 # --------------------------------------------------------------------------- all instances
 
 
-def world_boxes(groups, gid, kind, M):
+def world_boxes(corners, gid, kind, M):
     """World bounding boxes (lo, hi: N × 3; NaN for lights and when no geometry
-    box is finite) of the instances, from their groups' local corners."""
+    box is finite) of the instances, from their groups' local `corners` (G × 8 × 3)."""
     n = gid.size
-    corners = np.array(
-        [g.corners if g.corners is not None else np.full((8, 3), np.nan) for g in groups]
-    ).reshape(-1, 8, 3)
     box_lo = np.full((n, 3), np.nan)
     box_hi = np.full((n, 3), np.nan)
     geo = np.flatnonzero(kind != LIGHT_GROUP)
@@ -272,16 +387,15 @@ def _finite_rows(a: np.ndarray) -> np.ndarray:
     return np.all(np.isfinite(a), axis=1)
 
 
-def add_lights(out: BlenderSceneRead, groups, gid, kind, M, names, left: LeftOut):
-    """Every light into `out` as a primary (`light_read.primary_of`; few: a Python
+def add_lights(out: BlenderSceneRead, groups: Groups, gid, kind, M, names, left: LeftOut):
+    """Every light into `out` as a primary (`light_props.primary_of`; few: a Python
     loop); what cannot be one is left out, what is only partly modelled gets a note
     (both in ``light_notes``). Returns their positions (a sun's NaN), nominal powers
     (`primaries.nominal_power`) and colours (lists)."""
     pos_list, power_list, color_list = [], [], []
     for i in np.flatnonzero(kind == LIGHT_GROUP):
-        g = groups[gid[i]]
         name = names[i]
-        primary, why, notes = primary_of(g.light, M[i], name)
+        primary, why, notes = primary_of(groups.light[gid[i]], M[i], name)
         if primary is None:
             left.add(i, why, False)
             out.light_notes.append((name, why))
@@ -306,7 +420,7 @@ def add_lights(out: BlenderSceneRead, groups, gid, kind, M, names, left: LeftOut
         out.primary_lights.append(primary)
         out.primaries.extend(tier_primaries([primary]))
         out.light_sources.append(name)
-        out.light_objects.append(g.orig)
+        out.light_objects.append(groups.orig[gid[i]])
         pos_list.append(pos)
         power_list.append(nominal_power(primary))
         color_list.append(primary.color)
@@ -317,7 +431,8 @@ def blocking_instances(groups, gid, kind, M, box_lo, box_hi, ellipsoids) -> Bloc
     """What blocks rays besides the spheres: every other geometry instance with a
     mesh, and the spheres that are none here (`ellipsoids`), with a finite box."""
     blocking = np.concatenate([np.flatnonzero(kind == OTHER_GROUP), ellipsoids])
-    has_mesh = np.array([groups[g].mesh_source is not None for g in gid[blocking]], dtype=bool)
+    sources = groups.mesh_source
+    has_mesh = np.array([sources[g] is not None for g in gid[blocking]], dtype=bool)
     blocking = blocking[has_mesh & _finite_rows(box_lo[blocking]) & _finite_rows(box_hi[blocking])]
     source_of = {g: k for k, g in enumerate(np.unique(gid[blocking]))}
     return Blocking(
@@ -325,30 +440,21 @@ def blocking_instances(groups, gid, kind, M, box_lo, box_hi, ellipsoids) -> Bloc
         box_lo[blocking],
         box_hi[blocking],
         [source_of[g] for g in gid[blocking]],
-        [groups[g].mesh_source for g in source_of],
+        [sources[g] for g in source_of],
     )
 
 
-def place_spheres(groups, sg, M_sph, scale=None):
-    """World centres and radii of sphere instances (groups `sg`, matrices `M_sph`,
-    uniformly scaled; `scale`: their `uniform_scales` when already known)."""
-    local_c = np.array(
-        [g.center if g.kind == SPHERE_GROUP else np.zeros(3) for g in groups]
-    ).reshape(-1, 3)
-    local_r = np.array([g.radius for g in groups], dtype=float)
+def place_spheres(local_c, local_r, sg, M_sph, scale=None):
+    """World centres and radii of sphere instances (groups `sg` with the local
+    centres `local_c` and radii `local_r`, matrices `M_sph`, uniformly scaled;
+    `scale`: their `uniform_scales` when already known)."""
     scale = uniform_scales(M_sph) if scale is None else scale
     center = np.einsum("nij,nj->ni", M_sph[:, :3, :3], local_c[sg]) + M_sph[:, :3, 3]
     return center.reshape(-1, 3), local_r[sg] * scale
 
 
-def _per_sphere(groups, attr, sg, dtype):
-    if not sg.size:
-        return np.zeros(0, dtype=dtype)
-    return np.array([getattr(g, attr) for g in groups], dtype=dtype)[sg]
-
-
 def assemble(
-    groups: list[InstanceGroup],
+    records: Sequence,
     gid: np.ndarray,
     M: np.ndarray,
     pid: np.ndarray,
@@ -358,12 +464,14 @@ def assemble(
     height: int = 0,
     camera: Camera | None = None,
 ) -> tuple[BlenderSceneRead, Blocking]:
-    """The read of the instances (group `gid[i]`, world matrix `M[i]`, instancer
-    `pid[i]` into `parent_names` or −1), and what blocks rays besides its spheres."""
+    """The read of the instances (record `gid[i]` of `records` — `GeometryRecord`s and
+    `LightRecord`s —, world matrix `M[i]`, instancer `pid[i]` into `parent_names` or
+    −1), and what blocks rays besides its spheres."""
+    groups = groups_of(records)
     n = gid.size
-    kind = np.array([g.kind for g in groups], dtype=np.int64)[gid] if n else np.zeros(0, np.int64)
-    names: InstanceNames = instance_names([g.name for g in groups], gid, pid, parent_names)
-    box_lo, box_hi = world_boxes(groups, gid, kind, M)
+    kind = groups.kind[gid] if n else np.zeros(0, np.int64)
+    names: InstanceNames = instance_names(groups.name, gid, pid, parent_names)
+    box_lo, box_hi = world_boxes(groups.corners, gid, kind, M)
     out = BlenderSceneRead(
         arrays=None,
         width=width,
@@ -372,11 +480,11 @@ def assemble(
         how=how,
     )
     left = LeftOut(names)
-    lens_of = lambda i: groups[gid[i]].looks_like_lens  # noqa: E731
+    lens_of = lambda i: bool(groups.looks_like_lens[gid[i]])  # noqa: E731
 
     light_pos, light_power_w, light_col = add_lights(out, groups, gid, kind, M, names, left)
     other = np.flatnonzero(kind == OTHER_GROUP)
-    left.add_grouped(other, gid[other], lambda i: groups[gid[i]].reason, lens_of)
+    left.add_grouped(other, gid[other], lambda i: groups.reason[gid[i]], lens_of)
 
     sph = np.flatnonzero(kind == SPHERE_GROUP)
     scales = uniform_scales(M[sph])
@@ -386,7 +494,7 @@ def assemble(
     left.add_grouped(bad, scale_codes(M[bad]), lambda i: scale_reason(M[i]), lens_of)
     sph = sph[uniform]
     sg = gid[sph]
-    center, radius = place_spheres(groups, sg, M[sph], scales[uniform])
+    center, radius = place_spheres(groups.center, groups.radius, sg, M[sph], scales[uniform])
 
     out.arrays = SceneArrays(
         light_position=np.asarray(light_pos, dtype=float).reshape(-1, 3),
@@ -394,15 +502,15 @@ def assemble(
         light_color=np.asarray(light_col, dtype=float).reshape(-1, 3),
         center=center,
         radius=radius,
-        ior=_per_sphere(groups, "ior", sg, float),
-        kt=_per_sphere(groups, "kt", sg, float),
+        ior=groups.ior[sg],
+        kt=groups.kt[sg],
     )
     out.sphere_sources = names.subset(sph)
-    out.sphere_objects = Indexed([g.orig for g in groups], sg)
-    out.lens_optics = Indexed([g.optics for g in groups], sg)
-    out.surfaces = Indexed([g.surface for g in groups], sg)
-    out.material_notes = Indexed([g.notes for g in groups], sg)
-    out.lens_candidates = _per_sphere(groups, "lens_like", sg, bool)
+    out.sphere_objects = Indexed(groups.orig, sg)
+    out.lens_optics = Indexed(groups.optics, sg)
+    out.surfaces = Indexed(groups.surface, sg)
+    out.material_notes = Indexed(groups.notes, sg)
+    out.lens_candidates = groups.lens_like[sg]
 
     for name, reason, lens in left.entries():
         out.left_out.append((name, reason))

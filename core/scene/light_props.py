@@ -1,5 +1,6 @@
 """A Blender light's properties → a primary (`core.scene.primaries`), and what of it
-Lens Lights does not model (pure; `blender.read.scene` copies the properties).
+Lens Lights does not model (pure; `blender.read.scene` copies the properties into a
+`LightRecord`).
 
 `LightProps` is what the reader copies of one light data block (Blender 4.2–5.2:
 ``exposure`` and ``normalize`` exist from 4.3 on, 4.2 reads them as 0 and True).
@@ -9,6 +10,10 @@ Lens Lights does not model (pure; `blender.read.scene` copies the properties).
   normalised (Blender's point and spot lights with a radius are spheres);
 * sun: the strength ``energy × 2^exposure`` in W/m² (no normalisation);
 * area: ``energy × 2^exposure``, × its area (object scale included) when not normalised.
+
+`LightRecord` (with `LightNodes`) is what the walk copies of one light, as Blender
+holds it; `light_props` makes its `LightProps` (the colour × the blackbody colour,
+whether the node tree changes the light), once per light in the assembly.
 """
 
 from __future__ import annotations
@@ -57,6 +62,44 @@ class LightProps:
     linked: bool = False  # the light has light or shadow linking of its own
 
 
+@dataclass(frozen=True)
+class LightNodes:
+    """A light's node tree as read (when it has one and uses it): its nodes' kinds,
+    and of its one Emission node (if it has one) the colour, strength and how many
+    of its inputs are linked."""
+
+    kinds: tuple  # bl_idname of each node
+    emissions: int  # how many Emission nodes
+    color: tuple = (1.0, 1.0, 1.0)  # the Emission's Color (one Emission)
+    strength: float = 1.0
+    linked_inputs: int = 0
+
+
+@dataclass
+class LightRecord:
+    """One light as the walk reads it (shared by all instances of its evaluated
+    object / data / original): Blender's values, copied, nothing derived."""
+
+    name: str  # the evaluated object's name
+    orig: object  # the original object (carried through, not looked at)
+    type: str  # light.type
+    energy: float
+    color: tuple = (1.0, 1.0, 1.0)  # light.color
+    temperature_color: tuple | None = None  # its blackbody colour, when it uses one
+    exposure: float = 0.0
+    normalize: bool = True
+    radius: float = 0.0  # point, spot
+    spot_size: float = math.pi / 4
+    spot_blend: float = 0.15
+    angle: float = 0.0  # sun
+    shape: str = SQUARE  # area
+    size: float = 1.0
+    size_y: float = 1.0
+    spread: float = math.pi
+    nodes: LightNodes | None = None  # its node tree, if it has and uses one
+    linked: bool = False  # the object's own light or shadow linking
+
+
 #: The node tree every new light has from Blender 5.0 on (and `use_nodes` makes
 #: in 4.x): Emission (white, strength 1) → Light Output. It changes nothing.
 PLAIN_LIGHT_NODES = ("ShaderNodeEmission", "ShaderNodeOutputLight")
@@ -72,6 +115,49 @@ def plain_light_nodes(kinds, color, strength, linked_inputs: int) -> bool:
         and tuple(color[:3]) == (1.0, 1.0, 1.0)
         and strength == 1.0
     )
+
+
+def uses_light_nodes(nodes: LightNodes | None) -> bool:
+    """Whether a light's node tree (None: none, or not used) changes the light."""
+    if nodes is None:
+        return False
+    if nodes.emissions != 1:
+        return True
+    return not plain_light_nodes(nodes.kinds, nodes.color, nodes.strength, nodes.linked_inputs)
+
+
+def light_props(record: LightRecord, color: tuple) -> LightProps:
+    """The `LightProps` of a light read as `record`, with its `color` (the light's
+    colour × its blackbody colour: `light_colors`)."""
+    return LightProps(
+        type=record.type,
+        energy=record.energy,
+        color=color,
+        exposure=record.exposure,
+        normalize=record.normalize,
+        radius=record.radius,
+        spot_size=record.spot_size,
+        spot_blend=record.spot_blend,
+        angle=record.angle,
+        shape=record.shape,
+        size=record.size,
+        size_y=record.size_y,
+        spread=record.spread,
+        uses_nodes=uses_light_nodes(record.nodes),
+        linked=record.linked,
+    )
+
+
+def light_colors(records) -> list[tuple]:
+    """Each light's colour × its blackbody colour when it uses one (all at once)."""
+    if not records:
+        return []
+    c = np.array([r.color[:3] for r in records], dtype=float).reshape(-1, 3)
+    t = [r.temperature_color for r in records]
+    if any(x is not None for x in t):
+        ones = (1.0, 1.0, 1.0)
+        c = c * np.array([ones if x is None else x[:3] for x in t], dtype=float)
+    return [tuple(row) for row in c.tolist()]
 
 
 def light_power(energy: float, exposure: float, normalize: bool, radius: float) -> float:

@@ -1,4 +1,4 @@
-"""The depsgraph walk (`scene_reader._InstanceWalk.walk`: per-object caches, the
+"""The depsgraph walk (`blender.read.scene._InstanceWalk.walk`: per-object caches, the
 matrices copied in one ``foreach_get``) gives exactly what the reference walk
 (`_InstanceWalk.add`, one instance at a time, every RNA value read per instance)
 gives, on scenes that mix every way an instance comes about."""
@@ -67,8 +67,9 @@ def _mixed_scene():
 
 def _reference(depsgraph, viewport):
     from lens_lights.blender.read import scene as sr
+    from lens_lights.blender.read.render_probe import render_visible_objects
 
-    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = sr._InstanceWalk(viewport, visible)
     for inst in depsgraph.object_instances:
         walk.add(inst)
@@ -77,20 +78,21 @@ def _reference(depsgraph, viewport):
 
 def _fast(depsgraph, viewport):
     from lens_lights.blender.read import scene as sr
+    from lens_lights.blender.read.render_probe import render_visible_objects
 
-    visible = sr._render_visible_objects(depsgraph.view_layer) if viewport else None
+    visible = render_visible_objects(depsgraph.view_layer) if viewport else None
     walk = sr._InstanceWalk(viewport, visible)
     assert walk.walk(depsgraph.object_instances)
     return walk
 
 
 def _items(w):
-    """Per instance: its object (original, name, kind, why not a sphere) and instancer.
+    """Per instance: its object (original, name, record type) and instancer.
     (Group numbers are not compared: the reference's groups are keyed by the
     pointer of the Python object Blender hands out per instance, which its own
     caching of those objects may change between two instances of one object.)"""
     return [
-        (w.groups[g].orig, w.groups[g].name, w.groups[g].kind, w.groups[g].reason)
+        (w.records[g].orig, w.records[g].name, type(w.records[g]))
         + (w.parent_names[p] if p >= 0 else None,)
         for g, p in zip(w.gid, w.pid, strict=True)
     ]
@@ -135,7 +137,7 @@ def test_matrices_compose_as_blender_documents(empty_blend):
         rows = [
             i
             for i, (g, q) in enumerate(zip(walk.gid, walk.pid, strict=True))
-            if q == p and walk.groups[g].orig == bead
+            if q == p and walk.records[g].orig == bead
         ]
         assert len(rows) == 1
         expected = np.array(bpy.data.objects[name].matrix_world) @ offset
@@ -261,7 +263,7 @@ def test_bulk_read_matches_the_reference_walk(empty_blend):
     ref, bulk, read = _as_rendered(both)
     assert bulk is not None
     _same_walk(ref, bulk)
-    kinds = {ref.groups[g].name for g in ref.gid}
+    kinds = {ref.records[g].name for g in ref.gid}
     assert {"Bead", "Cube", "Bead lamp", "Inner bead", "Shared", "Drop", "Plain"} <= kinds
     assert len(ref.gid) > 16 * 4
     assembled = sr._assemble(bpy.context.scene, ref, "x")
@@ -354,7 +356,7 @@ def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monke
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("n_groups", [1, 3, 100])
 def test_world_corners_are_the_einsums_numbers(dtype, n_groups):
-    """`scene_read._world_corners` (one 2-D einsum per group when they are few) gives
+    """`core.scene.assembly._world_corners` (one 2-D einsum per group when they are few) gives
     the numbers of the one einsum over all instances, bit for bit (signs of zeros,
     NaN and infinity included), for float32 matrices (Blender 5.x) and float64."""
     from lens_lights.core.scene.assembly import _world_corners

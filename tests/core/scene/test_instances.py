@@ -8,18 +8,19 @@ import math
 import numpy as np
 import pytest
 
-from core.lens.glass import MaterialOptics
+from core.lens.glass import LensOptics, MaterialOptics
+from core.lens.sphere_fit import SphereFit
 from core.scene.assembly import (
     LIGHT_GROUP,
     OTHER_GROUP,
     SPHERE_GROUP,
-    InstanceGroup,
-    LightProps,
+    GeometryRecord,
     assemble,
     box_fit_failure,
+    box_fit_failures,
+    groups_of,
     lens_material,
-    light_color,
-    light_power,
+    lens_materials,
     perspective_fov,
     render_size,
 )
@@ -31,6 +32,13 @@ from core.scene.instances import (
     occurrences,
     scale_codes,
     scale_reason,
+)
+from core.scene.light_props import (
+    LightNodes,
+    LightRecord,
+    light_colors,
+    light_power,
+    uses_light_nodes,
 )
 
 
@@ -105,15 +113,42 @@ def test_one_objects_rules():
     assert render_size(1920, 1080, 50) == (960, 540)
     assert light_power(10.0, 1.0, True, 0.1) == 20.0  # 10 W × 2¹
     assert light_power(1.0, 0.0, False, 0.5) == pytest.approx(math.pi)  # × 4π 0.5²
-    assert light_color((1.0, 0.5, 0.25), (0.5, 1.0, 1.0)) == (0.5, 0.5, 0.25)
-    assert light_color((1.0, 0.5, 0.25, 1.0)) == (1.0, 0.5, 0.25)
+    assert light_colors(
+        [
+            LightRecord("A", None, "POINT", 1.0, (1.0, 0.5, 0.25), (0.5, 1.0, 1.0)),
+            LightRecord("B", None, "POINT", 1.0, (1.0, 0.5, 0.25, 1.0)),
+        ]
+    ) == [(0.5, 0.5, 0.25), (1.0, 0.5, 0.25)]
+    assert light_colors([LightRecord("B", None, "SUN", 1.0, (0.1, 0.2, 0.3))]) == [(0.1, 0.2, 0.3)]
+    plain = ("ShaderNodeEmission", "ShaderNodeOutputLight")
+    assert not uses_light_nodes(None)
+    assert not uses_light_nodes(LightNodes(plain, 1))
+    assert uses_light_nodes(LightNodes(plain, 1, strength=2.0))
+    assert uses_light_nodes(LightNodes(plain, 1, linked_inputs=1))
+    assert uses_light_nodes(LightNodes(("ShaderNodeOutputLight",), 0))
     opaque = MaterialOptics(ior=1.45, transmission=0.0)
     glass = MaterialOptics(ior=1.33, transmission=0.8)
     assert lens_material(glass, "AUTO") == (1.33, 0.8, 0.8)
     assert lens_material(glass, "NEVER", 1.7) == (1.33, 0.0, 0.0)
     assert lens_material(opaque, "ALWAYS") == (1.5, 1.0, 1.0)
     assert lens_material(glass, "ALWAYS", 1.7) == (1.7, 0.8, 0.8)
+    # the rules at once: one row per sphere, the same numbers as one at a time
+    rows = [(glass, "AUTO", None), (glass, "NEVER", 1.7), (opaque, "ALWAYS", None)]
+    rows += [(glass, "ALWAYS", 1.7), (opaque, "AUTO", 1.2), (opaque, "NEVER", None)]
+    ior, kt, weight = lens_materials(
+        [o.ior for o, _, _ in rows],
+        [o.transmission for o, _, _ in rows],
+        [m for _, m, _ in rows],
+        [x for _, _, x in rows],
+    )
+    one = [lens_material(*row) for row in rows]
+    assert list(zip(ior.tolist(), kt.tolist(), weight.tolist(), strict=True)) == one
+    assert one[4] == (1.2, 0.0, 0.0) and one[5] == (1.45, 0.0, 0.0)
     assert box_fit_failure(np.array([2.0, 2.0, 1.9])) is None
+    fits = box_fit_failures(np.array([[2.0, 2.0, 1.9], [np.nan, 1.0, 1.0], [2.0, 2.0, 1.0]]))
+    assert fits[0] is None
+    assert fits[1].reason == "not a sphere: non-finite vertex coordinates"
+    assert fits[2].reason == box_fit_failure(np.array([2.0, 2.0, 1.0])).reason
     assert (
         box_fit_failure(np.array([2.0, 2.0, 1.0])).reason
         == "not a sphere: its bounding box (2 × 2 × 1) is not a cube"
@@ -128,32 +163,27 @@ def test_one_objects_rules():
 
 
 def test_assemble_a_hand_made_scene():
-    lamp = InstanceGroup(
-        LIGHT_GROUP, "Lamp", "lamp-object", light=LightProps("POINT", 100.0, radius=0.1)
-    )
-    sun = InstanceGroup(LIGHT_GROUP, "Sun", "sun-object", light=LightProps("SUN", 3.0))
-    dark = InstanceGroup(LIGHT_GROUP, "Dark", "dark-object", light=LightProps("SPOT", 0.0))
-    ball = InstanceGroup(
-        SPHERE_GROUP,
+    lamp = LightRecord("Lamp", "lamp-object", "POINT", 100.0, radius=0.1)
+    sun = LightRecord("Sun", "sun-object", "SUN", 3.0)
+    dark = LightRecord("Dark", "dark-object", "SPOT", 0.0)
+    glass = MaterialOptics(ior=1.5, transmission=1.0, tint=(1.0, 0.9, 0.8), notes=["n"])
+    ball = GeometryRecord(
         "Ball",
         "ball-object",
+        "MESH",
         CUBE,
-        looks_like_lens=True,
-        center=np.zeros(3),
-        radius=1.0,
-        ior=1.5,
-        kt=1.0,
-        lens_like=True,
-        optics="ball-optics",
-        surface="ball-surface",
+        optics=glass,
+        color=(0.1, 0.2, 0.3),
+        fit=SphereFit(True, np.zeros(3), 1.0),
         mesh_source="ball-mesh",
     )
-    plane = InstanceGroup(
-        OTHER_GROUP,
+    plane = GeometryRecord(
         "Plane",
         "plane-object",
+        "MESH",
         CUBE * np.array([5.0, 5.0, 0.0]),
-        "not a sphere: flat",
+        optics=MaterialOptics(),
+        fit=SphereFit(False, np.zeros(3), 0.0, "not a sphere: flat"),
         mesh_source="plane-mesh",
     )
     groups = [lamp, sun, ball, plane, dark]
@@ -185,7 +215,10 @@ def test_assemble_a_hand_made_scene():
     assert read.primary_lights[1].direction == (0.0, 0.0, -1.0)
     assert read.point_light_sources == ["Lamp"] and len(read.lights) == 1
     assert read.sphere_sources == ["Grid/Ball"] and read.sphere_objects == ["ball-object"]
-    assert read.lens_optics == ["ball-optics"] and read.surfaces == ["ball-surface"]
+    assert read.lens_optics == [LensOptics(1.0, (1.0, 0.9, 0.8), (0.0, 0.0, 0.0))]
+    surface = read.surfaces[0]
+    assert (surface.color, surface.diffuse, surface.transmission) == ((0.1, 0.2, 0.3), 0.0, 1.0)
+    assert read.material_notes == [["n"]]
     assert read.lens_candidates.tolist() == [True]
     assert read.primaries[0].power_w == 100.0 and read.lights[0].radius == 0.1
     assert read.light_notes == [("Dark", "spot light without power (0 W)")]
@@ -241,3 +274,39 @@ def test_panel_text_wraps_to_the_region_width():
     assert wrap("one two three four", 9) == ["one two", "three", "four"]
     assert wrap("a verylongword b", 4) == ["a", "verylongword", "b"]
     assert wrap("") == []
+
+
+def test_what_each_record_is():
+    """`groups_of`: lights, spheres and other geometry, why, and which look like lenses
+    (lens mode ALWAYS, or AUTO and a refracting material); ALWAYS makes an opaque
+    sphere a lens (IOR 1.5 unless overridden), NEVER an opaque one."""
+    fit = SphereFit(True, np.array([0.0, 0.0, 1.0]), 2.0)
+    opaque = MaterialOptics(ior=1.45)
+    glass = MaterialOptics(ior=1.33, transmission=0.8)
+    records = [
+        GeometryRecord("Curve", "c", "CURVE", mode="ALWAYS"),
+        LightRecord("Lamp", "l", "POINT", 10.0, (1.0, 0.5, 0.5), (0.5, 1.0, 1.0)),
+        GeometryRecord("Forced", "f", "MESH", CUBE, "ALWAYS", 1.7, opaque, fit=fit),
+        GeometryRecord("Never", "n", "MESH", CUBE, "NEVER", 1.7, glass, fit=fit),
+        GeometryRecord("Glass", "g", "MESH", CUBE, "AUTO", None, glass, fit=fit),
+        GeometryRecord(
+            "Cube",
+            "b",
+            "MESH",
+            CUBE,
+            "AUTO",
+            None,
+            glass,
+            fit=SphereFit(False, np.zeros(3), 0.0, "not a sphere: a cube"),
+        ),
+    ]
+    g = groups_of(records)
+    assert g.kind.tolist() == [OTHER_GROUP, LIGHT_GROUP] + [SPHERE_GROUP] * 3 + [OTHER_GROUP]
+    assert g.reason == ["not a mesh (curve)", "", "", "", "", "not a sphere: a cube"]
+    assert g.looks_like_lens.tolist() == [True, False, True, False, True, True]
+    assert g.ior[2:5].tolist() == [1.7, 1.33, 1.33] and g.kt[2:5].tolist() == [1.0, 0.0, 0.8]
+    assert g.lens_like.tolist() == [False, False, True, False, True, False]
+    assert g.center[2].tolist() == [0.0, 0.0, 1.0] and g.radius[2] == 2.0
+    assert g.light[1].color == (0.5, 0.5, 0.5) and g.light[1].energy == 10.0
+    assert g.surface[3].transmission == 0.0 and g.surface[3].ior == 1.0
+    assert np.isnan(g.corners[1]).all() and g.corners[2].tolist() == CUBE.tolist()
