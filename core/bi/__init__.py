@@ -1,5 +1,5 @@
 """The thesis' `.bi` scene files: grammar, reader and writer (with the line of every error),
 records and unit conversions to and from Blender's data.
 
-May import core.shared, core.scene, core.phase1.
+May import core.shared, core.lens and core.scene.
 """

@@ -1,5 +1,7 @@
 """The energy models ("tiers"): a secondary light source → one Blender light.
 
+May import core.shared, core.lens, core.scene and core.phase1.
+
 One module per tier, each holding its maker, its description and its accuracy
 figures (a :class:`.base.Tier`); this registry lists them (``TIERS``, the one
 table the panel, the CLI and the README's table read) and resolves AUTO.
