@@ -185,7 +185,7 @@ def generate(context):
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
-    if getattr(work, "layer_figures", None) is not None:
+    if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)
     if options["model_warning"]:
