@@ -295,7 +295,7 @@ def per_frame_layer_bake(frames: int):
     """The bake as it was before the fixed topology (main at ca817e7): the same
     plans (`Baker.plan_next`), then each frame's Generate layers, keyed visible on
     their frame only. Returns LAST_BAKE-like figures."""
-    from lens_lights.blender.build import lights as light_builder
+    from lens_lights.blender.build import cleanup
     from lens_lights.blender.commands import bake, layer_stage
     from lens_lights.core.animation import light_tracks
 
@@ -306,7 +306,7 @@ def per_frame_layer_bake(frames: int):
         baker.plan_next()
     t1 = time.perf_counter()
     baker.restore_frame()
-    light_builder.clear(scene)
+    cleanup.clear(scene)
     objects = 0
     for f, work in zip(baker.frames, baker.works, strict=True):
         for ob in layer_stage.build(scene, work):

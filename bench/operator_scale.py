@@ -363,7 +363,7 @@ ATTRIBUTION = [
     "Generate evaluates the depsgraph again: one update per Generate, tested) and any "
     "added object costs it: it is not ours to cut. The undo push of the file: 0.16 CPU "
     "s alone, 1.2 s wall in the table. A Generate that replaces earlier lens lights also "
-    "pays their removal (`light_builder.clear`: the lights and their data in one "
+    "pays their removal (`cleanup.clear`: the lights and their data in one "
     "`batch_remove`, one scan of the file).",
     "* **Ours:** reading the instances: it was one pass over "
     "`depsgraph.object_instances`, a dozen RNA reads and the matrix per instance (about "

@@ -287,11 +287,27 @@ def test_tests_mirror_the_source_tree():
 
 
 def test_generate_operator_holds_only_blender_code():
-    """Every function left in blender/commands/generate.py works on Blender objects
-    (a context, a depsgraph, settings); the pure work is in core/."""
-    tree = ast.parse((ROOT / "blender" / "commands" / "generate.py").read_text(encoding="utf-8"))
-    funcs = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
-    assert {f.name for f in funcs} <= {"plan_scene", "_options", "_store", "generate"}
+    """Every function left in blender/commands/generate.py and in the pipeline it shares
+    with Bake and Live update (blender/commands/pipeline.py) works on Blender objects (a
+    context, a depsgraph, settings); the pure work is in core/."""
+    expected = {
+        "generate.py": {"_store", "generate"},
+        "pipeline.py": {"options_from", "plan_scene"},
+    }
     blender_args = {"depsgraph", "settings", "context"}
-    for f in funcs:
-        assert blender_args & {a.arg for a in f.args.args}, f.name
+    for name, allowed in expected.items():
+        tree = ast.parse((ROOT / "blender" / "commands" / name).read_text(encoding="utf-8"))
+        funcs = [n for n in tree.body if isinstance(n, ast.FunctionDef)]
+        assert {f.name for f in funcs} <= allowed, name
+        for f in funcs:
+            assert blender_args & {a.arg for a in f.args.args}, f.name
+
+
+def test_generate_bake_and_live_update_plan_through_the_one_pipeline():
+    """Generate, Bake and Live update plan with `pipeline.plan_scene` (none of them reads
+    or plans on its own) and take their options from `pipeline.options_from`."""
+    for name in ("generate.py", "bake.py", "live_update.py"):
+        text = (ROOT / "blender" / "commands" / name).read_text(encoding="utf-8")
+        assert "pipeline.plan_scene(" in text and "pipeline.options_from(" in text, name
+        for own in ("read_depsgraph", "compute_phase1_primaries", "plan_result"):
+            assert own not in text, (name, own)

@@ -1,4 +1,4 @@
-"""The baked Caustic layer's Blender data (`addon/layer_segments.py` plans it,
+"""The baked Caustic layer's Blender data (`core/animation/layer_segments.py` plans it,
 `blender/commands/bake.py` keys it): per segment one mesh object whose topology is fixed
 over its frames, and per bake one atlas image of every frame's irradiance.
 
@@ -9,9 +9,9 @@ over its frames, and per bake one atlas image of every frame's irradiance.
   depend on the raster's resolution.
 * **Image.** The slices as tiles of one packed half-float OpenEXR (ZIP; one channel
   when every slice is one colour times a scalar), each normalised to its maximum,
-  Non-Color; marked (`properties.COLLECTION_MARK` = "bake") and removed by Clear
+  Non-Color; marked (`marks.COLLECTION_MARK` = "bake") and removed by Clear
   once unused. It renders in a Blender without the extension.
-* **Material.** Generate's layer material for that receiver (`layer_builder.
+* **Material.** Generate's layer material for that receiver (`layers.
   layer_material`: irradiance × the receiver's colour or texture / π, added to a
   transparent BSDF), its irradiance read from the image instead of the face
   attribute: each point's texel from its object coordinates through the inverse of
@@ -27,14 +27,12 @@ from __future__ import annotations
 import bpy
 
 from ...core.animation import layer_segments
-from ..ui.properties import COLLECTION_MARK
 from . import layers, lights
+from .marks import BAKE_IMAGE_PREFIX, BAKE_MARK, COLLECTION_MARK
 
 SLICE_NODE, SCALE_NODE, COLOUR_NODE = "Lens layer slice", "Lens layer scale", "Lens layer colour"
-IMAGE_PREFIX = "Lens caustic bake "
 #: Object property: (c, s, ξ0, dξ) along u, along v, then axis_u, axis_v (world).
 RASTER_PROP = "lens_lights_raster"
-BAKE_MARK = "bake"
 
 
 def packed_exr(name: str, pixels) -> object:
@@ -138,7 +136,7 @@ def baked_layer(scene, seg, info, collection, material, k: int):
 
 def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int]:
     """Every segment's object, material and the atlas images. `infos[i]`: the
-    segment's receiver (`receiver_reader.ReceiverInfo`). Returns (objects, per
+    segment's receiver (`blender.read.receivers.ReceiverInfo`). Returns (objects, per
     segment (material, slice index per frame, scale per frame, colour per frame),
     image count)."""
     all_slices = [sl for s in segments for sl in s.slices]
@@ -159,7 +157,7 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
             continue
         cols, rows = layer_segments.atlas_layout(n, res)
         atlas = layer_segments.stack_atlas(images[start : start + n], cols, rows)
-        image = packed_exr(f"{IMAGE_PREFIX}{made_images + 1}", atlas)
+        image = packed_exr(f"{BAKE_IMAGE_PREFIX}{made_images + 1}", atlas)
         made_images += 1
         k = 0
         for i in g:
@@ -176,7 +174,7 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
 
 
 def remove_unused_bake_images() -> int:
-    """Remove the baked layer's images (marked) that nothing uses (Clear's hook)."""
+    """Remove the baked layer's images (marked) that nothing uses (`cleanup`)."""
     unused = [i for i in bpy.data.images if i.get(COLLECTION_MARK) == BAKE_MARK and i.users == 0]
     if unused:
         bpy.data.batch_remove(unused)

@@ -5,7 +5,7 @@ collection, at the identity transform (the core's vertices are in world space,
 already lifted off the receiver along its normal: no z-fighting), marked and
 listed like a lens light (`object.lens_lights.is_lens_light`, the scene's
 `created_objects`), so Clear removes it and its mesh; its material is marked
-(`properties.COLLECTION_MARK` = "layer") and removed by Clear once unused
+(`marks.COLLECTION_MARK` = "layer") and removed by Clear once unused
 (`remove_unused_layer_materials`). No images: the irradiance is a face attribute.
 
 Material (one per receiver object): radiance = irradiance × the receiver's diffuse
@@ -26,29 +26,33 @@ import math
 import bpy
 import numpy as np
 
-from ..ui.properties import COLLECTION_MARK
 from .lights import create_light, lights_collection
+from .marks import (
+    COLLECTION_MARK,
+    INCLUDE_PREFIX,
+    LAYER_MARK,
+    LAYER_PREFIX,
+    LINK_MARK,
+    MATERIAL_PREFIX,
+)
 
-LAYER_PREFIX = "Lens caustic "
-MATERIAL_PREFIX = "Lens caustic material "
-INCLUDE_PREFIX = "Lens fallback: "
 #: The face attribute holding the irradiance (W per unit², RGB).
 IRRADIANCE = "lens_irradiance"
 UV_NAME = "UVMap"
 
 
 def _is_layer_material(mat) -> bool:
-    return mat.get(COLLECTION_MARK) == "layer"
+    return mat.get(COLLECTION_MARK) == LAYER_MARK
 
 
 def layer_material(info, cache: dict):
-    """The layer material for receiver `info` (`receiver_reader.ReceiverInfo`)."""
+    """The layer material for receiver `info` (`blender.read.receivers.ReceiverInfo`)."""
     key = (info.name, info.image.name if info.image is not None else None)
     mat = cache.get(key)
     if mat is not None:
         return mat
     mat = bpy.data.materials.new(MATERIAL_PREFIX + info.name)
-    mat[COLLECTION_MARK] = "layer"
+    mat[COLLECTION_MARK] = LAYER_MARK
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
     if hasattr(mat, "surface_render_method"):
@@ -111,7 +115,7 @@ def layer_mesh(name, patch, shapes: dict | None = None):
         me.update()
         return me
     me = bpy.data.meshes.new(name)
-    me[COLLECTION_MARK] = "layer"
+    me[COLLECTION_MARK] = LAYER_MARK
     me.vertices.add(len(patch.vertices))
     me.loops.add(4 * n_f)
     me.loops.foreach_set("vertex_index", faces.ravel())
@@ -184,7 +188,7 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None):
 def _include_collection(scene, objects, tag):
     """A linking collection that lights only `objects` (the fallback receivers)."""
     coll = bpy.data.collections.new(INCLUDE_PREFIX + tag)
-    coll[COLLECTION_MARK] = "link"
+    coll[COLLECTION_MARK] = LINK_MARK
     for ob in objects:
         coll.objects.link(ob)
     for member in coll.collection_objects:
@@ -194,8 +198,8 @@ def _include_collection(scene, objects, tag):
 
 
 def build(scene, bake, receivers, planned, lens_objects, progress=None):
-    """The layers of `bake` (`pipeline.SheetBake`) on `receivers`
-    (`receiver_reader.Receivers`); for the sources whose caustic lands on a receiver
+    """The layers of `bake` (`core.caustic_layer.pipeline.SheetBake`) on `receivers`
+    (`blender.read.receivers.Receivers`); for the sources whose caustic lands on a receiver
     a layer cannot show, their Fitted spot (`planned[i]`), lighting only those
     receivers. Returns (layer objects, fallback lights, fallback receiver names)."""
     collection = lights_collection(scene)

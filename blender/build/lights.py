@@ -23,7 +23,7 @@ demand, under the scene's collection), placed, turned and shaped from a
   strength is read from a 32-bit float, Non-Color, packed image of the profile.
   The node tree is the light's own (embedded in the light data, removed with it);
   the image is named "Lens profile <key>", marked with the custom property
-  `properties.COLLECTION_MARK` = "profile" and its cache key, and shared by every
+  `marks.COLLECTION_MARK` = "profile" and its cache key, and shared by every
   light with the same key (same D/R and n: same pixels).
 
 The values (all but the name, linking and origin) are put by `apply_light`, on a new
@@ -31,8 +31,9 @@ light or on one live update keeps (`live_update`): only what differs is written.
 
 Everything created is listed in `scene.lens_lights.created_*` and marked
 (`object.lens_lights.is_lens_light`, collection custom property
-`properties.COLLECTION_MARK`); `clear` removes only what is both listed and marked,
-and then the marked profile images nothing uses any more.
+`marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above every builder) removes only
+what is both listed and marked, and then the marked profile images nothing uses any
+more (`remove_unused_profile_images`).
 """
 
 from __future__ import annotations
@@ -42,14 +43,17 @@ import math
 import bpy
 from mathutils import Vector
 
-from ..ui.properties import COLLECTION_MARK
 from . import mask_nodes
-
-COLLECTION_NAME = "Lens Lights"
-LINK_PREFIX = "Lens link: "
-PROFILE_PREFIX = "Lens profile "
-#: Custom property of a profile image: its cache key (see `profile_image`).
-PROFILE_KEY = "lens_lights_profile_key"
+from .marks import (
+    COLLECTION_MARK,
+    COLLECTION_NAME,
+    LIGHTS_MARK,
+    LINK_MARK,
+    LINK_PREFIX,
+    PROFILE_KEY,
+    PROFILE_MARK,
+    PROFILE_PREFIX,
+)
 
 
 def _register_collection(settings, coll):
@@ -62,12 +66,12 @@ def lights_collection(scene):
     settings = scene.lens_lights
     for item in settings.created_collections:
         coll = item.collection
-        if coll is not None and coll.get(COLLECTION_MARK) == "lights":
+        if coll is not None and coll.get(COLLECTION_MARK) == LIGHTS_MARK:
             if coll.name not in scene.collection.children:
                 scene.collection.children.link(coll)
             return coll
     coll = bpy.data.collections.new(COLLECTION_NAME)
-    coll[COLLECTION_MARK] = "lights"
+    coll[COLLECTION_MARK] = LIGHTS_MARK
     scene.collection.children.link(coll)
     _register_collection(settings, coll)
     return coll
@@ -78,7 +82,7 @@ def link_collection(scene, lens_object, cache):
     coll = cache.get(lens_object.name)
     if coll is None:
         coll = bpy.data.collections.new(LINK_PREFIX + lens_object.name)
-        coll[COLLECTION_MARK] = "link"
+        coll[COLLECTION_MARK] = LINK_MARK
         coll.objects.link(lens_object)
         for member in coll.collection_objects:
             member.light_linking.link_state = "EXCLUDE"
@@ -148,12 +152,12 @@ def linking_sets(scene) -> int:
     return sum(
         1
         for item in scene.lens_lights.created_collections
-        if item.collection is not None and item.collection.get(COLLECTION_MARK) == "link"
+        if item.collection is not None and item.collection.get(COLLECTION_MARK) == LINK_MARK
     )
 
 
 def _is_profile_image(img) -> bool:
-    return img.get(COLLECTION_MARK) == "profile"
+    return img.get(COLLECTION_MARK) == PROFILE_MARK
 
 
 def profile_image(profile: dict, image_cache: dict | None = None):
@@ -180,7 +184,7 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img = bpy.data.images.new(
         PROFILE_PREFIX + (key or "table"), width=K, height=H, float_buffer=True, alpha=False
     )
-    img[COLLECTION_MARK] = "profile"
+    img[COLLECTION_MARK] = PROFILE_MARK
     if key is not None:
         img[PROFILE_KEY] = key
     # Traps: the colour space first (changing it
@@ -460,47 +464,6 @@ def created_objects(scene):
         if ob is not None and ob.lens_lights.is_lens_light and ob not in out:
             out.append(ob)
     return out
-
-
-def clear(scene) -> int:
-    """Remove every lens light the extension created in `scene` (and its linking
-    collections; the "Lens Lights" collection too once nothing else is in it; the
-    profile images no light uses any more). Returns how many lights were removed.
-    Nothing else is touched."""
-    settings = scene.lens_lights
-    objects = created_objects(scene)
-    refs: dict = {}
-    for ob in objects:
-        if ob.data is not None:
-            refs[ob.data] = refs.get(ob.data, 0) + 1
-    # a datablock only these objects use goes with them, in the same pass (each
-    # batch_remove scans the whole file: slow with many objects); one that something
-    # else uses too (the user linked it) stays
-    owned = [d for d, k in refs.items() if d.users == k]
-    removed = len(objects)
-    if objects:
-        bpy.data.batch_remove(objects + owned)  # with their embedded node trees
-    remove_unused_profile_images()
-    from .layers import remove_unused_layer_materials  # (it imports this module)
-
-    remove_unused_layer_materials()
-    from ..commands.bake import remove_unused_bake_actions  # (it imports this module)
-
-    remove_unused_bake_actions()
-    settings.created_objects.clear()
-    keep = []
-    for item in settings.created_collections:
-        coll = item.collection
-        if coll is None or coll.get(COLLECTION_MARK) is None:
-            continue
-        if coll.get(COLLECTION_MARK) == "link" or (not coll.objects and not coll.children):
-            bpy.data.collections.remove(coll)
-        else:
-            keep.append(coll)  # the user put something of theirs in it
-    settings.created_collections.clear()
-    for coll in keep:
-        _register_collection(settings, coll)
-    return removed
 
 
 def remove_unused_profile_images() -> int:

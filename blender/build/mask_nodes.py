@@ -5,8 +5,8 @@ A lens light whose source has a shadow list (phase 1's partial blockers) gets a 
 over its emission directions (`core.tiers.exact_profile_mask.emission_mask`: exact rays light →
 blockers → lens, landed on the receiver behind the lens), stored as a small 32-bit
 float, Non-Color, packed image "Lens mask <light>" (marked like the profile images, so
-`light_builder.clear` removes it once unused) and multiplied into the emission strength
-of the light's node tree (`light_builder.build_profile_nodes`): texture coordinates
+`cleanup.clear` removes it once unused) and multiplied into the emission strength
+of the light's node tree (`lights.build_profile_nodes`): texture coordinates
 ``0.5 + 0.5 (X, Y)/s_max`` from the emission direction in the light's frame (the
 Texture Coordinate's Normal), linear interpolation, EXTEND.
 
@@ -25,9 +25,7 @@ import numpy as np
 from mathutils import Vector
 
 from ...core.tiers.exact_profile_mask import emission_mask
-from ..ui.properties import COLLECTION_MARK
-
-MASK_PREFIX = "Lens mask "
+from .marks import COLLECTION_MARK, MASK_PREFIX, PROFILE_MARK
 
 
 def add_shadow_mask(ob, planned, arrays) -> bool:
@@ -75,7 +73,7 @@ def _mask_image(name, pixels):
     img = bpy.data.images.new(
         MASK_PREFIX + name, width=size, height=size, float_buffer=True, alpha=False
     )
-    img[COLLECTION_MARK] = "profile"  # removed with the profile images once unused
+    img[COLLECTION_MARK] = PROFILE_MARK  # removed with the profile images once unused
     img.colorspace_settings.name = "Non-Color"  # first: changing it later loses pixels
     img.use_half_precision = False
     rgba = np.ones((size, size, 4), dtype=np.float32)

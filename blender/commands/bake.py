@@ -8,15 +8,16 @@ Two stages, as Generate (`generate.py`), so that a failure or a cancel leaves th
 scene as it was:
 
 1. **Plan** every frame (nothing changes but the current frame, put back at the
-   end): `scene.frame_set(f)`, then Generate's planning (`generate.plan_scene`, and
-   the Caustic layer's bake `layer_stage.prepare`) on the render depsgraph of a
-   probe render where the render can differ from the viewport, else the viewport's
-   (`render_probe.as_rendered`, as Generate; `use_viewport=True`: always the
-   viewport depsgraph with the render rules). Each frame's lights become
+   end): `scene.frame_set(f)`, then the pipeline Generate and Live update share
+   (`pipeline.plan_scene`: read, phase 1, plan, the Caustic layer's bake) on the
+   render depsgraph of a probe render where the render can differ from the
+   viewport, else the viewport's (`render_probe.as_rendered`, as Generate;
+   `use_viewport=True`: always the viewport depsgraph with the render rules). Each
+   frame's lights become
    `core.animation.light_tracks.FrameLight`s keyed by live update's
    `core.animation.light_keys.LightKey` (primary, lens, kind, tier, occurrence;
    variant "near" for the Exact profile's near field).
-2. **Build**: Clear (the previous lens lights, baked or not), then
+2. **Build**: Clear (`cleanup.clear`: the previous lens lights, baked or not), then
    * light tiers: one Blender object per key (`lights.create_light` from the
      key's first frame), its transform (object action), energy, colour, cone,
      blend and radius (light data action) keyed on every frame, LINEAR; on frames
@@ -33,13 +34,13 @@ scene as it was:
      cut in time only where it would coarsen a frame's caustic core more than
      `layer_segments.COARSEN_LIMIT` times; each frame's rays landed again on it), the
      frames' irradiance as slices of one packed half-float image, read through
-     the mesh's raster UVs with a keyed slice index (`layer_bake_builder`).
+     the mesh's raster UVs with a keyed slice index (`baked_layers`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
 after it (the keys drive the lights; a cancel or a failed plan puts it back).
 
-Every action made is marked (`properties.COLLECTION_MARK` = "bake") and removed by
-Clear once unused (`remove_unused_bake_actions`, called by `lights.clear`).
+Every action made is marked (`marks.COLLECTION_MARK` = "bake") and removed by
+Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clear`).
 """
 
 from __future__ import annotations
@@ -57,13 +58,17 @@ from ...core.animation import layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
 from ...core.report.message import error_text
 from ...core.tiers import EXACT_PROFILE, builds_layer
-from ..build import baked_layers, cycles_caustics, layers, lights
+from ..build import baked_layers, cleanup, cycles_caustics, layers, lights
+from ..build.marks import (
+    BAKE_MARK,
+    COLLECTION_MARK,
+    PROFILE_KEY,
+    PROFILE_MARK,
+    PROFILE_PREFIX,
+)
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
-from ..ui.properties import COLLECTION_MARK
-from . import layer_stage
-from .generate import _options, plan_scene
+from . import layer_stage, pipeline
 
-BAKE_MARK = "bake"
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
 #: The figures of the last bake (seconds per stage, counts).
 LAST_BAKE: dict = {}
@@ -122,15 +127,15 @@ def compact_profile_image(key: str, pixels):
     H, K = pixels.shape
     for img in bpy.data.images:
         if (
-            img.get(COLLECTION_MARK) == "profile"
-            and img.get(lights.PROFILE_KEY) == key
+            img.get(COLLECTION_MARK) == PROFILE_MARK
+            and img.get(PROFILE_KEY) == key
             and tuple(img.size) == (K, H)
             and img.packed_file is not None
         ):
             return img
-    img = lights.packed_exr(lights.PROFILE_PREFIX + key, pixels, "32", "lens_profile.exr")
-    img[COLLECTION_MARK] = "profile"
-    img[lights.PROFILE_KEY] = key
+    img = lights.packed_exr(PROFILE_PREFIX + key, pixels, "32", "lens_profile.exr")
+    img[COLLECTION_MARK] = PROFILE_MARK
+    img[PROFILE_KEY] = key
     return img
 
 
@@ -236,7 +241,7 @@ class Baker:
         self.frames = list(range(int(frame_start), int(frame_end) + 1))
         self.use_viewport = use_viewport
         self.profile_step = float(profile_step)
-        self.options = _options(self.scene.lens_lights)
+        self.options = pipeline.options_from(self.scene.lens_lights)
         self.layer = builds_layer(self.options["energy_model"])
         self.frame_before = (self.scene.frame_current, self.scene.frame_subframe)
         # Live update (where the extension has it) would rebuild the lens lights on
@@ -262,7 +267,7 @@ class Baker:
         scene, options = self.scene, self.options
 
         def plan(dg):
-            return layer_stage.prepare(dg, plan_scene(dg, scene, options), options)
+            return pipeline.plan_scene(dg, scene, options)
 
         scene.frame_set(f)
         if self.use_viewport:
@@ -292,14 +297,14 @@ class Baker:
         t = time.perf_counter()
         scene = self.scene
         self.restore_frame()
-        lights.clear(scene)
+        cleanup.clear(scene)
         cycles_caustics.restore(scene)
         try:
             figures = self._build_layers() if self.layer else self._build_lights()
             if scene.lens_lights.replace_cycles_caustics and figures["objects"]:
                 cycles_caustics.replace(scene, sorted(self.lens_objects, key=lambda o: o.name))
         except Exception:
-            lights.clear(scene)
+            cleanup.clear(scene)
             cycles_caustics.restore(scene)
             raise
         self.timings["build"] = time.perf_counter() - t
@@ -414,16 +419,6 @@ class Baker:
             layer_resolution=res,
             layer_segments=[(len(s.frames), s.coarsening) for s in segments],
         )
-
-
-def remove_unused_bake_actions() -> int:
-    """Remove the bake's actions (marked) that nothing uses (Clear's hook), and the
-    baked layer's images nothing uses."""
-    unused = [a for a in bpy.data.actions if a.get(COLLECTION_MARK) == BAKE_MARK and a.users == 0]
-    if unused:
-        bpy.data.batch_remove(unused)
-    baked_layers.remove_unused_bake_images()
-    return len(unused)
 
 
 def bake(

@@ -4,21 +4,17 @@ planning (`core/plan/planning.py`) and the report (`core/report/message.py`) are
 
 Generate works in two stages, so that a failure never leaves the scene half-done:
 
-1. **Plan** (nothing in the file changes): read the scene as the renderer sees it
-   (`render_probe.as_rendered`: the render depsgraph of the context scene and view
-   layer — the viewport one when nothing renders differently, else a probe
-   render's), run phase 1 for every light type
-   (`phase1_primaries.compute_phase1_primaries`), then `planning.plan_result`: pre-select the
-   sources (merging nearby ones if the scene's settings ask for it, then the
-   ``PRESELECT_FACTOR × max_lights`` strongest by estimated flux) and plan the
-   lights (energy model, merged sources' energy scale, brightness cut-off,
-   maximum number). The rays that keep a beam's spot clear of the geometry behind
-   its lens are cast against the geometry read from the same render depsgraph
-   (`occluders`).
-2. **Build**: remove the lights a previous run created (only those) and put back
-   the Cycles settings it changed, create the planned ones (`light_builder`), and
-   with "Replace Cycles' Caustics" on turn Cycles' own caustics of their lenses
-   off (`cycles_caustics`: recorded, restored by Clear and by the next Generate).
+1. **Plan** (nothing in the file changes): the pipeline Bake and Live update share
+   (`pipeline.plan_scene`: read, phase 1, plan, the Caustic layer's stage) on the
+   scene as the renderer sees it (`render_probe.as_rendered`: the render depsgraph of
+   the context scene and view layer — the viewport one when nothing renders
+   differently, else a probe render's), with the options of the scene's settings
+   (`pipeline.options_from`).
+2. **Build**: remove what a previous run created (only that: `cleanup.clear`) and put
+   back the Cycles settings it changed, create the planned lights (`lights`) or the
+   Caustic layers (`layer_stage.build`), and with "Replace Cycles' Caustics" on turn
+   Cycles' own caustics of their lenses off (`cycles_caustics`: recorded, restored by
+   Clear and by the next Generate).
 
 A failure in stage 1 is reported and changes nothing (the operator is cancelled);
 one in stage 2 removes what was made and is reported. Generate never raises.
@@ -38,17 +34,14 @@ import traceback
 
 import bpy
 
-from ...core.phase1.all_lights import compute_phase1_primaries
 from ...core.plan.cycles_caustics import describe as describe_caustics
-from ...core.plan.planning import PRESELECT_FACTOR, plan_result
 from ...core.report.message import error_text, linking_note, linking_sets_note, report_message
 from ...core.scene.assembly import RENDER
-from ...core.tiers import builds_layer, resolve_energy_model
-from ..build import cycles_caustics, lights
+from ...core.tiers import builds_layer
+from ..build import cleanup, cycles_caustics, lights
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
-from ..read.scene import read_depsgraph
 from ..ui.scene_state import has_lens_lights
-from . import layer_stage
+from . import layer_stage, pipeline
 
 #: The figures of the last run of `generate` (with "timings": seconds per step).
 LAST_FIGURES: dict = {}
@@ -74,36 +67,6 @@ class _Progress:
             self.wm.progress_end()
 
 
-def plan_scene(depsgraph, scene, options: dict):
-    """Stage 1 on `depsgraph` (see the module's docstring); changes nothing.
-    Returns a `planning.Work`."""
-    timings = {}
-    t = time.perf_counter()
-    read = read_depsgraph(depsgraph, scene)
-    timings["read"] = time.perf_counter() - t
-    t = time.perf_counter()
-    result = compute_phase1_primaries(read.arrays, read.primary_lights)
-    timings["phase1"] = time.perf_counter() - t
-    return plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
-
-
-def _options(settings) -> dict:
-    merge = bool(getattr(settings, "use_merge", False))
-    # The tier to build: AUTO → the most accurate for the scene's engine; Exact
-    # profile outside Cycles → Fitted, with a warning in the report.
-    model, model_warning = resolve_energy_model(
-        settings.energy_model, settings.id_data.render.engine
-    )
-    return dict(
-        energy_model=model,
-        model_warning=model_warning,
-        min_brightness=float(settings.min_brightness),
-        max_lights=int(settings.max_lights),
-        spot_blend=float(settings.spot_blend),
-        merge_distance=float(settings.merge_distance) if merge else None,
-    )
-
-
 def _store(settings, message, figures):
     settings.last_run = True
     settings.last_created = figures.get("created", 0)
@@ -127,12 +90,9 @@ def generate(context):
     with _Progress(context) as progress:
         # 1. Plan (nothing changes).
         try:
-            options = _options(settings)
+            options = pipeline.options_from(settings)
             t = time.perf_counter()
-            work, how = as_rendered(
-                context,
-                lambda dg: layer_stage.prepare(dg, plan_scene(dg, scene, options), options),
-            )
+            work, how = as_rendered(context, lambda dg: pipeline.plan_scene(dg, scene, options))
             work.read.how = how
             work.timings["probe_total"] = time.perf_counter() - t
         except Exception as exc:  # reported, never raised
@@ -149,7 +109,7 @@ def generate(context):
         plan = work.plan
         total = max(len(plan.lights), 1)
         try:
-            lights.clear(scene)
+            cleanup.clear(scene)
             cycles_caustics.restore(scene)
             if builds_layer(options["energy_model"]):  # the layers replace the lights
                 made = layer_stage.build(scene, work, lambda f: progress(60 + 40 * f))
@@ -165,7 +125,7 @@ def generate(context):
         except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
             try:
-                lights.clear(scene)
+                cleanup.clear(scene)
                 cycles_caustics.restore(scene)
             except Exception:
                 traceback.print_exc()
@@ -185,7 +145,7 @@ def generate(context):
         traceback.print_exc()
         level, figures = "WARNING", dict(created=len(made))
         message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
-    if getattr(work, "layer_figures", None) is not None:
+    if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)
     if options["model_warning"]:
@@ -246,7 +206,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
-        removed = lights.clear(context.scene)
+        removed = cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
         settings.last_created = 0

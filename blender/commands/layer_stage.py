@@ -1,11 +1,13 @@
-"""Generate's Caustic layer stage: when the resolved tier is CAUSTIC_LAYER, read
-the receivers from the depsgraph the plan was read from (`receiver_reader`), bake
-every planned source's layer in one pipeline call (`core.caustic_layer.pipeline`,
-the ray budget from each lens' flux and screen size, capped: `core.caustic_layer.plan`),
-and build the layers instead of the lens lights (`layer_builder`; with no receiver
-at all, the planned Fitted spots). The bake is
-part of the plan (a failure changes nothing); the build is one undo step with the
-rest of Generate.
+"""The Caustic layer's part of the pipeline (`pipeline.plan_scene` calls `prepare`) and
+its build: when the resolved tier is CAUSTIC_LAYER, read the receivers from the
+depsgraph the plan was read from (`read.receivers`), bake every planned source's layer
+in one pipeline call (`core.caustic_layer.pipeline`, the ray budget from each lens' flux
+and screen size, capped: `core.caustic_layer.plan`), and build the layers instead of the
+lens lights (`build.layers`; with no receiver at all, the planned Fitted spots:
+`build.lights`). The bake is part of the plan (a failure changes nothing); the build is
+one undo step with the rest of Generate. What it adds to the plan is in the fields
+`planning.Work` declares for it (``receivers``, ``layer_bake``, ``layer_sources``,
+``layer_figures``).
 """
 
 from __future__ import annotations

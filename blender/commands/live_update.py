@@ -23,9 +23,9 @@ A module flag guards against re-entry: what an update changes never runs another
 update from inside it.
 
 **How.** No probe render in a handler: the depsgraph the handler is handed is read
-(`scene_reader.read_depsgraph`; a viewport one with the render-visibility rules
-applied by hand, as Generate's fallback), planned like Generate
-(`generate.plan_scene`, `layer_stage.prepare`), and applied to the existing lens
+and planned by the pipeline Generate and Bake share (`pipeline.plan_scene`; a
+viewport depsgraph with the render-visibility rules applied by hand, as Generate's
+fallback), and applied to the existing lens
 lights in place: each light is matched to its planned source by a stable key
 (`core.animation.light_keys`: primary light, lens, kind, tier), updated with only the values
 that changed (`lights.apply_light`: transform, power, colour, cone, blend,
@@ -38,6 +38,9 @@ Caustic layer tier (EEVEE's AUTO) is rebuilt whole on every update (its meshes d
 on the traced beam): correct but slow. Cycles' own caustics are re-replaced when the
 set of lights changes.
 
+**The switch.** Turning ``live_update`` on brings the lights up to date at once
+(`live_update_changed`, forced): `register` installs it as the switch's update hook
+(`properties.set_live_update_hook`), so that the settings never import this module.
 Clear turns live update off (else the lights would come back at the next update).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
 not there at all, so their lights and lenses are missed until a render (whose
@@ -54,15 +57,12 @@ import bpy
 import numpy as np
 
 from ...core.animation.light_keys import keys_of, match
-from ...core.phase1.all_lights import compute_phase1_primaries
-from ...core.plan.planning import PRESELECT_FACTOR, plan_result
 from ...core.tiers import builds_layer
-from ..build import cycles_caustics, lights
+from ..build import cleanup, cycles_caustics, lights
+from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
-from ..read.scene import read_depsgraph
-from ..ui.properties import COLLECTION_MARK
-from . import layer_stage
-from .generate import _options
+from ..ui.properties import set_live_update_hook
+from . import layer_stage, pipeline
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
@@ -117,7 +117,7 @@ def _link_cache(objects) -> dict:
     cache = {}
     for ob in objects:
         coll = ob.light_linking.receiver_collection if ob.type == "LIGHT" else None
-        if coll is not None and coll.get(COLLECTION_MARK) == "link" and len(coll.objects) == 1:
+        if coll is not None and coll.get(COLLECTION_MARK) == LINK_MARK and len(coll.objects) == 1:
             cache.setdefault(coll.objects[0].name, coll)
     return cache
 
@@ -145,7 +145,7 @@ def _remove(scene, objects):
         coll = settings.created_collections[k].collection
         if coll is None:
             settings.created_collections.remove(k)
-        elif coll.get(COLLECTION_MARK) == "link" and coll.as_pointer() not in used:
+        elif coll.get(COLLECTION_MARK) == LINK_MARK and coll.as_pointer() not in used:
             settings.created_collections.remove(k)
             bpy.data.collections.remove(coll)
     lights.remove_unused_profile_images()
@@ -200,32 +200,31 @@ def update(scene, depsgraph, force=False) -> dict:
     docstring); returns the figures. Nothing is planned when the inputs are those
     of the last update (unless `force`). Raises on failure (the handlers catch)."""
     t0 = time.perf_counter()
-    options = _options(scene.lens_lights)
+    options = pipeline.options_from(scene.lens_lights)
     timings: dict = {}
-    read = read_depsgraph(depsgraph, scene)
-    timings["read"] = time.perf_counter() - t0
-    signature = _signature(read, options, scene)
-    if not force and _unchanged(scene, signature):
-        read.occluders.release()
+    seen: dict = {}
+
+    def unchanged(read) -> bool:
+        seen.update(signature=_signature(read, options, scene), how=read.how)
+        return not force and _unchanged(scene, seen["signature"])
+
+    work = pipeline.plan_scene(depsgraph, scene, options, timings=timings, unless=unchanged)
+    if work is None:  # the inputs of the last update: nothing planned
         t1 = time.perf_counter()
         return dict(
             skipped=True,
             seconds=t1 - t0,
             plan_seconds=t1 - t0,
             apply_seconds=0.0,
-            how=read.how,
+            how=seen["how"],
             timings=timings,
         )
-    t = time.perf_counter()
-    result = compute_phase1_primaries(read.arrays, read.primary_lights)
-    timings["phase1"] = time.perf_counter() - t
-    work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
-    work = layer_stage.prepare(depsgraph, work, options)
+    signature = seen["signature"]
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
     figures = dict(planned=len(plan.lights), updated=0, created=0, removed=0)
     if builds_layer(options["energy_model"]):
-        lights.clear(scene)  # the layer's meshes: rebuilt whole
+        cleanup.clear(scene)  # the layer's meshes: rebuilt whole
         cycles_caustics.restore(scene)
         made = layer_stage.build(scene, work)
         cycles_caustics.after_build(scene, plan, read, len(made))
@@ -286,10 +285,6 @@ def _run(scene, depsgraph, why, force=False):
         LAST_FIGURES = dict(why=why, error=traceback.format_exc(limit=1))
     finally:
         _BUSY = False
-
-
-#: Per scene: (signature of the last update's inputs, how many objects it left).
-_LAST_INPUTS: dict = {}
 
 
 def _on(scene) -> bool:
@@ -364,8 +359,10 @@ def register():
         handlers = getattr(bpy.app.handlers, name)
         _remove_ours(handlers, fn)
         handlers.append(fn)
+    set_live_update_hook(live_update_changed)
 
 
 def unregister():
+    set_live_update_hook(None)
     for name, fn in _HANDLERS:
         _remove_ours(getattr(bpy.app.handlers, name), fn)

@@ -5,10 +5,14 @@
   and collections). Clear/regenerate remove only what is in the registry *and*
   carries the extension's mark, so a user's own lights — and even a user's
   duplicate of a lens light (it copies the mark but is not in the registry) — are
-  never touched.
+  never touched (the marks: `blender/build/marks.py`).
 * ``object.lens_lights`` (:class:`LensLightsObjectSettings`): per object, whether it
   is a lens (Auto / Always / Never) and an IOR override; on the lights the
   extension creates, where they came from (primary light, lens, kind, full …).
+
+The Live Update switch's update callback runs the hook that live update installs when it
+registers (`set_live_update_hook`; `blender/commands/live_update.py`), so that this
+module, below every other of the Blender side, imports none of them.
 """
 
 import bpy
@@ -23,10 +27,6 @@ from bpy.props import (
 )
 
 from ...core.tiers import DEFAULT_ENERGY_MODEL, DEFAULT_SPOT_BLEND, energy_model_items
-
-#: Custom property set on every collection the extension creates; its value says
-#: which kind ("lights": the "Lens Lights" collection, "link": a linking collection).
-COLLECTION_MARK = "lens_lights_created"
 
 LENS_MODES = [
     ("AUTO", "Auto", "A lens when its material refracts (transmission > 0 and IOR > 1)"),
@@ -135,7 +135,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
             "frame change and on every frame of a render (slower playback; the Caustic "
             "layer is rebuilt on each update)"
         ),
-        update=lambda settings, context: _live_update_changed(settings, context),
+        update=lambda settings, context: _live_update_switched(settings, context),
     )
 
     # The last run's figures (shown in the panel).
@@ -186,10 +186,21 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     note: StringProperty(name="Note")
 
 
-def _live_update_changed(settings, context):
-    from ..commands.live_update import live_update_changed  # (it imports this module)
+#: What the Live Update switch runs when it is flipped, (settings, context) → None: set
+#: by live update when it registers, None before (the switch then only stores its value).
+_live_update_hook = None
 
-    live_update_changed(settings, context)
+
+def set_live_update_hook(hook):
+    """Install `hook(settings, context)` as the Live Update switch's update callback
+    (None removes it)."""
+    global _live_update_hook
+    _live_update_hook = hook
+
+
+def _live_update_switched(settings, context):
+    if _live_update_hook is not None:
+        _live_update_hook(settings, context)
 
 
 _CLASSES = (

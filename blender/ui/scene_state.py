@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from .properties import COLLECTION_MARK
+from ..build.marks import COLLECTION_MARK, LAYER_MARK, LINK_MARK, PROFILE_MARK
 
 
 def has_lens_lights(scene) -> bool:
@@ -24,8 +24,8 @@ def has_lens_lights(scene) -> bool:
     for item in settings.created_collections:
         coll = item.collection
         mark = coll.get(COLLECTION_MARK) if coll is not None else None
-        if mark == "link" or (mark is not None and not coll.objects and not coll.children):
+        if mark == LINK_MARK or (mark is not None and not coll.objects and not coll.children):
             return True
     return any(
-        img.get(COLLECTION_MARK) == "profile" and img.users == 0 for img in bpy.data.images
-    ) or any(m.get(COLLECTION_MARK) == "layer" and m.users == 0 for m in bpy.data.materials)
+        img.get(COLLECTION_MARK) == PROFILE_MARK and img.users == 0 for img in bpy.data.images
+    ) or any(m.get(COLLECTION_MARK) == LAYER_MARK and m.users == 0 for m in bpy.data.materials)

@@ -412,13 +412,23 @@ def plan_lights(
 # --------------------------------------------------------------------------- a scene
 
 
-@dataclass
+@dataclass(slots=True)
 class Work:
-    read: object  # scene_reader.BlenderSceneRead
+    """One scene's plan: the read, phase 1's result, the selection, the plan, seconds
+    per step; and the Caustic layer's part, set by the Blender side's layer stage
+    (`blender/commands/layer_stage.py`; None when the tier is not the layer's): the
+    receivers read, the layer's bake, its sources (`caustic_layer.plan.sheet_sources`)
+    and the report's figures. Slots: a field not declared here cannot be attached."""
+
+    read: object  # core.scene.assembly.BlenderSceneRead
     result: Phase1Result
     selection: Selection
     plan: Plan
     timings: dict = field(default_factory=dict)
+    receivers: object = None  # blender.read.receivers.Receivers
+    layer_bake: object = None  # caustic_layer.pipeline.SheetBake
+    layer_sources: list | None = None
+    layer_figures: object = None  # caustic_layer.plan.LayerFigures
 
 
 def _primary_columns(read, table) -> Primaries:

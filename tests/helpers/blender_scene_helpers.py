@@ -182,7 +182,7 @@ MAX_ITEMS = 64
 
 def _ours(value) -> bool:
     """A datablock the extension created (its lights, collections, images)."""
-    from lens_lights.blender.ui.properties import COLLECTION_MARK
+    from lens_lights.blender.build.marks import COLLECTION_MARK
 
     if isinstance(value, bpy.types.Object):
         return bool(value.lens_lights.is_lens_light)

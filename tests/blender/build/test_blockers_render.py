@@ -122,7 +122,7 @@ def test_the_shadow_falls_inside_the_caustic_as_in_the_reference(images):
 
 
 def test_clear_removes_the_mask_image(images):
-    from lens_lights.blender.build import lights
+    from lens_lights.blender.build import cleanup
 
-    lights.clear(bpy.context.scene)
+    cleanup.clear(bpy.context.scene)
     assert not [i for i in bpy.data.images if i.name.startswith("Lens mask")]

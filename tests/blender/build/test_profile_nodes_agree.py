@@ -193,7 +193,7 @@ def test_baked_near_field_tree_agrees_with_generate(empty_blend):
     baked = _bake_agrees_with_generate([60.0, 61.0, 62.0])
     (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
     # a slice per receiver distance, 1 R and 1.02 R away
-    from lens_lights.blender.build.lights import PROFILE_KEY
+    from lens_lights.blender.build.marks import PROFILE_KEY
 
     key = img[PROFILE_KEY]  # (the name is cut at 63 characters before Blender 5)
     assert " near " in key and key.endswith(" 1.02") and " 1 " in key

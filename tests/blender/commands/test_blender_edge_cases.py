@@ -501,6 +501,7 @@ def test_more_lenses_than_light_linking_sets_warns(empty_blend):
 def test_generate_never_raises(empty_blend, monkeypatch):
     from lens_lights.blender.build import lights
     from lens_lights.blender.commands import generate as gen
+    from lens_lights.blender.commands import pipeline
 
     lit_row(["M0", "M1", "M2"], glass_material())
     add_point_light("Lamp", (2, 0, 6))
@@ -514,7 +515,7 @@ def test_generate_never_raises(empty_blend, monkeypatch):
 
     # A failure while planning: reported, nothing changed, the operator cancelled
     # (called from Python, an operator's error report becomes a RuntimeError).
-    monkeypatch.setattr(gen, "compute_phase1_primaries", boom)
+    monkeypatch.setattr(pipeline, "compute_phase1_primaries", boom)
     level, message, figures = gen.generate(bpy.context)
     assert level == "ERROR" and figures["changed"] is False
     assert message.startswith("Lens Lights could not read the scene: ValueError: boom")

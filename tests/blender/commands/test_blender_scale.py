@@ -84,7 +84,7 @@ def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
     """200 lenses × 2 lights = 400 sources, at most 8 lights: only the 4 × 8 = 32
     strongest by flux become `SecondarySource` objects; the report counts the rest
     by reason and gives the flux without a light."""
-    from lens_lights.blender.commands import generate as gen
+    from lens_lights.blender.commands import pipeline
     from lens_lights.core.phase1.point_lights import SourceTable
 
     glass = glass_material()
@@ -95,8 +95,10 @@ def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
     bpy.context.scene.lens_lights.max_lights = 8
     made = count_calls(monkeypatch, SourceTable, "source")
     works = []
-    real_plan = gen.plan_scene
-    monkeypatch.setattr(gen, "plan_scene", lambda *a: works.append(real_plan(*a)) or works[-1])
+    real_plan = pipeline.plan_scene
+    monkeypatch.setattr(
+        pipeline, "plan_scene", lambda *a, **k: works.append(real_plan(*a, **k)) or works[-1]
+    )
     level, message, figures = generate()
     (work,) = works
     assert figures["sources"] == 400 and figures["created"] == 8 == len(lens_lights())
@@ -139,13 +141,13 @@ def test_preselection_keeps_the_strongest_by_flux(empty_blend):
     add_sphere("Small near", (0, 0, 7.0), radius=0.1, material=glass)
     s = bpy.context.scene.lens_lights
     s.max_lights = 1
-    from lens_lights.blender.commands import generate as gen
+    from lens_lights.blender.commands import pipeline
 
-    gen.PRESELECT_FACTOR, old = 1, gen.PRESELECT_FACTOR
+    pipeline.PRESELECT_FACTOR, old = 1, pipeline.PRESELECT_FACTOR
     try:
         level, message, figures = generate()
     finally:
-        gen.PRESELECT_FACTOR = old
+        pipeline.PRESELECT_FACTOR = old
     (ll,) = lens_lights()
     assert ll.lens_lights.source_lens == "Big far"
     assert figures["skipped_by_reason"] == {"not among the 1 strongest by flux": 1}

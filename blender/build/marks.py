@@ -1,0 +1,43 @@
+"""The marks and names every builder shares (no bpy): how the extension recognises what it
+made, and what it calls it.
+
+Everything the extension creates in a file carries the custom property
+`COLLECTION_MARK`, whose value says what it is (the `*_MARK` values below). Clear
+(`cleanup.clear`) removes only what is both listed in the scene's registry
+(`scene.lens_lights.created_*`) and marked, or marked and used by nothing (images,
+materials, actions); live update ignores the depsgraph updates of marked data (its own
+edits). Lens light objects are marked by `object.lens_lights.is_lens_light` instead.
+
+The builders (`lights`, `mask_nodes`, `layers`, `baked_layers`, and the bake's actions,
+`blender/commands/bake.py`) mark; `cleanup` and the panel's poll
+(`blender/ui/scene_state.py`) read the marks.
+"""
+
+#: Custom property set on every collection, image, material, mesh and action the
+#: extension creates; its value is one of the marks below.
+COLLECTION_MARK = "lens_lights_created"
+
+#: The "Lens Lights" collection the lens lights and layers are in.
+LIGHTS_MARK = "lights"
+#: A light-linking collection (one per lens: "Lens link: …"; the layers' fallback
+#: receivers: "Lens fallback: …").
+LINK_MARK = "link"
+#: An Exact profile's image (and a shadow mask's): removed once unused.
+PROFILE_MARK = "profile"
+#: A caustic layer's material or mesh: removed once unused.
+LAYER_MARK = "layer"
+#: A bake's action, or a baked layer's atlas image: removed once unused.
+BAKE_MARK = "bake"
+
+#: Custom property of a profile image: its cache key (`lights.profile_image`).
+PROFILE_KEY = "lens_lights_profile_key"
+
+#: Names of what the builders make.
+COLLECTION_NAME = "Lens Lights"
+LINK_PREFIX = "Lens link: "
+PROFILE_PREFIX = "Lens profile "
+MASK_PREFIX = "Lens mask "
+LAYER_PREFIX = "Lens caustic "
+MATERIAL_PREFIX = "Lens caustic material "
+INCLUDE_PREFIX = "Lens fallback: "
+BAKE_IMAGE_PREFIX = "Lens caustic bake "
