@@ -139,7 +139,7 @@ _CORE = set(LAYERS)
 LAYERS.update(
     {
         "blender.read": _CORE | {"blender.ui.properties"},
-        "blender.build": _CORE | {"blender.read", "blender.ui.properties"},
+        "blender.build": _CORE | {"blender.read"},
         "blender.commands": _CORE
         | {"blender.read", "blender.build", "blender.ui.properties", "blender.ui.scene_state"},
         "blender.ui": _CORE | {"blender.read", "blender.build", "blender.commands"},

@@ -8,5 +8,5 @@ listed before it):
   `cycles_caustics`: Cycles' own caustics of the lenses, off and back on;
 * `cleanup`: Clear, above every builder (it knows what each one leaves).
 
-May import core, blender.read and blender.ui.properties; never commands.
+May import core and blender.read; never commands or ui.
 """
