@@ -218,6 +218,33 @@ def test_no_import_cycles_in_either_side():
             visit(m, [])
 
 
+#: Imports of our own modules inside a function, each for a slow dependency: the `.bi`
+#: reader starts without numpy (the command line's `phase1` on a small file).
+DEFERRED = {
+    ("core.bi.format", "core.scene.arrays"),
+    ("core.bi.format", "core.shared.ranges"),
+}
+
+
+def test_own_modules_are_imported_at_the_top():
+    """A deferred import only for a slow or optional dependency, never to break a circle."""
+    found = set()
+    for p in _FILES:
+        for fn in ast.walk(ast.parse(p.read_text(encoding="utf-8"))):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                inner = [n for n in ast.walk(fn) if isinstance(n, ast.ImportFrom) and n.level]
+                found |= {(_module_name(p), d) for n in inner for d in _imports_of(p, n)}
+    assert found == DEFERRED
+
+
+def _imports_of(path: Path, node: ast.ImportFrom) -> set[str]:
+    module = _module_name(path)
+    base = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+    mod = ".".join(base[: len(base) - (node.level - 1)] + ([node.module] if node.module else []))
+    subs = {f"{mod}.{a.name}" for a in node.names} & _MODULES
+    return subs or {mod}
+
+
 def test_packages_import_only_the_layers_below_them():
     assert set(LAYERS) == {_package(m) for m in _MODULES if m.count(".")}
     wrong = []

@@ -18,6 +18,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from ...core.bi.conversions import BlenderLimitError
 from ...core.bi.format import BiFormatError, read_bi, write_bi
 from ...core.bi.records import file_line, summary
+from . import scene_data as builder
 
 
 class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
@@ -31,8 +32,6 @@ class IMPORT_SCENE_OT_bi(bpy.types.Operator, ImportHelper):
     filter_glob: StringProperty(default="*.bi", options={"HIDDEN"})
 
     def execute(self, context):
-        from . import scene_data as builder
-
         path = self.filepath
         try:
             scene = read_bi(path)
@@ -84,8 +83,6 @@ class EXPORT_SCENE_OT_bi(bpy.types.Operator, ExportHelper):
     filter_glob: StringProperty(default="*.bi", options={"HIDDEN"})
 
     def execute(self, context):
-        from . import scene_data as builder
-
         path = self.filepath
         try:
             read = builder.read_for_export(context)

@@ -33,6 +33,7 @@ from ...core.bi.records import (
 )
 from ...core.scene.model import Camera, Light, Scene, Sphere, Surface
 from ..read.materials import node_tree
+from ..read.scene import read_blender_scene
 
 #: Custom property with the `.bi` numbers of an imported object or material.
 PROP = "lens_lights_bi"
@@ -358,8 +359,6 @@ def read_for_export(context) -> ExportRead:
     """The Blender scene as a `.bi` scene: the active camera, the point lights and
     the objects phase 1 recognises as spheres (blender/read/scene.py); every
     other object is listed in `left_out` with the reason."""
-    from ..read.scene import read_blender_scene
-
     read = read_blender_scene(context)
     warnings: list = []
     camera, width, height = read_camera(context, warnings)

@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..tiers.exact_profile import NEAR_DISTANCES, cached_profile, table_geometry
+
 #: Ratio between neighbouring D/R slices of a baked profile table (a 4 % step moves
 #: the paraxial focus by about 2 % of its distance, one table row); widened
 #: (squared) until a group needs at most `MAX_SLICES`.
@@ -297,8 +299,6 @@ def near_slices(track, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES)
 def slice_h_min(receiver: float | None) -> float:
     """The first distance (R) of the table `profile_slice_table` makes for
     `receiver` (None: the far table)."""
-    from ..tiers.exact_profile import NEAR_DISTANCES, table_geometry
-
     return table_geometry(receiver, NEAR_DISTANCES, on_row=True)[1]
 
 
@@ -309,8 +309,6 @@ def profile_slice_table(
     receiver `receiver` R from the lens centre, as Generate makes it), normalised as
     Generate normalises it (intensity over energy/(4π),
     `tiers.exact_profile.make_profile_light`)."""
-    from ..tiers.exact_profile import cached_profile
-
     if near and receiver is None:
         raise ValueError("a near-field slice needs its receiver distance")
     z = round(float(receiver), 6) if near else None
