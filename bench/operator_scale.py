@@ -368,7 +368,7 @@ ATTRIBUTION = [
     "* **Ours:** reading the instances: it was one pass over "
     "`depsgraph.object_instances`, a dozen RNA reads and the matrix per instance (about "
     "20 µs each: 1.8–2.6 s at 100 k); now empties instancing collections of plain "
-    "objects are read in bulk (`scene_reader._bulk_walk`: the depsgraph's objects with "
+    "objects are read in bulk (`read.scene._bulk_walk`: the depsgraph's objects with "
     "`foreach_get`, each instance's matrix composed in numpy as Blender composes it, "
     "float32, bit for bit; checked against the iterator's first 64 instances), and "
     "anything else by a walk that caches per object and instancer and copies the "
@@ -395,7 +395,7 @@ ATTRIBUTION = [
     "15.5, 17.3 and 19.4 s (the check and the read 2.0–3.0 s, phase 1 5.1–6.6 s).",
     "",
     "What is left of the read on collection-instance empties (2026-12-02, CPU, 100 000 "
-    "instances, numpy alone): the assembly (`scene_read.assemble`) about 0.38 s — the "
+    "instances, numpy alone): the assembly (`assembly.assemble`) about 0.38 s — the "
     "instances' world boxes 0.14 s (one 2-D `einsum` per group: 0.23 s with the one "
     "`einsum` over all instances' corners; a `matmul` is faster still but rounds the "
     "last bit differently, so it is not used), the names 0.08 s, the uniform scales "

@@ -221,9 +221,9 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     texture. The tilt factor (`_tilt_factor`) when the profile has a
     ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
 
-    `slices` = (count, rows): the baked light's stacked image (`bake_plan`): v read
+    `slices` = (count, rows): the baked light's stacked image (`light_tracks`): v read
     in slice s of `count` slices of `rows` rows each (clamped to the slice's first
-    and last row centres, `bake_plan.slice_row`), two neighbouring slices blended by
+    and last row centres, `light_tracks.slice_row`), two neighbouring slices blended by
     the fractional part of s; s and h_min are Value nodes (`SLICE_NODE`,
     `H_MIN_NODE`) the bake keys per frame."""
     if bpy.app.version < (5, 0, 0) or data.node_tree is None:

@@ -10,7 +10,7 @@ wide). The emitter's power already carries phase 1's unblocked share (over the l
 cap), so the weights are divided by it: the layer's flux becomes what passes.
 
 The add-on hands every primary to the layer as a point light (a sun at its equivalent
-distance, `layer_plan`); a sun given as parallel rays keeps the dimming (its rays start
+distance, `caustic_layer.plan`); a sun given as parallel rays keeps the dimming (its rays start
 just before the lens).
 """
 

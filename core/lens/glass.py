@@ -175,7 +175,7 @@ def _absorption(node, notes) -> Color:
 
 @dataclass(frozen=True)
 class LensOptics:
-    """What the material adds to the sphere's geometry (see `material_model`)."""
+    """What the material adds to the sphere's geometry (see `glass`)."""
 
     transmission_weight: float = 1.0  # w (Principled's Transmission Weight …)
     tint: tuple[float, float, float] = (1.0, 1.0, 1.0)  # colour of a path through the sphere

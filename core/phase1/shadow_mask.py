@@ -21,7 +21,7 @@ blocker's own focusing (it deflects what it passes: a tertiary source) is out of
 what passes is counted as if undeflected.
 
 `ray_passes` tells what blockers pass of given rays (the Exact profile's mask,
-`emission_mask.py`, and the caustic layer's beam, `caustic_sheet/shadow.py`).
+`exact_profile_mask.py`, and the caustic layer's beam, `core/caustic_layer/shadow.py`).
 
 Each grid's azimuth starts toward the other cap, and blockers are ranked by their
 size, so the result does not depend on how the scene is turned or in which order its

@@ -495,7 +495,7 @@ def plan_result(
 ) -> Work:
     """The pre-selection and the plan for phase 1's `result` on a scene read
     (`read.arrays`, `primaries`, `lens_optics`, names, `scene_size`, `bounds`,
-    `occluders`: `scene_reader.read_depsgraph`); `options`: energy_model,
+    `occluders`: `read.scene.read_depsgraph`); `options`: energy_model,
     min_brightness, max_lights, spot_blend, merge_distance.
 
     The lights are planned twice: first every pre-selected source without the rays

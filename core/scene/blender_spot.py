@@ -1,7 +1,7 @@
 """What a Blender spot light puts on a receiving plane perpendicular to its axis.
 
 A pure (numpy-only) model of Blender's spot light, used to measure lens-light
-models against the exact optics (:mod:`.exact_optics`) and to fit them.
+models against the exact optics (:mod:`core.lens.ball_optics`) and to fit them.
 
 How Blender's spot light emits (checked in the sources, Blender 4.x/5.0)
 ----------------------------------------------------------------------------

@@ -3,7 +3,7 @@ sends toward a lens (SPEC §10), vectorised over primaries × lenses.
 
 The Blender side fills the dataclasses (one line per property, see each class);
 :class:`PrimaryArrays` holds them as columns for phase 1
-(:mod:`.phase1_primaries`), which turns every pair into a point-like source at
+(:mod:`core.phase1.all_lights`), which turns every pair into a point-like source at
 the primary's position (a sun: the limit ``D → ∞``) with two numbers per pair:
 
 * ``emission``: the mean radiant intensity the primary sends over the lens's

@@ -74,7 +74,7 @@ class Batched(PlanesAndSpheres):
 
 
 def make_read(seed, occluder_class, *, other_primaries=False):
-    """A scene read (`scene_reader.read_depsgraph`'s fields) of a random scene with
+    """A scene read (`read.scene.read_depsgraph`'s fields) of a random scene with
     a floor below the lowest sphere's centre and walls, random primaries'
     powers, radii and colours, and tinted, absorbing, partly transmitting glass."""
     scene = random_scene(seed, n_lights=3, n_spheres=30, spread=5.0)
