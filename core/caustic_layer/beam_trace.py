@@ -245,11 +245,11 @@ def _exit_rays(bt: _Batch, origins, dirs) -> ExitRays:
     """The rays (S, …, 3) through each sample's lens: in one call when the kind stacks."""
     lens = bt.stacked(dirs.ndim - 2)
     if lens is not None:
-        return lens.trace(origins, dirs)
+        return lens.trace(origins, dirs, aimed=True)
     parts = []
     for k, o in enumerate(bt.optics):
         a, b = bt.starts[k], bt.starts[k + 1]
-        parts.append(o.trace(origins[a:b], dirs[a:b]))
+        parts.append(o.trace(origins[a:b], dirs[a:b], aimed=True))
     return ExitRays(
         *(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(ExitRays))
     )

@@ -38,17 +38,19 @@ class BallLens(Lens):
         nrm = np.where(np.isfinite(t)[..., None], (p - c) / r[..., None], 0.0)
         return t, nrm
 
-    def trace(self, origins, directions) -> ExitRays:
+    def trace(self, origins, directions, aimed: bool = False) -> ExitRays:
         """Entry at the near root, the chord to the far root from the entry point (the
         discriminant clamped at 0: a ray missing by rounding, within 1e-12 R², goes in at
-        the tangent point, as the tracers' grids' rim rays must);
+        the tangent point; every ray ahead of the ball when ``aimed``, as the tracers'
+        grids' rim rays must, whatever the rounding of their frames);
         Fresnel from the actual 3-D cosines at both surfaces, s and p separately (both
         planes of incidence hold the centre and the ray)."""
         c, radius = self.bounding_sphere()
         ior = np.asarray(self.ior, dtype=float)
         r3 = radius[..., None]
         entry = intersect_sphere(origins, directions, c, radius)
-        hit = (entry.disc >= -1e-12 * radius * radius) & (entry.far > 0.0)
+        grazing = True if aimed else entry.disc >= -1e-12 * radius * radius
+        hit = grazing & (entry.far > 0.0)
         p1 = origins + entry.near[..., None] * directions
         inner = refract(directions, (p1 - c) / r3, 1.0 / ior)
         chord = intersect_sphere(p1, inner.directions, c, radius).far

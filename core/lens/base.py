@@ -49,10 +49,12 @@ class Lens(ABC):
         its origin (from inside the glass too); ``inf`` (normal 0) where it misses."""
 
     @abstractmethod
-    def trace(self, origins, directions) -> ExitRays:
+    def trace(self, origins, directions, aimed: bool = False) -> ExitRays:
         """The rays through the glass along their straight transmitted path: refraction
         and Fresnel transmission at each crossing, absorption inside. Internally reflected
-        light is dropped (not followed yet)."""
+        light is dropped (not followed yet). ``aimed``: the rays were aimed at the glass
+        (a tracer's grid over its lit disc, rim rays tangent by construction), so one
+        that misses only by rounding enters at the tangent point."""
 
     def incidence_transmission(self, iota) -> np.ndarray | None:
         """The ``weight`` of :meth:`trace` as a function of the angle of incidence ``iota``
