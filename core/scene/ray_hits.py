@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from ..lens.sphere import sphere_roots
+
 
 def sphere_hits(
     centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, d: np.ndarray
@@ -28,26 +30,39 @@ def sphere_hits(
     r2 = radii**2
     # Only spheres ahead of the origins and near the rays' line can be hit.
     reach = float(np.linalg.norm(o, axis=1).max())
-    perp2 = np.einsum("sj,sj->s", c, c) - cd * cd
-    near_line = (cd + radii + reach > 0) & (perp2 <= (radii + reach) ** 2)
+    # the centres' offsets across `d` (|c|² − (c·d)² cancels for a far, small sphere)
+    c_x = c - cd[:, None] * d
+    near_line = (cd + radii + reach > 0) & (np.einsum("sj,sj->s", c_x, c_x) <= (radii + reach) ** 2)
     idx = np.flatnonzero(near_line)
     out = np.full(len(origins), np.inf)
     if idx.size == 0:
         return out
-    c, cd, r2 = c[idx], cd[idx], r2[idx]
+    c, cd, r2, c_x = c[idx], cd[idx], r2[idx], c_x[idx]
     b = cd[None, :] - (o @ d)[:, None]  # (k, S')
     oc2 = (
         np.einsum("sj,sj->s", c, c)[None, :]
         - 2.0 * (o @ c.T)
         + np.einsum("kj,kj->k", o, o)[:, None]
     )
-    disc = b * b - (oc2 - r2[None, :])
-    with np.errstate(invalid="ignore"):
-        root = np.sqrt(disc)
-        near, far = b - root, b + root
-        t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
-    t = np.where(disc >= 0, t, np.inf)
+    # the rays' distance² from each centre, from the parts across `d` (each ≲ R + reach)
+    o_x = o - (o @ d)[:, None] * d
+    perp2 = (
+        np.einsum("sj,sj->s", c_x, c_x)[None, :]
+        - 2.0 * (o_x @ c_x.T)
+        + np.einsum("kj,kj->k", o_x, o_x)[:, None]
+    )
+    t = _first_hit(b, oc2 - r2[None, :], r2[None, :] - perp2)
     return np.minimum(out, t.min(axis=1))
+
+
+def _first_hit(b, c, disc):
+    """Nearest t > 0 (inf: none) of ``t² − 2bt + c = 0`` (``b``: the centre's distance
+    along the ray, ``c = |origin − centre|² − R²``) given its discriminant as
+    ``R² − perp²`` (SPEC §4.3: ``b² − c`` cancels for a small, far sphere), with the
+    one stable root pair (`core.lens.sphere.sphere_roots`)."""
+    near, far = sphere_roots(-b, disc, c)
+    t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
+    return np.where(disc >= 0, t, np.inf)
 
 
 def box_entries(
@@ -164,24 +179,28 @@ def sphere_hits_bundles(
         if bi.size == 0:
             continue
         c = centers[si] - ref[b0 + bi]  # (P, 3), relative as in `sphere_hits`
-        cdp = np.einsum("pj,pj->p", c, d[b0 + bi])
+        dp = d[b0 + bi]
+        cdp = np.einsum("pj,pj->p", c, dp)
         ccp = np.einsum("pj,pj->p", c, c)
+        c_x = c - cdp[:, None] * dp  # across the ray, as in `sphere_hits`
         keep = (cdp + radii[si] + reach[b0 + bi] > 0) & (
-            ccp - cdp * cdp <= (radii[si] + reach[b0 + bi]) ** 2
+            np.einsum("pj,pj->p", c_x, c_x) <= (radii[si] + reach[b0 + bi]) ** 2
         )
         si, bi, cp, cdp, ccp = si[keep], bi[keep], c[keep], cdp[keep], ccp[keep]
+        dp, c_x = dp[keep], c_x[keep]
         op = o[b0 + bi]  # (P, k, 3)
         b = cdp[:, None] - np.einsum("pkj,pj->pk", op, d[b0 + bi])
         oc2 = (
             ccp[:, None] - 2.0 * np.einsum("pkj,pj->pk", op, cp) + np.einsum("pkj,pkj->pk", op, op)
         )
-        disc = b * b - (oc2 - (radii[si] ** 2)[:, None])
-        with np.errstate(invalid="ignore"):
-            root = np.sqrt(disc)
-            near, far = b - root, b + root
-            t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
-        t = np.where(disc >= 0, t, np.inf)
-        np.minimum.at(out, b0 + bi, t)
+        o_x = op - np.einsum("pkj,pj->pk", op, dp)[..., None] * dp[:, None, :]
+        perp2 = (
+            np.einsum("pj,pj->p", c_x, c_x)[:, None]
+            - 2.0 * np.einsum("pkj,pj->pk", o_x, c_x)
+            + np.einsum("pkj,pkj->pk", o_x, o_x)
+        )
+        r2 = (radii[si] ** 2)[:, None]
+        np.minimum.at(out, b0 + bi, _first_hit(b, oc2 - r2, r2 - perp2))
     return out
 
 
