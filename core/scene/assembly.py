@@ -213,12 +213,6 @@ def lens_materials(ior, kt, mode, ior_override):
     return ior, kt, kt.copy()
 
 
-def lens_material(optics: MaterialOptics, mode: str, ior_override: float | None = None):
-    """`lens_materials` of one sphere (floats)."""
-    ior, kt, weight = lens_materials([optics.ior], [optics.transmission], [mode], [ior_override])
-    return float(ior[0]), float(kt[0]), float(weight[0])
-
-
 def surface_block(optics: MaterialOptics, color) -> Surface:
     """Thesis surface block for a sphere (the Phong numbers are approximations for
     the `.bi` exporter: ka 0.1, kd 0.8(1 − kt), ks 0.2 for glass else 0.1, E 80)."""

@@ -19,7 +19,6 @@ from core.scene.assembly import (
     box_fit_failure,
     box_fit_failures,
     groups_of,
-    lens_material,
     lens_materials,
     perspective_fov,
     render_size,
@@ -128,11 +127,7 @@ def test_one_objects_rules():
     assert uses_light_nodes(LightNodes(("ShaderNodeOutputLight",), 0))
     opaque = MaterialOptics(ior=1.45, transmission=0.0)
     glass = MaterialOptics(ior=1.33, transmission=0.8)
-    assert lens_material(glass, "AUTO") == (1.33, 0.8, 0.8)
-    assert lens_material(glass, "NEVER", 1.7) == (1.33, 0.0, 0.0)
-    assert lens_material(opaque, "ALWAYS") == (1.5, 1.0, 1.0)
-    assert lens_material(glass, "ALWAYS", 1.7) == (1.7, 0.8, 0.8)
-    # the rules at once: one row per sphere, the same numbers as one at a time
+    # the rules on all spheres at once, one row each, against the rules by hand
     rows = [(glass, "AUTO", None), (glass, "NEVER", 1.7), (opaque, "ALWAYS", None)]
     rows += [(glass, "ALWAYS", 1.7), (opaque, "AUTO", 1.2), (opaque, "NEVER", None)]
     ior, kt, weight = lens_materials(
@@ -141,9 +136,14 @@ def test_one_objects_rules():
         [m for _, m, _ in rows],
         [x for _, _, x in rows],
     )
-    one = [lens_material(*row) for row in rows]
-    assert list(zip(ior.tolist(), kt.tolist(), weight.tolist(), strict=True)) == one
-    assert one[4] == (1.2, 0.0, 0.0) and one[5] == (1.45, 0.0, 0.0)
+    assert list(zip(ior.tolist(), kt.tolist(), weight.tolist(), strict=True)) == [
+        (1.33, 0.8, 0.8),  # the material decides
+        (1.33, 0.0, 0.0),  # NEVER: opaque, the override ignored
+        (1.5, 1.0, 1.0),  # ALWAYS on an opaque material: clear glass of IOR 1.5
+        (1.7, 0.8, 0.8),  # ALWAYS on glass: its transmission, the override's IOR
+        (1.2, 0.0, 0.0),  # an opaque AUTO sphere keeps its override but stays opaque
+        (1.45, 0.0, 0.0),
+    ]
     assert box_fit_failure(np.array([2.0, 2.0, 1.9])) is None
     fits = box_fit_failures(np.array([[2.0, 2.0, 1.9], [np.nan, 1.0, 1.0], [2.0, 2.0, 1.0]]))
     assert fits[0] is None
