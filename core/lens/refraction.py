@@ -17,8 +17,6 @@ __all__ = [
     "fresnel_from_cosines",
     "fresnel_transmittance",
     "fresnel_reflectance",
-    "unpolarised_transmittance",
-    "unpolarised_reflectance",
 ]
 
 
@@ -120,15 +118,3 @@ def fresnel_reflectance(cos_i, n1, n2):
         r_s = np.where(den_s > 0.0, ((n1 * c_i - n2 * c_t) / np.where(den_s > 0, den_s, 1)), 1.0)
         r_p = np.where(den_p > 0.0, ((n1 * c_t - n2 * c_i) / np.where(den_p > 0, den_p, 1)), 1.0)
     return np.where(tir, 1.0, r_s * r_s), np.where(tir, 1.0, r_p * r_p)
-
-
-def unpolarised_transmittance(cos_i, n1, n2):
-    """Transmittance of unpolarised light at one surface, ``(t_s + t_p)/2``."""
-    t_s, t_p = fresnel_transmittance(cos_i, n1, n2)
-    return 0.5 * (t_s + t_p)
-
-
-def unpolarised_reflectance(cos_i, n1, n2):
-    """Reflectance of unpolarised light at one surface, ``(r_s + r_p)/2``."""
-    r_s, r_p = fresnel_reflectance(cos_i, n1, n2)
-    return 0.5 * (r_s + r_p)
