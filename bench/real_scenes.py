@@ -5,7 +5,7 @@ EEVEE (tier AUTO), against the reference tracer (`reference`).
 
 Scenes: a 2 cm glass marble resting on a table under a point light 1 m away, from
 above and at 60° elevation (and a sweep 90°…20° unless --quick), a point light of
-radius 0.1 m, a sun, a spot and a disk area light over it, and the floating ball
+radius 0.1 m, a sun overhead and at 70°, a spot and a disk area light over it, and the floating ball
 of `bench/render_compare.py` (R 5 cm, 10 cm over the table, the light 25 cm above
 its centre). Each is the measuring scene of `scripts/measuring_scene.py` (white
 Lambertian table, orthographic top camera over the lens's shadow, linear EXR, no
@@ -72,6 +72,12 @@ def point_at(elevation_deg, distance, center):
     return (center[0] - distance * math.cos(e), center[1], center[2] + distance * math.sin(e))
 
 
+def sun_toward(elevation_deg):
+    """A sun's direction of travel at `elevation_deg`, coming from −x (as `point_at`)."""
+    e = math.radians(elevation_deg)
+    return (math.cos(e), 0.0, -math.sin(e))
+
+
 def cases(quick):
     c = (0.0, 0.0, MARBLE)
     out = [
@@ -103,6 +109,13 @@ def cases(quick):
             MARBLE,
             MARBLE,
             dict(kind="SUN", direction=(0.0, 0.0, -1.0), strength=10.0, angle=math.radians(0.5)),
+        ),
+        Case(
+            "sun_70",
+            "marble resting, sun (0.5°) at 70°",
+            MARBLE,
+            MARBLE,
+            dict(kind="SUN", direction=sun_toward(70), strength=10.0, angle=math.radians(0.5)),
         ),
         Case(
             "spot",
@@ -430,6 +443,7 @@ def main():
     ap.add_argument("--eevee-samples", type=int, default=16)
     ap.add_argument("--rays", type=float, default=2e6)
     ap.add_argument("--no-eevee", action="store_true")
+    ap.add_argument("--no-cycles", action="store_true")
     ap.add_argument("--issue14", action="store_true", help="issue 14's floating-ball table")
     ap.add_argument("--report", default="real_scenes", help="report name in reports/")
     args = ap.parse_args()
@@ -451,12 +465,16 @@ def main():
                 flush=True,
             )
             maps = [E, None, None]
-            runs = [("CYCLES", "Cycles AUTO", True)]
-            runs += [
-                ("CYCLES", "Cycles AUTO, default paths", False)
-                for v in case.variants
-                if v == "default_paths"
-            ]
+            runs = [] if args.no_cycles else [("CYCLES", "Cycles AUTO", True)]
+            runs += (
+                []
+                if args.no_cycles
+                else [
+                    ("CYCLES", "Cycles AUTO, default paths", False)
+                    for v in case.variants
+                    if v == "default_paths"
+                ]
+            )
             if not args.no_eevee:
                 runs.append((eevee_id(), "EEVEE AUTO", True))
             for engine, label, replace in runs:
