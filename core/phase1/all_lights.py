@@ -9,7 +9,9 @@
 * a sun is the limit ``D → ∞`` (SPEC §4.1, §10): ``V = P``, the image at the back
   focal point ``f = nR/(2(n − 1))`` from the centre, the spreading angle of eq.
   5.14 at ``α = 0``; obstruction with parallel rays (the thesis' cone tests become
-  cylinder tests, :func:`sun_blockers`). Its row carries the equivalent distance
+  cylinder tests, :func:`sun_blockers`; the union of the partial blockers' shadows over
+  the lens's disc, a glass blocker passing its Fresnel share, as for point lights:
+  :func:`sun_union`). Its row carries the equivalent distance
   ``D = SUN_DISTANCE·R`` and the emission ``D²`` (times its nominal ``4π S``: the
   irradiance ``S`` at the lens), so every tier's point-light formula gives the
   sun's limit, and its radius ``D tan(a/2)`` images to ``f tan(a/2)``.
@@ -39,6 +41,7 @@ from .point_lights import (
     sphere_problems,
     take,
 )
+from .shadow_mask import union_unblocked
 from .skip_reasons import Reason
 
 
@@ -112,7 +115,7 @@ def sun_sources(spheres: SceneArrays, pa: PrimaryArrays, j: int) -> tuple[Source
     lens = problem < 0
     lenses = np.flatnonzero(lens)
     total, rows, offsets, shadow, unblocked = sun_blockers(
-        spheres.center, spheres.radius, u, lenses, valid
+        spheres.center, spheres.radius, u, lenses, valid, spheres.ior, spheres.kt
     )
     skip_l = [np.flatnonzero(~lens & (problem >= 0)), lenses[total >= 0]]
     skip_c = [problem[skip_l[0]], np.full(int((total >= 0).sum()), point_lights.TOTALLY_BLOCKED)]
@@ -160,15 +163,17 @@ def sun_sources(spheres: SceneArrays, pa: PrimaryArrays, j: int) -> tuple[Source
     )
 
 
-def sun_blockers(center, radius, u, lenses, obstacle):
+def sun_blockers(center, radius, u, lenses, obstacle, ior=None, kt=None):
     """The thesis' obstruction for parallel rays along the unit `u`: sphere k blocks
     (part of) lens i iff it lies upstream (``C_k·u < C_i·u``, the limit of
     ``R_T,k < R_T,i``) and its disc projected along `u` overlaps the lens's
     (``R_i + R_k ≥ ρ``, ρ the projected distance of the centres); all of it iff
-    ``R_k ≥ ρ + R_i``. The unblocked share is ``∏(1 − overlap_k/(π R_i²))`` (a
-    sun's flux is uniform over the lens's disc). Returns per lens row: the
-    nearest total blocker (or −1), and the partial blockers as CSR (rows, offsets,
-    spheres) with the unblocked share."""
+    ``R_k ≥ ρ + R_i``. The unblocked share is the union of the partial blockers'
+    shadows over the lens's disc (a sun's flux is uniform over it), a glass
+    blocker (`ior`, `kt` per sphere; None: all opaque) passing its Fresnel share
+    (:func:`sun_union`). Returns per lens row: the nearest total blocker (or −1),
+    and the partial blockers as CSR (rows, offsets, spheres) with the unblocked
+    share."""
     center = np.asarray(center, float)
     radius = np.asarray(radius, float)
     e1 = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
@@ -199,12 +204,62 @@ def sun_blockers(center, radius, u, lenses, obstacle):
     cover = disc_overlap(ri[partial], rk[partial], rho[partial]) / (math.pi * ri[partial] ** 2)
     order = np.lexsort((ok, rows))
     rows, ok, cover = rows[order], ok[order], cover[order]
-    unblocked = np.ones(n_rows)
-    np.multiply.at(unblocked, rows, 1.0 - np.clip(cover, 0.0, 1.0))
+    unblocked = sun_union(rows, ok, np.clip(cover, 0.0, 1.0), lenses, xy, radius, ior, kt)
     unblocked[total_blocker >= 0] = 0.0
     offsets = np.zeros(n_rows + 1, dtype=np.int64)
     np.add.at(offsets, rows + 1, 1)
     return total_blocker, rows, np.cumsum(offsets), ok, unblocked
+
+
+#: Angle (rad) the whole of one lens's blockers spans in `sun_union`'s stand-in view:
+#: its caps are the discs to a relative ~`_SUN_VIEW`² (1e-6), far below the union's
+#: own quadrature error (1e-3), and large enough for the caps' stable forms.
+_SUN_VIEW = 1e-3
+
+
+def sun_union(rows, obst, cover, lenses, xy, radius, ior=None, kt=None) -> np.ndarray:
+    """The unblocked share of each lens row (``len(lenses)``) of a sun: the union of
+    its partial blockers' shadows (pairs ``rows``, ``obst`` sorted by row; ``cover``
+    each one's share of the lens's disc; ``xy`` the centres projected across the
+    rays; glass by `ior`, `kt`), by the point lights' `shadow_mask.union_unblocked`
+    on a stand-in view. Parallel rays see discs on a plane; a point light sees caps
+    on its sphere of directions, and a small patch of that sphere is the plane to
+    second order. So each row gets its own copy of its lens, at the pole, and of its
+    blockers, placed about it azimuthally equidistant (their distance to the lens,
+    ρ, exact) and scaled so that the row spans `_SUN_VIEW`: a glass blocker's
+    incidence (sin ι = impact parameter / radius) and every overlap are then the
+    parallel rays' to ~1e-6."""
+    n_rows = len(lenses)
+    rows = np.asarray(rows, dtype=np.int64)
+    obst = np.asarray(obst, dtype=np.int64)
+    if rows.size == 0:
+        return np.ones(n_rows)
+    lens = np.asarray(lenses, dtype=np.int64)[rows]
+    d = xy[obst] - xy[lens]
+    rho = np.hypot(d[:, 0], d[:, 1])
+    span = radius[np.asarray(lenses, dtype=np.int64)].astype(float)
+    np.maximum.at(span, rows, rho + radius[obst])
+    scale = _SUN_VIEW / span
+    theta = scale[rows] * rho  # the pair's angle lens–blocker
+    phi = np.arctan2(d[:, 1], d[:, 0])
+    direction = np.concatenate(
+        [
+            np.broadcast_to((0.0, 0.0, 1.0), (n_rows, 3)),
+            np.column_stack(
+                [np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)]
+            ),
+        ]
+    )
+    ang = np.concatenate([scale * radius[lenses], scale[rows] * radius[obst]])
+    if ior is None or kt is None:
+        ior_v = kt_v = None
+    else:
+        ior_v = np.concatenate([np.ones(n_rows), np.asarray(ior, dtype=float)[obst]])
+        kt_v = np.concatenate([np.zeros(n_rows), np.asarray(kt, dtype=float)[obst]])
+    copies = n_rows + np.arange(rows.size)
+    return union_unblocked(
+        rows, copies, cover, np.arange(n_rows), direction, ang, ior_v, kt_v, gamma=theta
+    )
 
 
 def disc_overlap(a, b, d):
