@@ -12,6 +12,7 @@ from ...core.plan.cycles_caustics import (
     Change,
     describe,
     double_light_warning,
+    kept_on_warning,
     planned_changes,
     should_restore,
 )
@@ -26,16 +27,16 @@ def scene_values(scene) -> dict:
     return {p: getattr(cy, p) for p, _ in SCENE_SETTINGS if cy is not None and hasattr(cy, p)}
 
 
-def replace(scene, lens_objects) -> list[Change]:
-    """Turn the Cycles caustics of `lens_objects` (and the scene's) off; record
-    each change. Returns the changes."""
+def replace(scene, lens_objects, keep_scene: bool = False) -> list[Change]:
+    """Turn the Cycles caustics of `lens_objects` (and the scene's, unless
+    `keep_scene`) off; record each change. Returns the changes."""
     lenses = {ob.name: ob for ob in lens_objects if ob is not None}
     lens_values = {}
     for name, ob in lenses.items():
         cy = _settings(ob)
         if cy is not None:
             lens_values[name] = {p: getattr(cy, p) for p, _ in LENS_SETTINGS if hasattr(cy, p)}
-    changes = planned_changes(scene_values(scene), lens_values)
+    changes = planned_changes(scene_values(scene), lens_values, keep_scene)
     record = scene.lens_lights.replaced
     for c in changes:
         owner = scene if c.owner == SCENE else lenses[c.owner]
@@ -66,14 +67,28 @@ def restore(scene) -> list[Change]:
     return undone
 
 
-def after_build(scene, plan, read, made: int) -> str:
+def after_build(scene, plan, read, made: int) -> tuple[str, bool]:
     """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
-    Cycles' own caustics of the lenses that got lens lights off; else say when they
-    will be rendered twice. Returns the report's words ('' for nothing)."""
+    Cycles' own caustics of the lenses that got lens lights off — but not the
+    scene-wide switch while the scene holds glass Lens Lights does not model
+    (``read.unmodelled_glass``: it would lose its caustic), which is then named;
+    else say when they will be rendered twice. Returns the report's words ('' for
+    nothing) and whether they are a warning."""
     if not made:
-        return ""
+        return "", False
+    engine = scene.render.engine
     if scene.lens_lights.replace_cycles_caustics:
-        lenses = {read.sphere_objects[p.source.lens] for p in plan.lights}
-        note = describe(replace(scene, sorted(lenses, key=lambda ob: ob.name)))
-        return note + (" (Clear restores them)" if note else "")
-    return double_light_warning(scene.render.engine, scene_values(scene), made)
+        lenses = sorted({read.sphere_objects[p.source.lens] for p in plan.lights}, key=_name)
+        glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
+        values = scene_values(scene)
+        changes = replace(scene, lenses, keep_scene=bool(glass))
+        note = describe(changes)
+        note += " (Clear restores them)" if note else ""
+        warning = kept_on_warning(engine, values, glass, [ob.name for ob in lenses])
+        return "; ".join(x for x in (note, warning) if x), bool(warning)
+    warning = double_light_warning(engine, scene_values(scene), made)
+    return warning, bool(warning)
+
+
+def _name(ob):
+    return ob.name

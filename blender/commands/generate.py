@@ -19,7 +19,8 @@ Generate works in two stages, so that a failure never leaves the scene half-done
 A failure in stage 1 is reported and changes nothing (the operator is cancelled);
 one in stage 2 removes what was made and is reported. Generate never raises.
 
-The report (`report.report_message`) says how many lights were made, which pairs
+The report (`report.report_message`) says how many lens lights and caustic layers
+were made (each by its name), which pairs
 got none and why (the first few by name, then counts per reason), how many
 sources were merged, and which share of the lenses' estimated flux has no light.
 The figures are kept in `scene.lens_lights.last_*` for the panel and, with the
@@ -35,7 +36,13 @@ import traceback
 import bpy
 
 from ...core.plan.cycles_caustics import describe as describe_caustics
-from ...core.report.message import error_text, linking_note, linking_sets_note, report_message
+from ...core.report.message import (
+    error_text,
+    linking_note,
+    linking_sets_note,
+    made_text,
+    report_message,
+)
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
 from ..build import cleanup, cycles_caustics, lights
@@ -70,6 +77,7 @@ class _Progress:
 def _store(settings, message, figures):
     settings.last_run = True
     settings.last_created = figures.get("created", 0)
+    settings.last_layers = figures.get("layers", 0)
     settings.last_sources = figures.get("sources", 0)
     settings.last_skipped = figures.get("skipped", 0)
     settings.last_primaries = figures.get("primaries", 0)
@@ -121,7 +129,9 @@ def generate(context):
                     progress=lambda k: progress(60 + 40 * k / total),
                     arrays=work.read.arrays,
                 )
-            caustics_note = cycles_caustics.after_build(scene, plan, work.read, len(made))
+            caustics_note, caustics_warn = cycles_caustics.after_build(
+                scene, plan, work.read, len(made)
+            )
         except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
             try:
@@ -137,14 +147,21 @@ def generate(context):
         work.timings["build"] = time.perf_counter() - t
         progress(100)
 
+    made_lights = sum(1 for ob in made if ob.type == "LIGHT")
+    made_layers = len(made) - made_lights  # the caustic layers' meshes
     try:
         level, message, figures = report_message(
-            work, len(made), read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER)
+            work,
+            made_lights,
+            layers=made_layers,
+            read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER),
         )
     except Exception as exc:  # the lights are made: say so
         traceback.print_exc()
-        level, figures = "WARNING", dict(created=len(made))
-        message = f"Created {len(made)} lens lights; " + error_text("write the report", exc)
+        level, figures = "WARNING", dict(created=made_lights, layers=made_layers)
+        message = f"Created {made_text(made_lights, made_layers)}; " + error_text(
+            "write the report", exc
+        )
     if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)
@@ -162,7 +179,7 @@ def generate(context):
         message = f"{message}; {sets_note}"
     if caustics_note:
         message = f"{message}; {caustics_note}"
-        if caustics_note.startswith("Cycles' refractive caustics are on"):
+        if caustics_warn:
             level = "WARNING" if level == "INFO" else level
     figures["energy_model"] = options["energy_model"]
     figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
@@ -206,11 +223,13 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
+        lights_made = sum(1 for ob in lights.created_objects(context.scene) if ob.type == "LIGHT")
         removed = cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
-        settings.last_created = 0
-        settings.last_report = f"Removed {removed} lens light{'s' if removed != 1 else ''}"
+        settings.last_created = settings.last_layers = 0
+        lights_made = min(lights_made, removed)
+        settings.last_report = f"Removed {made_text(lights_made, removed - lights_made)}"
         if restored:
             settings.last_report += "; " + describe_caustics(restored, verb="restored")
         self.report({"INFO"}, settings.last_report)

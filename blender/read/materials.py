@@ -2,7 +2,8 @@
 nodes feeding the active output become the plain-data tree of
 `core.lens.glass` (Principled, Glass, Refraction, Mix, Add, Volume
 Absorption; other nodes are opaque), which `evaluate_material` turns into lens
-optics (`material_optics`). Unlinked input values are read; a Value or RGB node
+optics (`material_optics`; the Principled BSDF's Thin Wall, 5.x, is read too: a
+shell, no lens). Unlinked input values are read; a Value or RGB node
 feeding an input gives its value; anything else driving an input is noted and the
 socket's own value used. Muted nodes and links are skipped, reroutes followed.
 """
@@ -44,6 +45,12 @@ def _input_value(node, name, default, notes):
         return float(value)
 
 
+def _thin_wall(node, notes) -> bool:
+    """Principled BSDF's Thin Wall (a boolean input from Blender 5.0; 4.5 has none)."""
+    value = _input_value(node, "Thin Wall", False, notes)
+    return bool(value) if isinstance(value, (bool, float, int)) else False
+
+
 def _shader(socket, notes, depth=0):
     """Plain-data shader tree (`core.lens.glass`) of what feeds `socket`."""
     if socket is None or not socket.is_linked or depth > 64:
@@ -67,6 +74,7 @@ def _shader(socket, notes, depth=0):
             metallic=_input_value(node, "Metallic", 0.0, notes),
             alpha=_input_value(node, "Alpha", 1.0, notes),
             name=node.name,
+            thin_wall=_thin_wall(node, notes),
         )
     if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
         return Bsdf(

@@ -59,6 +59,7 @@ Rules:
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import warnings
@@ -68,6 +69,7 @@ import mathutils
 import numpy as np
 
 from ...core.lens.glass import MaterialOptics
+from ...core.lens.mesh_shape import mesh_shape, shape_reason
 from ...core.lens.sphere_fit import fit_sphere
 from ...core.scene.assembly import (
     RENDER,
@@ -162,11 +164,41 @@ def _content_fit(mesh):
     return fit
 
 
+#: Shape words (`core.lens.mesh_shape`) of the glass meshes read before, by content.
+_SHAPES: dict[bytes, str] = {}
+
+
+def _content_shape(mesh) -> str:
+    """`mesh_shape` of an evaluated mesh (its edges of one face counted from its
+    loops), remembered by content across reads (`_SHAPES`)."""
+    digest, v, normals = _fingerprint(mesh)
+    shape = _SHAPES.get(digest)
+    if shape is None:
+        edges = np.empty(len(mesh.loops), dtype=np.int32)
+        mesh.loops.foreach_get("edge_index", edges)
+        uses = np.bincount(edges, minlength=len(mesh.edges))
+        centres, areas = _face_centres_areas(mesh)
+        shape = mesh_shape(v, centres, normals, areas, int(np.count_nonzero(uses == 1)))
+        if len(_SHAPES) >= _FITS_MAX:
+            _SHAPES.clear()
+        _SHAPES[digest] = shape
+    return shape
+
+
+def _is_glass(record) -> bool:
+    """Whether a record's material passes light (or it is forced a lens): its
+    shape is worth naming when it is no sphere."""
+    o = record.optics
+    return record.mode == "ALWAYS" or (o is not None and (o.is_transmissive or o.thin_wall > 0))
+
+
 def fit_meshes(records, meshes) -> None:
     """Fill in each mesh record's local sphere fit (`GeometryRecord.fit`; `meshes`:
     the evaluated mesh of each record, None for the others), after the walk: the
     bounding boxes are tested at once (`box_fit_failures`), then each mesh not ruled
-    out by the box of its first record is fitted once (`_content_fit`)."""
+    out by the box of its first record is fitted once (`_content_fit`). A glass
+    mesh that is no sphere gets the reason in its shape's words (`_content_shape`:
+    "a cylinder, not a sphere")."""
     rows = [k for k, mesh in enumerate(meshes) if mesh is not None]
     boxed = [k for k in rows if records[k].corners is not None]
     corners = np.array([records[k].corners for k in boxed], dtype=float).reshape(-1, 8, 3)
@@ -174,12 +206,17 @@ def fit_meshes(records, meshes) -> None:
     failed = dict(zip(boxed, box_fit_failures(extents), strict=True))
     by_mesh: dict = {}
     for k in rows:
-        key = meshes[k].as_pointer()
+        glass = _is_glass(records[k])
+        key = (meshes[k].as_pointer(), glass)
         fit = by_mesh.get(key)
         if fit is None:
             fit = failed.get(k)
             if fit is None:
                 fit = _content_fit(meshes[k])
+            if not fit.ok and glass:
+                shape = _content_shape(meshes[k])
+                if shape:
+                    fit = dataclasses.replace(fit, reason=shape_reason(shape))
             by_mesh[key] = fit
         records[k].fit = fit
 

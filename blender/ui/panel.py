@@ -98,6 +98,8 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
             box.label(text="Not run yet", icon="INFO")
             return
         grid = box.grid_flow(columns=2, even_columns=True, align=True)
+        if settings.last_layers:
+            _figure(grid, "Caustic layers: {}", settings.last_layers)
         _figure(grid, "Lens lights: {}", settings.last_created)
         _figure(grid, "Sources: {}", settings.last_sources)
         _figure(grid, "Lights: {}", settings.last_primaries)

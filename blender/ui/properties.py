@@ -124,7 +124,10 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         description=(
             "Turn Cycles' own caustics of the lenses off while they have lens lights "
             "(refractive caustics of the scene, shadow caustics of each lens), so that "
-            "no caustic is rendered twice; Clear restores them"
+            "no caustic is rendered twice; Clear restores them. The scene's refractive "
+            "caustics stay on (with a warning naming it) while it holds glass Lens "
+            "Lights does not model (a glass cylinder, box, ellipsoid, thin-walled glass), "
+            "which would lose its caustic"
         ),
     )
     live_update: BoolProperty(
@@ -141,6 +144,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     # The last run's figures (shown in the panel).
     last_run: BoolProperty(default=False, options={"HIDDEN"})
     last_created: IntProperty(name="Created", default=0)
+    last_layers: IntProperty(name="Caustic Layers", default=0)
     last_sources: IntProperty(name="Secondary Sources", default=0)
     last_skipped: IntProperty(name="Skipped Pairs", default=0)
     last_primaries: IntProperty(name="Lights", default=0)

@@ -45,6 +45,7 @@ class Bsdf:
     metallic: float = 0.0  # Principled
     alpha: float = 1.0  # Principled
     name: str = ""  # node name, for notes
+    thin_wall: bool = False  # Principled's Thin Wall (5.x): a shell, no refraction
 
 
 @dataclass(frozen=True)
@@ -74,6 +75,8 @@ class MaterialOptics:
     absorption: Color = (0.0, 0.0, 0.0)  # σ per unit length
     color: Color = (0.8, 0.8, 0.8)  # the shaders' own colour (weighted mean), for `.bi`
     notes: list[str] = field(default_factory=list)
+    #: Share of light a thin wall (Principled's Thin Wall) passes without refracting.
+    thin_wall: float = 0.0
 
     @property
     def is_transmissive(self) -> bool:
@@ -108,13 +111,20 @@ def path_tint(b: Bsdf) -> Color:
     return c
 
 
-def refracting_share(b: Bsdf) -> float:
-    """Share of a lobe's light that refracts (see the module's rules)."""
+def transmitted_share(b: Bsdf) -> float:
+    """Share of a lobe's light that it transmits through its surface (refracted, or
+    straight through a thin wall)."""
     if b.kind in (GLASS, REFRACTION):
         return 1.0
     if b.kind == PRINCIPLED:
         return _clamp01(b.transmission) * (1.0 - _clamp01(b.metallic)) * _clamp01(b.alpha)
     return 0.0
+
+
+def refracting_share(b: Bsdf) -> float:
+    """Share of a lobe's light that refracts (see the module's rules): none through
+    a thin wall."""
+    return 0.0 if b.thin_wall else transmitted_share(b)
 
 
 def evaluate_material(surface, volume=None) -> MaterialOptics:
@@ -126,7 +136,10 @@ def evaluate_material(surface, volume=None) -> MaterialOptics:
     ior_sum = 0.0
     tint = [0.0, 0.0, 0.0]
     iors = set()
+    thin = 0.0
     for w, b in lobes:
+        if b.thin_wall:
+            thin += w * transmitted_share(b)
         t = w * refracting_share(b)
         if t <= 0.0:
             continue
@@ -135,7 +148,13 @@ def evaluate_material(surface, volume=None) -> MaterialOptics:
         iors.add(round(float(b.ior), 6))
         for k, c in enumerate(path_tint(b)):
             tint[k] += t * c
-    optics = MaterialOptics(notes=notes)
+    optics = MaterialOptics(notes=notes, thin_wall=min(thin, 1.0))
+    if thin > 0.0:
+        names = ", ".join(f"'{b.name}'" for _w, b in lobes if b.thin_wall and b.name)
+        notes.append(
+            f"Thin Wall on{' in ' + names if names else ''}: a thin shell passes light "
+            "without focusing it"
+        )
     weights = sum(w for w, _ in lobes)
     if weights > 0.0:
         optics.color = tuple(

@@ -8,9 +8,15 @@ estimation (MNEE) when the lens is a caustics caster
 (``object.cycles.is_caustics_caster``, with a caster-flagged receiver and light).
 A lens light already adds that caustic, so with "Replace Cycles' Caustics" on,
 Generate turns both off: scene-wide for path tracing (Blender has no per-object
-switch for it), per lens for MNEE. Every change is a `Change` the Blender side
-records (`blender.build.cycles_caustics`); Clear puts back each value that is still
-the one Generate set (a value the user changed since is theirs).
+switch for it), per lens for MNEE. But when the scene holds glass Lens Lights does
+not model (a glass cylinder, a cube, an ellipsoid, thin-walled glass …), turning
+path tracing's caustics off would take that glass's caustic (and, in Cycles, the
+light it lets through onto what lies behind it) away: then the scene-wide switch
+stays on and the report warns, naming that glass and the cost — Cycles' own caustic
+of the lenses is added to their lens lights' (`kept_on_warning`). Every change is
+a `Change` the Blender side records (`blender.build.cycles_caustics`); Clear puts
+back each value that is still the one Generate set (a value the user changed since
+is theirs).
 """
 
 from __future__ import annotations
@@ -38,14 +44,18 @@ class Change:
     new: bool
 
 
-def planned_changes(scene_values: dict, lens_values: dict) -> list[Change]:
+def planned_changes(
+    scene_values: dict, lens_values: dict, keep_scene: bool = False
+) -> list[Change]:
     """The changes that turn Cycles' caustics of the lenses off: `scene_values`
     {prop: value} of the scene's Cycles settings, `lens_values` {lens name: {prop:
-    value}} of each lens that got a lens light. Only values that differ."""
+    value}} of each lens that got a lens light. Only values that differ;
+    `keep_scene`: leave the scene-wide settings (glass Lens Lights does not model
+    needs them)."""
     out = [
         Change(SCENE, p, bool(scene_values[p]), v)
         for p, v in SCENE_SETTINGS
-        if p in scene_values and bool(scene_values[p]) != v
+        if not keep_scene and p in scene_values and bool(scene_values[p]) != v
     ]
     for name in sorted(lens_values):
         values = lens_values[name]
@@ -72,6 +82,34 @@ def describe(changes, verb: str = "turned off") -> str:
         what = _WHAT.get(c.prop, c.prop)
         parts.append(what if c.owner == SCENE else f"{what} of {c.owner}")
     return f"Cycles' own caustics {verb} (the lens lights replace them): " + ", ".join(parts)
+
+
+#: How many names a warning lists before "and N more".
+NAMES_SHOWN = 3
+
+
+def _names(names) -> str:
+    names = list(names)
+    shown = ", ".join(names[:NAMES_SHOWN])
+    more = len(names) - NAMES_SHOWN
+    return shown + (f" and {more} more" if more > 0 else "")
+
+
+def kept_on_warning(engine: str, scene_values: dict, glass, lenses) -> str:
+    """The warning when Replace Cycles' Caustics left path tracing's refractive
+    caustics on for the `glass` (names) that Lens Lights does not model, while
+    the `lenses` (names) got lens lights; '' when the switch is off anyway or the
+    engine is not Cycles."""
+    if not glass or engine != "CYCLES" or not scene_values.get("caustics_refractive", False):
+        return ""
+    return (
+        f"Cycles' refractive caustics left on: Lens Lights does not model the glass of "
+        f"{_names(glass)}, whose caustics only Cycles renders (turning them off would "
+        f"lose them); so Cycles also renders its own caustic of {_names(lenses)} on top of "
+        "the lens lights' (for lights with a radius, about 20 % more light in those caustics: "
+        "reports/real_scenes.md). To drop it, turn Render › Light "
+        "Paths › Caustics › Refractive off (that glass then casts no caustic)"
+    )
 
 
 def double_light_warning(engine: str, scene_values: dict, lights_made: int) -> str:

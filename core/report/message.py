@@ -53,10 +53,33 @@ def plural(n, word, many=None):
     return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
-def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[str, str, dict]:
-    """(level, message, figures) of a run that made `made` lights;
-    `read_as_rendered`: False when the scene was read as the viewport shows it
-    (`work.read.how` says why)."""
+def made_text(lights: int, layers: int = 0) -> str:
+    """What a run made, in the words of what it is: "1 caustic layer", "2 caustic
+    layers and 1 lens light", "0 lens lights"."""
+    if not layers:
+        return plural(lights, "lens light")
+    text = plural(layers, "caustic layer")
+    return f"{text} and {plural(lights, 'lens light')}" if lights else text
+
+
+def left_out_text(left_out_lenses) -> str:
+    """The objects that look like lenses but are none, with why ("" for none)."""
+    if not left_out_lenses:
+        return ""
+    shown = "; ".join(f"{n} ({why})" for n, why in left_out_lenses[:REPORT_FIRST])
+    more = len(left_out_lenses) - REPORT_FIRST
+    return (
+        f"left out {plural(len(left_out_lenses), 'object')} (Lens Lights models solid glass "
+        f"spheres): {shown}" + (f"; and {more} more" if more > 0 else "")
+    )
+
+
+def report_message(
+    work, made: int, *, layers: int = 0, read_as_rendered: bool = True
+) -> tuple[str, str, dict]:
+    """(level, message, figures) of a run that made `made` lens lights and `layers`
+    caustic layers; `read_as_rendered`: False when the scene was read as the
+    viewport shows it (`work.read.how` says why)."""
     read, result, sel, plan = work.read, work.result, work.selection, work.plan
     lights = len(read.light_sources)
     lenses = int(np.count_nonzero(read.lens_candidates))
@@ -67,11 +90,14 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
         float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights if id(p.source) in rows
     )
     left_share = (1.0 - built / sel.flux_total) if sel.flux_total > 0 else 0.0
-    left_share = min(max(left_share, 0.0), 1.0) if made else (1.0 if sel.flux_total > 0 else 0.0)
+    any_made = made or layers
+    left_share = (
+        min(max(left_share, 0.0), 1.0) if any_made else (1.0 if sel.flux_total > 0 else 0.0)
+    )
 
     level = "INFO"
     parts = [
-        f"Created {plural(made, 'lens light')} ({plural(lights, 'light')}"
+        f"Created {made_text(made, layers)} ({plural(lights, 'light')}"
         f" × {plural(lenses, 'lens', 'lenses')})"
     ]
     if not lights:
@@ -95,14 +121,10 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
     if sel.budget.merged:
         parts.append(f"merged {plural(sel.budget.merged, 'source')} into nearby lens lights")
     if left_share > 0 and len(result.table):
-        parts.append(f"{100.0 * left_share:.3g}% of the lenses' flux has no lens light")
+        what = "is in no caustic layer or lens light" if layers else "has no lens light"
+        parts.append(f"{100.0 * left_share:.3g}% of the lenses' flux {what}")
     if read.left_out_lenses:
-        shown = "; ".join(f"{n}: {why}" for n, why in read.left_out_lenses[:REPORT_FIRST])
-        more = len(read.left_out_lenses) - REPORT_FIRST
-        parts.append(
-            f"left out {plural(len(read.left_out_lenses), 'object')}: {shown}"
-            + (f"; and {more} more" if more > 0 else "")
-        )
+        parts.append(left_out_text(read.left_out_lenses))
     notes = getattr(read, "light_notes", [])
     if notes:
         shown = "; ".join(f"{n}: {why}" for n, why in notes[:REPORT_FIRST])
@@ -112,6 +134,7 @@ def report_message(work, made: int, *, read_as_rendered: bool = True) -> tuple[s
         parts.append(f"scene read as the {read.how}")
     figures = dict(
         created=made,
+        layers=layers,
         sources=len(result.table),
         skipped=skipped,
         skipped_by_reason=counts,

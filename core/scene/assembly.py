@@ -37,6 +37,10 @@ DEFAULT_LENS_IOR = 1.5
 RENDER = "render"
 
 LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP = range(3)
+#: Why a sphere of thin-walled glass (Principled's Thin Wall, Blender 5.x) is no lens.
+THIN_WALL_REASON = "thin-walled glass (Thin Wall): a shell, which focuses nothing"
+#: Why a glass sphere with the lens mode Never is no lens.
+NEVER_REASON = "lens mode Never"
 
 
 @dataclass
@@ -69,6 +73,9 @@ class Groups:
     corners: np.ndarray  # G × 8 × 3 (NaN: none)
     reason: list  # OTHER_GROUP: why it is no sphere
     looks_like_lens: np.ndarray
+    #: Its material passes light through (refracts, or a thin wall): Cycles renders
+    #: a caustic of it whether or not it is a lens here.
+    glass: np.ndarray
     center: np.ndarray  # G × 3, local (spheres)
     radius: np.ndarray
     ior: np.ndarray
@@ -106,6 +113,9 @@ class BlenderSceneRead:
     #: (name, reason) of left-out objects that looked like lenses (refracting
     #: material or lens mode Always): the ones worth reporting to the user.
     left_out_lenses: list[tuple[str, str]] = field(default_factory=list)
+    #: (name, why it is no lens) of the rendered glass (a refracting or thin-walled
+    #: material) that is not a lens here: Cycles' own caustics are all it gets.
+    unmodelled_glass: list[tuple[str, str]] = field(default_factory=list)
     bounds: tuple[np.ndarray, np.ndarray] | None = None
     #: What blocks rays (`blender.read.occluders.Occluders`): valid while the depsgraph read is.
     occluders: object = None
@@ -276,6 +286,7 @@ def groups_of(records: Sequence) -> Groups:
         ).reshape(-1, 8, 3),
         reason=[""] * g,
         looks_like_lens=np.zeros(g, dtype=bool),
+        glass=np.zeros(g, dtype=bool),
         center=np.zeros((g, 3)),
         radius=np.zeros(g),
         ior=np.ones(g),
@@ -302,10 +313,18 @@ def groups_of(records: Sequence) -> Groups:
         m_kt = np.array([o.transmission for o in optics], dtype=float)
         m_mode = np.array([records[k].mode for k in meshes], dtype=object)
         transmissive = (m_kt > 0.0) & (m_ior > 1.0)
-        out.looks_like_lens[meshes] = (m_mode == "ALWAYS") | ((m_mode == "AUTO") & transmissive)
-    spheres = [k for k in meshes if records[k].fit.ok]
+        thin = np.array([o.thin_wall > 0.0 for o in optics], dtype=bool)
+        # A shell of thin-walled glass focuses nothing: no lens, whatever its shape.
+        shell = thin & ~transmissive & (m_mode == "AUTO")
+        out.looks_like_lens[meshes] = (
+            (m_mode == "ALWAYS") | ((m_mode == "AUTO") & transmissive) | shell
+        )
+        out.glass[meshes] = transmissive | thin
+        for k in np.asarray(meshes)[shell].tolist():
+            out.reason[k] = THIN_WALL_REASON
+    spheres = [k for k in meshes if records[k].fit.ok and not out.reason[k]]
     for k in meshes:
-        if not records[k].fit.ok:
+        if not records[k].fit.ok and not out.reason[k]:
             out.reason[k] = records[k].fit.reason
     if not spheres:
         return out
@@ -474,11 +493,14 @@ def assemble(
         how=how,
     )
     left = LeftOut(names)
+    glass_left = LeftOut(names)  # the glass among them, and glass spheres set to Never
     lens_of = lambda i: bool(groups.looks_like_lens[gid[i]])  # noqa: E731
 
     light_pos, light_power_w, light_col = add_lights(out, groups, gid, kind, M, names, left)
     other = np.flatnonzero(kind == OTHER_GROUP)
     left.add_grouped(other, gid[other], lambda i: groups.reason[gid[i]], lens_of)
+    glass = other[groups.glass[gid[other]]]
+    glass_left.add_grouped(glass, gid[glass], lambda i: groups.reason[gid[i]], lens_of)
 
     sph = np.flatnonzero(kind == SPHERE_GROUP)
     scales = uniform_scales(M[sph])
@@ -486,7 +508,16 @@ def assemble(
     bad = sph[~uniform]
     blocking = blocking_instances(groups, gid, kind, M, box_lo, box_hi, bad)
     left.add_grouped(bad, scale_codes(M[bad]), lambda i: scale_reason(M[i]), lens_of)
+    glass = bad[groups.glass[gid[bad]]]
+    glass_left.add_grouped(glass, scale_codes(M[glass]), lambda i: scale_reason(M[i]), lens_of)
     sph = sph[uniform]
+    never = sph[groups.glass[gid[sph]] & ~groups.lens_like[gid[sph]]]
+    glass_left.add_grouped(
+        never,
+        gid[never],
+        lambda i: NEVER_REASON if groups.kt[gid[i]] == 0.0 else "IOR ≤ 1: it does not refract",
+        lens_of,
+    )
     sg = gid[sph]
     center, radius = place_spheres(groups.center, groups.radius, sg, M[sph], scales[uniform])
 
@@ -510,6 +541,7 @@ def assemble(
         out.left_out.append((name, reason))
         if lens:
             out.left_out_lenses.append((name, reason))
+    out.unmodelled_glass = [(name, reason) for name, reason, _lens in glass_left.entries()]
     out.bounds = scene_bounds(box_lo, box_hi, out.arrays.light_position)
     return out, blocking
 

@@ -196,7 +196,7 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     reasons = dict(read.left_out)
     assert "Hidden" not in reasons and "Off" not in reasons  # disabled for rendering
     assert "In a render-disabled collection" not in reasons
-    assert reasons["Glass cube"].startswith("too coarse for a sphere")
+    assert reasons["Glass cube"] == "a box, not a sphere"  # issue 24: not "too coarse"
     assert reasons["Egg"].startswith("non-uniform scale (1, 1, 1.3)")
     assert reasons["Coarse"].startswith("too coarse for a sphere")
     assert reasons["Sun"].startswith("sun without strength")  # a sun of 0 W/m²
@@ -205,7 +205,8 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
 
     level, message, figures = generate()
     assert figures["created"] == 1 and figures["left_out"] == 3
-    assert "left out 3 objects: " in message and "Egg: non-uniform scale" in message
+    assert "left out 3 objects (Lens Lights models solid glass spheres): " in message
+    assert "Egg (non-uniform scale" in message and "Glass cube (a box, not a sphere)" in message
     assert "Red ball" not in message  # an opaque ball is no lens, not "skipped"
 
 
