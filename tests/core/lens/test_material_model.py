@@ -84,3 +84,20 @@ def test_volume_absorption():
     assert o.absorption == pytest.approx((2.0, 2.0, 2.0))
     o = evaluate_material(principled(), "Principled Volume")
     assert o.absorption == (0.0, 0.0, 0.0) and "ignored" in o.notes[0]
+
+
+def test_thin_wall_refracts_nothing_and_says_so():
+    """Issue 24 item 3: Principled's Thin Wall (5.x) is a shell: what it transmits
+    passes straight, so nothing refracts; the share it passes is kept apart."""
+    thin = Bsdf(PRINCIPLED, ior=1.5, transmission=1.0, name="Bubble", thin_wall=True)
+    o = evaluate_material(thin)
+    assert o.transmission == 0.0 and o.ior == 1.0 and not o.is_transmissive
+    assert o.thin_wall == 1.0
+    assert o.notes == ["Thin Wall on in 'Bubble': a thin shell passes light without focusing it"]
+    # half solid glass, half a thin wall passing 0.8 · (1 − 0.5) = 0.4 of its half
+    half = Bsdf(PRINCIPLED, transmission=0.8, metallic=0.5, thin_wall=True)
+    o = evaluate_material(Mix(0.5, principled(ior=1.4), half))
+    assert o.transmission == pytest.approx(0.5) and o.ior == pytest.approx(1.4)
+    assert o.thin_wall == pytest.approx(0.2)
+    # off, it is the solid glass it always was
+    assert evaluate_material(principled()).thin_wall == 0.0

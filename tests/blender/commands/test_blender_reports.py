@@ -1,0 +1,180 @@
+"""Issue 24, items 3 and 6, in Blender: a thin-walled glass sphere is no lens (and
+says so); glass that is no sphere is named by its shape; Generate says what it made
+(lens lights or caustic layers); Replace Cycles' Caustics leaves the scene's
+refractive caustics on while glass Lens Lights does not model is there, and names it.
+
+The expected facts are those of the scene built here: which objects, their shapes,
+what was made (counted in the file, not taken from the report)."""
+
+from __future__ import annotations
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scene_helpers import (  # noqa: E402
+    add_point_light,
+    add_sphere,
+    basic_scene,
+    generate,
+    glass_material,
+    lens_lights,
+    set_engine,
+)
+
+pytestmark = pytest.mark.blender
+
+THIN_WALL = "thin-walled glass (Thin Wall): a shell, which focuses nothing"
+
+
+def _thin_glass(name="Bubble glass"):
+    mat = glass_material(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    if bpy.app.version >= (5, 0, 0):
+        bsdf.inputs["Thin Wall"].default_value = True
+    return mat
+
+
+def _glass_object(name, make, location, **kw):
+    make(location=location, **kw)
+    ob = bpy.context.object
+    ob.name = name
+    ob.data.materials.append(glass_material(f"{name} glass"))
+    return ob
+
+
+# --------------------------------------------------------------------------- Thin Wall
+
+
+def test_a_thin_walled_sphere_makes_no_solid_ball_caustic(empty_blend, auto_builds_lights):
+    """5.x: Thin Wall on → no lens, left out with its reason; the solid ball beside it
+    still gets its lens light. 4.5 has no Thin Wall input: the same material is solid
+    glass there and both are lenses."""
+    from lens_lights.blender.read.scene import read_blender_scene
+
+    set_engine("CYCLES")
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    add_sphere("Ball", (-2.0, 0.0, 1.0), material=glass_material())
+    add_sphere("Bubble", (2.0, 0.0, 1.0), material=_thin_glass())
+    add_point_light("Lamp", (0.0, 0.0, 5.0))
+    read = read_blender_scene(bpy.context)
+    bsdf = bpy.data.materials["Bubble glass"].node_tree.nodes["Principled BSDF"]
+    if bpy.app.version >= (5, 0, 0):
+        assert bsdf.inputs["Thin Wall"].type == "BOOLEAN"
+        assert list(read.sphere_sources) == ["Ball"]
+        assert read.left_out_lenses == [("Bubble", THIN_WALL)]
+        assert ("Bubble", THIN_WALL) in read.unmodelled_glass
+        level, message, figures = generate()
+        made = [ob.lens_lights.source_lens for ob in lens_lights()]
+        assert figures["created"] == 1 == len(made) and made == ["Ball"]
+        assert f"Bubble ({THIN_WALL})" in message
+    else:
+        assert "Thin Wall" not in bsdf.inputs  # nothing to read before 5.0
+        assert sorted(read.sphere_sources) == ["Ball", "Bubble"]
+        assert read.left_out_lenses == []
+        level, message, figures = generate()
+        assert figures["created"] == 2 == len(lens_lights())
+
+
+# --------------------------------------------------------------------------- shapes
+
+
+def test_glass_that_is_no_sphere_is_named_by_its_shape(empty_blend, auto_builds_lights):
+    from lens_lights.blender.read.scene import read_blender_scene
+
+    set_engine("CYCLES")
+    add_sphere("Ball", (0.0, 0.0, 1.0), material=glass_material())
+    _glass_object("Cylinder", bpy.ops.mesh.primitive_cylinder_add, (3.0, 0.0, 1.0))
+    _glass_object("Cube", bpy.ops.mesh.primitive_cube_add, (-3.0, 0.0, 1.0))
+    _glass_object(
+        "Tube", bpy.ops.mesh.primitive_cylinder_add, (0.0, 3.0, 1.0), end_fill_type="NOTHING"
+    )
+    egg = add_sphere("Egg", (0.0, -3.0, 1.0), material=glass_material("Egg glass"))
+    egg.scale = (1.0, 1.0, 1.4)
+    bpy.ops.object.select_all(action="DESELECT")
+    egg.select_set(True)
+    bpy.context.view_layer.objects.active = egg
+    bpy.ops.object.transform_apply(scale=True)  # a stretched mesh, not a scaled object
+    stretched = add_sphere("Stretched", (3.0, 3.0, 1.0), material=glass_material("S glass"))
+    stretched.scale = (1.0, 2.0, 1.0)  # a scaled object: the transform says it
+    add_point_light("Lamp", (0.0, 0.0, 6.0))
+
+    read = read_blender_scene(bpy.context)
+    reasons = dict(read.left_out_lenses)
+    assert reasons == {
+        "Cylinder": "a cylinder, not a sphere",
+        "Cube": "a box, not a sphere",
+        "Tube": "an open mesh, not a closed surface",
+        "Egg": "an ellipsoid (a stretched sphere), not a sphere",
+        "Stretched": "non-uniform scale (1, 2, 1): an ellipsoid, not a sphere",
+    }
+    assert dict(read.unmodelled_glass) == reasons
+    level, message, figures = generate()
+    assert figures["created"] == 1 and figures["left_out"] == 5
+    assert (
+        "left out 5 objects (Lens Lights models solid glass spheres): "
+        "Cylinder (a cylinder, not a sphere); Cube (a box, not a sphere); "
+        "Tube (an open mesh, not a closed surface); and 2 more"
+    ) in message
+    assert "too coarse" not in message
+
+
+# --------------------------------------------------------------------------- what was made
+
+
+def test_eevee_says_it_made_a_caustic_layer_not_a_lens_light(empty_blend):
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    made = lens_lights()
+    assert [ob.type for ob in made] == ["MESH"]  # one caustic layer, no light
+    assert message.startswith("Created 1 caustic layer (1 light × 1 lens)"), message
+    assert "lens light" not in message.split(";")[0]
+    assert figures["created"] == 0 and figures["layers"] == 1
+    settings = bpy.context.scene.lens_lights
+    assert settings.last_created == 0 and settings.last_layers == 1
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert settings.last_report.startswith("Removed 1 caustic layer")
+
+
+def test_cycles_says_it_made_lens_lights(empty_blend, auto_builds_lights):
+    basic_scene()
+    set_engine("CYCLES")
+    level, message, figures = generate()
+    assert [ob.type for ob in lens_lights()] == ["LIGHT"]
+    assert message.startswith("Created 1 lens light (1 light × 1 lens)"), message
+    assert figures["created"] == 1 and figures["layers"] == 0
+
+
+# --------------------------------------------------------------------------- Cycles' caustics
+
+
+def test_refractive_caustics_stay_on_while_unmodelled_glass_is_there(
+    empty_blend, auto_builds_lights
+):
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    ball = add_sphere("Ball", (0.0, 0.0, 1.0), material=glass_material())
+    ball.cycles.is_caustics_caster = True
+    cube = _glass_object("Glass cube", bpy.ops.mesh.primitive_cube_add, (3.0, 0.0, 1.0))
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    assert scene.cycles.caustics_refractive is True
+    level, message, figures = generate()
+    assert figures["created"] == 1
+    assert scene.cycles.caustics_refractive is True  # the cube keeps its caustic
+    assert ball.cycles.is_caustics_caster is False  # per lens: nobody else's
+    assert level == "WARNING"
+    assert (
+        "Cycles' refractive caustics left on: Lens Lights does not model the glass of "
+        "Glass cube, whose caustics only Cycles renders"
+    ) in message
+    assert "its own caustic of Ball on top of the lens lights'" in message
+    assert "refractive caustics (scene)" not in message  # not turned off: not said so
+
+    # without the cube the scene-wide switch is turned off again
+    bpy.data.objects.remove(cube)
+    level, message, figures = generate()
+    assert scene.cycles.caustics_refractive is False
+    assert "refractive caustics (scene)" in message and "left on" not in message
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert scene.cycles.caustics_refractive is True
