@@ -56,6 +56,7 @@ from mathutils import Vector
 
 from ...core.animation import layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
+from ...core.plan.cycles_caustics import kept_on_warning
 from ...core.report.message import error_text
 from ...core.tiers import EXACT_PROFILE, builds_layer
 from ..build import baked_layers, cleanup, cycles_caustics, layers, lights
@@ -253,6 +254,7 @@ class Baker:
             settings.live_update = False
         self.per_frame, self.works, self.firsts = [], [], {}
         self.lens_objects: set = set()
+        self.unmodelled_glass: dict = {}  # name → why: keeps Cycles' refractive caustics on
         self.timings = dict(plan=0.0, build=0.0)
         self.t0 = time.perf_counter()
 
@@ -279,6 +281,7 @@ class Baker:
                 work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts))
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
+        self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
         if self.layer:
             self.works.append(work)  # built per frame (its meshes)
         self.timings["plan"] += time.perf_counter() - t
@@ -302,7 +305,13 @@ class Baker:
         try:
             figures = self._build_layers() if self.layer else self._build_lights()
             if scene.lens_lights.replace_cycles_caustics and figures["objects"]:
-                cycles_caustics.replace(scene, sorted(self.lens_objects, key=lambda o: o.name))
+                lenses = sorted(self.lens_objects, key=lambda o: o.name)
+                values = cycles_caustics.scene_values(scene)
+                glass = sorted(self.unmodelled_glass)
+                cycles_caustics.replace(scene, lenses, keep_scene=bool(glass))
+                figures["caustics_warning"] = kept_on_warning(
+                    scene.render.engine, values, glass, [ob.name for ob in lenses]
+                )
         except Exception:
             cleanup.clear(scene)
             cycles_caustics.restore(scene)
@@ -465,6 +474,8 @@ def finish(baker):
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]
     settings.last_report = light_tracks.bake_message(figures)
+    if figures.get("caustics_warning"):
+        settings.last_report += "; " + figures["caustics_warning"]
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"
     return "INFO", settings.last_report, figures

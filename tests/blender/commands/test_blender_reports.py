@@ -178,3 +178,22 @@ def test_refractive_caustics_stay_on_while_unmodelled_glass_is_there(
     assert "refractive caustics (scene)" in message and "left on" not in message
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert scene.cycles.caustics_refractive is True
+
+
+def test_the_bake_too_keeps_refractive_caustics_for_unmodelled_glass(empty_blend):
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    scene.lens_lights.energy_model = "FITTED"
+    scene.frame_start, scene.frame_end = 1, 2
+    add_sphere("Ball", (0.0, 0.0, 1.0), material=glass_material())
+    cube = _glass_object("Glass cube", bpy.ops.mesh.primitive_cube_add, (3.0, 0.0, 1.0))
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    assert len(lens_lights()) == 1
+    assert scene.cycles.caustics_refractive is True
+    report = scene.lens_lights.last_report
+    assert "Cycles' refractive caustics left on" in report and "Glass cube" in report
+    bpy.data.objects.remove(cube)
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    assert scene.cycles.caustics_refractive is False
+    assert "left on" not in scene.lens_lights.last_report
