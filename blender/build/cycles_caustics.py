@@ -67,13 +67,14 @@ def restore(scene) -> list[Change]:
     return undone
 
 
-def after_build(scene, plan, read, made: int) -> tuple[str, bool]:
+def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str, bool]:
     """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
     Cycles' own caustics of the lenses that got lens lights off — but not the
     scene-wide switch while the scene holds glass Lens Lights does not model
     (``read.unmodelled_glass``: it would lose its caustic), which is then named;
     else say when they will be rendered twice. Returns the report's words ('' for
-    nothing) and whether they are a warning."""
+    nothing) and whether they are a warning; `layers`: caustic layers were made
+    (the words name them)."""
     if not made:
         return "", False
     engine = scene.render.engine
@@ -82,9 +83,10 @@ def after_build(scene, plan, read, made: int) -> tuple[str, bool]:
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
         values = scene_values(scene)
         changes = replace(scene, lenses, keep_scene=bool(glass))
-        note = describe(changes)
+        by = "the caustic layers" if layers else "the lens lights"
+        note = describe(changes, by=by)
         note += " (Clear restores them)" if note else ""
-        warning = kept_on_warning(engine, values, glass, [ob.name for ob in lenses])
+        warning = kept_on_warning(engine, values, glass, [ob.name for ob in lenses], by)
         return "; ".join(x for x in (note, warning) if x), bool(warning)
     warning = double_light_warning(engine, scene_values(scene), made)
     return warning, bool(warning)

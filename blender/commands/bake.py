@@ -310,7 +310,11 @@ class Baker:
                 glass = sorted(self.unmodelled_glass)
                 cycles_caustics.replace(scene, lenses, keep_scene=bool(glass))
                 figures["caustics_warning"] = kept_on_warning(
-                    scene.render.engine, values, glass, [ob.name for ob in lenses]
+                    scene.render.engine,
+                    values,
+                    glass,
+                    [ob.name for ob in lenses],
+                    "the caustic layers" if self.layer else "the lens lights",
                 )
         except Exception:
             cleanup.clear(scene)

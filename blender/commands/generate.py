@@ -129,8 +129,10 @@ def generate(context):
                     progress=lambda k: progress(60 + 40 * k / total),
                     arrays=work.read.arrays,
                 )
+            made_lights = sum(1 for ob in made if ob.type == "LIGHT")
+            made_layers = len(made) - made_lights  # the caustic layers' meshes
             caustics_note, caustics_warn = cycles_caustics.after_build(
-                scene, plan, work.read, len(made)
+                scene, plan, work.read, len(made), layers=made_layers > 0
             )
         except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
@@ -147,8 +149,6 @@ def generate(context):
         work.timings["build"] = time.perf_counter() - t
         progress(100)
 
-    made_lights = sum(1 for ob in made if ob.type == "LIGHT")
-    made_layers = len(made) - made_lights  # the caustic layers' meshes
     try:
         level, message, figures = report_message(
             work,

@@ -72,16 +72,17 @@ def should_restore(change: Change, current: bool) -> bool:
     return bool(current) == change.new
 
 
-def describe(changes, verb: str = "turned off") -> str:
-    """'Cycles' caustics turned off: refractive caustics (scene), shadow caustics
-    caster of Marble' ('' when nothing changed)."""
+def describe(changes, verb: str = "turned off", by: str = "the lens lights") -> str:
+    """'Cycles' caustics turned off (the lens lights replace them): refractive
+    caustics (scene), shadow caustics caster of Marble' ('' when nothing changed);
+    `by`: what replaces them ("the caustic layers")."""
     if not changes:
         return ""
     parts = []
     for c in changes:
         what = _WHAT.get(c.prop, c.prop)
         parts.append(what if c.owner == SCENE else f"{what} of {c.owner}")
-    return f"Cycles' own caustics {verb} (the lens lights replace them): " + ", ".join(parts)
+    return f"Cycles' own caustics {verb} ({by} replace them): " + ", ".join(parts)
 
 
 #: How many names a warning lists before "and N more".
@@ -95,18 +96,20 @@ def _names(names) -> str:
     return shown + (f" and {more} more" if more > 0 else "")
 
 
-def kept_on_warning(engine: str, scene_values: dict, glass, lenses) -> str:
+def kept_on_warning(
+    engine: str, scene_values: dict, glass, lenses, by: str = "the lens lights"
+) -> str:
     """The warning when Replace Cycles' Caustics left path tracing's refractive
     caustics on for the `glass` (names) that Lens Lights does not model, while
-    the `lenses` (names) got lens lights; '' when the switch is off anyway or the
-    engine is not Cycles."""
+    the `lenses` (names) got lens lights (`by`: or caustic layers); '' when the
+    switch is off anyway or the engine is not Cycles."""
     if not glass or engine != "CYCLES" or not scene_values.get("caustics_refractive", False):
         return ""
     return (
         f"Cycles' refractive caustics left on: Lens Lights does not model the glass of "
         f"{_names(glass)}, whose caustics only Cycles renders (turning them off would "
         f"lose them); so Cycles also renders its own caustic of {_names(lenses)} on top of "
-        "the lens lights' (for lights with a radius, about 20 % more light in those caustics: "
+        f"{by}' (for lights with a radius, about 20 % more light in those caustics: "
         "reports/real_scenes.md). To drop it, turn Render › Light "
         "Paths › Caustics › Refractive off (that glass then casts no caustic)"
     )

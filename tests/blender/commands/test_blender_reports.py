@@ -197,3 +197,14 @@ def test_the_bake_too_keeps_refractive_caustics_for_unmodelled_glass(empty_blend
     assert bpy.ops.lens_lights.bake() == {"FINISHED"}
     assert scene.cycles.caustics_refractive is False
     assert "left on" not in scene.lens_lights.last_report
+
+
+def test_in_eevee_the_caustic_layers_replace_cycles_caustics(empty_blend):
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    assert figures["layers"] == 1
+    assert (
+        "Cycles' own caustics turned off (the caustic layers replace them): "
+        "refractive caustics (scene)"
+    ) in message
