@@ -54,6 +54,10 @@ Rules:
 * A sphere's transform may rotate, mirror (negative scale) and scale uniformly;
   a non-uniform scale (an ellipsoid) or a zero scale is left out and named.
   Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
+* Glass that is no lens is named by its shape (`fit_meshes`: "a cylinder, not a
+  sphere"); a sphere of thin-walled glass (Principled's Thin Wall, 5.x) is a shell,
+  no lens (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to
+  Never, are ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
 * Lights the extension created are skipped entirely.
 """
 
