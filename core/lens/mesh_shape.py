@@ -15,10 +15,11 @@ act on for a glass cylinder ("too coarse for a sphere: faces lie 29 % inside it"
 4. **a cylinder** (or a prism of more than four sides) — an axis along or across
    which 99 % of its area faces, with more than four directions across it (the
    axis tried: the largest face's normal, and the principal axes of Σ A n nᵀ);
-5. **an ellipsoid (a stretched sphere)** — its bounding box along the vertices'
-   principal axes is not a cube (sides differ by more than `STRETCH`, 2 %), and
-   scaled to a cube along those axes it passes `sphere_fit.fit_sphere` (vertices and
-   faces);
+5. **an ellipsoid** (a stretched or squashed sphere; the words give its axes, the
+   longest 1: "an ellipsoid (axes 1 : 0.71 : 0.71)") — its bounding box along the
+   vertices' principal axes is not a cube (sides differ by more than `STRETCH`, 2 %),
+   and scaled to a cube along those axes it passes `sphere_fit.fit_sphere` (vertices
+   and faces);
 6. otherwise "" (the fit's own reason stands: a coarse sphere, another shape).
 """
 
@@ -39,7 +40,7 @@ FLAT_SHEET = "a flat sheet"
 OPEN_MESH = "an open mesh"
 BOX = "a box"
 CYLINDER = "a cylinder"
-ELLIPSOID = "an ellipsoid (a stretched sphere)"
+ELLIPSOID = "an ellipsoid"
 
 
 def mesh_shape(vertices, face_centers, face_normals, face_areas, open_edges=0) -> str:
@@ -64,8 +65,9 @@ def mesh_shape(vertices, face_centers, face_normals, face_areas, open_edges=0) -
         return BOX
     if _is_cylinder(n, a, total):
         return CYLINDER
-    if _is_ellipsoid(v, face_centers):
-        return ELLIPSOID
+    axes = _ellipsoid_axes(v, face_centers)
+    if axes is not None:
+        return f"{ELLIPSOID} (axes {' : '.join(f'{x:.2g}' for x in axes)})"
     return ""
 
 
@@ -111,17 +113,21 @@ def _is_cylinder(n, a, total) -> bool:
     return False
 
 
-def _is_ellipsoid(v, face_centers) -> bool:
+def _ellipsoid_axes(v, face_centers):
+    """The axes of the ellipsoid the mesh is, longest first as shares of the longest
+    (None: it is none, or a sphere)."""
     mean = v.mean(axis=0)
     _w, axes = np.linalg.eigh(np.cov((v - mean).T))
     q = (v - mean) @ axes
     lo, hi = q.min(axis=0), q.max(axis=0)
     half = 0.5 * (hi - lo)
     if not half.min() > 0 or half.max() <= (1.0 + STRETCH) * half.min():
-        return False
+        return None
     mid = 0.5 * (hi + lo)
     unit = (q - mid) / half
     fc = None
     if face_centers is not None:
         fc = ((np.asarray(face_centers, dtype=float).reshape(-1, 3) - mean) @ axes - mid) / half
-    return fit_sphere(unit, fc).ok
+    if not fit_sphere(unit, fc).ok:
+        return None
+    return np.sort(half)[::-1] / half.max()

@@ -105,7 +105,7 @@ def test_glass_that_is_no_sphere_is_named_by_its_shape(empty_blend, auto_builds_
         "Cylinder": "a cylinder, not a sphere",
         "Cube": "a box, not a sphere",
         "Tube": "an open mesh, not a closed surface",
-        "Egg": "an ellipsoid (a stretched sphere), not a sphere",
+        "Egg": "an ellipsoid (axes 1 : 0.71 : 0.71), not a sphere",  # 1.4 : 1 : 1
         "Stretched": "non-uniform scale (1, 2, 1): an ellipsoid, not a sphere",
     }
     assert dict(read.unmodelled_glass) == reasons

@@ -40,11 +40,11 @@ CASES = {
     "a brick, turned": (transformed(*box(3.0, 1.0, 0.5), TURN), BOX),
     "a UV sphere stretched 1.5 × along z": (
         transformed(*uv_sphere(), np.diag([1, 1, 1.5])),
-        ELLIPSOID,
+        f"{ELLIPSOID} (axes 1 : 0.67 : 0.67)",
     ),
     "a UV sphere squashed and turned": (
         transformed(*uv_sphere(), TURN @ np.diag([1.0, 0.6, 1.3])),
-        ELLIPSOID,
+        f"{ELLIPSOID} (axes 1 : 0.77 : 0.46)",  # 1.3 : 1 : 0.6
     ),
     "a tube without caps": (cylinder(caps=False), OPEN_MESH),
     "a plane": (
@@ -69,5 +69,7 @@ def test_a_sphere_is_none_of_these_and_the_reasons_read_plainly():
     assert fit_sphere(*arrays).ok and mesh_shape(*arrays) == ""
     assert shape_reason(CYLINDER) == "a cylinder, not a sphere"
     assert shape_reason(BOX) == "a box, not a sphere"
-    assert shape_reason(ELLIPSOID) == "an ellipsoid (a stretched sphere), not a sphere"
+    assert shape_reason(f"{ELLIPSOID} (axes 1 : 0.5 : 0.5)") == (
+        "an ellipsoid (axes 1 : 0.5 : 0.5), not a sphere"
+    )
     assert shape_reason(OPEN_MESH) == "an open mesh, not a closed surface"

@@ -23,7 +23,7 @@ def test_left_out_glass_is_named_with_its_shape():
     left = [
         ("Cylinder", "a cylinder, not a sphere"),
         ("Cube", "a box, not a sphere"),
-        ("Egg", "an ellipsoid (a stretched sphere), not a sphere"),
+        ("Egg", "an ellipsoid (axes 1 : 0.71 : 0.71), not a sphere"),
         ("Pane", "a flat sheet, not a closed surface"),
     ]
     assert left_out_text([]) == ""
@@ -34,7 +34,7 @@ def test_left_out_glass_is_named_with_its_shape():
     assert left_out_text(left) == (
         "left out 4 objects (Lens Lights models solid glass spheres): "
         "Cylinder (a cylinder, not a sphere); Cube (a box, not a sphere); "
-        "Egg (an ellipsoid (a stretched sphere), not a sphere); and 1 more"
+        "Egg (an ellipsoid (axes 1 : 0.71 : 0.71), not a sphere); and 1 more"
     )
 
 
