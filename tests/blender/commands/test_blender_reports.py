@@ -208,3 +208,24 @@ def test_in_eevee_the_caustic_layers_replace_cycles_caustics(empty_blend):
         "Cycles' own caustics turned off (the caustic layers replace them): "
         "refractive caustics (scene)"
     ) in message
+
+
+def test_glass_text_keeps_refractive_caustics_too(empty_blend, auto_builds_lights):
+    """Text (like curves and metaballs) renders as its evaluated mesh, an instance of
+    the text object in the depsgraph: that mesh, flat, is the glass named."""
+    from lens_lights.blender.read.scene import read_blender_scene
+
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    add_sphere("Ball", (0.0, 0.0, 1.0), material=glass_material())
+    bpy.ops.object.text_add(location=(3.0, 0.0, 1.0))
+    text = bpy.context.object
+    text.name = "Glass text"
+    text.data.materials.append(glass_material("Text glass"))
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    assert read_blender_scene(bpy.context).unmodelled_glass == [
+        ("Glass text/Glass text", "a flat sheet, not a closed surface")
+    ]
+    level, message, figures = generate()
+    assert scene.cycles.caustics_refractive is True
+    assert "does not model the glass of Glass text/Glass text," in message
