@@ -46,6 +46,7 @@ Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clea
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import time
 import traceback
@@ -54,14 +55,15 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ...core.animation import layer_segments, light_tracks
+from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
 from ...core.report.message import error_text
 from ...core.tiers import EXACT_PROFILE, builds_layer
-from ..build import baked_layers, cleanup, cycles_caustics, layers, lights
+from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
 from ..build.marks import (
     BAKE_MARK,
     COLLECTION_MARK,
+    MASK_PREFIX,
     PROFILE_KEY,
     PROFILE_MARK,
     PROFILE_PREFIX,
@@ -70,6 +72,7 @@ from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from . import layer_stage, pipeline
 
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
+MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
 #: The figures of the last bake (seconds per stage, counts).
 LAST_BAKE: dict = {}
 
@@ -122,9 +125,9 @@ def key_visibility(ob, keys):
 
 def compact_profile_image(key: str, pixels):
     """A marked profile image (as `lights.profile_image` makes, reused by
-    key) holding `pixels` (H, K) as a one-channel 32-bit float OpenEXR, ZIP, packed:
-    bit for bit the same values (`lights.packed_exr`)."""
-    H, K = pixels.shape
+    key) holding `pixels` (H, K) as a one-channel (or (H, K, 3): RGB) 32-bit float
+    OpenEXR, ZIP, packed: bit for bit the same values (`lights.packed_exr`)."""
+    H, K = pixels.shape[:2]
     for img in bpy.data.images:
         if (
             img.get(COLLECTION_MARK) == PROFILE_MARK
@@ -140,10 +143,12 @@ def compact_profile_image(key: str, pixels):
 
 
 def _profile_images(tracks, ratio) -> dict:
-    """Per Exact profile track key: (image, slices, rows, slice coordinate per
-    frame, h_min per frame in world units). Far field: the image stacks its group's
-    D/R slices (`light_tracks.profile_groups`); near field: the track's own image, a
-    block of D/R slices per receiver distance (`light_tracks.near_slices`)."""
+    """Per Exact profile track key: (image, layout, slice coordinate per frame, h_min
+    per frame in world units, interpolation). Far field: the image stacks its group's
+    D/R slices (`light_tracks.profile_groups`), read between two (LINEAR); near
+    field: the track's own image of its frames' own tables, Generate's (red: the
+    intensity; green: the rays' slopes where a frame's receiver is tilted), each
+    frame reading its own (CONSTANT; `frame_tables`)."""
     out = {}
     far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
     groups = light_tracks.profile_groups(far, ratio)
@@ -153,35 +158,72 @@ def _profile_images(tracks, ratio) -> dict:
         tables = [light_tracks.profile_slice_table(g, n, False) for g in grid]
         key = f"bake {lens} n {n:.9g} D/R " + " ".join(f"{g:.9g}" for g in grid)
         image = compact_profile_image(key, light_tracks.stack_slices(tables))
+        layout = frame_tables.SliceLayout(len(grid), *tables[0].shape)
         for k in keys:
             t = by_key[k]
             s = light_tracks.slice_coordinate(t.d_over_r, grid)
-            out[k] = (image, len(grid), tables[0].shape[0], s, t.values["h_min"][:, 0])
+            out[k] = (image, layout, s, t.values["h_min"][:, 0], "LINEAR")
     for t in tracks:
         if t.profile_group is None or not t.profile_group[2]:
             continue
-        lens, n = t.profile_group[:2]
-        nodes, s = light_tracks.near_slices(t, ratio)
-        tables = [light_tracks.profile_slice_table(d, n, True, z) for d, z in nodes]
-        key = f"bake {lens} n {n:.9g} near " + " ".join(f"{d:.9g} {z:.6g}" for d, z in nodes)
-        image = compact_profile_image(key, light_tracks.stack_slices(tables))
-        h_min = np.array([light_tracks.slice_h_min(nodes[int(math.floor(k))][1]) for k in s])
-        out[t.key] = (
-            image,
-            len(nodes),
-            tables[0].shape[0],
-            s,
-            h_min * t.values["lens_radius"][:, 0],
+        frames = t.tables["near"]
+        keys, s = frame_tables.frame_slices([key for key, _ in frames])
+        first = {}
+        for key, px in frames:
+            first.setdefault(key, px)
+        tilted = any(px.ndim == 3 for px in first.values())
+        tables = [_near_pixels(first[key], tilted) for key in keys]
+        layout = frame_tables.slice_layout(len(tables), *tables[0].shape[:2])
+        digest = hashlib.sha1("\n".join(map(str, keys)).encode()).hexdigest()
+        image = compact_profile_image(
+            f"bake {t.profile_group[0]} near {digest}", frame_tables.tile_slices(tables, layout)
         )
+        out[t.key] = (image, layout, s.astype(float), t.values["h_min"][:, 0], "CONSTANT")
     return out
+
+
+def _near_pixels(pixels, tilted: bool):
+    """A near table as the bake's image holds it: (M, K), or with `tilted` (M, K, 3)
+    RGB, green the rays' slopes (0 for a frame without a tilt: its factor is 1)."""
+    px = np.asarray(pixels, dtype=np.float32)
+    if not tilted:
+        return px
+    rgb = np.zeros((*px.shape[:2], 3), dtype=np.float32)
+    rgb[..., : px.shape[2] if px.ndim == 3 else 1] = px if px.ndim == 3 else px[..., None]
+    return rgb
+
+
+def _mask_image(track):
+    """(image, layout, slice per frame) of the track's frames' shadow masks (None: no
+    frame has one); a frame without a mask reads a slice of ones."""
+    frames = track.tables.get("mask")
+    if not frames or all(m is None for m in frames):
+        return None
+    keys, s = frame_tables.frame_slices([None if m is None else m[0] for m in frames])
+    pixels = {m[0]: m[1] for m in frames if m is not None}
+    shape = next(iter(pixels.values())).shape
+    tables = [pixels[k] if k is not None else np.ones(shape, np.float32) for k in keys]
+    layout = frame_tables.slice_layout(len(tables), *shape)
+    image = lights.packed_exr(
+        MASK_PREFIX + f"bake {track.key.light} > {track.key.lens}",
+        frame_tables.tile_slices(tables, layout),
+        "32",
+        "lens_mask.exr",
+    )
+    image[COLLECTION_MARK] = PROFILE_MARK  # removed with the profile images once unused
+    return image, layout, s.astype(float)
 
 
 # --------------------------------------------------------------------------- the bake
 
 
-def _frame_lights(work, firsts: dict) -> list:
+def _frame_lights(work, firsts: dict, tables: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
-    (PlannedLight, lens object)."""
+    (PlannedLight, lens object); `tables` (key → pixels) shares equal tables over
+    the frames. An Exact profile light records what Generate's node tree reads on
+    this frame: its near field's own table (its key, intensity and slopes), its
+    receiver's normal in its frame (`lights.tilt_normal`), its shadow mask
+    (`mask_nodes.shadow_mask`)."""
     out = []
     nears = [
         bool(
@@ -216,8 +258,24 @@ def _frame_lights(work, firsts: dict) -> list:
             fl.d_over_r = float(src.distance) / float(src.lens_radius)
             values["h_min"] = float(bl.profile_info["h_min"])
             values["lens_radius"] = float(src.lens_radius)
-            if near:
+            values["tilt"] = lights.NO_TILT
+            if near:  # the frame's own table, Generate's
+                prof = bl.profile
                 values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
+                values["h_min"] = float(prof["h_min"])
+                values["tilt"] = lights.tilt_normal(prof) or lights.NO_TILT
+                tkey = prof["key"] if prof.get("key") is not None else f"frame {id(prof)}"
+                if tkey not in tables:
+                    px = np.asarray(prof["pixels"], dtype=np.float32)
+                    if prof.get("slope") is not None:
+                        px = np.stack([px, np.asarray(prof["slope"], np.float32)], axis=-1)
+                    tables[tkey] = px
+                fl.tables["near"] = (tkey, tables[tkey])
+            mask = mask_nodes.shadow_mask(p, work.read.arrays)
+            if mask is not None:
+                px, s_max = mask
+                fl.tables["mask"] = (hashlib.sha1(px.tobytes()).hexdigest(), px)
+                values["mask_scale"] = 0.5 / s_max
         if key not in firsts:
             firsts[key] = (p, work.read.sphere_objects[p.source.lens])
         out.append(fl)
@@ -251,7 +309,7 @@ class Baker:
         self.live_before = bool(getattr(settings, "live_update", False))
         if self.live_before:
             settings.live_update = False
-        self.per_frame, self.works, self.firsts = [], [], {}
+        self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
         self.lens_objects: set = set()
         self.timings = dict(plan=0.0, build=0.0)
         self.t0 = time.perf_counter()
@@ -277,7 +335,7 @@ class Baker:
             work, how = as_rendered(self.context, plan)
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
-        self.per_frame.append(_frame_lights(work, self.firsts))
+        self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         if self.layer:
             self.works.append(work)  # built per frame (its meshes)
@@ -332,8 +390,9 @@ class Baker:
             ob = lights.create_light(
                 scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
             )
-            self._key_track(ob, track, images)
-        return dict(objects=len(tracks), images=len({v[0].name for v in images.values()}))
+            masks = self._key_track(ob, track, images)
+        names = {v[0].name for v in images.values()} | masks
+        return dict(objects=len(tracks), images=len(names))
 
     def _key_track(self, ob, track, images):
         frames, v = track.frames, track.values
@@ -350,14 +409,29 @@ class Baker:
         key_column(data, "spot_size", -1, frames, v["spot_size"][:, 0])
         key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
         key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
+        masks = set()
         if track.profile_group is not None:
-            image, count, rows, s, h_min = images[track.key]
-            info = self.firsts[track.key][0].light.profile_info
-            nt = lights.build_profile_nodes(data, info, image, slices=(count, rows))
+            image, layout, s, h_min, how = images[track.key]
+            info = dict(self.firsts[track.key][0].light.profile_info)
+            tilt = v["tilt"]
+            info["tilted"] = bool(np.any(np.abs(tilt - np.array(lights.NO_TILT)) > 0.0))
+            nt = lights.build_profile_nodes(data, info, image, slices=layout)
             path = 'nodes["{}"].outputs[0].default_value'
-            key_column(nt, path.format(SLICE_NODE), -1, frames, s)
-            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)
+            key_column(nt, path.format(SLICE_NODE), -1, frames, s, how)
+            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min, how)
+            if info["tilted"]:
+                for name, col in zip(lights.TILT_NODES, tilt.T, strict=True):
+                    key_column(nt, path.format(name), -1, frames, col, "CONSTANT")
+            mask = _mask_image(track)
+            if mask is not None:
+                m_image, m_layout, m_s = mask
+                mask_nodes.add_baked_mask(nt, m_image, m_layout)
+                key_column(nt, path.format(MASK_SLICE_NODE), -1, frames, m_s, "CONSTANT")
+                scale = v["mask_scale"][:, 0]
+                key_column(nt, path.format(MASK_SCALE_NODE), -1, frames, scale, "CONSTANT")
+                masks.add(m_image.name)
         key_visibility(ob, light_tracks.visibility_keys(frames, track.present))
+        return masks
 
     def _build_layers(self) -> dict:
         """Fixed-topology layers (`core.animation.layer_segments`): per segment one mesh, its
