@@ -22,13 +22,23 @@ scene as it was:
      key's first frame), its transform (object action), energy, colour, cone,
      blend and radius (light data action) keyed on every frame, LINEAR; on frames
      without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
-   * Exact profile: per (lens, n, near field[, receiver]) one image of stacked D/R
-     slices (`light_tracks.slice_grid`; the near field: per track, a block of D/R
-     slices per receiver distance, `light_tracks.near_slices`), and Generate's
-     node tree in its slices mode (`lights.build_profile_nodes(slices=)`)
-     whose slice coordinate and first table distance are keyed Value nodes
-     (node-tree action): the number of images does not grow with the frames. Not
-     baked: the tilt correction and the shadow mask (both depend on the frame);
+   * Exact profile: Generate's node tree on every frame
+     (`lights.build_profile_nodes(slices=)` + `mask_nodes.add_baked_mask`), every
+     number of it that changes with the frame a keyed Value node, every table a
+     slice of one image read through a keyed slice index
+     (`core.animation.frame_tables`: tiles within a GPU's 16 384² texture):
+     - far field: per (lens, n) one image of stacked D/R slices
+       (`light_tracks.slice_grid`), "Lens bake slice" (fractional: two slices
+       blended) and "Lens bake h_min" keyed LINEAR;
+     - near field: the frame's own table, Generate's (its rows on the frame's
+       receiver; red the intensity, green the rays' slopes when a frame's receiver
+       is tilted), one slice per distinct table of the track, "Lens bake slice"
+       and "Lens bake h_min" keyed CONSTANT; the tilt correction's normal in the
+       light's frame "Lens bake tilt x/y/z" (CONSTANT; (0, 0, −1) on a frame
+       without a tilt: factor 1);
+     - shadow mask (a frame whose source has a shadow list): the frames' masks as
+       slices of one image ("Lens mask bake …"; a frame without one reads ones),
+       "Lens bake mask slice" and "Lens bake mask scale" (0.5 / s_max) CONSTANT;
    * Caustic layer: one mesh per receiver plane × lens lights whose topology is
      fixed over the frames (`core.animation.layer_segments`: the union of the frames' rasters,
      cut in time only where it would coarsen a frame's caustic core more than
@@ -174,10 +184,9 @@ def _profile_images(tracks, ratio) -> dict:
         tilted = any(px.ndim == 3 for px in first.values())
         tables = [_near_pixels(first[key], tilted) for key in keys]
         layout = frame_tables.slice_layout(len(tables), *tables[0].shape[:2])
-        digest = hashlib.sha1("\n".join(map(str, keys)).encode()).hexdigest()
-        image = compact_profile_image(
-            f"bake {t.profile_group[0]} near {digest}", frame_tables.tile_slices(tables, layout)
-        )
+        # the key lists the frames' tables (Generate's keys, in slice order)
+        key = f"bake {t.profile_group[0]} near: " + "; ".join(map(str, keys))
+        image = compact_profile_image(key, frame_tables.tile_slices(tables, layout))
         out[t.key] = (image, layout, s.astype(float), t.values["h_min"][:, 0], "CONSTANT")
     return out
 
@@ -193,24 +202,23 @@ def _near_pixels(pixels, tilted: bool):
     return rgb
 
 
-def _mask_image(track):
-    """(image, layout, slice per frame) of the track's frames' shadow masks (None: no
-    frame has one); a frame without a mask reads a slice of ones."""
-    frames = track.tables.get("mask")
+def _slice_image(track, role: str, name: str):
+    """(image, layout, slice per frame) of the track's frames' `role` tables (None:
+    no frame has one), one slice per distinct table (`frame_tables`); a frame
+    without one reads a slice of ones. The image: a packed 32-bit float OpenEXR
+    named `name`, marked like the profile images (Clear removes it once unused)."""
+    frames = track.tables.get(role)
     if not frames or all(m is None for m in frames):
         return None
     keys, s = frame_tables.frame_slices([None if m is None else m[0] for m in frames])
     pixels = {m[0]: m[1] for m in frames if m is not None}
     shape = next(iter(pixels.values())).shape
     tables = [pixels[k] if k is not None else np.ones(shape, np.float32) for k in keys]
-    layout = frame_tables.slice_layout(len(tables), *shape)
+    layout = frame_tables.slice_layout(len(tables), *shape[:2])
     image = lights.packed_exr(
-        MASK_PREFIX + f"bake {track.key.light} > {track.key.lens}",
-        frame_tables.tile_slices(tables, layout),
-        "32",
-        "lens_mask.exr",
+        name, frame_tables.tile_slices(tables, layout), "32", f"lens_{role}.exr"
     )
-    image[COLLECTION_MARK] = PROFILE_MARK  # removed with the profile images once unused
+    image[COLLECTION_MARK] = PROFILE_MARK
     return image, layout, s.astype(float)
 
 
@@ -258,12 +266,12 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
             fl.d_over_r = float(src.distance) / float(src.lens_radius)
             values["h_min"] = float(bl.profile_info["h_min"])
             values["lens_radius"] = float(src.lens_radius)
-            values["tilt"] = lights.NO_TILT
+            tilt = lights.NO_TILT
             if near:  # the frame's own table, Generate's
                 prof = bl.profile
                 values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
                 values["h_min"] = float(prof["h_min"])
-                values["tilt"] = lights.tilt_normal(prof) or lights.NO_TILT
+                tilt = lights.tilt_normal(prof) or lights.NO_TILT
                 tkey = prof["key"] if prof.get("key") is not None else f"frame {id(prof)}"
                 if tkey not in tables:
                     px = np.asarray(prof["pixels"], dtype=np.float32)
@@ -271,11 +279,13 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
                         px = np.stack([px, np.asarray(prof["slope"], np.float32)], axis=-1)
                     tables[tkey] = px
                 fl.tables["near"] = (tkey, tables[tkey])
+            # the tree's numbers, under the names of the Value nodes keyed with them
+            values.update(zip(lights.TILT_NODES, tilt, strict=True))
             mask = mask_nodes.shadow_mask(p, work.read.arrays)
             if mask is not None:
                 px, s_max = mask
                 fl.tables["mask"] = (hashlib.sha1(px.tobytes()).hexdigest(), px)
-                values["mask_scale"] = 0.5 / s_max
+                values[MASK_SCALE_NODE] = 0.5 / s_max
         if key not in firsts:
             firsts[key] = (p, work.read.sphere_objects[p.source.lens])
         out.append(fl)
@@ -413,23 +423,24 @@ class Baker:
         if track.profile_group is not None:
             image, layout, s, h_min, how = images[track.key]
             info = dict(self.firsts[track.key][0].light.profile_info)
-            tilt = v["tilt"]
-            info["tilted"] = bool(np.any(np.abs(tilt - np.array(lights.NO_TILT)) > 0.0))
+            tilt = np.column_stack([v[name][:, 0] for name in lights.TILT_NODES])
+            info["tilted"] = bool(np.any(tilt != np.array(lights.NO_TILT)))
             nt = lights.build_profile_nodes(data, info, image, slices=layout)
             path = 'nodes["{}"].outputs[0].default_value'
             key_column(nt, path.format(SLICE_NODE), -1, frames, s, how)
             key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min, how)
-            if info["tilted"]:
-                for name, col in zip(lights.TILT_NODES, tilt.T, strict=True):
-                    key_column(nt, path.format(name), -1, frames, col, "CONSTANT")
-            mask = _mask_image(track)
+            mask = _slice_image(track, "mask", MASK_PREFIX + f"bake {ob.name}")
             if mask is not None:
                 m_image, m_layout, m_s = mask
                 mask_nodes.add_baked_mask(nt, m_image, m_layout)
                 key_column(nt, path.format(MASK_SLICE_NODE), -1, frames, m_s, "CONSTANT")
-                scale = v["mask_scale"][:, 0]
-                key_column(nt, path.format(MASK_SCALE_NODE), -1, frames, scale, "CONSTANT")
                 masks.add(m_image.name)
+            # every number the frames recorded under a Value node's name of the tree
+            for name, col in v.items():
+                node = nt.nodes.get(name)
+                if node is not None and node.bl_idname == "ShaderNodeValue":
+                    if name not in (SLICE_NODE, H_MIN_NODE, MASK_SLICE_NODE):
+                        key_column(nt, path.format(name), -1, frames, col[:, 0], "CONSTANT")
         key_visibility(ob, light_tracks.visibility_keys(frames, track.present))
         return masks
 

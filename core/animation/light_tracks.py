@@ -42,7 +42,9 @@ MAX_SLICES = 12
 #: The D/R grid's range (the exact trace needs D > R; a sun's D/R is huge).
 MIN_D_OVER_R, MAX_D_OVER_R = 1.0 + 1e-6, 1e6
 
-#: Keyed per frame: name → number of components.
+#: Keyed per frame: name → number of components. A frame may record more (the
+#: numbers of its node tree, named after the Value node the bake keys with them):
+#: their sizes are their first frame's.
 CHANNELS = {
     "location": 3,
     "rotation_quaternion": 4,
@@ -56,8 +58,6 @@ CHANNELS = {
     "h_min": 1,  # Exact profile: the table's first distance (world units)
     "receiver": 1,  # Exact profile, near field: the receiver's distance (R); not keyed
     "lens_radius": 1,  # Exact profile: R (world units); not keyed
-    "tilt": 3,  # Exact profile, near field: the receiver's normal in the light's frame
-    "mask_scale": 1,  # Exact profile's shadow mask: 0.5 / s_max of the frame's mask
 }
 
 
@@ -140,7 +140,11 @@ def build_tracks(frames, per_frame) -> list[Track]:
         near = _fill_nearest(present)
         first = got[min(got)]
         track = Track(key, frames, present, profile_group=first.profile_group)
-        for name, size in CHANNELS.items():
+        channels = dict(CHANNELS)
+        for fl in got.values():
+            for name, v in fl.values.items():
+                channels.setdefault(name, int(np.size(v)))
+        for name, size in channels.items():
             col = np.zeros((n, size))
             for i, fl in got.items():
                 v = fl.values.get(name, 0.0)

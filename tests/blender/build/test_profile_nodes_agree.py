@@ -1,12 +1,13 @@
 """One Exact-profile node tree (`lights.build_profile_nodes`) for Generate,
 live update and the bake: a baked profile light and the light Generate makes on the
 same frame give the same emission toward the same directions, far field and near
-field (a marble resting on a table, then the table lowered: the baked slices carry
-their row on each frame's receiver). The trees are evaluated node by node in numpy
-(the image texture as Blender reads it: texels at (i + ½)/K, bilinear, EXTEND),
-from the images' pixels; the lens' D/R sits on the bake's slice grid (1.04^k) on
-each frame, so the baked slices are Generate's tables. And live update keeps a
-non-full source's shadow mask when it rebuilds a profile light's tree."""
+field (a marble resting on a table, then the table lowered: the baked near field
+reads each frame's own table, its row on the frame's receiver). The trees are
+evaluated node by node in numpy (the image texture as Blender reads it: texels at
+(i + ½)/K, bilinear, EXTEND), from the images' pixels; the lens' D/R sits on the
+bake's slice grid (1.04^k) on each frame, so the baked slices are Generate's
+tables. And live update keeps a non-full source's shadow mask when it rebuilds a
+profile light's tree."""
 
 import math
 
@@ -192,11 +193,13 @@ def test_baked_near_field_tree_agrees_with_generate(empty_blend):
         floor.keyframe_insert("location", index=2, frame=f)
     baked = _bake_agrees_with_generate([60.0, 61.0, 62.0])
     (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
-    # a slice per receiver distance, 1 R and 1.02 R away
+    # each frame its own table (Generate's), its rows on its receiver, 1 R and 1.02 R
     from lens_lights.blender.build.marks import PROFILE_KEY
 
     key = img[PROFILE_KEY]  # (the name is cut at 63 characters before Blender 5)
-    assert " near " in key and key.endswith(" 1.02") and " 1 " in key
+    tables = key.split(": ", 1)[1].split("; ")
+    assert len(tables) == 3
+    assert [t.split(" near ")[1] for t in tables] == ["1", "1", "1.02"]
     assert tuple(baked.location) == pytest.approx((0.0, 0.0, R), abs=1e-6)  # the centre
 
 
