@@ -70,6 +70,19 @@ def test_tracks_hold_each_frames_tables_like_the_values():
     assert a.tables["mask"] == [m, m, None]
 
 
+def test_tracks_carry_the_numbers_a_frame_records_beyond_the_channels():
+    # a node tree's numbers, recorded under its Value nodes' names: held like the
+    # channels, missing on a present frame: 0
+    per_frame = [
+        [bp.FrameLight("a", {"Lens bake tilt x": 0.25, "Lens bake mask scale": 2.0})],
+        [],
+        [bp.FrameLight("a", {"Lens bake tilt x": -0.5})],
+    ]
+    (a,) = bp.build_tracks([1, 2, 3], per_frame)
+    assert a.values["Lens bake tilt x"][:, 0].tolist() == [0.25, 0.25, -0.5]
+    assert a.values["Lens bake mask scale"][:, 0].tolist() == [2.0, 2.0, 0.0]
+
+
 def test_tracks_hold_the_nearest_present_values_and_mark_absence():
     # key "a" on frames 10, 11, 13; "b" only on frame 12
     per_frame = [[fl("a", 1.0)], [fl("a", 2.0)], [fl("b", 9.0, energy=5.0)], [fl("a", 4.0)]]
