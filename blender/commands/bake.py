@@ -392,6 +392,7 @@ class Baker:
         images = _profile_images(tracks, 1.0 + self.profile_step)
         collection = lights.lights_collection(scene)
         links: dict = {}
+        masks: set = set()
         for track in tracks:
             planned, lens_ob = self.firsts[track.key]
             bl = planned.light
@@ -400,9 +401,9 @@ class Baker:
             ob = lights.create_light(
                 scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
             )
-            masks = self._key_track(ob, track, images)
-        names = {v[0].name for v in images.values()} | masks
-        return dict(objects=len(tracks), images=len(names))
+            masks |= self._key_track(ob, track, images)
+        profiles = len({v[0].name for v in images.values()})
+        return dict(objects=len(tracks), images=profiles, mask_images=len(masks))
 
     def _key_track(self, ob, track, images):
         frames, v = track.frames, track.values

@@ -313,6 +313,9 @@ def bake_message(figures: dict) -> str:
     if figures.get("images"):
         kind = "layer" if "layer_resolution" in figures else "profile"
         text += f"; {figures['images']} {kind} image{'s' if figures['images'] != 1 else ''}"
+    masks = figures.get("mask_images", 0)
+    if masks:
+        text += f"; {masks} shadow mask image{'s' if masks != 1 else ''}"
     return text
 
 

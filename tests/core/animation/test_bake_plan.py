@@ -231,6 +231,9 @@ def test_bake_message():
     assert bp.bake_message(fig) == (
         "Baked 2 lens lights over frames 1–100 (100 frames, 12.3 s); 1 profile image"
     )
+    fig.update(mask_images=2)
+    assert bp.bake_message(fig).endswith("; 1 profile image; 2 shadow mask images")
+    fig.update(mask_images=0)
     fig.update(objects=1, energy_model="CAUSTIC_LAYER", images=0)
     assert (
         bp.bake_message(fig)
