@@ -124,12 +124,12 @@ def main(argv=None) -> int:
     ]
     base = rows[0]
     for frames, seconds, figures, images, unbaked, size in rows:
-        per = (size - base[5]) / (frames - 1) if frames > 1 else float("nan")
+        per = f"{(size - base[5]) / (frames - 1) / 1e6:.2f}" if frames > 1 else "–"
         imgs = "; ".join(f"{w}×{h}, {b / 1e6:.1f}" for _n, (w, h), b in images)
         t = figures["timings"]
         lines.append(
             f"| {frames} | {seconds:.1f} | {t['plan']:.1f} | {t['build']:.1f} | "
-            f"{unbaked / 1e6:.1f} | {size / 1e6:.1f} | {per / 1e6:.2f} | {imgs} |"
+            f"{unbaked / 1e6:.1f} | {size / 1e6:.1f} | {per} | {imgs} |"
         )
     REPORT.write_text("\n".join(lines) + "\n")
     print("wrote", REPORT)

@@ -250,3 +250,28 @@ def test_live_update_keeps_the_shadow_mask_of_a_non_full_source(empty_blend):
     live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
     ob = lens_light()
     assert ob.lens_lights.full and masks(ob) == []
+
+
+def test_a_tiled_slice_image_reads_the_keyed_slice(empty_blend):
+    """The bake's slices laid out as tiles (`frame_tables.SliceLayout`, two columns):
+    slice k holds the constant k + 1, so the tree's emission at slice coordinate s is
+    the blend of slices ⌊s⌋ and ⌊s⌋ + 1 (the last slice read whole)."""
+    from lens_lights.blender.build import lights
+    from lens_lights.core.animation.frame_tables import SliceLayout, tile_slices
+
+    layout = SliceLayout(count=3, rows=4, width=8, columns=2)
+    px = tile_slices([np.full((4, 8), k + 1.0) for k in range(3)], layout)  # (8, 16)
+    img = bpy.data.images.new("tiles", 16, 8, float_buffer=True, alpha=False)
+    img.colorspace_settings.name = "Non-Color"
+    rgba = np.ones((8, 16, 4), dtype=np.float32)
+    rgba[..., :3] = px[..., None]
+    img.pixels.foreach_set(rgba.ravel())
+    data = bpy.data.lights.new("tiled", "SPOT")
+    profile = dict(gamma_max_deg=90.0, h_min=0.1, h_max=10.0, strength_scale=1.0)
+    nt = lights.build_profile_nodes(data, profile, img, slices=layout)
+    omega = (math.sin(0.3), 0.0, -math.cos(0.3))
+    for s, want in ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (0.5, 1.5), (1.25, 2.25)):
+        nt.nodes[lights.SLICE_NODE].outputs[0].default_value = s
+        # far out along the table (v clamped to the tile's last row) and near (first)
+        for h in (0.01, 1.0, 100.0):
+            assert emission(nt, omega, h) == pytest.approx(want, rel=1e-6), (s, h)
