@@ -100,7 +100,9 @@ def emission(nt, omega, ray_length):
             x, y = value_in(node.inputs["Vector"])[:2]
             return tuple(_texture(image_pixels(node.image), x, y)[:3])
         if kind == "ShaderNodeMath":
+            # a colour into a number: its grey (the masks are grey: r = g = b)
             a, b, c = (value_in(node.inputs[k]) for k in range(3))
+            a, b, c = (sum(x) / len(x) if isinstance(x, tuple) else x for x in (a, b, c))
             return float(_MATH[node.operation](a, b, c))
         raise AssertionError(f"node {kind} not evaluated by this test")
 
@@ -275,3 +277,22 @@ def test_a_tiled_slice_image_reads_the_keyed_slice(empty_blend):
         # far out along the table (v clamped to the tile's last row) and near (first)
         for h in (0.01, 1.0, 100.0):
             assert emission(nt, omega, h) == pytest.approx(want, rel=1e-6), (s, h)
+
+
+def test_baked_shadow_mask_agrees_with_generate(empty_blend):
+    """An opaque ball shading one side of the lens (the scene of
+    tests/blender/build/test_blockers_render.py), the lamp moving: the baked tree
+    multiplies by the frame's own mask (a tile of the bake's mask image at the keyed
+    slice, its keyed scale) and so emits what Generate's does on every frame."""
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere("Lens", (0.0, 0.0, 1.5), radius=R, material=glass_material())
+    add_sphere("Blocker", (0.158, 0.0, 3.0), radius=0.12)  # no material: opaque
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    lamp = add_point_light("Lamp", (0.0, 0.0, 4.5))
+    _lamp_keys(lamp, 1.5, [45.0, 46.0, 47.0])
+    baked = _bake_agrees_with_generate([45.0, 46.0, 47.0])
+    nodes = baked.data.node_tree.nodes
+    (mask,) = [n for n in nodes if n.bl_idname == "ShaderNodeTexImage" and "mask" in n.image.name]
+    assert mask.image.size[1] == 3 * mask.image.size[0]  # one 128² tile per frame
