@@ -54,6 +54,7 @@ from .marks import (
     PROFILE_MARK,
     PROFILE_PREFIX,
 )
+from .node_maths import shader_math, slice_coordinates, value_node
 
 
 def _register_collection(settings, coll):
@@ -89,21 +90,6 @@ def link_collection(scene, lens_object, cache):
         _register_collection(scene.lens_lights, coll)
         cache[lens_object.name] = coll
     return coll
-
-
-def shader_math(nt, op, *inputs):
-    """A Math node of `nt` doing `op` on `inputs` (numbers become its default values,
-    sockets are linked; None leaves an input as it is); its output socket."""
-    n = nt.nodes.new("ShaderNodeMath")
-    n.operation = op
-    for k, v in enumerate(inputs):
-        if v is None:
-            continue
-        if isinstance(v, (int, float)):
-            n.inputs[k].default_value = float(v)
-        else:
-            nt.links.new(v, n.inputs[k])
-    return n.outputs[0]
 
 
 def packed_exr(name: str, pixels, depth: str, file_name: str):
@@ -205,11 +191,15 @@ def profile_image(profile: dict, image_cache: dict | None = None):
 
 
 #: A baked profile light's keyed Value nodes (`blender/commands/bake.py`): the slice
-#: coordinate and the table's first distance.
+#: coordinate, the table's first distance, and (near field) the receiver's normal in
+#: the light's frame (`tilt_normal`; (0, 0, −1): no tilt, the factor is 1).
 SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+TILT_NODES = ("Lens bake tilt x", "Lens bake tilt y", "Lens bake tilt z")
+#: The light-frame normal of a receiver square to the axis (no correction).
+NO_TILT = (0.0, 0.0, -1.0)
 
 
-def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | None = None):
+def build_profile_nodes(data, profile: dict, image, slices=None):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
     ignores light nodes), the one description Generate, live update and the bake
     share: emission strength = red(texture(u, v)) × strength_scale [× tilt factor],
@@ -221,11 +211,12 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     texture. The tilt factor (`_tilt_factor`) when the profile has a
     ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
 
-    `slices` = (count, rows): the baked light's stacked image (`light_tracks`): v read
-    in slice s of `count` slices of `rows` rows each (clamped to the slice's first
-    and last row centres, `light_tracks.slice_row`), two neighbouring slices blended by
-    the fractional part of s; s and h_min are Value nodes (`SLICE_NODE`,
-    `H_MIN_NODE`) the bake keys per frame."""
+    `slices`: the baked light's image of stacked tables, a
+    `core.animation.frame_tables.SliceLayout`: (u, v) read in slice s of it
+    (`slice_coordinates`), two neighbouring slices blended by the fractional part of
+    s; s, h_min and (with a ``receiver_normal`` or ``tilted``) the receiver's normal
+    in the light's frame are Value nodes (`SLICE_NODE`, `H_MIN_NODE`, `TILT_NODES`)
+    the bake keys per frame."""
     if bpy.app.version < (5, 0, 0) or data.node_tree is None:
         data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
     nt = data.node_tree
@@ -250,50 +241,48 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     h_min, h_max = float(profile["h_min"]), float(profile["h_max"])
     log_range = math.log(h_max / h_min)
     if slices is not None:
-        h_node = nt.nodes.new("ShaderNodeValue")
-        h_node.name = h_node.label = H_MIN_NODE
-        h_node.outputs[0].default_value = h_min
-        h_min = h_node.outputs[0]
+        h_min = value_node(nt, H_MIN_NODE, h_min)
     ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
     v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
 
-    def lookup(v):
-        comb = nt.nodes.new("ShaderNodeCombineXYZ")
-        nt.links.new(u, comb.inputs["X"])
-        nt.links.new(v, comb.inputs["Y"])
+    def lookup(vector):
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = image
         tex.interpolation = "Linear"
         tex.extension = "EXTEND"
-        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+        nt.links.new(vector, tex.inputs["Vector"])
         rgb = nt.nodes.new("ShaderNodeSeparateColor")  # red: the intensity
         nt.links.new(tex.outputs["Color"], rgb.inputs[0])
         return rgb
 
     if slices is None:
-        rgb = lookup(v)
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(v, comb.inputs["Y"])
+        rgb = lookup(comb.outputs[0])
         texel = rgb.outputs[0]
+        slope = rgb.outputs[1]
     else:
-        count, rows = int(slices[0]), int(slices[1])
-        s_node = nt.nodes.new("ShaderNodeValue")
-        s_node.name = s_node.label = SLICE_NODE
-        s = s_node.outputs[0]
-        half = 0.5 / rows
-        v = math_node("MAXIMUM", math_node("MINIMUM", v, 1.0 - half), half)
+        count = int(slices.count)
+        s = value_node(nt, SLICE_NODE, 0.0)
         base = math_node("MINIMUM", math_node("FLOOR", s), max(count - 2, 0))
-
-        def row(offset):
-            return math_node("DIVIDE", math_node("ADD", math_node("ADD", base, offset), v), count)
-
-        rgb = lookup(row(0.0))
-        texel = rgb.outputs[0]
+        rgb = lookup(slice_coordinates(nt, u, v, slices, base))
+        texel, slope = rgb.outputs[0], rgb.outputs[1]
         if count > 1:
             frac = math_node("SUBTRACT", s, base)
-            second = lookup(row(1.0)).outputs[0]
-            texel = math_node("MULTIPLY_ADD", math_node("SUBTRACT", second, texel), frac, texel)
+            second = lookup(slice_coordinates(nt, u, v, slices, math_node("ADD", base, 1.0)))
+
+            def blend(a, b):
+                return math_node("MULTIPLY_ADD", math_node("SUBTRACT", b, a), frac, a)
+
+            texel = blend(texel, second.outputs[0])
+            slope = blend(slope, second.outputs[1])
     strength = math_node("MULTIPLY", texel, float(profile.get("strength_scale", 1.0)))
-    if profile.get("receiver_normal") is not None:
-        strength = math_node("MULTIPLY", strength, _tilt_factor(profile, sep, sin_g, cosg, rgb))
+    normal = tilt_normal(profile)
+    if slices is not None and (normal is not None or profile.get("tilted")):
+        normal = [value_node(nt, n, x) for n, x in zip(TILT_NODES, normal or NO_TILT, strict=True)]
+    if normal is not None:
+        strength = math_node("MULTIPLY", strength, _tilt_factor(normal, sep, sin_g, cosg, slope))
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     nt.links.new(strength, em.inputs["Strength"])
@@ -302,16 +291,24 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     return nt
 
 
-def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
-    """Near field, a receiver tilted against the axis (normal n along the beam,
-    `profile["receiver_normal"]`): the light's rays come from its apex (slope
-    tan γ), the beam's from the lens (mean slope T, the image's green channel), and
-    a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so the intensity is
-    scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω: the Normal
-    coordinate, a = −Z, in the light's frame as `create_light` turns it)."""
-    nt = sep.id_data
+def tilt_normal(profile: dict) -> tuple | None:
+    """The profile's ``receiver_normal`` in the light's frame (as `create_light` turns
+    the light: its −Z along ``axis``), or None (no tilt correction)."""
+    if profile.get("receiver_normal") is None:
+        return None
     q = Vector(profile["axis"]).to_track_quat("-Z", "Y")
-    nx, ny, nz = q.inverted() @ Vector(profile["receiver_normal"])
+    return tuple(q.inverted() @ Vector(profile["receiver_normal"]))
+
+
+def _tilt_factor(normal, sep, sin_g, cos_g, slope):
+    """Near field, a receiver tilted against the axis (normal n along the beam, in the
+    light's frame: `tilt_normal`; numbers or sockets): the light's rays come from its
+    apex (slope tan γ), the beam's from the lens (mean slope T, the image's green
+    channel `slope`), and a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so
+    the intensity is scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω:
+    the Normal coordinate, a = −Z)."""
+    nt = sep.id_data
+    nx, ny, nz = normal
 
     def op(kind, *args):
         return shader_math(nt, kind, *args)
@@ -320,7 +317,8 @@ def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
     q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
     n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
     rho_n = op("DIVIDE", q_xy, op("MAXIMUM", sin_g, 1e-6))
-    beam = op("MULTIPLY_ADD", rgb.outputs[1], rho_n, -nz)  # n·a + T ρ̂·n
+    minus_nz = -nz if isinstance(nz, float) else op("MULTIPLY", nz, -1.0)
+    beam = op("MULTIPLY_ADD", slope, rho_n, minus_nz)  # n·a + T ρ̂·n
     factor = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
     return op("MINIMUM", op("MAXIMUM", factor, 0.0), 8.0)
 

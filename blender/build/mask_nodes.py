@@ -26,23 +26,25 @@ from mathutils import Vector
 
 from ...core.tiers.exact_profile_mask import emission_mask
 from .marks import COLLECTION_MARK, MASK_PREFIX, PROFILE_MARK
+from .node_maths import shader_math, slice_coordinates, value_node
 
 
-def add_shadow_mask(ob, planned, arrays) -> bool:
-    """Mask the EXACT_PROFILE light object `ob` made from `planned` (a
-    `planning.PlannedLight`) by its source's shadow list; `arrays`: the phase-1
-    `SceneArrays` the shadow list indexes. False (nothing done) for a light without a
-    profile node tree, a full source, or a source without a finite light position."""
+def shadow_mask(planned, arrays):
+    """(pixels, s_max) of the shadow mask of the EXACT_PROFILE light made from `planned`
+    (a `planning.PlannedLight`): the emission mask over the cap's unblocked share; None
+    for a light without a profile, a full source, or a source without a finite light
+    position. `arrays`: the phase-1 `SceneArrays` the shadow list indexes."""
     bl, src = planned.light, planned.source
     if arrays is None or not list(src.shadow_list) or getattr(bl, "profile_info", None) is None:
-        return False
-    nt = ob.data.node_tree if ob.data is not None else None
-    if nt is None or not any(n.bl_idname == "ShaderNodeEmission" for n in nt.nodes):
-        return False
+        return None
     D = float(src.distance)
     axis = np.asarray(src.axis, dtype=float)
     if not (math.isfinite(D) and np.all(np.isfinite(axis))):
-        return False
+        return None
+    # the energy already holds the cap's unblocked share: the mask replaces it
+    unblocked = float(src.unblocked_fraction)
+    if not unblocked > 0.0:
+        return None
     light_position = np.asarray(src.lens_center, dtype=float) - D * axis
     k = np.asarray(src.shadow_list, dtype=np.int64)
     blockers = (arrays.center[k], arrays.radius[k], arrays.ior[k], arrays.kt[k])
@@ -59,13 +61,36 @@ def add_shadow_mask(ob, planned, arrays) -> bool:
         ey,
         receiver=getattr(bl, "receiver_distance", None),
     )
-    # the energy already holds the cap's unblocked share: the mask replaces it
-    unblocked = float(src.unblocked_fraction)
-    if not unblocked > 0.0:
+    return mask.pixels / np.float32(unblocked), float(mask.s_max)
+
+
+def add_shadow_mask(ob, planned, arrays) -> bool:
+    """Mask the EXACT_PROFILE light object `ob` made from `planned` by its source's
+    shadow list (`shadow_mask`); False (nothing done) without a profile node tree or
+    a mask."""
+    nt = ob.data.node_tree if ob.data is not None else None
+    if nt is None or not any(n.bl_idname == "ShaderNodeEmission" for n in nt.nodes):
         return False
-    pixels = mask.pixels / np.float32(unblocked)
-    _insert(nt, _mask_image(ob.name, pixels), mask.s_max)
+    mask = shadow_mask(planned, arrays)
+    if mask is None:
+        return False
+    pixels, s_max = mask
+    _insert(nt, _mask_image(ob.name, pixels), 0.5 / s_max)
     return True
+
+
+#: A baked light's keyed Value nodes (`blender/commands/bake.py`): the frame's slice
+#: of the stacked masks, and 0.5 / s_max (its directions' scale).
+MASK_SLICE_NODE, MASK_SCALE_NODE = "Lens bake mask slice", "Lens bake mask scale"
+
+
+def add_baked_mask(nt, image, layout) -> None:
+    """The bake's shadow mask: `image` holds the frames' masks as slices (`layout`, a
+    `core.animation.frame_tables.SliceLayout`), read at the keyed slice
+    `MASK_SLICE_NODE` with the keyed scale `MASK_SCALE_NODE`."""
+    scale = value_node(nt, MASK_SCALE_NODE, 0.5)
+    k = value_node(nt, MASK_SLICE_NODE, 0.0)
+    _insert(nt, image, scale, layout, k)
 
 
 def _mask_image(name, pixels):
@@ -84,8 +109,10 @@ def _mask_image(name, pixels):
     return img
 
 
-def _insert(nt, image, s_max):
-    """Strength ← strength × mask(0.5 + 0.5 X/s_max, 0.5 + 0.5 Y/s_max)."""
+def _insert(nt, image, scale, layout=None, k=None):
+    """Strength ← strength × mask(0.5 + X scale, 0.5 + Y scale) (scale = 0.5 / s_max, a
+    number or a socket); with `layout`, read in slice `k` of it
+    (`lights.slice_coordinates`)."""
     em = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeEmission")
     strength = em.inputs["Strength"]
     tc = next((n for n in nt.nodes if n.bl_idname == "ShaderNodeTexCoord"), None)
@@ -93,19 +120,19 @@ def _insert(nt, image, s_max):
         tc = nt.nodes.new("ShaderNodeTexCoord")
     sep = nt.nodes.new("ShaderNodeSeparateXYZ")
     nt.links.new(tc.outputs["Normal"], sep.inputs[0])
-    comb = nt.nodes.new("ShaderNodeCombineXYZ")
-    for axis in ("X", "Y"):
-        m = nt.nodes.new("ShaderNodeMath")
-        m.operation = "MULTIPLY_ADD"
-        nt.links.new(sep.outputs[axis], m.inputs[0])
-        m.inputs[1].default_value = 0.5 / s_max
-        m.inputs[2].default_value = 0.5
-        nt.links.new(m.outputs[0], comb.inputs[axis])
+    u, v = (shader_math(nt, "MULTIPLY_ADD", sep.outputs[a], scale, 0.5) for a in ("X", "Y"))
+    if layout is None:
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(v, comb.inputs["Y"])
+        vector = comb.outputs[0]
+    else:
+        vector = slice_coordinates(nt, u, v, layout, k)
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = image
     tex.interpolation = "Linear"
     tex.extension = "EXTEND"
-    nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+    nt.links.new(vector, tex.inputs["Vector"])
     mul = nt.nodes.new("ShaderNodeMath")
     mul.operation = "MULTIPLY"
     if strength.is_linked:

@@ -22,13 +22,23 @@ scene as it was:
      key's first frame), its transform (object action), energy, colour, cone,
      blend and radius (light data action) keyed on every frame, LINEAR; on frames
      without the key it is keyed hidden (`hide_render`, `hide_viewport`, CONSTANT);
-   * Exact profile: per (lens, n, near field[, receiver]) one image of stacked D/R
-     slices (`light_tracks.slice_grid`; the near field: per track, a block of D/R
-     slices per receiver distance, `light_tracks.near_slices`), and Generate's
-     node tree in its slices mode (`lights.build_profile_nodes(slices=)`)
-     whose slice coordinate and first table distance are keyed Value nodes
-     (node-tree action): the number of images does not grow with the frames. Not
-     baked: the tilt correction and the shadow mask (both depend on the frame);
+   * Exact profile: Generate's node tree on every frame
+     (`lights.build_profile_nodes(slices=)` + `mask_nodes.add_baked_mask`), every
+     number of it that changes with the frame a keyed Value node, every table a
+     slice of one image read through a keyed slice index
+     (`core.animation.frame_tables`: tiles within a GPU's 16 384² texture):
+     - far field: per (lens, n) one image of stacked D/R slices
+       (`light_tracks.slice_grid`), "Lens bake slice" (fractional: two slices
+       blended) and "Lens bake h_min" keyed LINEAR;
+     - near field: the frame's own table, Generate's (its rows on the frame's
+       receiver; red the intensity, green the rays' slopes when a frame's receiver
+       is tilted), one slice per distinct table of the track, "Lens bake slice"
+       and "Lens bake h_min" keyed CONSTANT; the tilt correction's normal in the
+       light's frame "Lens bake tilt x/y/z" (CONSTANT; (0, 0, −1) on a frame
+       without a tilt: factor 1);
+     - shadow mask (a frame whose source has a shadow list): the frames' masks as
+       slices of one image ("Lens mask bake …"; a frame without one reads ones),
+       "Lens bake mask slice" and "Lens bake mask scale" (0.5 / s_max) CONSTANT;
    * Caustic layer: one mesh per receiver plane × lens lights whose topology is
      fixed over the frames (`core.animation.layer_segments`: the union of the frames' rasters,
      cut in time only where it would coarsen a frame's caustic core more than
@@ -46,6 +56,7 @@ Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clea
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import time
 import traceback
@@ -54,15 +65,16 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ...core.animation import layer_segments, light_tracks
+from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
 from ...core.plan.cycles_caustics import kept_on_warning
 from ...core.report.message import error_text
 from ...core.tiers import EXACT_PROFILE, builds_layer
-from ..build import baked_layers, cleanup, cycles_caustics, layers, lights
+from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
 from ..build.marks import (
     BAKE_MARK,
     COLLECTION_MARK,
+    MASK_PREFIX,
     PROFILE_KEY,
     PROFILE_MARK,
     PROFILE_PREFIX,
@@ -71,6 +83,7 @@ from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from . import layer_stage, pipeline
 
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
+MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
 #: The figures of the last bake (seconds per stage, counts).
 LAST_BAKE: dict = {}
 
@@ -123,9 +136,9 @@ def key_visibility(ob, keys):
 
 def compact_profile_image(key: str, pixels):
     """A marked profile image (as `lights.profile_image` makes, reused by
-    key) holding `pixels` (H, K) as a one-channel 32-bit float OpenEXR, ZIP, packed:
-    bit for bit the same values (`lights.packed_exr`)."""
-    H, K = pixels.shape
+    key) holding `pixels` (H, K) as a one-channel (or (H, K, 3): RGB) 32-bit float
+    OpenEXR, ZIP, packed: bit for bit the same values (`lights.packed_exr`)."""
+    H, K = pixels.shape[:2]
     for img in bpy.data.images:
         if (
             img.get(COLLECTION_MARK) == PROFILE_MARK
@@ -141,10 +154,12 @@ def compact_profile_image(key: str, pixels):
 
 
 def _profile_images(tracks, ratio) -> dict:
-    """Per Exact profile track key: (image, slices, rows, slice coordinate per
-    frame, h_min per frame in world units). Far field: the image stacks its group's
-    D/R slices (`light_tracks.profile_groups`); near field: the track's own image, a
-    block of D/R slices per receiver distance (`light_tracks.near_slices`)."""
+    """Per Exact profile track key: (image, layout, slice coordinate per frame, h_min
+    per frame in world units, interpolation). Far field: the image stacks its group's
+    D/R slices (`light_tracks.profile_groups`), read between two (LINEAR); near
+    field: the track's own image of its frames' own tables, Generate's (red: the
+    intensity; green: the rays' slopes where a frame's receiver is tilted), each
+    frame reading its own (CONSTANT; `frame_tables`)."""
     out = {}
     far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
     groups = light_tracks.profile_groups(far, ratio)
@@ -154,35 +169,70 @@ def _profile_images(tracks, ratio) -> dict:
         tables = [light_tracks.profile_slice_table(g, n, False) for g in grid]
         key = f"bake {lens} n {n:.9g} D/R " + " ".join(f"{g:.9g}" for g in grid)
         image = compact_profile_image(key, light_tracks.stack_slices(tables))
+        layout = frame_tables.SliceLayout(len(grid), *tables[0].shape)
         for k in keys:
             t = by_key[k]
             s = light_tracks.slice_coordinate(t.d_over_r, grid)
-            out[k] = (image, len(grid), tables[0].shape[0], s, t.values["h_min"][:, 0])
+            out[k] = (image, layout, s, t.values["h_min"][:, 0], "LINEAR")
     for t in tracks:
         if t.profile_group is None or not t.profile_group[2]:
             continue
-        lens, n = t.profile_group[:2]
-        nodes, s = light_tracks.near_slices(t, ratio)
-        tables = [light_tracks.profile_slice_table(d, n, True, z) for d, z in nodes]
-        key = f"bake {lens} n {n:.9g} near " + " ".join(f"{d:.9g} {z:.6g}" for d, z in nodes)
-        image = compact_profile_image(key, light_tracks.stack_slices(tables))
-        h_min = np.array([light_tracks.slice_h_min(nodes[int(math.floor(k))][1]) for k in s])
-        out[t.key] = (
-            image,
-            len(nodes),
-            tables[0].shape[0],
-            s,
-            h_min * t.values["lens_radius"][:, 0],
-        )
+        frames = t.tables["near"]
+        keys, s = frame_tables.frame_slices([key for key, _ in frames])
+        first = {}
+        for key, px in frames:
+            first.setdefault(key, px)
+        tilted = any(px.ndim == 3 for px in first.values())
+        tables = [_near_pixels(first[key], tilted) for key in keys]
+        layout = frame_tables.slice_layout(len(tables), *tables[0].shape[:2])
+        # the key lists the frames' tables (Generate's keys, in slice order)
+        key = f"bake {t.profile_group[0]} near: " + "; ".join(map(str, keys))
+        image = compact_profile_image(key, frame_tables.tile_slices(tables, layout))
+        out[t.key] = (image, layout, s.astype(float), t.values["h_min"][:, 0], "CONSTANT")
     return out
+
+
+def _near_pixels(pixels, tilted: bool):
+    """A near table as the bake's image holds it: (M, K), or with `tilted` (M, K, 3)
+    RGB, green the rays' slopes (0 for a frame without a tilt: its factor is 1)."""
+    px = np.asarray(pixels, dtype=np.float32)
+    if not tilted:
+        return px
+    rgb = np.zeros((*px.shape[:2], 3), dtype=np.float32)
+    rgb[..., : px.shape[2] if px.ndim == 3 else 1] = px if px.ndim == 3 else px[..., None]
+    return rgb
+
+
+def _slice_image(track, role: str, name: str):
+    """(image, layout, slice per frame) of the track's frames' `role` tables (None:
+    no frame has one), one slice per distinct table (`frame_tables`); a frame
+    without one reads a slice of ones. The image: a packed 32-bit float OpenEXR
+    named `name`, marked like the profile images (Clear removes it once unused)."""
+    frames = track.tables.get(role)
+    if not frames or all(m is None for m in frames):
+        return None
+    keys, s = frame_tables.frame_slices([None if m is None else m[0] for m in frames])
+    pixels = {m[0]: m[1] for m in frames if m is not None}
+    shape = next(iter(pixels.values())).shape
+    tables = [pixels[k] if k is not None else np.ones(shape, np.float32) for k in keys]
+    layout = frame_tables.slice_layout(len(tables), *shape[:2])
+    image = lights.packed_exr(
+        name, frame_tables.tile_slices(tables, layout), "32", f"lens_{role}.exr"
+    )
+    image[COLLECTION_MARK] = PROFILE_MARK
+    return image, layout, s.astype(float)
 
 
 # --------------------------------------------------------------------------- the bake
 
 
-def _frame_lights(work, firsts: dict) -> list:
+def _frame_lights(work, firsts: dict, tables: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
-    (PlannedLight, lens object)."""
+    (PlannedLight, lens object); `tables` (key → pixels) shares equal tables over
+    the frames. An Exact profile light records what Generate's node tree reads on
+    this frame: its near field's own table (its key, intensity and slopes), its
+    receiver's normal in its frame (`lights.tilt_normal`), its shadow mask
+    (`mask_nodes.shadow_mask`)."""
     out = []
     nears = [
         bool(
@@ -217,8 +267,26 @@ def _frame_lights(work, firsts: dict) -> list:
             fl.d_over_r = float(src.distance) / float(src.lens_radius)
             values["h_min"] = float(bl.profile_info["h_min"])
             values["lens_radius"] = float(src.lens_radius)
-            if near:
+            tilt = lights.NO_TILT
+            if near:  # the frame's own table, Generate's
+                prof = bl.profile
                 values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
+                values["h_min"] = float(prof["h_min"])
+                tilt = lights.tilt_normal(prof) or lights.NO_TILT
+                tkey = prof["key"] if prof.get("key") is not None else f"frame {id(prof)}"
+                if tkey not in tables:
+                    px = np.asarray(prof["pixels"], dtype=np.float32)
+                    if prof.get("slope") is not None:
+                        px = np.stack([px, np.asarray(prof["slope"], np.float32)], axis=-1)
+                    tables[tkey] = px
+                fl.tables["near"] = (tkey, tables[tkey])
+            # the tree's numbers, under the names of the Value nodes keyed with them
+            values.update(zip(lights.TILT_NODES, tilt, strict=True))
+            mask = mask_nodes.shadow_mask(p, work.read.arrays)
+            if mask is not None:
+                px, s_max = mask
+                fl.tables["mask"] = (hashlib.sha1(px.tobytes()).hexdigest(), px)
+                values[MASK_SCALE_NODE] = 0.5 / s_max
         if key not in firsts:
             firsts[key] = (p, work.read.sphere_objects[p.source.lens])
         out.append(fl)
@@ -252,7 +320,7 @@ class Baker:
         self.live_before = bool(getattr(settings, "live_update", False))
         if self.live_before:
             settings.live_update = False
-        self.per_frame, self.works, self.firsts = [], [], {}
+        self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
         self.lens_objects: set = set()
         self.unmodelled_glass: dict = {}  # name → why: keeps Cycles' refractive caustics on
         self.timings = dict(plan=0.0, build=0.0)
@@ -279,7 +347,7 @@ class Baker:
             work, how = as_rendered(self.context, plan)
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
-        self.per_frame.append(_frame_lights(work, self.firsts))
+        self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
         if self.layer:
@@ -337,6 +405,7 @@ class Baker:
         images = _profile_images(tracks, 1.0 + self.profile_step)
         collection = lights.lights_collection(scene)
         links: dict = {}
+        masks: set = set()
         for track in tracks:
             planned, lens_ob = self.firsts[track.key]
             bl = planned.light
@@ -345,8 +414,9 @@ class Baker:
             ob = lights.create_light(
                 scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
             )
-            self._key_track(ob, track, images)
-        return dict(objects=len(tracks), images=len({v[0].name for v in images.values()}))
+            masks |= self._key_track(ob, track, images)
+        profiles = len({v[0].name for v in images.values()})
+        return dict(objects=len(tracks), images=profiles, mask_images=len(masks))
 
     def _key_track(self, ob, track, images):
         frames, v = track.frames, track.values
@@ -363,14 +433,30 @@ class Baker:
         key_column(data, "spot_size", -1, frames, v["spot_size"][:, 0])
         key_column(data, "spot_blend", -1, frames, v["spot_blend"][:, 0])
         key_column(data, "shadow_soft_size", -1, frames, v["radius"][:, 0])
+        masks = set()
         if track.profile_group is not None:
-            image, count, rows, s, h_min = images[track.key]
-            info = self.firsts[track.key][0].light.profile_info
-            nt = lights.build_profile_nodes(data, info, image, slices=(count, rows))
+            image, layout, s, h_min, how = images[track.key]
+            info = dict(self.firsts[track.key][0].light.profile_info)
+            tilt = np.column_stack([v[name][:, 0] for name in lights.TILT_NODES])
+            info["tilted"] = bool(np.any(tilt != np.array(lights.NO_TILT)))
+            nt = lights.build_profile_nodes(data, info, image, slices=layout)
             path = 'nodes["{}"].outputs[0].default_value'
-            key_column(nt, path.format(SLICE_NODE), -1, frames, s)
-            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min)
+            key_column(nt, path.format(SLICE_NODE), -1, frames, s, how)
+            key_column(nt, path.format(H_MIN_NODE), -1, frames, h_min, how)
+            mask = _slice_image(track, "mask", MASK_PREFIX + f"bake {ob.name}")
+            if mask is not None:
+                m_image, m_layout, m_s = mask
+                mask_nodes.add_baked_mask(nt, m_image, m_layout)
+                key_column(nt, path.format(MASK_SLICE_NODE), -1, frames, m_s, "CONSTANT")
+                masks.add(m_image.name)
+            # every number the frames recorded under a Value node's name of the tree
+            for name, col in v.items():
+                node = nt.nodes.get(name)
+                if node is not None and node.bl_idname == "ShaderNodeValue":
+                    if name not in (SLICE_NODE, H_MIN_NODE, MASK_SLICE_NODE):
+                        key_column(nt, path.format(name), -1, frames, col[:, 0], "CONSTANT")
         key_visibility(ob, light_tracks.visibility_keys(frames, track.present))
+        return masks
 
     def _build_layers(self) -> dict:
         """Fixed-topology layers (`core.animation.layer_segments`): per segment one mesh, its

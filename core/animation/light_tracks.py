@@ -18,10 +18,10 @@ columns, and the Exact profile's one table per lens for all frames.
   and keys a fractional slice coordinate per frame: the node tree blends the two
   neighbouring slices (`slice_coordinate`). The number of images is the number of
   (lens, n, near) groups, whatever the number of frames. The near field's table
-  has a row on the receiver (`tiers.exact_profile.table_geometry`): a near track's
-  slices are one per receiver distance its frames take (`near_slices`; a plane
-  even half a row off the table's receiver row reads −48 % at the caustic's
-  centre, reports/bake_near_field.md), its keyed h_min the slice's (`slice_h_min`).
+  has a row on the receiver (`tiers.exact_profile.table_geometry`; a plane even half
+  a row off it reads −48 % at the caustic's centre, reports/bake_near_field.md): a
+  near track reads each frame's own table, Generate's, through
+  `frame_tables` (`FrameLight.tables`), as it reads each frame's shadow mask.
 * **Frame ranges** of the command line (`parse_frames`, `frame_path`).
 """
 
@@ -42,7 +42,9 @@ MAX_SLICES = 12
 #: The D/R grid's range (the exact trace needs D > R; a sun's D/R is huge).
 MIN_D_OVER_R, MAX_D_OVER_R = 1.0 + 1e-6, 1e6
 
-#: Keyed per frame: name → number of components.
+#: Keyed per frame: name → number of components. A frame may record more (the
+#: numbers of its node tree, named after the Value node the bake keys with them):
+#: their sizes are their first frame's.
 CHANNELS = {
     "location": 3,
     "rotation_quaternion": 4,
@@ -68,6 +70,9 @@ class FrameLight:
     #: Exact profile: (lens name, n, near) of its table group, and its D/R.
     profile_group: tuple | None = None
     d_over_r: float = math.nan
+    #: The frame's own tables its node tree reads (role → (key, pixels), None: none
+    #: this frame): the near field's table, the shadow mask (`frame_tables`).
+    tables: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -80,6 +85,8 @@ class Track:
     values: dict = field(default_factory=dict)  # channel → (F, components)
     profile_group: tuple | None = None
     d_over_r: np.ndarray | None = None  # (F,), held like the values
+    #: role → per frame (key, pixels) or None, held like the values
+    tables: dict = field(default_factory=dict)
 
     @property
     def first(self) -> int:
@@ -133,7 +140,11 @@ def build_tracks(frames, per_frame) -> list[Track]:
         near = _fill_nearest(present)
         first = got[min(got)]
         track = Track(key, frames, present, profile_group=first.profile_group)
-        for name, size in CHANNELS.items():
+        channels = dict(CHANNELS)
+        for fl in got.values():
+            for name, v in fl.values.items():
+                channels.setdefault(name, int(np.size(v)))
+        for name, size in channels.items():
             col = np.zeros((n, size))
             for i, fl in got.items():
                 v = fl.values.get(name, 0.0)
@@ -146,6 +157,8 @@ def build_tracks(frames, per_frame) -> list[Track]:
         for i, fl in got.items():
             dr[i] = fl.d_over_r
         track.d_over_r = dr[near]
+        for role in {r for fl in got.values() for r in fl.tables}:
+            track.tables[role] = [got[int(j)].tables.get(role) for j in near]
         out.append(track)
     return out
 
@@ -264,38 +277,6 @@ def slice_row(v: float, slice_index: int, slices: int, rows: int) -> float:
     return (slice_index + min(max(v, half), 1.0 - half)) / slices
 
 
-def near_slices(track, ratio: float = SLICE_RATIO, max_slices: int = MAX_SLICES):
-    """A near-field track's slices: ([(D/R, receiver)], s). Per distinct receiver
-    distance of its frames (R from the lens centre, to 1e-6, as Generate keys its
-    table: the table's rows are placed on it, and a plane even half a row off reads
-    a row inside the lens) a block of slices over the D/R grid of the frames at that
-    distance (`slice_grid`), blocks stacked; more distinct distances than
-    `max_slices`: that many quantiles, each frame its nearest, and the blocks share
-    `max_slices` (a block of one: the median D/R). `s`: each frame's slice
-    coordinate (its block's first slice + its D/R's coordinate in the block; the
-    node tree blends within a block only, as s is whole at a block's end)."""
-    z = np.round(track.values["receiver"][:, 0], 6)
-    present = np.asarray(track.present, dtype=bool)
-    nodes = np.unique(z[present])
-    if len(nodes) > max_slices:
-        nodes = np.unique(np.round(np.quantile(z[present], np.linspace(0, 1, max_slices)), 6))
-    idx = np.abs(z[:, None] - nodes[None, :]).argmin(axis=1)
-    dr = np.asarray(track.d_over_r, dtype=float)
-    budget = max(max_slices // len(nodes), 1)
-    out, s = [], np.zeros(len(z))
-    for k, zk in enumerate(nodes):
-        at = idx == k
-        values = dr[present & at] if (present & at).any() else dr[present]
-        grid = (
-            slice_grid(values, ratio, budget)
-            if budget > 1
-            else np.array([float(np.median(_clamped(values)))])
-        )
-        s[at] = len(out) + slice_coordinate(dr[at], grid)
-        out.extend((float(g), float(zk)) for g in grid)
-    return out, s
-
-
 def slice_h_min(receiver: float | None) -> float:
     """The first distance (R) of the table `profile_slice_table` makes for
     `receiver` (None: the far table)."""
@@ -332,6 +313,9 @@ def bake_message(figures: dict) -> str:
     if figures.get("images"):
         kind = "layer" if "layer_resolution" in figures else "profile"
         text += f"; {figures['images']} {kind} image{'s' if figures['images'] != 1 else ''}"
+    masks = figures.get("mask_images", 0)
+    if masks:
+        text += f"; {masks} shadow mask image{'s' if masks != 1 else ''}"
     return text
 
 

@@ -1,12 +1,13 @@
 """One Exact-profile node tree (`lights.build_profile_nodes`) for Generate,
 live update and the bake: a baked profile light and the light Generate makes on the
 same frame give the same emission toward the same directions, far field and near
-field (a marble resting on a table, then the table lowered: the baked slices carry
-their row on each frame's receiver). The trees are evaluated node by node in numpy
-(the image texture as Blender reads it: texels at (i + ½)/K, bilinear, EXTEND),
-from the images' pixels; the lens' D/R sits on the bake's slice grid (1.04^k) on
-each frame, so the baked slices are Generate's tables. And live update keeps a
-non-full source's shadow mask when it rebuilds a profile light's tree."""
+field (a marble resting on a table, then the table lowered: the baked near field
+reads each frame's own table, its row on the frame's receiver). The trees are
+evaluated node by node in numpy (the image texture as Blender reads it: texels at
+(i + ½)/K, bilinear, EXTEND), from the images' pixels; the lens' D/R sits on the
+bake's slice grid (1.04^k) on each frame, so the baked slices are Generate's
+tables. And live update keeps a non-full source's shadow mask when it rebuilds a
+profile light's tree."""
 
 import math
 
@@ -99,7 +100,9 @@ def emission(nt, omega, ray_length):
             x, y = value_in(node.inputs["Vector"])[:2]
             return tuple(_texture(image_pixels(node.image), x, y)[:3])
         if kind == "ShaderNodeMath":
+            # a colour into a number: its grey (the masks are grey: r = g = b)
             a, b, c = (value_in(node.inputs[k]) for k in range(3))
+            a, b, c = (sum(x) / len(x) if isinstance(x, tuple) else x for x in (a, b, c))
             return float(_MATH[node.operation](a, b, c))
         raise AssertionError(f"node {kind} not evaluated by this test")
 
@@ -192,11 +195,13 @@ def test_baked_near_field_tree_agrees_with_generate(empty_blend):
         floor.keyframe_insert("location", index=2, frame=f)
     baked = _bake_agrees_with_generate([60.0, 61.0, 62.0])
     (img,) = [i for i in bpy.data.images if i.name.startswith("Lens profile")]
-    # a slice per receiver distance, 1 R and 1.02 R away
+    # each frame its own table (Generate's), its rows on its receiver, 1 R and 1.02 R
     from lens_lights.blender.build.marks import PROFILE_KEY
 
     key = img[PROFILE_KEY]  # (the name is cut at 63 characters before Blender 5)
-    assert " near " in key and key.endswith(" 1.02") and " 1 " in key
+    tables = key.split(": ", 1)[1].split("; ")
+    assert len(tables) == 3
+    assert [t.split(" near ")[1] for t in tables] == ["1", "1", "1.02"]
     assert tuple(baked.location) == pytest.approx((0.0, 0.0, R), abs=1e-6)  # the centre
 
 
@@ -247,3 +252,47 @@ def test_live_update_keeps_the_shadow_mask_of_a_non_full_source(empty_blend):
     live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
     ob = lens_light()
     assert ob.lens_lights.full and masks(ob) == []
+
+
+def test_a_tiled_slice_image_reads_the_keyed_slice(empty_blend):
+    """The bake's slices laid out as tiles (`frame_tables.SliceLayout`, two columns):
+    slice k holds the constant k + 1, so the tree's emission at slice coordinate s is
+    the blend of slices ⌊s⌋ and ⌊s⌋ + 1 (the last slice read whole)."""
+    from lens_lights.blender.build import lights
+    from lens_lights.core.animation.frame_tables import SliceLayout, tile_slices
+
+    layout = SliceLayout(count=3, rows=4, width=8, columns=2)
+    px = tile_slices([np.full((4, 8), k + 1.0) for k in range(3)], layout)  # (8, 16)
+    img = bpy.data.images.new("tiles", 16, 8, float_buffer=True, alpha=False)
+    img.colorspace_settings.name = "Non-Color"
+    rgba = np.ones((8, 16, 4), dtype=np.float32)
+    rgba[..., :3] = px[..., None]
+    img.pixels.foreach_set(rgba.ravel())
+    data = bpy.data.lights.new("tiled", "SPOT")
+    profile = dict(gamma_max_deg=90.0, h_min=0.1, h_max=10.0, strength_scale=1.0)
+    nt = lights.build_profile_nodes(data, profile, img, slices=layout)
+    omega = (math.sin(0.3), 0.0, -math.cos(0.3))
+    for s, want in ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (0.5, 1.5), (1.25, 2.25)):
+        nt.nodes[lights.SLICE_NODE].outputs[0].default_value = s
+        # far out along the table (v clamped to the tile's last row) and near (first)
+        for h in (0.01, 1.0, 100.0):
+            assert emission(nt, omega, h) == pytest.approx(want, rel=1e-6), (s, h)
+
+
+def test_baked_shadow_mask_agrees_with_generate(empty_blend):
+    """An opaque ball shading one side of the lens (the scene of
+    tests/blender/build/test_blockers_render.py), the lamp moving: the baked tree
+    multiplies by the frame's own mask (a tile of the bake's mask image at the keyed
+    slice, its keyed scale) and so emits what Generate's does on every frame."""
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere("Lens", (0.0, 0.0, 1.5), radius=R, material=glass_material())
+    add_sphere("Blocker", (0.158, 0.0, 3.0), radius=0.12)  # no material: opaque
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    lamp = add_point_light("Lamp", (0.0, 0.0, 4.5))
+    _lamp_keys(lamp, 1.5, [45.0, 46.0, 47.0])
+    baked = _bake_agrees_with_generate([45.0, 46.0, 47.0])
+    nodes = baked.data.node_tree.nodes
+    (mask,) = [n for n in nodes if n.bl_idname == "ShaderNodeTexImage" and "mask" in n.image.name]
+    assert mask.image.size[1] == 3 * mask.image.size[0]  # one 128² tile per frame

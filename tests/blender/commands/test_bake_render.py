@@ -22,17 +22,13 @@ check). Tolerances as the render tests: position within `POSITION_TOL` (one
 pixel), brightness within `BRIGHTNESS_TOL` (10 %).
 """
 
-import json
 import math
-import os
-import subprocess
-import sys
-import textwrap
 
 import bpy
 import numpy as np
 import pytest
 from measuring_scene import build_measuring_scene, direct_light_only
+from stock_render import load, stock_render
 
 from core.lens import ball_optics
 
@@ -43,31 +39,6 @@ PX, VIEW = 48, 1.0
 PATCH_PX = 2.0
 POSITION_TOL = 0.02
 BRIGHTNESS_TOL = 0.10
-
-#: Rendered by a process that only opens the file: no extension anywhere.
-STOCK_RENDER = textwrap.dedent(
-    """
-    import json, os, sys
-    import bpy
-    path, out = sys.argv[1], sys.argv[2]
-    bpy.ops.wm.open_mainfile(filepath=path)
-    scene = bpy.context.scene
-    facts = dict(
-        registered=scene.bl_rna.properties.get("lens_lights") is not None,
-        operators=hasattr(bpy.types, "LENS_LIGHTS_OT_generate"),
-    )
-    frame = int(sys.argv[3])
-    scene.frame_start = scene.frame_end = frame
-    scene.render.filepath = os.path.join(out, "baked_####")
-    bpy.ops.render.render(animation=True)  # what `blender -b file.blend -a` runs
-    bpy.data.collections["Lens Lights"].hide_render = True
-    scene.render.filepath = os.path.join(out, "without.exr")
-    bpy.ops.render.render(write_still=True)
-    print("FACTS " + json.dumps(facts), flush=True)
-    sys.stdout.flush()
-    os._exit(0)
-    """
-)
 
 
 def linear_keys():
@@ -154,28 +125,6 @@ def exact_floor_image(center, light, n_iota=2000, n_phi=2048, seed=1):
         y[ok], x[ok], bins=[ey, ex], weights=np.broadcast_to(flux[:, None], x.shape)[ok]
     )
     return ALBEDO * (E / (VIEW / PX) ** 2) / math.pi
-
-
-def load(path):
-    img = bpy.data.images.load(str(path))
-    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2)
-
-
-def stock_render(blend, tmp, frame):
-    """Render `frame` of `blend` in a new process without the extension."""
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    run = subprocess.run(
-        [sys.executable, "-c", STOCK_RENDER, str(blend), str(tmp), str(frame)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=600,
-    )
-    facts = [ln for ln in run.stdout.splitlines() if ln.startswith("FACTS ")]
-    assert facts, run.stdout[-2000:] + run.stderr[-2000:]
-    return json.loads(facts[0][6:]), load(tmp / f"baked_{frame:04d}.exr"), load(tmp / "without.exr")
 
 
 def pixel_xy(hit):

@@ -54,27 +54,33 @@ def test_near_slices_put_a_row_on_the_receiver():
     assert bp.slice_h_min(None) == pytest.approx(0.2)  # the far table's
     with pytest.raises(ValueError, match="receiver"):
         bp.profile_slice_table(4.0, 1.5, True)
-    # per receiver distance of the present frames a block of D/R slices (the grid
-    # 1.04^k of the frames at that distance); each frame its block's coordinate (an
-    # absent frame holds its nearest present one's values)
-    q = 1.04
-    t = bp.Track(
-        "k",
-        np.arange(5),
-        np.array([True, True, False, True, True]),
-        values={"receiver": np.array([[1.1], [1.3], [1.3], [1.1], [1.1000001]])},
-        d_over_r=np.array([q**60, q**50, q**50, q**60, q**61]),
-    )
-    nodes, s = bp.near_slices(t)
-    assert np.allclose(nodes, [(q**60, 1.1), (q**61, 1.1), (q**50, 1.3)])  # 1.1000001: 1.1
-    assert s == pytest.approx([0.0, 2.0, 2.0, 0.0, 1.0])
-    # more distances than slices: that many quantiles, each frame the nearest, the
-    # blocks sharing the slices (here one each: the median D/R)
-    t.values["receiver"] = np.array([[1.0], [1.1], [1.1], [1.15], [1.4]])
-    t.d_over_r = np.full(5, 8.0)
-    nodes, s = bp.near_slices(t, max_slices=2)
-    assert nodes == [(8.0, 1.0), (8.0, 1.4)]
-    assert s.tolist() == [0.0, 0.0, 0.0, 0.0, 1.0]
+
+
+def test_tracks_hold_each_frames_tables_like_the_values():
+    # the near table and the mask per frame (role → (key, pixels) or None); an absent
+    # frame holds its nearest present frame's, a present frame without one holds None
+    t1, t2, m = ("n1", np.zeros(1)), ("n2", np.ones(1)), ("m", np.ones(2))
+    per_frame = [
+        [bp.FrameLight("a", {}, tables={"near": t1, "mask": m})],
+        [],
+        [bp.FrameLight("a", {}, tables={"near": t2})],
+    ]
+    (a,) = bp.build_tracks([1, 2, 3], per_frame)
+    assert [k for k, _ in a.tables["near"]] == ["n1", "n1", "n2"]
+    assert a.tables["mask"] == [m, m, None]
+
+
+def test_tracks_carry_the_numbers_a_frame_records_beyond_the_channels():
+    # a node tree's numbers, recorded under its Value nodes' names: held like the
+    # channels, missing on a present frame: 0
+    per_frame = [
+        [bp.FrameLight("a", {"Lens bake tilt x": 0.25, "Lens bake mask scale": 2.0})],
+        [],
+        [bp.FrameLight("a", {"Lens bake tilt x": -0.5})],
+    ]
+    (a,) = bp.build_tracks([1, 2, 3], per_frame)
+    assert a.values["Lens bake tilt x"][:, 0].tolist() == [0.25, 0.25, -0.5]
+    assert a.values["Lens bake mask scale"][:, 0].tolist() == [2.0, 2.0, 0.0]
 
 
 def test_tracks_hold_the_nearest_present_values_and_mark_absence():
@@ -225,6 +231,9 @@ def test_bake_message():
     assert bp.bake_message(fig) == (
         "Baked 2 lens lights over frames 1–100 (100 frames, 12.3 s); 1 profile image"
     )
+    fig.update(mask_images=2)
+    assert bp.bake_message(fig).endswith("; 1 profile image; 2 shadow mask images")
+    fig.update(mask_images=0)
     fig.update(objects=1, energy_model="CAUSTIC_LAYER", images=0)
     assert (
         bp.bake_message(fig)
