@@ -9,11 +9,16 @@ with live update off):
   *render* depsgraph of the frame (measured in Blender 5.2), and Blender evaluates
   what a handler changed before the engine reads the frame, so the frame renders
   with its own lens lights;
-* ``depsgraph_update_post`` — when something that is not ours changed: an object
-  (a light, a lens, a receiver, a blocker, a camera) or a light, mesh, material or
-  camera datablock. Updates made only of the extension's lights, their data, its
-  collections, images and layer materials (our own edits come back this way) are
-  ignored, so live update does not feed itself;
+* ``depsgraph_update_post`` — when something that is not ours changed and can
+  change a lens light (`relevant`): a light, a camera, a lens or other glass, any
+  material (colours and receivers' shaders are not in the read's signature: planned
+  again), an object that touches a path of the last plan's light (`_Watch`,
+  `core.plan.watch`: lamp → lens, the lens' axis, the layer's landings) now or did
+  at the last update, an object added, removed, hidden or shown, or given other
+  data or materials. An edit of anything else (a cube moved away from every beam)
+  costs a box test (`bench live_update`, ``--unrelated``). Updates made only of the
+  extension's lights, their data, its collections, images and layer materials (our
+  own edits come back this way) are ignored, so live update does not feed itself;
 * ``render_init`` / ``render_complete`` / ``render_cancel`` — tell the render probe
   that a render of the user's is running (`render_probe.note_render`): Generate
   called from a user's handler then reads the viewport instead of rendering inside
@@ -52,12 +57,17 @@ from __future__ import annotations
 import hashlib
 import time
 import traceback
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
 
 from ...core.animation.light_keys import keys_of, match
+from ...core.plan import watch
+from ...core.plan.watch import Capsules
+from ...core.scene.primaries import PrimaryArrays
 from ...core.tiers import builds_layer
+from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
 from ..build import cleanup, cycles_caustics, lights
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
@@ -70,8 +80,18 @@ _BUSY = False
 #: Per scene: (signature of the last update's inputs, how many objects it left).
 _LAST_INPUTS: dict = {}
 
-#: Datablock types whose change (when not ours) can move a lens light.
-_WATCHED = ("Object", "Light", "Mesh", "Material", "Camera")
+#: Datablock types whose change (when not ours) can move a lens light (a Collection:
+#: objects added, removed, hidden or shown).
+_WATCHED = ("Object", "Light", "Mesh", "Material", "Camera", "Collection")
+#: Per scene: where the last update's light goes (`_Watch`).
+_WATCHES: dict = {}
+#: Objects that can be anywhere they make geometry: always watched.
+_INSTANCING_MODIFIERS = ("NODES", "PARTICLE_SYSTEM")
+#: Beyond this many objects × capsules (or objects), no filter: every edit counts.
+WATCH_PAIRS = 5_000_000
+WATCH_OBJECTS = 20_000
+#: Object types with no surface of their own to block or receive light.
+_NO_GEOMETRY = ("EMPTY", "LIGHT", "CAMERA", "SPEAKER", "LIGHT_PROBE", "ARMATURE", "LATTICE")
 
 
 def _existing_key(ob):
@@ -91,24 +111,161 @@ def _ours(scene) -> set:
     return out
 
 
-def relevant(scene, depsgraph) -> bool:
-    """Does `depsgraph.updates` hold a change that can move a lens light (see the
-    module's docstring)?"""
+def _world_box(ob) -> tuple[np.ndarray, np.ndarray]:
+    """`ob`'s axis-aligned box in the world (evaluated: with its modifiers)."""
+    m = np.array(ob.matrix_world)
+    corners = np.array(ob.bound_box) @ m[:3, :3].T + m[:3, 3]
+    return corners.min(axis=0), corners.max(axis=0)
+
+
+def _slots(ob) -> tuple:
+    """What `ob` is made of: its data's name and its materials' names."""
+    data = ob.data.name if ob.data is not None else ""
+    return data, tuple(s.material.name if s.material else "" for s in ob.material_slots)
+
+
+def _always(ob) -> bool:
+    """Is `ob` watched wherever it is: a light, a camera, or an object that makes
+    geometry away from its own box (instances, particles, geometry nodes)?"""
+    return (
+        ob.type in ("LIGHT", "CAMERA")
+        or ob.instance_type != "NONE"
+        or any(m.type in _INSTANCING_MODIFIERS for m in ob.modifiers)
+    )
+
+
+@dataclass
+class _Watch:
+    """Where the last update's light goes (`core.plan.watch`) and what it was read
+    from: what an edit must touch to change a lens light."""
+
+    capsules: Capsules
+    watched: frozenset  # objects whose edits always count (lenses, glass, in the light)
+    meshes: frozenset  # their data
+    known: dict  # every object the depsgraph held: name → `_slots`
+    held: frozenset  # the names of the objects the depsgraph held
+
+    def says(self, kind, orig, evaluated, depsgraph, ours) -> str:
+        """ "" / "edit" / "force" for one update (see `relevant`)."""
+        if kind in ("Light", "Camera"):
+            return "edit"
+        if kind == "Material":
+            return "force"  # the read's signature holds no colours, no receivers
+        if kind == "Mesh":
+            return "force" if orig.name in self.meshes else ""
+        if kind == "Collection":  # added, removed, hidden, shown?
+            held = frozenset(
+                o.original.name for o in depsgraph.objects if o.original.as_pointer() not in ours
+            )
+            return "" if held == self.held else "edit"
+        name = orig.name
+        if name in self.watched or _always(orig) or self.known.get(name) != _slots(orig):
+            return "edit"
+        return "edit" if self.capsules.touches(*_world_box(evaluated)) else ""
+
+
+def _landings(patches, sources) -> Capsules:
+    """Each layer patch's lenses to its lit texels (`watch.lit_texels` over every
+    patch: the faintest, holding `watch.FAINT_SHARE` of all, are left out)."""
+    flux, middles, radii, owner = [], [], [], []
+    for k, patch in enumerate(patches):
+        corners = patch.vertices[patch.faces]  # (texels, 4, 3)
+        middle = corners.mean(axis=1)
+        flux.append(patch.face_irradiance.sum(axis=1) * patch.texel_areas().reshape(-1))
+        middles.append(middle)
+        radii.append(np.linalg.norm(corners - middle[:, None], axis=2).max(axis=1))
+        owner.append(np.full(len(middle), k))
+    if not flux:
+        return Capsules.empty()
+    owner = np.concatenate(owner)
+    kept = watch.lit_texels(np.concatenate(flux), np.arange(len(owner)))
+    parts = []
+    for k in np.unique(owner[kept]):
+        texels = kept[owner[kept] == k]
+        lenses = [sources[int(s)].lens for s in patches[k].sources]  # centre and size:
+        spots, spot_radii = watch.clusters(
+            np.concatenate(middles)[texels], np.concatenate(radii)[texels]
+        )
+        parts.append(  # a sphere holding the lens
+            watch.landings(
+                [x.center for x in lenses], [x.radius for x in lenses], spots, spot_radii
+            )
+        )
+    return Capsules.join(parts)
+
+
+def _watch_of(scene, depsgraph, work) -> _Watch | None:
+    """The `_Watch` of an update's plan (`work`) on `depsgraph` (`scene`'s: its lens
+    lights and layers are no inputs); None where testing every object against every
+    path of the light would cost more than planning again (`WATCH_PAIRS`)."""
+    read, a = work.read, work.read.arrays
+    reach = COLLIMATED_DISTANCE_FACTOR * read.scene_size  # as far as the planner casts
+    origins, sizes, suns = watch.light_extents(PrimaryArrays.from_primaries(read.primary_lights))
+    lenses = np.flatnonzero(np.asarray(read.lens_candidates, bool))
+    parts = [watch.light_to_lens(origins, sizes, suns, a.center[lenses], a.radius[lenses], reach)]
+    sources = [p.source for p in work.plan.lights]
+    if sources:
+        lens = np.array([s.lens for s in sources])
+        axes = np.array([s.axis for s in sources], float)
+        parts.append(watch.along_axes(a.center[lens], a.radius[lens], axes, reach))
+    if work.layer_bake is not None:
+        parts.append(_landings(work.layer_bake.layer.patches, work.layer_sources))
+    capsules = Capsules.join(parts)
+    ours = _ours(scene)
+    objects = [ob for ob in depsgraph.objects if ob.original.as_pointer() not in ours]
+    if len(objects) * len(capsules) > WATCH_PAIRS or len(objects) > WATCH_OBJECTS:
+        return None  # costlier than it saves: every edit counts
+    watched = {read.sphere_objects[i].name for i in lenses}
+    watched.update(name for name, _ in read.left_out_lenses)
+    known = {ob.original.name: _slots(ob.original) for ob in objects}
+    solid = [
+        ob for ob in objects if ob.type not in _NO_GEOMETRY and ob.original.name not in watched
+    ]
+    if solid:
+        boxes = np.array([_world_box(ob) for ob in solid])
+        hit = capsules.touching(boxes[:, 0], boxes[:, 1])
+        watched.update(ob.original.name for ob, h in zip(solid, hit, strict=True) if h)
+    meshes = set()
+    for name in watched:
+        ob = bpy.data.objects.get(name)
+        if ob is not None and ob.data is not None:
+            meshes.add(ob.data.name)
+    return _Watch(capsules, frozenset(watched), frozenset(meshes), known, frozenset(known))
+
+
+def relevant(scene, depsgraph) -> str:
+    """What `depsgraph.updates` holds that can change a lens light: "" nothing (ours,
+    or objects away from every path of the light: `_Watch`), "edit" (the read's
+    inputs may have changed: planned unless they are the last update's), "force"
+    (a material, or the mesh of a lens, receiver or blocker: what the read's
+    signature does not hold; planned again)."""
     ours = None
+    watch = _WATCHES.get(scene.as_pointer())
+    why = ""
     for update in depsgraph.updates:
         idb = update.id
-        if type(idb).__name__ not in _WATCHED:
+        # A light's data is a PointLight, SpotLight, SunLight or AreaLight.
+        kind = "Light" if isinstance(idb, bpy.types.Light) else type(idb).__name__
+        if kind not in _WATCHED:
             continue
         orig = getattr(idb, "original", idb)
         if isinstance(orig, bpy.types.Object) and orig.lens_lights.is_lens_light:
             continue
         if isinstance(orig, bpy.types.Material) and orig.get(COLLECTION_MARK) is not None:
             continue  # a caustic layer's material
+        if isinstance(orig, bpy.types.Collection) and orig.get(COLLECTION_MARK) is not None:
+            continue
         if ours is None:
             ours = _ours(scene)
-        if orig.as_pointer() not in ours:
-            return True
-    return False
+        if orig.as_pointer() in ours:
+            continue
+        if watch is None:
+            return "edit"
+        said = watch.says(kind, orig, idb, depsgraph, ours)
+        if said == "force":
+            return said
+        why = why or said
+    return why
 
 
 def _link_cache(objects) -> dict:
@@ -220,6 +377,10 @@ def update(scene, depsgraph, force=False) -> dict:
             timings=timings,
         )
     signature = seen["signature"]
+    # Before the build: the handler's depsgraph still holds what it evaluated.
+    t_watch = time.perf_counter()
+    _WATCHES[scene.as_pointer()] = _watch_of(scene, depsgraph, work)
+    work.timings["watch"] = time.perf_counter() - t_watch
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
     figures = dict(planned=len(plan.lights), updated=0, created=0, removed=0)
@@ -307,9 +468,11 @@ def on_frame_change(scene, depsgraph=None):
 
 @bpy.app.handlers.persistent
 def on_depsgraph_update(scene, depsgraph=None):
-    if _BUSY or depsgraph is None or not _on(scene) or not relevant(scene, depsgraph):
+    if _BUSY or depsgraph is None or not _on(scene):
         return
-    _run(scene, depsgraph, "edit")
+    why = relevant(scene, depsgraph)
+    if why:
+        _run(scene, depsgraph, "edit", force=why == "force")
 
 
 @bpy.app.handlers.persistent
@@ -325,6 +488,7 @@ def on_render_end(scene, *args):
 @bpy.app.handlers.persistent
 def on_load(*args):
     _LAST_INPUTS.clear()  # another file: other objects
+    _WATCHES.clear()
     render_probe.note_render(None)
 
 
