@@ -5,6 +5,7 @@ and Undo restores them with the rest of the scene."""
 
 from __future__ import annotations
 
+from ...core.phase1.skip_reasons import Reason
 from ...core.plan.cycles_caustics import (
     LENS_SETTINGS,
     SCENE,
@@ -16,6 +17,9 @@ from ...core.plan.cycles_caustics import (
     planned_changes,
     should_restore,
 )
+
+
+BEYOND = Reason.BEYOND_MAXIMUM
 
 
 def _settings(owner):
@@ -71,7 +75,8 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
     """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
     Cycles' own caustics of the lenses that got lens lights off — but not the
     scene-wide switch while the scene holds glass Lens Lights does not model
-    (``read.unmodelled_glass``: it would lose its caustic), which is then named;
+    (``read.unmodelled_glass``) or lenses Maximum Lens Lights left without a lens
+    light (they would lose their caustic), which are then named;
     else say when they will be rendered twice. Returns the report's words ('' for
     nothing) and whether they are a warning; `layers`: caustic layers were made
     (the words name them)."""
@@ -81,12 +86,16 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
     if scene.lens_lights.replace_cycles_caustics:
         lenses = sorted({read.sphere_objects[p.source.lens] for p in plan.lights}, key=_name)
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
+        # Lenses left without a lens light by Maximum Lens Lights have only Cycles'.
+        lit = {ob.name for ob in lenses}
+        unlit = sorted({s[1] for s in plan.skipped if s.code == BEYOND} - lit)
         values = scene_values(scene)
-        changes = replace(scene, lenses, keep_scene=bool(glass))
+        changes = replace(scene, lenses, keep_scene=bool(glass or unlit))
         by = "the caustic layers" if layers else "the lens lights"
         note = describe(changes, by=by)
         note += " (Clear restores them)" if note else ""
-        warning = kept_on_warning(engine, values, glass, [ob.name for ob in lenses], by)
+        lit_names = [ob.name for ob in lenses]
+        warning = kept_on_warning(engine, values, glass, lit_names, by, unlit)
         return "; ".join(x for x in (note, warning) if x), bool(warning)
     warning = double_light_warning(engine, scene_values(scene), made)
     return warning, bool(warning)

@@ -97,21 +97,28 @@ def _names(names) -> str:
 
 
 def kept_on_warning(
-    engine: str, scene_values: dict, glass, lenses, by: str = "the lens lights"
+    engine: str, scene_values: dict, glass, lenses, by: str = "the lens lights", unlit=()
 ) -> str:
     """The warning when Replace Cycles' Caustics left path tracing's refractive
-    caustics on for the `glass` (names) that Lens Lights does not model, while
-    the `lenses` (names) got lens lights (`by`: or caustic layers); '' when the
-    switch is off anyway or the engine is not Cycles."""
-    if not glass or engine != "CYCLES" or not scene_values.get("caustics_refractive", False):
+    caustics on for the `glass` (names) that Lens Lights does not model and the
+    lenses Maximum Lens Lights left without a lens light (`unlit`), while the
+    `lenses` (names) got lens lights (`by`: or caustic layers); '' when the switch
+    is off anyway or the engine is not Cycles."""
+    if not (glass or unlit) or engine != "CYCLES":
         return ""
+    if not scene_values.get("caustics_refractive", False):
+        return ""
+    why = []
+    if glass:
+        why.append(f"Lens Lights does not model the glass of {_names(glass)}")
+    if unlit:
+        why.append(f"Maximum Lens Lights left {_names(unlit)} without a lens light")
     return (
-        f"Cycles' refractive caustics left on: Lens Lights does not model the glass of "
-        f"{_names(glass)}, whose caustics only Cycles renders (turning them off would "
-        f"lose them); so Cycles also renders its own caustic of {_names(lenses)} on top of "
-        f"{by}' (for lights with a radius, about 20 % more light in those caustics: "
-        "reports/real_scenes.md). To drop it, turn Render › Light "
-        "Paths › Caustics › Refractive off (that glass then casts no caustic)"
+        f"Cycles' refractive caustics left on: {' and '.join(why)}, whose caustics only "
+        f"Cycles renders (turning them off would lose them); so Cycles also renders its "
+        f"own caustic of {_names(lenses)} on top of {by}' (for lights with a radius, about "
+        "20 % more light in those caustics: reports/real_scenes.md). To drop it, turn "
+        "Render › Light Paths › Caustics › Refractive off (that glass then casts no caustic)"
     )
 
 

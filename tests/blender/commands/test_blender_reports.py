@@ -229,3 +229,22 @@ def test_glass_text_keeps_refractive_caustics_too(empty_blend, auto_builds_light
     level, message, figures = generate()
     assert scene.cycles.caustics_refractive is True
     assert "does not model the glass of Glass text/Glass text," in message
+
+
+def test_refractive_caustics_stay_on_for_lenses_beyond_the_maximum(empty_blend, auto_builds_lights):
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    add_sphere("Near ball", (0.0, 0.0, 1.0), material=glass_material())
+    add_sphere("Far ball", (3.0, 0.0, 1.0), material=glass_material())
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    scene.lens_lights.max_lights = 1  # one ball only
+    level, message, figures = generate()
+    assert figures["created"] == 1
+    ((lit,),) = [[ob.lens_lights.source_lens for ob in lens_lights()]]
+    unlit = ({"Near ball", "Far ball"} - {lit}).pop()
+    assert scene.cycles.caustics_refractive is True  # the other keeps Cycles' caustic
+    assert level == "WARNING"
+    assert f"left on: Maximum Lens Lights left {unlit} without a lens light," in message
+    scene.lens_lights.max_lights = 2
+    level, message, figures = generate()
+    assert figures["created"] == 2 and scene.cycles.caustics_refractive is False

@@ -64,3 +64,14 @@ def test_the_warning_names_the_glass_and_the_lenses():
     assert kept_on_warning("CYCLES", on, [], ["Ball"]) == ""
     assert kept_on_warning("CYCLES", {"caustics_refractive": False}, ["Cube"], ["Ball"]) == ""
     assert kept_on_warning("BLENDER_EEVEE", on, ["Cube"], ["Ball"]) == ""
+
+
+def test_the_warning_names_the_lenses_left_without_a_lens_light():
+    on = {"caustics_refractive": True}
+    text = kept_on_warning("CYCLES", on, [], ["Ball"], unlit=["Ball.001"])
+    assert text.startswith(
+        "Cycles' refractive caustics left on: Maximum Lens Lights left Ball.001 without a "
+        "lens light, whose caustics only Cycles renders"
+    )
+    both = kept_on_warning("CYCLES", on, ["Cube"], ["Ball"], unlit=["Ball.001"])
+    assert "the glass of Cube and Maximum Lens Lights left Ball.001 without" in both
