@@ -5,7 +5,7 @@ over its frames, and per bake one atlas image of every frame's irradiance.
 * **Mesh.** `layers.create_layer`'s mesh (lifted off the receiver, the
   receiver's UVs in "UVMap") of `layer_segments.baked_mesh`: one quad over the
   segment's raster where the receiver's UVs are affine (a floor, a wall), else
-  Generate's vertex grid; no per-face irradiance attribute. Its size does not
+  Generate's vertex grid; no irradiance attribute. Its size does not
   depend on the raster's resolution.
 * **Image.** The slices as tiles of one packed half-float OpenEXR (ZIP; one channel
   when every slice is one colour times a scalar), each normalised to its maximum,
@@ -16,8 +16,9 @@ over its frames, and per bake one atlas image of every frame's irradiance.
   transparent BSDF), its irradiance read from the image instead of the face
   attribute: each point's texel from its object coordinates through the inverse of
   the raster's warp (`layer_segments.raster_coordinate`), in the tile of the keyed slice
-  index (`SLICE_NODE`), clamped inside the tile, Closest interpolation (a texel's
-  value over its whole area, as the face attribute), times the keyed scale
+  index (`SLICE_NODE`), clamped inside the tile's texel centres, Linear interpolation
+  (continuous, as Generate's layer; each texel's value scaled so its flux is kept:
+  `core/caustic_layer/smooth.image_texels`), times the keyed scale
   (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it alike. The
   object keeps its raster (`RASTER_PROP`).
 """
@@ -27,6 +28,7 @@ from __future__ import annotations
 import bpy
 
 from ...core.animation import layer_segments
+from ...core.caustic_layer.smooth import DrawnMesh, image_texels
 from . import layers, lights
 from .marks import BAKE_IMAGE_PREFIX, BAKE_MARK, COLLECTION_MARK
 
@@ -84,7 +86,7 @@ def _image_reader(nt, image, cols: int, rows: int, seg):
     nt.links.new(within(seg.axes[1], axis_v, row, rows), comb.inputs["Y"])
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = image
-    tex.interpolation = "Closest"  # one texel per face, as Generate's face attribute
+    tex.interpolation = "Linear"  # continuous between texel centres, as Generate's layer
     tex.extension = "EXTEND"
     nt.links.new(comb.outputs[0], tex.inputs["Vector"])
     return tex.outputs["Color"]
@@ -120,8 +122,8 @@ def baked_layer(scene, seg, info, collection, material, k: int):
     `material` instead of Generate's."""
     key = (info.name, info.image.name if info.image is not None else None)
     mesh = layer_segments.baked_mesh(seg.layer)
-    ob = layers.create_layer(scene, mesh, info, collection, {key: material}, k)
-    ob.data.attributes.remove(ob.data.attributes[layers.IRRADIANCE])
+    drawn = DrawnMesh(mesh.vertices, mesh.faces, mesh.uvs, None)  # the image holds the light
+    ob = layers.create_layer(scene, mesh, info, collection, {key: material}, k, drawn=drawn)
     res = seg.layer.resolution
     # the raster, for whoever reads the image back: texel lines x = c + s·sinh(ξ0 + i·dξ)
     # along axis_u (u) and axis_v (v), i = 0…res
@@ -139,7 +141,8 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
     segment's receiver (`blender.read.receivers.ReceiverInfo`). Returns (objects, per
     segment (material, slice index per frame, scale per frame, colour per frame),
     image count)."""
-    all_slices = [sl for s in segments for sl in s.slices]
+    # the texels an image drawn with Linear interpolation needs for each texel's flux
+    all_slices = [image_texels(sl, s.axes, s.layer.resolution) for s in segments for sl in s.slices]
     images, scales, colours, _mono = layer_segments.split_colour(all_slices)
     cap = layer_segments.atlas_capacity(res)
     # segments into images of at most `cap` slices, in order
