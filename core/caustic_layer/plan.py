@@ -30,9 +30,10 @@ TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
 MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
-#: Texels per side of a layer raster at most (faces per layer: its square), and the
-#: faces of all layers together (many lenses: coarser rasters, a fast build).
-MAX_RESOLUTION = 128
+#: Texels per side of a layer raster at most, and the texels of all layers together
+#: (many lenses: coarser rasters, a fast build). With a camera each raster spans what
+#: it sees of its caustic with about a texel per pixel, within these.
+MAX_RESOLUTION = 256
 FACE_BUDGET = 65_536
 #: Samples of an extended primary's disc (they share its ray budget).
 SOURCE_SAMPLES = 16
@@ -93,9 +94,9 @@ def sheet_camera(camera, width_px: int, ortho_scale: float | None = None, target
 
 
 def raster_resolution(sources, camera: Camera, extents=None) -> int:
-    """One texel per pixel of the largest caustic (`ray_budget.layer_resolution`; its
-    extent per source, by default the lens' diameter), at most `MAX_RESOLUTION` and so
-    that all layers keep within `FACE_BUDGET` faces."""
+    """Without a view of the scene (no camera): one texel per pixel of the largest
+    caustic (`ray_budget.layer_resolution`; its extent per source, by default the lens'
+    diameter), at most 128 and so that all layers keep within `FACE_BUDGET` texels."""
     if extents is None:
         extents = [2.0 * s.lens.radius for s in sources]
     res = max(
@@ -103,7 +104,7 @@ def raster_resolution(sources, camera: Camera, extents=None) -> int:
         for s, e in zip(sources, extents, strict=True)
     )
     share = math.isqrt(FACE_BUDGET // max(len(sources), 1))
-    return int(min(res, MAX_RESOLUTION, max(share, 16)))
+    return int(min(res, 128, max(share, 16)))
 
 
 def fallback_reason(metallic: float, transmission: float, glossy_only: bool) -> str:
@@ -133,7 +134,7 @@ class LayerFigures:
         lost = self.flux_lost / self.flux_emitted if self.flux_emitted > 0 else 0.0
         out = (
             f"{self.layers} caustic layer{'s' if self.layers != 1 else ''} "
-            f"({self.faces} faces, {self.rays} rays; {100 * lost:.2g} % of the flux "
+            f"({self.faces} texels, {self.rays} rays; {100 * lost:.2g} % of the flux "
             "missed the receivers)"
         )
         if self.fallback_receivers:
@@ -149,7 +150,7 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
     layer = bake.layer
     return LayerFigures(
         layers=len(layer.patches),
-        faces=sum(p.resolution**2 for p in layer.patches),
+        faces=sum(p.resolution**2 for p in layer.patches),  # texels
         rays=int(layer.n_rays),
         flux_emitted=float(layer.flux_emitted),
         flux_in_layers=float(layer.flux_in_rasters),
