@@ -18,10 +18,10 @@ from ...core.caustic_layer.pipeline import bake
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
     MAX_RAYS_PER_SOURCE,
-    MAX_RESOLUTION,
     MIN_RAYS_PER_SOURCE,
     RAYS_PER_PIXEL,
     TOTAL_RAYS,
+    VIEW_MAX_RESOLUTION,
     figures_of,
     raster_resolution,
     sheet_camera,
@@ -70,7 +70,7 @@ def prepare(depsgraph, work, options: dict):
         max_rays=MAX_RAYS_PER_SOURCE,
         min_rays=MIN_RAYS_PER_SOURCE,
         rays_per_pixel=RAYS_PER_PIXEL,
-        resolution=MAX_RESOLUTION
+        resolution=VIEW_MAX_RESOLUTION
         if view is not None
         else lambda extents, _pixels: raster_resolution(sources, camera, extents),
         view=view,

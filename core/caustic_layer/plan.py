@@ -30,10 +30,11 @@ TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
 MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
-#: Texels per side of a layer raster at most, and the texels of all layers together
-#: (many lenses: coarser rasters, a fast build). With a camera each raster spans what
-#: it sees of its caustic with about a texel per pixel, within these.
-MAX_RESOLUTION = 256
+#: Texels per side of a layer raster at most without a camera (every raster alike) and
+#: with one (each raster spans what it sees of its caustic, about a texel per pixel),
+#: and the texels of all layers together (many lenses: coarser rasters, a fast build).
+MAX_RESOLUTION = 128
+VIEW_MAX_RESOLUTION = 256
 FACE_BUDGET = 65_536
 #: Samples of an extended primary's disc (they share its ray budget).
 SOURCE_SAMPLES = 16
@@ -96,7 +97,8 @@ def sheet_camera(camera, width_px: int, ortho_scale: float | None = None, target
 def raster_resolution(sources, camera: Camera, extents=None) -> int:
     """Without a view of the scene (no camera): one texel per pixel of the largest
     caustic (`ray_budget.layer_resolution`; its extent per source, by default the lens'
-    diameter), at most 128 and so that all layers keep within `FACE_BUDGET` texels."""
+    diameter), at most `MAX_RESOLUTION` and so that all layers keep within
+    `FACE_BUDGET` texels."""
     if extents is None:
         extents = [2.0 * s.lens.radius for s in sources]
     res = max(
@@ -104,7 +106,7 @@ def raster_resolution(sources, camera: Camera, extents=None) -> int:
         for s, e in zip(sources, extents, strict=True)
     )
     share = math.isqrt(FACE_BUDGET // max(len(sources), 1))
-    return int(min(res, 128, max(share, 16)))
+    return int(min(res, MAX_RESOLUTION, max(share, 16)))
 
 
 def fallback_reason(metallic: float, transmission: float, glossy_only: bool) -> str:

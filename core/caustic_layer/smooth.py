@@ -3,12 +3,14 @@
 A raster's texels hold the flux each received (`rasters.PatchLayer.irradiance`); drawn
 flat, each texel shows as a block. Drawn here instead: a mesh whose vertices are the
 texel centres (plus the raster's border, where the nearest texel's value extends),
-cut into triangles, with the irradiance at each vertex, which the renderer
-interpolates linearly over each triangle (a point attribute; Blender splits nothing:
-the triangles are given). A texel's value at its centre vertex is scaled by its area
-over the measure of the vertices that carry it (each vertex's share of its triangles,
-a third of each), so the interpolated irradiance integrates to the texels' flux
-exactly and a texel's flux spreads at most to its neighbours' centres (one texel).
+each cell cut into four triangles about its centre (there the mean of its corners),
+with the irradiance at each vertex, which the renderer interpolates linearly over
+each triangle (a point attribute; Blender splits nothing: the triangles are given).
+A texel's value at its centre vertex is scaled by its area over the measure of the
+vertices that carry it (each vertex's share of its triangles, a third of each), so
+the interpolated irradiance integrates to the texels' flux exactly, a uniform raster
+is drawn uniform, and a texel's flux spreads at most to its neighbours' centres (one
+texel).
 
 The baked layer reads an image instead (`image_texels`): the same texel values
 sampled with Linear interpolation between texel centres in the raster's warped
@@ -44,12 +46,18 @@ def dual_lines(res: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return lo, hi, np.clip(i - 1, 0, res - 1)
 
 
-def grid_triangles(n: int) -> np.ndarray:
-    """(2 (n−1)², 3) triangles of an n × n vertex grid (row-major, rows along v), two per
-    cell split along its (0, 0)–(1, 1) diagonal, counter-clockwise about u × v."""
+def grid_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles of an n × n vertex grid (row-major, rows along v) whose every cell
+    is cut into four about an extra vertex at its centre (n² + k, k the cell's index):
+    (4 (n−1)², 3), counter-clockwise about u × v, and the cells' corners ((n−1)², 4).
+    Four, not two along a diagonal: a diagonal would favour two corners of each cell
+    (a third of its area each against a sixth), so a uniform raster would not be drawn
+    uniform at the raster's corners."""
     a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).reshape(-1)
-    b, c, d = a + 1, a + n + 1, a + n
-    return np.stack([np.stack([a, b, c], 1), np.stack([a, c, d], 1)], 1).reshape(-1, 3)
+    corners = np.stack([a, a + 1, a + n + 1, a + n], 1)
+    m = n * n + np.arange(len(a))
+    tris = np.stack([np.stack([corners[:, k], corners[:, (k + 1) % 4], m], 1) for k in range(4)], 1)
+    return tris.reshape(-1, 3), corners
 
 
 def vertex_measures(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -73,16 +81,24 @@ def drawn_mesh(patch) -> DrawnMesh:
             n * n, -1
         )
 
-    verts = dual(patch.vertices)
-    tris = grid_triangles(n)
+    grid = dual(patch.vertices)
+    tris, cells = grid_triangles(n)
+    verts = np.concatenate([grid, grid[cells].mean(axis=1)])  # + the cells' centres
     carried = (texel[:, None] * res + texel[None, :]).reshape(-1)  # texel of each vertex
-    measure = np.bincount(carried, vertex_measures(verts, tris), minlength=res * res)
+    # a centre's value is its cell's corners' mean: its measure goes a quarter to each
+    d = vertex_measures(verts, tris)
+    d_grid = d[: n * n] + np.bincount(cells.reshape(-1), np.repeat(0.25 * d[n * n :], 4), n * n)
+    measure = np.bincount(carried, d_grid, minlength=res * res)
     flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
         -1, 1
     )
     value = flux / np.where(measure > 0.0, measure, 1.0)[:, None]
-    uvs = None if patch.uvs is None else dual(patch.uvs)
-    return DrawnMesh(verts, tris, uvs, value[carried])
+    at_grid = value[carried]
+    uvs = None
+    if patch.uvs is not None:
+        uv_grid = dual(patch.uvs)
+        uvs = np.concatenate([uv_grid, uv_grid[cells].mean(axis=1)])
+    return DrawnMesh(verts, tris, uvs, np.concatenate([at_grid, at_grid[cells].mean(axis=1)]))
 
 
 def tent_measures(axis, res: int) -> np.ndarray:
