@@ -275,8 +275,8 @@ def build_layer(
     comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
     beam's flux on a patch without one is lost), instead of fitting them here.
     ``view`` (`view.View`): each raster spans only the landings in view (none if none
-    is: that flux counts as outside) and has its own resolution, about one texel per
-    pixel there (the pixel at its nearest landings), at most ``resolution``; all
+    is: that flux counts as outside) and has its own resolution, `TEXELS_PER_PIXEL`
+    per pixel there (the pixel at its nearest landings), at most ``resolution``; all
     rasters together at most ``max_texels`` texels. Without a view every raster has
     ``resolution`` texels per side."""
     t0 = time.perf_counter()
@@ -568,11 +568,15 @@ def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
 #: The share of a raster's flux in view whose pixel is finer than the one its texels
 #: follow: the near part of the caustic sets the resolution.
 NEAR_PIXEL_SHARE = 0.1
+#: Texels per pixel across a raster (before its warp refines the core): the drawn
+#: irradiance is linear between texel centres, so a sharp fold (a resting marble's
+#: rim) keeps its width within half a pixel.
+TEXELS_PER_PIXEL = 2.0
 MIN_RESOLUTION = 16
 
 
 def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.ndarray:
-    """Per raster, texels per side for about one texel per pixel over the span of its
+    """Per raster, texels per side for `TEXELS_PER_PIXEL` per pixel over the span of its
     landings in view (the larger of its two axes), within [`MIN_RESOLUTION`,
     ``res_max``]."""
     n = len(slot_pts)
@@ -583,7 +587,7 @@ def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.nd
         q = grouped_interp_quantiles(x, w, gid, n, qs)
         span = np.maximum(span, q[:, 1] - q[:, 0])
     pix = np.maximum(np.asarray(pixels, dtype=float), 1e-300)
-    want = np.ceil(span / pix)
+    want = np.ceil(TEXELS_PER_PIXEL * span / pix)
     return np.clip(want, MIN_RESOLUTION, max(int(res_max), MIN_RESOLUTION)).astype(np.int64)
 
 

@@ -113,10 +113,13 @@ def generated_layer(frame):
     generate(bpy.context)
     (ob,) = layer_objects()
     me = ob.data
-    rgba = np.empty(len(me.polygons) * 4)
+    rgba = np.empty(len(me.vertices) * 4)
     me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
+    corners = np.empty(len(me.loops), dtype=np.int32)
+    me.loops.foreach_get("vertex_index", corners)
     area, centre = face_areas_centres(me)
-    flux = rgba.reshape(-1, 4)[:, 1] * area
+    # per triangle: area × the mean of its corners' irradiance (drawn linear over it)
+    flux = rgba.reshape(-1, 4)[corners.reshape(-1, 3), 1].mean(axis=1) * area
     bpy.ops.lens_lights.clear()
     return summary(flux, centre, frame)
 
