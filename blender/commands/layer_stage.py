@@ -22,6 +22,7 @@ from ...core.caustic_layer.plan import (
     RAYS_PER_PIXEL,
     TOTAL_RAYS,
     VIEW_MAX_RESOLUTION,
+    VIEW_TEXEL_FRACTION,
     figures_of,
     raster_resolution,
     sheet_camera,
@@ -75,6 +76,7 @@ def prepare(depsgraph, work, options: dict):
         else lambda extents, _pixels: raster_resolution(sources, camera, extents),
         view=view,
         max_texels=FACE_BUDGET,
+        texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})

@@ -36,6 +36,10 @@ RAYS_PER_PIXEL = 0.5
 MAX_RESOLUTION = 128
 VIEW_MAX_RESOLUTION = 256
 FACE_BUDGET = 65_536
+#: With a camera, no texel finer than this share of a pixel at its lens (the drawn
+#: irradiance is interpolated, so finer texels sharpen a small focus instead of
+#: aliasing; without a camera, half a pixel).
+VIEW_TEXEL_FRACTION = 0.25
 #: Samples of an extended primary's disc (they share its ray budget).
 SOURCE_SAMPLES = 16
 #: A receiver this metallic or transmissive is no diffuse surface: a Fitted spot.

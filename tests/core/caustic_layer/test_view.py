@@ -1,5 +1,5 @@
 """The camera's view of the caustic layer (`core/caustic_layer/view.py`) and the rasters
-fitted to it (`rasters.build_layer(view=…)`): texels half a pixel where the camera
+fitted to it (`rasters.build_layer(view=…)`): texels a third of a pixel where the camera
 sees the caustic, finer when it is nearer, none out of view. Expectations by hand
 (a pixel at depth z spans 2 z tan(fov/2) / width) and from the exact optics' flux."""
 
@@ -12,7 +12,7 @@ from core.caustic_layer.beam_trace import trace_beam
 from core.caustic_layer.emitters import Lens, PointLight
 from core.caustic_layer.rasters import build_layer
 from core.caustic_layer.receiver_index import build_index
-from core.caustic_layer.view import View, view_of
+from core.caustic_layer.view import view_of
 from core.lens import ball_optics as eo
 from core.scene.model import Camera as ModelCamera
 from reference.meshes import rectangle
@@ -62,12 +62,12 @@ def _layer(view, **kw):
 
 
 def test_resolution_follows_the_cameras_distance():
-    # from 10 and from 20 above the floor: a pixel there spans 2 · 10 · tan 45° / 100
-    # = 0.2, and 0.4; the texels along the raster's longer side, on average, half that
-    for height, pixel in ((10.0, 0.2), (20.0, 0.4)):
-        (p,) = _layer(_down(height, width=100)).patches
+    # from 10 and from 20 above the floor: a pixel there spans 2 · 10 · tan 45° / 60
+    # = 1/3, and 2/3; the texels along the raster's longer side, on average, a third
+    for height, pixel in ((10.0, 1 / 3), (20.0, 2 / 3)):
+        (p,) = _layer(_down(height, width=60)).patches
         span = max(p.edges_u[-1] - p.edges_u[0], p.edges_v[-1] - p.edges_v[0])
-        assert span / p.resolution == pytest.approx(pixel / 2, rel=0.05)
+        assert span / p.resolution == pytest.approx(pixel / 3, rel=0.05)
     # the whole caustic in view from 40 above: the exact optics' flux in the raster
     flux = eo.lens_flux(I0, D, R, N_IOR)
     assert _layer(_down(40.0)).flux_in_rasters == pytest.approx(flux, rel=0.01)
