@@ -22,10 +22,13 @@ bright core in a wide faint halo, so the texel lines are spaced by a separable s
 ``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
 median distance from it: texels are fine in the core and grow in the halo, and the faces
 stay rectangles that do not overlap. The resolution is a parameter, so the layer's
-topology is fixed while a light moves. Per patch the output is plain data for one
-emissive mesh: a grid of vertices lifted by ``offset`` along the normal toward the light
-(no z-fighting), quad faces, the irradiance per face (W/m², RGB = flux × light colour ×
-lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo / π).
+topology is fixed while a light moves; with the camera's ``view`` each raster spans
+only the landings in view and has its own resolution (texels per pixel there). Per
+patch the output is plain data for one emissive mesh: a grid of vertices lifted by
+``offset`` along the normal toward the light (no z-fighting), quad faces, the
+irradiance per texel (W/m², RGB = flux × light colour × lens tint) and the receiver's
+UV at each vertex (emission = irradiance × albedo / π); `smooth.drawn_mesh` turns it
+into the mesh drawn, continuous across texels.
 """
 
 from __future__ import annotations
