@@ -5,7 +5,7 @@ over its frames, and per bake one atlas image of every frame's irradiance.
 * **Mesh.** `layers.create_layer`'s mesh (lifted off the receiver, the
   receiver's UVs in "UVMap") of `layer_segments.baked_mesh`: one quad over the
   segment's raster where the receiver's UVs are affine (a floor, a wall), else
-  Generate's vertex grid; no per-face irradiance attribute. Its size does not
+  Generate's vertex grid; no irradiance attribute. Its size does not
   depend on the raster's resolution.
 * **Image.** The slices as tiles of one packed half-float OpenEXR (ZIP; one channel
   when every slice is one colour times a scalar), each normalised to its maximum,
@@ -16,8 +16,10 @@ over its frames, and per bake one atlas image of every frame's irradiance.
   transparent BSDF), its irradiance read from the image instead of the face
   attribute: each point's texel from its object coordinates through the inverse of
   the raster's warp (`layer_segments.raster_coordinate`), in the tile of the keyed slice
-  index (`SLICE_NODE`), clamped inside the tile, Closest interpolation (a texel's
-  value over its whole area, as the face attribute), times the keyed scale
+  index (`SLICE_NODE`), clamped inside the tile's texel centres, interpolated
+  bilinearly between the four nearest texel centres (four Closest reads: EEVEE
+  mipmaps a Linear image; continuous, as Generate's layer; each texel's value scaled
+  so its flux is kept: `core/caustic_layer/smooth.image_texels`), times the keyed scale
   (`SCALE_NODE`) and colour (`COLOUR_NODE`). EEVEE and Cycles read it alike. The
   object keeps its raster (`RASTER_PROP`).
 """
@@ -27,6 +29,7 @@ from __future__ import annotations
 import bpy
 
 from ...core.animation import layer_segments
+from ...core.caustic_layer.smooth import DrawnMesh, image_texels
 from . import layers, lights
 from .marks import BAKE_IMAGE_PREFIX, BAKE_MARK, COLLECTION_MARK
 
@@ -62,9 +65,12 @@ def _raster_coordinate(nt, position, axis, direction, res: int):
 
 
 def _image_reader(nt, image, cols: int, rows: int, seg):
-    """Nodes reading slice `SLICE_NODE` of the atlas at each point's texel (from its
-    object coordinates: the layer's vertices are in world space at the identity);
-    returns the socket of irradiance / (scale × colour)."""
+    """Nodes reading slice `SLICE_NODE` of the atlas at each point (from its object
+    coordinates: the layer's vertices are in world space at the identity), bilinear
+    between the four nearest texel centres, each read Closest (a Linear image node
+    would do it, but EEVEE mipmaps it: a sharp caustic would blur and a tile bleed
+    into its neighbours); beyond the first or last centre the texel extends. Returns
+    the socket of irradiance / (scale × colour)."""
     res = seg.layer.resolution
     s = nt.nodes.new("ShaderNodeValue")
     s.name = s.label = SLICE_NODE
@@ -73,21 +79,52 @@ def _image_reader(nt, image, cols: int, rows: int, seg):
     coords = nt.nodes.new("ShaderNodeTexCoord")
     half = 0.5 / res  # the tile's first and last texel centres: never a neighbour tile
 
-    def within(axis, direction, tile, count):
+    def texels(axis, direction, tile, count):
+        """The image coordinates of the two texel centres about each point along one
+        axis, and the point's share of the way from the first to the second."""
         t = _raster_coordinate(nt, coords.outputs["Object"], axis, direction, res)
         inside = _math(nt, "MINIMUM", _math(nt, "MAXIMUM", t, half), 1.0 - half)
-        return _math(nt, "DIVIDE", _math(nt, "ADD", tile, inside), count)
+        p = _math(nt, "MULTIPLY_ADD", inside, res, -0.5)  # texel centres at integers
+        first = _math(nt, "FLOOR", p)
+        second = _math(nt, "MINIMUM", _math(nt, "ADD", first, 1.0), res - 1.0)
 
-    comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        def image(i):
+            return _math(
+                nt,
+                "DIVIDE",
+                _math(nt, "ADD", tile, _math(nt, "MULTIPLY_ADD", i, 1.0 / res, half)),
+                count,
+            )
+
+        return image(first), image(second), _math(nt, "SUBTRACT", p, first)
+
     _n, axis_u, axis_v = seg.plane
-    nt.links.new(within(seg.axes[0], axis_u, col, cols), comb.inputs["X"])
-    nt.links.new(within(seg.axes[1], axis_v, row, rows), comb.inputs["Y"])
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = image
-    tex.interpolation = "Closest"  # one texel per face, as Generate's face attribute
-    tex.extension = "EXTEND"
-    nt.links.new(comb.outputs[0], tex.inputs["Vector"])
-    return tex.outputs["Color"]
+    u0, u1, fu = texels(seg.axes[0], axis_u, col, cols)
+    v0, v1, fv = texels(seg.axes[1], axis_v, row, rows)
+
+    def sample(u, v):
+        comb = nt.nodes.new("ShaderNodeCombineXYZ")
+        nt.links.new(u, comb.inputs["X"])
+        nt.links.new(v, comb.inputs["Y"])
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        tex.interpolation = "Closest"
+        tex.extension = "EXTEND"
+        nt.links.new(comb.outputs[0], tex.inputs["Vector"])
+        return tex.outputs["Color"]
+
+    def mix(a, b, f):
+        m = nt.nodes.new("ShaderNodeMix")
+        m.data_type = "RGBA"
+        m.blend_type = "MIX"
+        nt.links.new(f, m.inputs["Factor"])
+        nt.links.new(a, m.inputs["A"])
+        nt.links.new(b, m.inputs["B"])
+        return m.outputs["Result"]
+
+    low = mix(sample(u0, v0), sample(u1, v0), fu)
+    high = mix(sample(u0, v1), sample(u1, v1), fu)
+    return mix(low, high, fv)
 
 
 def baked_material(info, image, cols: int, rows: int, seg):
@@ -120,8 +157,8 @@ def baked_layer(scene, seg, info, collection, material, k: int):
     `material` instead of Generate's."""
     key = (info.name, info.image.name if info.image is not None else None)
     mesh = layer_segments.baked_mesh(seg.layer)
-    ob = layers.create_layer(scene, mesh, info, collection, {key: material}, k)
-    ob.data.attributes.remove(ob.data.attributes[layers.IRRADIANCE])
+    drawn = DrawnMesh(mesh.vertices, mesh.faces, mesh.uvs, None)  # the image holds the light
+    ob = layers.create_layer(scene, mesh, info, collection, {key: material}, k, drawn=drawn)
     res = seg.layer.resolution
     # the raster, for whoever reads the image back: texel lines x = c + s·sinh(ξ0 + i·dξ)
     # along axis_u (u) and axis_v (v), i = 0…res
@@ -139,7 +176,8 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
     segment's receiver (`blender.read.receivers.ReceiverInfo`). Returns (objects, per
     segment (material, slice index per frame, scale per frame, colour per frame),
     image count)."""
-    all_slices = [sl for s in segments for sl in s.slices]
+    # the texels an image drawn bilinearly between texel centres needs for each texel's flux
+    all_slices = [image_texels(sl, s.axes, s.layer.resolution) for s in segments for sl in s.slices]
     images, scales, colours, _mono = layer_segments.split_colour(all_slices)
     cap = layer_segments.atlas_capacity(res)
     # segments into images of at most `cap` slices, in order

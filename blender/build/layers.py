@@ -6,7 +6,9 @@ already lifted off the receiver along its normal: no z-fighting), marked and
 listed like a lens light (`object.lens_lights.is_lens_light`, the scene's
 `created_objects`), so Clear removes it and its mesh; its material is marked
 (`marks.COLLECTION_MARK` = "layer") and removed by Clear once unused
-(`remove_unused_layer_materials`). No images: the irradiance is a face attribute.
+(`remove_unused_layer_materials`). No images: the irradiance is a point attribute of
+a mesh over the texel centres (`core/caustic_layer/smooth.py`), interpolated linearly
+over its triangles (no texel shows as a block; the flux of every texel is kept).
 
 Material (one per receiver object): radiance = irradiance × the receiver's diffuse
 colour / π, the colour being the receiver's own (a constant, or its image texture
@@ -26,6 +28,7 @@ import math
 import bpy
 import numpy as np
 
+from ...core.caustic_layer.smooth import drawn_mesh
 from .lights import create_light, lights_collection
 from .marks import (
     COLLECTION_MARK,
@@ -36,7 +39,7 @@ from .marks import (
     MATERIAL_PREFIX,
 )
 
-#: The face attribute holding the irradiance (W per unit², RGB).
+#: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
 UV_NAME = "UVMap"
 
@@ -96,55 +99,59 @@ def layer_material(info, cache: dict):
     return mat
 
 
-def layer_mesh(name, patch, shapes: dict | None = None):
-    """A mesh of `patch` (`PatchLayer`): its quads, its UVs (per corner), and the
-    irradiance as a face attribute (face k = texel k). ``shapes``: meshes made before
-    by topology; a patch of the same faces starts as a copy of one (Blender copies a
-    mesh's topology at memory speed, which is 5–6× faster than setting it) and only its
-    positions, UVs and irradiance are set."""
-    faces = np.asarray(patch.faces, dtype=np.int32)
-    n_f = len(faces)
-    key = (len(patch.vertices), n_f, patch.uvs is not None)
+def layer_mesh(name, drawn, shapes: dict | None = None):
+    """A mesh of `drawn` (`core.caustic_layer.smooth.DrawnMesh`: Generate's triangles
+    over the texel centres, or the bake's quad): its faces, its UVs (per corner), and
+    the irradiance as a point attribute, which the renderer interpolates over each
+    triangle (none if ``drawn.irradiance`` is None). ``shapes``: meshes made before by
+    topology; a mesh of the same faces starts as a copy of one (Blender copies a
+    mesh's topology at memory speed, which is 5–6× faster than setting it) and only
+    its positions, UVs and irradiance are set."""
+    faces = np.asarray(drawn.triangles, dtype=np.int32)
+    n_f, corners = faces.shape
+    key = (len(drawn.vertices), n_f, corners, drawn.uvs is not None, drawn.irradiance is not None)
     like = shapes.get(key) if shapes is not None else None
     if like is not None and np.array_equal(like[1], faces):
         me = like[0].copy()
         me.name = name
         me.materials.clear()
-        _set_positions_uvs(me, patch, faces)
-        me.attributes[IRRADIANCE].data.foreach_set("color", _rgba(patch).ravel())
+        _set_positions_uvs(me, drawn, faces)
+        if drawn.irradiance is not None:
+            me.attributes[IRRADIANCE].data.foreach_set("color", _rgba(drawn).ravel())
         me.update()
         return me
     me = bpy.data.meshes.new(name)
     me[COLLECTION_MARK] = LAYER_MARK
-    me.vertices.add(len(patch.vertices))
-    me.loops.add(4 * n_f)
+    me.vertices.add(len(drawn.vertices))
+    me.loops.add(corners * n_f)
     me.loops.foreach_set("vertex_index", faces.ravel())
     me.polygons.add(n_f)
-    me.polygons.foreach_set("loop_start", np.arange(0, 4 * n_f, 4, dtype=np.int32))
-    if patch.uvs is not None:
+    me.polygons.foreach_set("loop_start", np.arange(0, corners * n_f, corners, dtype=np.int32))
+    if drawn.uvs is not None:
         me.uv_layers.new(name=UV_NAME)
-    _set_positions_uvs(me, patch, faces)
-    me.attributes.new(IRRADIANCE, "FLOAT_COLOR", "FACE").data.foreach_set(
-        "color", _rgba(patch).ravel()
-    )
+    _set_positions_uvs(me, drawn, faces)
+    if drawn.irradiance is not None:
+        me.attributes.new(IRRADIANCE, "FLOAT_COLOR", "POINT").data.foreach_set(
+            "color", _rgba(drawn).ravel()
+        )
     me.update()
     if shapes is not None:
         shapes[key] = (me, faces)
     return me
 
 
-def _set_positions_uvs(me, patch, faces):
+def _set_positions_uvs(me, drawn, faces):
     """The vertices' positions and the corners' UVs through the generic attributes:
     their arrays are set whole (MeshVertex.co and MeshUVLoop.uv go element by element,
     15–50× slower)."""
-    co = np.asarray(patch.vertices, dtype=np.float32).ravel()
+    co = np.asarray(drawn.vertices, dtype=np.float32).ravel()
     pos = me.attributes.get("position")
     if pos is not None and pos.data_type == "FLOAT_VECTOR":
         pos.data.foreach_set("vector", co)
     else:
         me.vertices.foreach_set("co", co)
-    if patch.uvs is not None:
-        uv = np.asarray(patch.uvs, dtype=np.float32)[faces].ravel()
+    if drawn.uvs is not None:
+        uv = np.asarray(drawn.uvs, dtype=np.float32)[faces].ravel()
         attr = me.attributes.get(UV_NAME)
         if attr is not None and attr.data_type == "FLOAT2" and attr.domain == "CORNER":
             attr.data.foreach_set("vector", uv)
@@ -152,9 +159,9 @@ def _set_positions_uvs(me, patch, faces):
             me.uv_layers[UV_NAME].data.foreach_set("uv", uv)
 
 
-def _rgba(patch) -> np.ndarray:
-    rgba = np.ones((len(patch.faces), 4), dtype=np.float32)
-    rgba[:, :3] = patch.face_irradiance
+def _rgba(drawn) -> np.ndarray:
+    rgba = np.ones((len(drawn.vertices), 4), dtype=np.float32)
+    rgba[:, :3] = drawn.irradiance
     return rgba
 
 
@@ -167,11 +174,13 @@ def _visibility(ob):
     ob.visible_volume_scatter = False
 
 
-def create_layer(scene, patch, info, collection, materials, k, shapes=None):
-    """One layer object (registered and marked like a lens light); ``shapes``: see
+def create_layer(scene, patch, info, collection, materials, k, shapes=None, drawn=None):
+    """One layer object (registered and marked like a lens light) drawing `patch`
+    (`drawn`: its mesh, by default `smooth.drawn_mesh(patch)`); ``shapes``: see
     `layer_mesh`."""
     name = f"{LAYER_PREFIX}{info.name} {k}"
-    ob = bpy.data.objects.new(name, layer_mesh(name, patch, shapes))
+    drawn = drawn_mesh(patch) if drawn is None else drawn
+    ob = bpy.data.objects.new(name, layer_mesh(name, drawn, shapes))
     ob.data.materials.append(layer_material(info, materials))
     collection.objects.link(ob)
     _visibility(ob)
@@ -180,7 +189,7 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None):
     meta.energy_model = "CAUSTIC_LAYER"
     meta.source_lens = info.name  # the receiver it lies on
     meta.relative_brightness = float(patch.flux)
-    meta.note = f"caustic layer: {patch.resolution}² faces, {patch.flux:.4g} W"
+    meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W"
     scene.lens_lights.created_objects.add().object = ob
     return ob
 

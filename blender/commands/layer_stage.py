@@ -16,15 +16,19 @@ import time
 
 from ...core.caustic_layer.pipeline import bake
 from ...core.caustic_layer.plan import (
+    FACE_BUDGET,
     MAX_RAYS_PER_SOURCE,
     MIN_RAYS_PER_SOURCE,
     RAYS_PER_PIXEL,
     TOTAL_RAYS,
+    VIEW_MAX_RESOLUTION,
+    VIEW_TEXEL_FRACTION,
     figures_of,
     raster_resolution,
     sheet_camera,
     sheet_sources,
 )
+from ...core.caustic_layer.view import view_of
 from ...core.tiers import builds_layer
 from ..build import layers as layer_builder
 from ..build import lights as light_builder
@@ -55,6 +59,9 @@ def prepare(depsgraph, work, options: dict):
         else None
     )
     camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
+    has_camera = cam is not None and cam.type == "CAMERA"
+    # the rasters follow what the camera sees (without one: the budget's one resolution)
+    view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
     work.layer_sources = sources  # the bake lands them again (core/animation/layer_segments.py)
     work.layer_bake = bake(
         sources,
@@ -64,7 +71,12 @@ def prepare(depsgraph, work, options: dict):
         max_rays=MAX_RAYS_PER_SOURCE,
         min_rays=MIN_RAYS_PER_SOURCE,
         rays_per_pixel=RAYS_PER_PIXEL,
-        resolution=lambda extents, _pixels: raster_resolution(sources, camera, extents),
+        resolution=VIEW_MAX_RESOLUTION
+        if view is not None
+        else lambda extents, _pixels: raster_resolution(sources, camera, extents),
+        view=view,
+        max_texels=FACE_BUDGET,
+        texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})

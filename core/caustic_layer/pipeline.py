@@ -19,6 +19,7 @@ from .rasters import CausticLayer, RasterFrame, build_layer, grouped_quantiles, 
 from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
 from .receiver_bvh import ReceiverMesh
 from .receiver_index import ReceiverIndex, build_index
+from .view import View
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,8 @@ def bake(
     resolution: int | Callable[[list[float], list[float]], int] | None = None,
     budgets: list[RayBudget] | None = None,
     raster_frames: list[RasterFrame] | None = None,
+    view: View | None = None,
+    max_texels: int | None = None,
 ) -> SheetBake:
     """Caustic layers of ``sources`` on ``receivers``. The grid per source comes from
     :func:`.ray_budget.allocate` (flux share and caustic extent from a coarse 4 × 16
@@ -75,7 +78,11 @@ def bake(
     finer than ``texel_fraction`` of a pixel (a renderer would only alias it).
     ``budgets`` (per source, e.g. an earlier bake's) replace the allocation, and
     ``raster_frames`` the rasters fitted to the landings (`build_layer`): the bake of
-    an animation re-lands each frame's beams on rasters fixed over the frames."""
+    an animation re-lands each frame's beams on rasters fixed over the frames.
+    ``view`` (`view.View`, the scene's camera): each raster spans what it sees of its
+    caustic, about a texel per pixel there, at most the resolution above per side and
+    ``max_texels`` in all (`build_layer`); the bake's ``resolution`` is then the
+    largest raster's."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
     if budgets is not None:
@@ -134,7 +141,11 @@ def bake(
         min_texel=[texel_fraction * p if math.isfinite(p) else 0.0 for p in pixels],
         blur_shares=blur_shares,
         raster_frames=raster_frames,
+        view=view,
+        max_texels=max_texels,
     )
+    if view is not None and layer.patches:
+        resolution = max(p.resolution for p in layer.patches)
     return SheetBake(layer, budgets, int(resolution), index)
 
 

@@ -30,10 +30,16 @@ TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
 MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
-#: Texels per side of a layer raster at most (faces per layer: its square), and the
-#: faces of all layers together (many lenses: coarser rasters, a fast build).
+#: Texels per side of a layer raster at most without a camera (every raster alike) and
+#: with one (each raster spans what it sees of its caustic, about a texel per pixel),
+#: and the texels of all layers together (many lenses: coarser rasters, a fast build).
 MAX_RESOLUTION = 128
+VIEW_MAX_RESOLUTION = 256
 FACE_BUDGET = 65_536
+#: With a camera, no texel finer than this share of a pixel at its lens (the drawn
+#: irradiance is interpolated, so finer texels sharpen a small focus instead of
+#: aliasing; without a camera, half a pixel).
+VIEW_TEXEL_FRACTION = 0.25
 #: Samples of an extended primary's disc (they share its ray budget).
 SOURCE_SAMPLES = 16
 #: A receiver this metallic or transmissive is no diffuse surface: a Fitted spot.
@@ -93,9 +99,10 @@ def sheet_camera(camera, width_px: int, ortho_scale: float | None = None, target
 
 
 def raster_resolution(sources, camera: Camera, extents=None) -> int:
-    """One texel per pixel of the largest caustic (`ray_budget.layer_resolution`; its
-    extent per source, by default the lens' diameter), at most `MAX_RESOLUTION` and so
-    that all layers keep within `FACE_BUDGET` faces."""
+    """Without a view of the scene (no camera): one texel per pixel of the largest
+    caustic (`ray_budget.layer_resolution`; its extent per source, by default the lens'
+    diameter), at most `MAX_RESOLUTION` and so that all layers keep within
+    `FACE_BUDGET` texels."""
     if extents is None:
         extents = [2.0 * s.lens.radius for s in sources]
     res = max(
@@ -133,7 +140,7 @@ class LayerFigures:
         lost = self.flux_lost / self.flux_emitted if self.flux_emitted > 0 else 0.0
         out = (
             f"{self.layers} caustic layer{'s' if self.layers != 1 else ''} "
-            f"({self.faces} faces, {self.rays} rays; {100 * lost:.2g} % of the flux "
+            f"({self.faces} texels, {self.rays} rays; {100 * lost:.2g} % of the flux "
             "missed the receivers)"
         )
         if self.fallback_receivers:
@@ -149,7 +156,7 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
     layer = bake.layer
     return LayerFigures(
         layers=len(layer.patches),
-        faces=sum(p.resolution**2 for p in layer.patches),
+        faces=sum(p.resolution**2 for p in layer.patches),  # texels
         rays=int(layer.n_rays),
         flux_emitted=float(layer.flux_emitted),
         flux_in_layers=float(layer.flux_in_rasters),

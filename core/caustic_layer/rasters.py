@@ -22,10 +22,13 @@ bright core in a wide faint halo, so the texel lines are spaced by a separable s
 ``x = c + s·sinh(ξ)`` with ξ uniform, centred on the flux's median ``c`` with ``s`` its
 median distance from it: texels are fine in the core and grow in the halo, and the faces
 stay rectangles that do not overlap. The resolution is a parameter, so the layer's
-topology is fixed while a light moves. Per patch the output is plain data for one
-emissive mesh: a grid of vertices lifted by ``offset`` along the normal toward the light
-(no z-fighting), quad faces, the irradiance per face (W/m², RGB = flux × light colour ×
-lens tint) and the receiver's UV at each vertex (emission = irradiance × albedo / π).
+topology is fixed while a light moves; with the camera's ``view`` each raster spans
+only the landings in view and has its own resolution (texels per pixel there). Per
+patch the output is plain data for one emissive mesh: a grid of vertices lifted by
+``offset`` along the normal toward the light (no z-fighting), quad faces, the
+irradiance per texel (W/m², RGB = flux × light colour × lens tint) and the receiver's
+UV at each vertex (emission = irradiance × albedo / π); `smooth.drawn_mesh` turns it
+into the mesh drawn, continuous across texels.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from .beam_trace import BeamGrid
 from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
 from .receiver_patches import ReceiverPatch
+from .view import View
 
 
 @dataclass
@@ -257,6 +261,8 @@ def build_layer(
     min_texel=None,
     blur_shares: bool = True,
     raster_frames: list[RasterFrame] | None = None,
+    view: View | None = None,
+    max_texels: int | None = None,
 ) -> CausticLayer:
     """Accumulate ``beams`` landed on the receivers of ``index`` (:func:`.build_index`)
     into per-patch irradiance rasters. ``offset``:
@@ -270,7 +276,12 @@ def build_layer(
     texels far below a pixel show as noise, not detail. ``blur_shares``: spread each
     sample of an extended source over its share (False: K sharp images, for
     comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
-    beam's flux on a patch without one is lost), instead of fitting them here."""
+    beam's flux on a patch without one is lost), instead of fitting them here.
+    ``view`` (`view.View`): each raster spans only the landings in view (none if none
+    is: that flux counts as outside) and has its own resolution, `TEXELS_PER_PIXEL`
+    per pixel there (the pixel at its nearest landings), at most ``resolution``; all
+    rasters together at most ``max_texels`` texels. Without a view every raster has
+    ``resolution`` texels per side."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -287,7 +298,7 @@ def build_layer(
     dirs = np.concatenate([x.dirs for x in landed])
     wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
-    frames, members, slot_pts, floors = [], [], [], []
+    frames, members, slot_pts, floors, pixels = [], [], [], [], []
     on = np.nonzero(pid >= 0)[0]
     on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
@@ -311,6 +322,12 @@ def build_layer(
         for comp in comps:
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
             beams_here = bid[idx[b_starts[comp]]]
+            if view is not None:  # the raster spans what the camera sees of the caustic
+                sel = sel[view.in_view(pts[idx[sel]])]
+                if not len(sel):
+                    continue  # nothing of it in view: no raster (its flux: outside)
+                pix = view.pixel(pts[idx[sel]])
+                pixels.append(weighted_quantile(pix, w_here[sel], NEAR_PIXEL_SHARE))
             slot_of[beams_here, p] = len(frames)
             floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
             frames.append((p, n_out, au, av))
@@ -329,20 +346,27 @@ def build_layer(
     for k, key in enumerate(("u", "v") if given else ()):  # the given texel lines
         for j, name in enumerate(AXIS_FIELDS):
             fr[key + name] = np.array([float(rf.axes[k][j]) for rf in given])
+    fr["res"] = np.full(len(frames), res, dtype=np.int64)
     if not given:  # every raster's texel lines at once (one sort per axis for all)
         gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
         w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
+        if view is not None and len(frames):
+            fr["res"] = _view_resolutions(slot_pts, gid, w_all, pixels, clip_fraction, res)
+            fr["res"] = _within_texels(fr["res"], max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
         c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
-        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, res, warp, floors)
+        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, fr["res"], warp, floors)
         for name, val in zip(AXIS_FIELDS, axis, strict=True):
             fr[key + name] = val
+    # every raster's texels in blocks of side × side (a raster of fewer uses a corner)
+    side = int(fr["res"].max(initial=1))
+    fr["side"] = side
 
     n_slots = len(frames)
-    rgb = np.zeros((n_slots * res * res, 3))
+    rgb = np.zeros((n_slots * side * side, 3))
     flux_in = np.zeros(n_slots)
     flux_out = np.zeros(n_slots)
-    lost = 0.0
+    lost = unseen = 0.0
     n_sub = 0
     # One vectorised pass per light colour (beams of one colour share the arithmetic).
     colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
@@ -369,7 +393,7 @@ def build_layer(
         if blurred:
             rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
         dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
-        acc = np.zeros(n_slots * res * res)
+        acc = np.zeros(n_slots * side * side)
         out_acc = np.zeros(n_slots)
         cs = slot[corners]
         same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
@@ -380,9 +404,11 @@ def build_layer(
         share = (share * cflux[mixed, None]).reshape(-1)
         cm = corners[mixed].reshape(-1)
         sm = cs[mixed].reshape(-1)
-        lost += float(share[sm < 0].sum())
+        landed_g = np.concatenate([lb.patch for lb in members_g])[cm] >= 0
+        lost += float(share[(sm < 0) & ~landed_g].sum())
+        unseen += float(share[(sm < 0) & landed_g].sum())  # on a receiver, out of view
         on = sm >= 0
-        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr, res)
+        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr)
         # cells on one patch: m × m bilinear sub-cells
         cidx = np.nonzero(same)[0]
         if len(cidx):
@@ -405,7 +431,6 @@ def build_layer(
                 dens[cidx],
                 cflux[cidx],
                 fr,
-                res,
                 subcells_per_texel,
                 max_subdivision,
                 max_subcells,
@@ -413,50 +438,29 @@ def build_layer(
                 jitter=jitter,
                 shares=shares,
             )
-        flux_in += acc.reshape(n_slots, res * res).sum(axis=1)
+        flux_in += acc.reshape(n_slots, side * side).sum(axis=1)
         flux_out += out_acc
         rgb += acc[:, None] * color
     t2 = time.perf_counter()
 
     layers = []
     uv_fits = {}
-    # all rasters' texel lines, areas, irradiance and vertices in one pass each
-    eu_all, ev_all = (
-        _edges(
-            (
-                fr[k + "c"][:, None],
-                fr[k + "s"][:, None],
-                fr[k + "xi0"][:, None],
-                fr[k + "dxi"][:, None],
-            ),
-            res,
-        )
-        for k in ("u", "v")
-    )
-    du, dv = np.diff(eu_all, axis=1), np.diff(ev_all, axis=1)
-    irr_all = rgb.reshape(n_slots, res, res, 3) / (dv[:, :, None] * du[:, None, :])[..., None]
-    offs = 0.1 * np.minimum(du.min(axis=1, initial=np.inf), dv.min(axis=1, initial=np.inf))
-    n_all = np.array([f[1] for f in frames]).reshape(-1, 3)
-    origins = n_all * np.array(
-        [plist[p].offset * (n_out @ plist[p].normal) for p, n_out, _, _ in frames]
-    ).reshape(-1, 1)
-    verts_all = (
-        origins[:, None, None, :]
-        + eu_all[:, None, :, None] * fr["au"][:, None, None, :]
-        + ev_all[:, :, None, None] * fr["av"][:, None, None, :]
-    ).reshape(n_slots, (res + 1) ** 2, 3)
-    faces = _grid_faces(res)
-    for s, (p, n_out, au, av) in enumerate(frames):
-        eu, ev, origin, verts = eu_all[s], ev_all[s], origins[s], verts_all[s]
-        off = offs[s] if offset is None else offset
-        irr = irr_all[s]
+    rgb = rgb.reshape(n_slots, side, side, 3)
+    for slot, (p, n_out, au, av) in enumerate(frames):
+        r = int(fr["res"][slot])
+        eu, ev = (_edges(tuple(fr[k + n][slot] for n in AXIS_FIELDS), r) for k in ("u", "v"))
+        du, dv = np.diff(eu), np.diff(ev)
+        irr = rgb[slot, :r, :r] / (dv[:, None] * du[None, :])[..., None]
+        off = 0.1 * min(du.min(), dv.min()) if offset is None else offset
+        origin = n_out * (plist[p].offset * (n_out @ plist[p].normal))
+        verts = (origin + eu[None, :, None] * au + ev[:, None, None] * av).reshape((r + 1) ** 2, 3)
         if p not in uv_fits:  # one fit per patch, shared by its rasters
             uv_fits[p] = _affine_uv_fit(index, plist[p], n_out)
         uvs, inside = _vertex_uvs(index, uv_fits[p], p, verts, n_out)
         layers.append(
             PatchLayer(
                 patch=int(p),
-                sources=members[s],
+                sources=members[slot],
                 object_id=plist[p].object_id,
                 normal=n_out,
                 axis_u=au,
@@ -464,15 +468,15 @@ def build_layer(
                 origin=origin,
                 edges_u=eu,
                 edges_v=ev,
-                resolution=res,
+                resolution=r,
                 irradiance=irr,
-                flux=float(flux_in[s]),
-                flux_outside=float(flux_out[s]),
+                flux=float(flux_in[slot]),
+                flux_outside=float(flux_out[slot]),
                 vertices=verts + off * n_out,
-                faces=faces,
+                faces=_grid_faces(r),
                 uvs=uvs,
                 uv_inside=inside,
-                axes=tuple(tuple(float(fr[k + n][s]) for n in AXIS_FIELDS) for k in ("u", "v")),
+                axes=tuple(tuple(float(fr[k + n][slot]) for n in AXIS_FIELDS) for k in ("u", "v")),
             )
         )
     t3 = time.perf_counter()
@@ -480,7 +484,7 @@ def build_layer(
         patches=layers,
         flux_emitted=float(sum(b.total_flux for b in beams)),
         flux_in_rasters=float(flux_in.sum()),
-        flux_outside=float(flux_out.sum()),
+        flux_outside=float(flux_out.sum()) + unseen,
         flux_lost=lost,
         n_rays=sum(b.n_rays for b in beams),
         n_cells=sum(b.n_cells for b in beams),
@@ -564,6 +568,43 @@ def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
     return out
 
 
+#: The share of a raster's flux in view whose pixel is finer than the one its texels
+#: follow: the near part of the caustic sets the resolution.
+NEAR_PIXEL_SHARE = 0.1
+#: Texels per pixel across a raster (before its warp refines the core): the drawn
+#: irradiance is linear between texel centres, so a sharp fold (a resting marble's
+#: rim) keeps its width within a third of a pixel (2 per pixel: L1 0.058 against 0.043
+#: for the 60° marble of bench/real_scenes.py).
+TEXELS_PER_PIXEL = 3.0
+MIN_RESOLUTION = 16
+
+
+def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.ndarray:
+    """Per raster, texels per side for `TEXELS_PER_PIXEL` per pixel over the span of its
+    landings in view (the larger of its two axes), within [`MIN_RESOLUTION`,
+    ``res_max``]."""
+    n = len(slot_pts)
+    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+    span = np.zeros(n)
+    for k in (0, 1):
+        x = np.concatenate([t[k] for t in slot_pts])
+        q = grouped_interp_quantiles(x, w, gid, n, qs)
+        span = np.maximum(span, q[:, 1] - q[:, 0])
+    pix = np.maximum(np.asarray(pixels, dtype=float), 1e-300)
+    want = np.ceil(TEXELS_PER_PIXEL * span / pix)
+    return np.clip(want, MIN_RESOLUTION, max(int(res_max), MIN_RESOLUTION)).astype(np.int64)
+
+
+def _within_texels(res: np.ndarray, max_texels: int | None) -> np.ndarray:
+    """The resolutions scaled down together (not below `MIN_RESOLUTION`) so that all
+    rasters hold at most ``max_texels`` texels."""
+    total = float(np.sum(res.astype(float) ** 2))
+    if max_texels is None or total <= max_texels:
+        return res
+    k = np.sqrt(max_texels / total)
+    return np.maximum(np.floor(res * k), MIN_RESOLUTION).astype(np.int64)
+
+
 def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
     """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
     ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
@@ -622,32 +663,28 @@ def _local_texel(x, fr, key, slots):
     return np.hypot(fr[key + "s"][slots], x - fr[key + "c"][slots]) * fr[key + "dxi"][slots]
 
 
-def _deposit(acc, out_acc, points, slots, flux, fr, res):
+def _deposit(acc, out_acc, points, slots, flux, fr):
     """Add ``flux`` at world ``points`` into the rasters of ``slots`` (their texel)."""
     if len(points) == 0:
         return
     x = np.einsum("ij,ij->i", points, fr["au"][slots])
     y = np.einsum("ij,ij->i", points, fr["av"][slots])
-    _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res)
-
-
-def _deposit_2d(acc, out_acc, x, y, slots, flux, fr, res):
-    """``x``, ``y``, ``flux`` (…) in the rasters' planes; ``slots`` broadcast against them
-    (a cell's sub-cells: (C, 1) against (C, q), so each raster's warp is gathered once
-    per cell, not per sub-cell)."""
     ix = _texel_index(x, fr, "u", slots)
     iy = _texel_index(y, fr, "v", slots)
-    _accumulate(acc, out_acc, ix, iy, slots, flux, res)
+    _accumulate(acc, out_acc, ix, iy, slots, flux, fr)
 
 
-def _accumulate(acc, out_acc, ix, iy, slots, flux, res):
-    """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them);
+def _accumulate(acc, out_acc, ix, iy, slots, flux, fr):
+    """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them;
+    raster k has ``fr["res"][k]`` texels per side, stored in a block of ``fr["side"]``²);
     beyond a raster, to its ``out_acc``."""
     n = len(acc)
+    side = fr["side"]
+    res = fr["res"].astype(np.uint64)[slots]
     # unsigned: a negative index compares as huge (one test per side); the texels
     # beyond a raster go to bin n + slot, so one bincount takes both
     inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
-    idx = np.where(inside, (slots * res + iy) * res + ix, n + slots)
+    idx = np.where(inside, (slots * side + iy) * side + ix, n + slots)
     both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
     acc += both[:n]
     out_acc += both[n:]
@@ -661,7 +698,6 @@ def _splat_cells(
     dens,
     flux,
     fr,
-    res,
     per_texel,
     m_max,
     max_subcells,
@@ -688,7 +724,7 @@ def _splat_cells(
     # A dim cell's sampling error is a small share of the image: the cells that need
     # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
     # them by flux too, about ``flux_subcells_per_texel`` per texel of the rasters in all.
-    budget = flux_subcells_per_texel * res * res * (len(fr["au"]) if len(fr["au"]) else 1)
+    budget = flux_subcells_per_texel * max(float(np.sum(fr["res"].astype(float) ** 2)), 1.0)
     m_flux = np.ceil(np.sqrt(budget * flux / max(float(flux.sum()), 1e-300))).astype(np.int64)
     m = np.where(m <= m_free, m, np.maximum(m_free, np.minimum(m, m_flux)))
     total = int(np.sum(m * m))
@@ -722,7 +758,7 @@ def _splat_cells(
         w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
         ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
         iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
-        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, res)
+        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, fr)
         n_sub += w.size
     return n_sub
 

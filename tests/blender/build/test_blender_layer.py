@@ -35,14 +35,18 @@ def layers():
 
 
 def layer_flux(ob):
-    """Σ irradiance × face area of a layer mesh (green channel: a white light)."""
+    """The integral of the irradiance the renderer draws over a layer mesh: per
+    triangle its area × the mean of its corners' values (linear over it; green
+    channel: a white light)."""
     me = ob.data
-    n = len(me.polygons)
-    rgba = np.empty(n * 4)
+    rgba = np.empty(len(me.vertices) * 4)
     me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
-    area = np.empty(n)
+    corners = np.empty(len(me.loops), dtype=np.int32)
+    me.loops.foreach_get("vertex_index", corners)
+    area = np.empty(len(me.polygons))
     me.polygons.foreach_get("area", area)
-    return float((rgba.reshape(-1, 4)[:, 1] * area).sum())
+    green = rgba.reshape(-1, 4)[:, 1]
+    return float((green[corners.reshape(-1, 3)].mean(axis=1) * area).sum())
 
 
 def test_auto_in_eevee_builds_layers_not_lights(empty_blend):
@@ -237,44 +241,46 @@ def test_generate_with_layers_is_one_undo_step(empty_blend):
 
 def test_layers_of_one_topology_each_keep_their_own_values(empty_blend):
     """A layer mesh of faces made before starts as a copy of that mesh (the speed
-    round): each keeps its own positions, UVs and irradiance, the first is unchanged,
-    and neither carries the other's material."""
+    round): each keeps its own positions, UVs and irradiance (per vertex, what the
+    renderer interpolates), the first is unchanged, and neither carries the other's
+    material."""
     from lens_lights.blender.build.layers import IRRADIANCE, UV_NAME, layer_mesh
-    from lens_lights.core.caustic_layer.rasters import PatchLayer
+    from lens_lights.core.caustic_layer.smooth import DrawnMesh
 
     res = 3
     i = np.arange(res + 1, dtype=float)
     grid = np.stack(np.meshgrid(i, i, indexing="xy"), axis=-1).reshape(-1, 2)
     a = (np.arange(res)[:, None] * (res + 1) + np.arange(res)[None, :]).reshape(-1)
-    faces = np.stack([a, a + 1, a + res + 2, a + res + 1], axis=1)
+    tris = np.concatenate(
+        [np.stack([a, a + 1, a + res + 2], 1), np.stack([a, a + res + 2, a + res + 1], 1)]
+    )
 
-    def patch(k):
+    def drawn(k):
         z = np.full((len(grid), 1), 0.1 * k)
-        return PatchLayer(
-            patch=k, sources=np.array([k]), object_id=0, normal=np.array([0.0, 0.0, 1.0]),
-            axis_u=np.array([1.0, 0.0, 0.0]), axis_v=np.array([0.0, 1.0, 0.0]),
-            origin=np.zeros(3), edges_u=i, edges_v=i, resolution=res,
-            irradiance=np.full((res, res, 3), k + 1.0) * np.arange(1.0, 4.0), flux=1.0,
-            flux_outside=0.0, vertices=np.hstack([grid + 10 * k, z]), faces=faces,
-            uvs=grid / res + 0.25 * k, uv_inside=None,
+        return DrawnMesh(
+            vertices=np.hstack([grid + 10 * k, z]), triangles=tris,
+            uvs=grid / res + 0.25 * k,
+            irradiance=np.outer(np.arange(len(grid)) + k, [1.0, 2.0, 3.0]),
         )  # fmt: skip
 
     shapes: dict = {}
-    first = layer_mesh("first", patch(0), shapes)
+    first = layer_mesh("first", drawn(0), shapes)
     first.materials.append(bpy.data.materials.new("m"))
-    second = layer_mesh("second", patch(1), shapes)
+    second = layer_mesh("second", drawn(1), shapes)
     assert second.name == "second" and len(second.materials) == 0
     for me, k in ((first, 0), (second, 1)):
-        p = patch(k)
+        d = drawn(k)
         co = np.empty(3 * len(me.vertices))
         me.vertices.foreach_get("co", co)
-        np.testing.assert_allclose(co.reshape(-1, 3), p.vertices, atol=1e-6)
+        np.testing.assert_allclose(co.reshape(-1, 3), d.vertices, atol=1e-6)
         uv = np.empty(2 * len(me.loops))
         me.uv_layers[UV_NAME].data.foreach_get("uv", uv)
-        np.testing.assert_allclose(uv.reshape(-1, 2), p.uvs[faces].reshape(-1, 2), atol=1e-6)
-        rgba = np.empty(4 * len(me.polygons))
-        me.attributes[IRRADIANCE].data.foreach_get("color", rgba)
-        np.testing.assert_allclose(rgba.reshape(-1, 4)[:, :3], p.face_irradiance, rtol=1e-6)
+        np.testing.assert_allclose(uv.reshape(-1, 2), d.uvs[tris].reshape(-1, 2), atol=1e-6)
+        attr = me.attributes[IRRADIANCE]
+        assert attr.domain == "POINT"
+        rgba = np.empty(4 * len(me.vertices))
+        attr.data.foreach_get("color", rgba)
+        np.testing.assert_allclose(rgba.reshape(-1, 4)[:, :3], d.irradiance, rtol=1e-6)
         loops = np.empty(len(me.loops), dtype=np.int32)
         me.loops.foreach_get("vertex_index", loops)
-        np.testing.assert_array_equal(loops.reshape(-1, 4), faces)
+        np.testing.assert_array_equal(loops.reshape(-1, 3), tris)

@@ -1,0 +1,139 @@
+"""The layer as it is drawn: irradiance continuous across texels, the flux exact.
+
+A raster's texels hold the flux each received (`rasters.PatchLayer.irradiance`); drawn
+flat, each texel shows as a block. Drawn here instead: a mesh whose vertices are the
+texel centres (plus the raster's border, where the nearest texel's value extends),
+each cell cut into four triangles about its centre (there the mean of its corners),
+with the irradiance at each vertex, which the renderer interpolates linearly over
+each triangle (a point attribute; Blender splits nothing: the triangles are given).
+A texel's value at its centre vertex is scaled by its area over the measure of the
+vertices that carry it (each vertex's share of its triangles, a third of each), so
+the interpolated irradiance integrates to the texels' flux exactly, a uniform raster
+is drawn uniform, and a texel's flux spreads at most to its neighbours' centres (one
+texel).
+
+The baked layer reads an image instead (`image_texels`): the same texel values
+sampled with Linear interpolation between texel centres in the raster's warped
+coordinate, each scaled by its area over the measure of its tent there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class DrawnMesh:
+    """A triangle mesh over one raster: vertices (V, 3) in world space (lifted as the
+    raster's), triangles (T, 3) counter-clockwise about its normal, the receiver's UV
+    per vertex (or None) and the irradiance per vertex (V, 3)."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    uvs: np.ndarray | None
+    irradiance: np.ndarray
+
+
+def dual_lines(res: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For the res + 2 lines of the drawn grid along one axis (the raster's first edge,
+    the res texel centres, its last edge): the texel lines each lies between (lo, hi:
+    the mean of the two) and the texel whose value it carries."""
+    i = np.arange(res + 2)
+    lo = np.clip(i - 1, 0, res)
+    hi = np.clip(i, 0, res)
+    return lo, hi, np.clip(i - 1, 0, res - 1)
+
+
+def grid_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles of an n × n vertex grid (row-major, rows along v) whose every cell
+    is cut into four about an extra vertex at its centre (n² + k, k the cell's index):
+    (4 (n−1)², 3), counter-clockwise about u × v, and the cells' corners ((n−1)², 4).
+    Four, not two along a diagonal: a diagonal would favour two corners of each cell
+    (a third of its area each against a sixth), so a uniform raster would not be drawn
+    uniform at the raster's corners."""
+    a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).reshape(-1)
+    corners = np.stack([a, a + 1, a + n + 1, a + n], 1)
+    m = n * n + np.arange(len(a))
+    tris = np.stack([np.stack([corners[:, k], corners[:, (k + 1) % 4], m], 1) for k in range(4)], 1)
+    return tris.reshape(-1, 3), corners
+
+
+def vertex_measures(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Each vertex's integral of its hat function over a triangle mesh: a third of the
+    area of every triangle it belongs to (a linear function's integral over a triangle
+    is its area times the mean of its corner values)."""
+    p = vertices[triangles]
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    return np.bincount(triangles.reshape(-1), np.repeat(area / 3.0, 3), minlength=len(vertices))
+
+
+def drawn_mesh(patch) -> DrawnMesh:
+    """The drawn mesh of `patch` (`rasters.PatchLayer`): see the module's text."""
+    res = int(patch.resolution)
+    lo, hi, texel = dual_lines(res)
+    n = res + 2
+
+    def dual(values):  # the corner grid's values at the drawn grid's points (bilinear)
+        g = np.asarray(values, dtype=float).reshape(res + 1, res + 1, -1)
+        return (0.25 * (g[lo][:, lo] + g[lo][:, hi] + g[hi][:, lo] + g[hi][:, hi])).reshape(
+            n * n, -1
+        )
+
+    grid = dual(patch.vertices)
+    tris, cells = grid_triangles(n)
+    verts = np.concatenate([grid, grid[cells].mean(axis=1)])  # + the cells' centres
+    carried = (texel[:, None] * res + texel[None, :]).reshape(-1)  # texel of each vertex
+    # a centre's value is its cell's corners' mean: its measure goes a quarter to each
+    d = vertex_measures(verts, tris)
+    d_grid = d[: n * n] + np.bincount(cells.reshape(-1), np.repeat(0.25 * d[n * n :], 4), n * n)
+    measure = np.bincount(carried, d_grid, minlength=res * res)
+    flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
+        -1, 1
+    )
+    value = flux / np.where(measure > 0.0, measure, 1.0)[:, None]
+    at_grid = value[carried]
+    uvs = None
+    if patch.uvs is not None:
+        uv_grid = dual(patch.uvs)
+        uvs = np.concatenate([uv_grid, uv_grid[cells].mean(axis=1)])
+    return DrawnMesh(verts, tris, uvs, np.concatenate([at_grid, at_grid[cells].mean(axis=1)]))
+
+
+def tent_measures(axis, res: int) -> np.ndarray:
+    """(res,) the world length of each texel's tent along one raster axis whose texel
+    lines are x(ξ) = c + s·sinh(ξ), ξ = ξ0 + i·dξ (`rasters.PatchLayer.axes`): the
+    integral of the function that is 1 at the texel's centre and falls linearly in ξ
+    to 0 at its neighbours' centres (the first and last stay 1 out to the raster's
+    edge, as an image sampled with Extend). In closed form from X(ξ) = c ξ + s cosh ξ,
+    the antiderivative of x."""
+    c, s, xi0, dxi = (float(v) for v in axis)
+    m = xi0 + dxi * (np.arange(res) + 0.5)  # texel centres
+
+    def x(xi):
+        return c + s * np.sinh(xi)
+
+    def big_x(xi):
+        return c * xi + s * np.cosh(xi)
+
+    right = (big_x(m + dxi) - big_x(m)) / dxi - x(m)  # ∫ over [m, m + dξ] of the falling half
+    left = x(m) - (big_x(m) - big_x(m - dxi)) / dxi
+    right[-1] = x(m[-1] + 0.5 * dxi) - x(m[-1])  # the last: flat to the edge
+    left[0] = x(m[0]) - x(m[0] - 0.5 * dxi)
+    return left + right
+
+
+def image_texels(irradiance, axes, res: int) -> np.ndarray:
+    """(res, res, k) the values an image sampled with Linear interpolation between its
+    texel centres (in the raster's warped coordinate) must hold for the irradiance it
+    draws to carry each texel's flux: the texel's irradiance × its area / its tent's
+    measure (rows along v, columns along u, as `PatchLayer.irradiance`)."""
+    edges = [
+        float(a[0]) + float(a[1]) * np.sinh(float(a[2]) + float(a[3]) * np.arange(res + 1))
+        for a in axes
+    ]
+    area = np.diff(edges[1])[:, None] * np.diff(edges[0])[None, :]
+    tent = tent_measures(axes[1], res)[:, None] * tent_measures(axes[0], res)[None, :]
+    irr = np.asarray(irradiance, dtype=float)
+    return irr * (area / tent).reshape(res, res, *([1] * (irr.ndim - 2)))
