@@ -194,8 +194,8 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img.use_half_precision = False
     rgba = np.ones((H, K, 4), dtype=np.float32)
     rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
-    if profile.get("slope") is not None:  # near field: the rays' mean slope, green
-        rgba[..., 1] = np.asarray(profile["slope"], dtype=np.float32)
+    if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
+        rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
     img.pixels.foreach_set(rgba.ravel())
     img.update()
     img.pack()  # kept in the .blend (as OpenEXR)
@@ -212,14 +212,15 @@ SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
 def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | None = None):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
     ignores light nodes), the one description Generate, live update and the bake
-    share: emission strength = red(texture(u, v)) × strength_scale [× tilt factor],
+    share: emission strength = red(texture(u, v)) [tilted] × strength_scale,
     with u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
     Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
     distance along the axis, Light Path ▸ Ray Length × cos γ); the image
     (`profile_image`) read with linear interpolation, EXTEND. With the light's
     energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
-    texture. The tilt factor (`_tilt_factor`) when the profile has a
-    ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
+    texture. Tilted receivers (`_tilted`) when the profile has ``receivers`` (not
+    in the slices mode: the stacked image has no green channel); the shadow mask is
+    added after (`mask_nodes`).
 
     `slices` = (count, rows): the baked light's stacked image (`light_tracks`): v read
     in slice s of `count` slices of `rows` rows each (clamped to the slice's first
@@ -291,9 +292,9 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
             frac = math_node("SUBTRACT", s, base)
             second = lookup(row(1.0)).outputs[0]
             texel = math_node("MULTIPLY_ADD", math_node("SUBTRACT", second, texel), frac, texel)
+    if profile.get("receivers") and slices is None:
+        texel = _tilted(profile, sep, sin_g, cosg, rgb, lp.outputs["Ray Length"])
     strength = math_node("MULTIPLY", texel, float(profile.get("strength_scale", 1.0)))
-    if profile.get("receiver_normal") is not None:
-        strength = math_node("MULTIPLY", strength, _tilt_factor(profile, sep, sin_g, cosg, rgb))
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     nt.links.new(strength, em.inputs["Strength"])
@@ -302,27 +303,40 @@ def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | No
     return nt
 
 
-def _tilt_factor(profile: dict, sep, sin_g, cos_g, rgb):
-    """Near field, a receiver tilted against the axis (normal n along the beam,
-    `profile["receiver_normal"]`): the light's rays come from its apex (slope
-    tan γ), the beam's from the lens (mean slope T, the image's green channel), and
-    a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so the intensity is
-    scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω: the Normal
-    coordinate, a = −Z, in the light's frame as `create_light` turns it)."""
+def _tilted(profile: dict, sep, sin_g, cos_g, rgb, ray_length):
+    """Near field, receivers tilted against the axis (`profile["receivers"]`: per
+    plane its unit normal n and offset o, world units): the light's rays come from
+    its apex (slope tan γ), the beam's from the lens, and a plane takes E_perp (n·a +
+    tan α ρ̂·n) of each ray (α its slope), so on plane k the texel E becomes
+    cos γ (E n·a + S ρ̂·n) / (n·ω), clamped to [0, 8 E] (S: the image's green channel,
+    E × the rays' mean slope, `tiers.exact_profile._slope_table`; ω: the Normal
+    coordinate, a = −Z, in the light's frame as `create_light` turns it). The shading
+    point apex + L ω (L: Ray Length) is on plane k where |L n·ω − o| is within
+    `profile["plane_tolerance"]`; elsewhere (another surface) E as it is. Per plane
+    about 14 math nodes."""
     nt = sep.id_data
-    q = Vector(profile["axis"]).to_track_quat("-Z", "Y")
-    nx, ny, nz = q.inverted() @ Vector(profile["receiver_normal"])
+    q = Vector(profile["axis"]).to_track_quat("-Z", "Y").inverted()
+    tol = float(profile.get("plane_tolerance", 0.0))
 
     def op(kind, *args):
         return shader_math(nt, kind, *args)
 
     x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
-    q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
-    n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
-    rho_n = op("DIVIDE", q_xy, op("MAXIMUM", sin_g, 1e-6))
-    beam = op("MULTIPLY_ADD", rgb.outputs[1], rho_n, -nz)  # n·a + T ρ̂·n
-    factor = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
-    return op("MINIMUM", op("MAXIMUM", factor, 0.0), 8.0)
+    red, green = rgb.outputs[0], rgb.outputs[1]
+    inv_sin = op("DIVIDE", 1.0, op("MAXIMUM", sin_g, 1e-6))
+    cap = op("MULTIPLY", red, 8.0)
+    out = red
+    for normal, offset in profile["receivers"]:
+        nx, ny, nz = q @ Vector(normal)
+        q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
+        n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
+        beam = op("MULTIPLY_ADD", green, op("MULTIPLY", q_xy, inv_sin), op("MULTIPLY", red, -nz))
+        tilted = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
+        tilted = op("MINIMUM", op("MAXIMUM", tilted, 0.0), cap)
+        miss = op("ABSOLUTE", op("MULTIPLY_ADD", ray_length, n_dot_w, -float(offset)))
+        on = op("LESS_THAN", miss, tol)
+        out = op("MULTIPLY_ADD", on, op("SUBTRACT", tilted, out), out)
+    return out
 
 
 def create_light(
@@ -407,6 +421,8 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
         signature = repr(
             [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
             + [profile.get(k) for k in ("h_max", "strength_scale")]
+            # the tilt correction's planes, in the light's frame (rebuilt as they move)
+            + [profile.get(k) for k in ("axis", "receivers", "plane_tolerance")]
         )
         masked = arrays is not None and len(planned.source.shadow_list) > 0
         rebuilt = (

@@ -1,6 +1,6 @@
 """The Exact profile's near field built in Blender: a marble resting on a table lit
 from 60° elevation (bench real_scenes rest_60) gets the tilt correction, its normal
-in the light's own frame (`blender/build/lights._tilt_factor`)."""
+in the light's own frame (`blender/build/lights._tilted`)."""
 
 import math
 
