@@ -457,24 +457,30 @@ def receiver_planes(planes, axis, center, apex_world, min_tilt_deg: float = 0.5)
     return out
 
 
-def is_near_field(receiver: float | None, normal=None, axis=None) -> bool:
+def is_near_field(receiver: float | None, planes=(), axis=None, center=None, R=1.0) -> bool:
     """Whether a receiver `receiver` R from the lens centre along the axis (None:
     unknown) takes the near field's table (apex at the centre): nearer than
-    ``NEAR_RECEIVER``, or a plane tilted against the axis (`normal`, from
-    `tilted_normal`) that comes nearer than that within R of the axis
-    (``receiver − tan(tilt)``): a marble resting on a table, lit from low, whose
-    table passes the lens at the contact point (bench real_scenes rest_45: 1.41 R on
-    the axis; the far table's apex behind the back pole misses the near side of
-    the caustic, L1 0.13)."""
+    ``NEAR_RECEIVER``, or one of the receiver `planes` (``(normal, point)``, world
+    units) tilted against the `axis` comes nearer than that within R of the axis
+    (it meets the axis ``z0`` R from the centre, ``z0 − tan(tilt) < NEAR_RECEIVER``):
+    a marble resting on a table lit from 45° or lower, whose table passes the lens
+    at the contact point (bench real_scenes rest_45: 1.41 R on the axis; the far
+    table's apex behind the back pole misses the caustic's near side, L1 0.13)."""
     if receiver is None:
         return False
     if receiver < NEAR_RECEIVER:
         return True
-    if normal is None:
-        return False
-    c = float(np.asarray(normal, dtype=float) @ np.asarray(axis, dtype=float))
-    tan_tilt = math.sqrt(max(1.0 - c * c, 0.0)) / max(c, 1e-9)
-    return receiver - tan_tilt < NEAR_RECEIVER
+    u = np.asarray(axis, dtype=float)
+    for normal, point in planes:
+        nrm = tilted_normal(normal, u)
+        if nrm is None:
+            continue
+        c = float(nrm @ u)
+        z0 = float(nrm @ (np.asarray(point, float) - np.asarray(center, float))) / (c * R)
+        tan_tilt = math.sqrt(max(1.0 - c * c, 0.0)) / c
+        if 0.0 < z0 and z0 - tan_tilt < NEAR_RECEIVER:
+            return True
+    return False
 
 
 def tilted_normal(normal, axis, min_tilt_deg: float = 0.5):
@@ -532,22 +538,20 @@ def make_profile_light(
     I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
     z_r = None if receiver_distance is None else float(receiver_distance) / R
     center = np.asarray(source.lens_center, dtype=float)
-    tilt = tilted_normal(getattr(receiver_distance, "normal", None), axis)
-    near = is_near_field(z_r, tilt, axis)
+    # the receiver on the axis (its plane where the rim rays found one), then any
+    # other plane the planning found (`ReceiverDistance.planes`: a wall beside the
+    # table): each corrected with its own tilt
+    found = []
+    if getattr(receiver_distance, "normal", None) is not None:
+        found.append((receiver_distance.normal, center + z_r * R * axis))
+    found += list(getattr(receiver_distance, "planes", None) or ())
+    near = is_near_field(z_r, found, axis, center, R)
     # the near table's rows are placed on the receiver (`table_geometry`): its key
     # carries the receiver (R, to 1e-6: a table per distinct resting height)
     z_near = round(z_r, 6) if near else None
     apex = profile.apex if profile is not None else (NEAR_APEX if near else PROFILE_APEX)
     location = center + apex * R * axis
-    planes = []
-    if near:
-        # the receiver on the axis, then any other plane the planning found
-        # (`ReceiverDistance.planes`: a wall beside the table), each its own tilt
-        found = [(getattr(receiver_distance, "normal", None), center + z_r * R * axis)]
-        found += list(getattr(receiver_distance, "planes", None) or ())
-        planes = receiver_planes(
-            [(nrm, pt) for nrm, pt in found if nrm is not None], axis, center, apex * R
-        )
+    planes = receiver_planes(found, axis, center, apex * R) if near else []
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
     if near:
         notes.append(
