@@ -207,6 +207,9 @@ def profile_image(profile: dict, image_cache: dict | None = None):
 #: A baked profile light's keyed Value nodes (`blender/commands/bake.py`): the slice
 #: coordinate and the table's first distance.
 SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+#: The tilt correction's Value nodes (`_tilted`): plane k's normal in the light's
+#: frame ("nx", "ny", "nz") and its offset from the apex ("offset", world units).
+TILT_NODE = "Lens tilt {} {}"
 
 
 def build_profile_nodes(data, profile: dict, image, slices: tuple[int, int] | None = None):
@@ -313,7 +316,9 @@ def _tilted(profile: dict, sep, sin_g, cos_g, rgb, ray_length):
     coordinate, a = −Z, in the light's frame as `create_light` turns it). The shading
     point apex + L ω (L: Ray Length) is on plane k where |L n·ω − o| is within
     `profile["plane_tolerance"]`; elsewhere (another surface) E as it is. Per plane
-    about 14 math nodes."""
+    about 14 math nodes and four Value nodes, `TILT_NODE` (k, "nx" | "ny" | "nz" |
+    "offset"): the normal in the light's frame and the offset, what a bake would key
+    per frame."""
     nt = sep.id_data
     q = Vector(profile["axis"]).to_track_quat("-Z", "Y").inverted()
     tol = float(profile.get("plane_tolerance", 0.0))
@@ -321,19 +326,30 @@ def _tilted(profile: dict, sep, sin_g, cos_g, rgb, ray_length):
     def op(kind, *args):
         return shader_math(nt, kind, *args)
 
+    def value(k, part, number):
+        node = nt.nodes.new("ShaderNodeValue")
+        node.name = node.label = TILT_NODE.format(k, part)
+        node.outputs[0].default_value = float(number)
+        return node.outputs[0]
+
     x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
     red, green = rgb.outputs[0], rgb.outputs[1]
     inv_sin = op("DIVIDE", 1.0, op("MAXIMUM", sin_g, 1e-6))
     cap = op("MULTIPLY", red, 8.0)
     out = red
-    for normal, offset in profile["receivers"]:
-        nx, ny, nz = q @ Vector(normal)
+    for k, (normal, offset) in enumerate(profile["receivers"]):
+        local = q @ Vector(normal)
+        nx, ny, nz = (value(k, part, c) for part, c in zip(("nx", "ny", "nz"), local, strict=True))
+        o = value(k, "offset", offset)
         q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
         n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
-        beam = op("MULTIPLY_ADD", green, op("MULTIPLY", q_xy, inv_sin), op("MULTIPLY", red, -nz))
+        n_dot_a = op("MULTIPLY", nz, -1.0)  # a = −Z
+        beam = op(
+            "MULTIPLY_ADD", green, op("MULTIPLY", q_xy, inv_sin), op("MULTIPLY", red, n_dot_a)
+        )
         tilted = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
         tilted = op("MINIMUM", op("MAXIMUM", tilted, 0.0), cap)
-        miss = op("ABSOLUTE", op("MULTIPLY_ADD", ray_length, n_dot_w, -float(offset)))
+        miss = op("ABSOLUTE", op("SUBTRACT", op("MULTIPLY", ray_length, n_dot_w), o))
         on = op("LESS_THAN", miss, tol)
         out = op("MULTIPLY_ADD", on, op("SUBTRACT", tilted, out), out)
     return out
