@@ -31,7 +31,9 @@ the baked light's tree has two planes keyed per frame (frame 1's second: never o
 the shading point, `lights.NO_PLANE`) and the green channel (intensity × slope) in
 its tiles. An oblique camera sees the table and the wall. Frame 2 baked, rendered
 without the extension, against Generate: the same tolerances. With the planes'
-Value nodes left unkeyed (the tree's defaults: no plane matches) L1 {dropped}.
+Value nodes left unkeyed (the tree's defaults: no plane matches) L1 0.21, total
+1.047; with the wall's plane alone unkeyed L1 0.088, total 0.988 (measured on 5.2;
+keyed: L1 3e-6, total 1 − 1e-6).
 """
 
 import math
