@@ -116,7 +116,7 @@ def main(argv=None) -> int:
         f"{args.frames}`.",
         "",
         "Every frame has its own receiver distance: its own near table (Generate's, "
-        "512 × 256, intensity and slopes) and its own mask (128 × 128).",
+        "512 × 256, intensity and intensity × slope) and its own mask (128 × 128).",
         "",
         "| frames | bake (s) | plan (s) | build (s) | .blend unbaked (MB) | baked (MB) "
         "| per frame (MB) | images (texels, packed MB) |",

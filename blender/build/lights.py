@@ -180,8 +180,8 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img.use_half_precision = False
     rgba = np.ones((H, K, 4), dtype=np.float32)
     rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
-    if profile.get("slope") is not None:  # near field: the rays' mean slope, green
-        rgba[..., 1] = np.asarray(profile["slope"], dtype=np.float32)
+    if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
+        rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
     img.pixels.foreach_set(rgba.ravel())
     img.update()
     img.pack()  # kept in the .blend (as OpenEXR)
@@ -191,32 +191,61 @@ def profile_image(profile: dict, image_cache: dict | None = None):
 
 
 #: A baked profile light's keyed Value nodes (`blender/commands/bake.py`): the slice
-#: coordinate, the table's first distance, and (near field) the receiver's normal in
-#: the light's frame (`tilt_normal`; (0, 0, −1): no tilt, the factor is 1).
+#: coordinate and the table's first distance.
 SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
-TILT_NODES = ("Lens bake tilt x", "Lens bake tilt y", "Lens bake tilt z")
-#: The light-frame normal of a receiver square to the axis (no correction).
-NO_TILT = (0.0, 0.0, -1.0)
+#: The tilt correction's Value nodes (`_tilted`), Generate's and the bake's: plane k's
+#: normal in the light's frame ("nx", "ny", "nz") and its offset from the apex
+#: ("offset", world units), and the tolerance within which a shading point is on a
+#: plane (world units).
+TILT_NODE = "Lens tilt {} {}"
+TILT_PARTS = ("nx", "ny", "nz", "offset")
+TOLERANCE_NODE = "Lens tilt tolerance"
+#: (nx, ny, nz, offset) of a plane that never matches: a baked frame with fewer
+#: planes than its light's tree keys the others so. With a zero normal L n·ω is 0
+#: for every shading point (finite L), so |L n·ω − offset| = 1e30, never within a
+#: tolerance (R/50): `on` is 0, and the plane's step out + 0 × (tilted − out) gives
+#: `out` bit for bit (tilted is 0 there, finite: beam 0 over the 1e-4 floor).
+NO_PLANE = (0.0, 0.0, 0.0, 1.0e30)
+
+
+def tilt_values(profile: dict) -> dict:
+    """The tilt correction's numbers of `profile` under its Value nodes' names: per
+    plane of ``receivers`` its normal turned into the light's frame (as
+    `create_light` turns the light: its −Z along ``axis``) and its offset, and the
+    tolerance; empty without receivers. What Generate's tree holds, and what the bake
+    records per frame."""
+    receivers = profile.get("receivers") or ()
+    if not receivers:
+        return {}
+    q = Vector(profile["axis"]).to_track_quat("-Z", "Y").inverted()
+    out = {TOLERANCE_NODE: float(profile.get("plane_tolerance", 0.0))}
+    for k, (normal, offset) in enumerate(receivers):
+        local = (*(q @ Vector(normal)), offset)
+        out.update(
+            (TILT_NODE.format(k, p), float(x)) for p, x in zip(TILT_PARTS, local, strict=True)
+        )
+    return out
 
 
 def build_profile_nodes(data, profile: dict, image, slices=None):
     """The EXACT_PROFILE light node tree on the light data `data` (Cycles; EEVEE
     ignores light nodes), the one description Generate, live update and the bake
-    share: emission strength = red(texture(u, v)) × strength_scale [× tilt factor],
+    share: emission strength = red(texture(u, v)) [tilted] × strength_scale,
     with u = sqrt(γ / γ_max) (γ from the spot's −Z axis, the Texture Coordinate's
     Normal, as atan2(√(x² + y²), −z)) and v = ln(h / h_min) / ln(h_max / h_min) (h:
     distance along the axis, Light Path ▸ Ray Length × cos γ); the image
     (`profile_image`) read with linear interpolation, EXTEND. With the light's
     energy twice the beam's flux, the intensity toward (γ, h) is energy/(4π) ×
-    texture. The tilt factor (`_tilt_factor`) when the profile has a
-    ``receiver_normal``; the shadow mask is added after (`mask_nodes`).
+    texture. Tilted receivers (`_tilted`, green: intensity × slope) when the
+    profile has ``receivers`` (or, for the bake, ``tilt_planes`` > 0); the shadow
+    mask is added after (`mask_nodes`).
 
     `slices`: the baked light's image of stacked tables, a
     `core.animation.frame_tables.SliceLayout`: (u, v) read in slice s of it
     (`slice_coordinates`), two neighbouring slices blended by the fractional part of
-    s; s, h_min and (with a ``receiver_normal`` or ``tilted``) the receiver's normal
-    in the light's frame are Value nodes (`SLICE_NODE`, `H_MIN_NODE`, `TILT_NODES`)
-    the bake keys per frame."""
+    s (red and green alike); s and h_min are Value nodes (`SLICE_NODE`,
+    `H_MIN_NODE`) the bake keys per frame, as it keys the tilt's (`TILT_NODE`,
+    `TOLERANCE_NODE`: ``tilt_planes`` planes, default `NO_PLANE`)."""
     if bpy.app.version < (5, 0, 0) or data.node_tree is None:
         data.use_nodes = True  # (deprecated from 5.0, where every light has its tree)
     nt = data.node_tree
@@ -260,8 +289,7 @@ def build_profile_nodes(data, profile: dict, image, slices=None):
         nt.links.new(u, comb.inputs["X"])
         nt.links.new(v, comb.inputs["Y"])
         rgb = lookup(comb.outputs[0])
-        texel = rgb.outputs[0]
-        slope = rgb.outputs[1]
+        texel, slope = rgb.outputs[0], rgb.outputs[1]
     else:
         count = int(slices.count)
         s = value_node(nt, SLICE_NODE, 0.0)
@@ -277,12 +305,13 @@ def build_profile_nodes(data, profile: dict, image, slices=None):
 
             texel = blend(texel, second.outputs[0])
             slope = blend(slope, second.outputs[1])
+    planes = int(profile.get("tilt_planes", len(profile.get("receivers") or ())))
+    if planes:
+        values = tilt_values(profile)
+        texel = _tilted(
+            nt, planes, values, sep, sin_g, cosg, texel, slope, lp.outputs["Ray Length"]
+        )
     strength = math_node("MULTIPLY", texel, float(profile.get("strength_scale", 1.0)))
-    normal = tilt_normal(profile)
-    if slices is not None and (normal is not None or profile.get("tilted")):
-        normal = [value_node(nt, n, x) for n, x in zip(TILT_NODES, normal or NO_TILT, strict=True)]
-    if normal is not None:
-        strength = math_node("MULTIPLY", strength, _tilt_factor(normal, sep, sin_g, cosg, slope))
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     nt.links.new(strength, em.inputs["Strength"])
@@ -291,36 +320,45 @@ def build_profile_nodes(data, profile: dict, image, slices=None):
     return nt
 
 
-def tilt_normal(profile: dict) -> tuple | None:
-    """The profile's ``receiver_normal`` in the light's frame (as `create_light` turns
-    the light: its −Z along ``axis``), or None (no tilt correction)."""
-    if profile.get("receiver_normal") is None:
-        return None
-    q = Vector(profile["axis"]).to_track_quat("-Z", "Y")
-    return tuple(q.inverted() @ Vector(profile["receiver_normal"]))
-
-
-def _tilt_factor(normal, sep, sin_g, cos_g, slope):
-    """Near field, a receiver tilted against the axis (normal n along the beam, in the
-    light's frame: `tilt_normal`; numbers or sockets): the light's rays come from its
-    apex (slope tan γ), the beam's from the lens (mean slope T, the image's green
-    channel `slope`), and a tilted plane takes E_perp (n·a + slope ρ̂·n) of each, so
-    the intensity is scaled by cos γ (n·a + T ρ̂·n) / (n·ω), clamped to [0, 8] (ω:
-    the Normal coordinate, a = −Z)."""
-    nt = sep.id_data
-    nx, ny, nz = normal
+def _tilted(nt, planes: int, values: dict, sep, sin_g, cos_g, red, green, ray_length):
+    """Near field, receivers tilted against the axis (per plane its unit normal n in
+    the light's frame and offset o from the apex, world units: `tilt_values`): the
+    light's rays come from its apex (slope tan γ), the beam's from the lens, and a
+    plane takes E_perp (n·a + tan α ρ̂·n) of each ray (α its slope), so on plane k
+    the texel E (`red`) becomes cos γ (E n·a + S ρ̂·n) / (n·ω), clamped to [0, 8 E]
+    (S: the image's green channel `green`, E × the rays' mean slope,
+    `tiers.exact_profile._slope_table`; ω: the Normal coordinate, a = −Z). The
+    shading point apex + L ω (L: Ray Length) is on plane k where |L n·ω − o| is
+    within the tolerance (`profile["plane_tolerance"]`); elsewhere (another surface)
+    E as it is. Per plane about 14 math nodes and four Value nodes, `TILT_NODE` (k,
+    "nx" | "ny" | "nz" | "offset"), and one `TOLERANCE_NODE`: what the bake keys per
+    frame (`planes` of them; a number missing from `values`: `NO_PLANE`'s)."""
 
     def op(kind, *args):
         return shader_math(nt, kind, *args)
 
     x, y, z = sep.outputs["X"], sep.outputs["Y"], sep.outputs["Z"]
-    q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
-    n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
-    rho_n = op("DIVIDE", q_xy, op("MAXIMUM", sin_g, 1e-6))
-    minus_nz = -nz if isinstance(nz, float) else op("MULTIPLY", nz, -1.0)
-    beam = op("MULTIPLY_ADD", slope, rho_n, minus_nz)  # n·a + T ρ̂·n
-    factor = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
-    return op("MINIMUM", op("MAXIMUM", factor, 0.0), 8.0)
+    tol = value_node(nt, TOLERANCE_NODE, values.get(TOLERANCE_NODE, 0.0))
+    inv_sin = op("DIVIDE", 1.0, op("MAXIMUM", sin_g, 1e-6))
+    cap = op("MULTIPLY", red, 8.0)
+    out = red
+    for k in range(planes):
+        nx, ny, nz, o = (
+            value_node(nt, TILT_NODE.format(k, p), values.get(TILT_NODE.format(k, p), d))
+            for p, d in zip(TILT_PARTS, NO_PLANE, strict=True)
+        )
+        q_xy = op("MULTIPLY_ADD", x, nx, op("MULTIPLY", y, ny))  # sin γ (ρ̂·n)
+        n_dot_w = op("MULTIPLY_ADD", z, nz, q_xy)
+        n_dot_a = op("MULTIPLY", nz, -1.0)  # a = −Z
+        beam = op(
+            "MULTIPLY_ADD", green, op("MULTIPLY", q_xy, inv_sin), op("MULTIPLY", red, n_dot_a)
+        )
+        tilted = op("DIVIDE", op("MULTIPLY", beam, cos_g), op("MAXIMUM", n_dot_w, 1e-4))
+        tilted = op("MINIMUM", op("MAXIMUM", tilted, 0.0), cap)
+        miss = op("ABSOLUTE", op("SUBTRACT", op("MULTIPLY", ray_length, n_dot_w), o))
+        on = op("LESS_THAN", miss, tol)
+        out = op("MULTIPLY_ADD", on, op("SUBTRACT", tilted, out), out)
+    return out
 
 
 def create_light(
@@ -405,6 +443,8 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
         signature = repr(
             [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
             + [profile.get(k) for k in ("h_max", "strength_scale")]
+            # the tilt correction's planes, in the light's frame (rebuilt as they move)
+            + [profile.get(k) for k in ("axis", "receivers", "plane_tolerance")]
         )
         masked = arrays is not None and len(planned.source.shadow_list) > 0
         rebuilt = (

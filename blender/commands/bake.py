@@ -31,11 +31,14 @@ scene as it was:
        (`light_tracks.slice_grid`), "Lens bake slice" (fractional: two slices
        blended) and "Lens bake h_min" keyed LINEAR;
      - near field: the frame's own table, Generate's (its rows on the frame's
-       receiver; red the intensity, green the rays' slopes when a frame's receiver
-       is tilted), one slice per distinct table of the track, "Lens bake slice"
-       and "Lens bake h_min" keyed CONSTANT; the tilt correction's normal in the
-       light's frame "Lens bake tilt x/y/z" (CONSTANT; (0, 0, −1) on a frame
-       without a tilt: factor 1);
+       receiver; red the intensity, green intensity × the rays' mean slope when a
+       frame has tilted receiver planes, Generate's ``slope_pixels``), one slice per
+       distinct table of the track, "Lens bake slice" and "Lens bake h_min" keyed
+       CONSTANT; the tilt correction (`lights._tilted`, Generate's: each receiver
+       plane its own normal, applied where the shading point lies on it): per plane
+       k "Lens tilt k nx/ny/nz/offset" and "Lens tilt tolerance" (CONSTANT), the tree
+       built with the most planes any frame has, a frame with fewer keying the rest
+       `lights.NO_PLANE` (a zero normal: never on the shading point, exactly E);
      - shadow mask (a frame whose source has a shadow list): the frames' masks as
        slices of one image ("Lens mask bake …"; a frame without one reads ones),
        "Lens bake mask slice" and "Lens bake mask scale" (0.5 / s_max) CONSTANT;
@@ -84,6 +87,8 @@ from . import layer_stage, pipeline
 
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
 MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
+#: Recorded per frame (not keyed): how many receiver planes the frame's tilt has.
+TILT_PLANES = "tilt planes"
 #: The figures of the last bake (seconds per stage, counts).
 LAST_BAKE: dict = {}
 
@@ -158,8 +163,8 @@ def _profile_images(tracks, ratio) -> dict:
     per frame in world units, interpolation). Far field: the image stacks its group's
     D/R slices (`light_tracks.profile_groups`), read between two (LINEAR); near
     field: the track's own image of its frames' own tables, Generate's (red: the
-    intensity; green: the rays' slopes where a frame's receiver is tilted), each
-    frame reading its own (CONSTANT; `frame_tables`)."""
+    intensity; green: intensity × the rays' mean slope where a frame has tilted
+    receivers), each frame reading its own (CONSTANT; `frame_tables`)."""
     out = {}
     far = [t for t in tracks if t.profile_group is not None and not t.profile_group[2]]
     groups = light_tracks.profile_groups(far, ratio)
@@ -194,7 +199,8 @@ def _profile_images(tracks, ratio) -> dict:
 
 def _near_pixels(pixels, tilted: bool):
     """A near table as the bake's image holds it: (M, K), or with `tilted` (M, K, 3)
-    RGB, green the rays' slopes (0 for a frame without a tilt: its factor is 1)."""
+    RGB, green intensity × the rays' mean slope (0 for a frame without tilted
+    receivers: its planes are `lights.NO_PLANE`, the green is never used)."""
     px = np.asarray(pixels, dtype=np.float32)
     if not tilted:
         return px
@@ -230,9 +236,9 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
     (PlannedLight, lens object); `tables` (key → pixels) shares equal tables over
     the frames. An Exact profile light records what Generate's node tree reads on
-    this frame: its near field's own table (its key, intensity and slopes), its
-    receiver's normal in its frame (`lights.tilt_normal`), its shadow mask
-    (`mask_nodes.shadow_mask`)."""
+    this frame: its near field's own table (its key, intensity and intensity ×
+    slope), its receiver planes' tilt numbers (`lights.tilt_values`; their count
+    under `TILT_PLANES`), its shadow mask (`mask_nodes.shadow_mask`)."""
     out = []
     nears = [
         bool(
@@ -267,21 +273,21 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
             fl.d_over_r = float(src.distance) / float(src.lens_radius)
             values["h_min"] = float(bl.profile_info["h_min"])
             values["lens_radius"] = float(src.lens_radius)
-            tilt = lights.NO_TILT
             if near:  # the frame's own table, Generate's
                 prof = bl.profile
                 values["receiver"] = float(bl.receiver_distance) / float(src.lens_radius)
                 values["h_min"] = float(prof["h_min"])
-                tilt = lights.tilt_normal(prof) or lights.NO_TILT
+                # the tree's numbers, under the names of the Value nodes keyed with them
+                values.update(lights.tilt_values(prof))
+                values[TILT_PLANES] = len(prof.get("receivers") or ())
                 tkey = prof["key"] if prof.get("key") is not None else f"frame {id(prof)}"
                 if tkey not in tables:
                     px = np.asarray(prof["pixels"], dtype=np.float32)
-                    if prof.get("slope") is not None:
-                        px = np.stack([px, np.asarray(prof["slope"], np.float32)], axis=-1)
+                    if prof.get("slope_pixels") is not None:  # Generate's green channel
+                        green = np.asarray(prof["slope_pixels"], np.float32)
+                        px = np.stack([px, green], axis=-1)
                     tables[tkey] = px
                 fl.tables["near"] = (tkey, tables[tkey])
-            # the tree's numbers, under the names of the Value nodes keyed with them
-            values.update(zip(lights.TILT_NODES, tilt, strict=True))
             mask = mask_nodes.shadow_mask(p, work.read.arrays)
             if mask is not None:
                 px, s_max = mask
@@ -437,8 +443,7 @@ class Baker:
         if track.profile_group is not None:
             image, layout, s, h_min, how = images[track.key]
             info = dict(self.firsts[track.key][0].light.profile_info)
-            tilt = np.column_stack([v[name][:, 0] for name in lights.TILT_NODES])
-            info["tilted"] = bool(np.any(tilt != np.array(lights.NO_TILT)))
+            info["tilt_planes"] = planes = int(v[TILT_PLANES].max()) if TILT_PLANES in v else 0
             nt = lights.build_profile_nodes(data, info, image, slices=layout)
             path = 'nodes["{}"].outputs[0].default_value'
             key_column(nt, path.format(SLICE_NODE), -1, frames, s, how)
@@ -449,7 +454,16 @@ class Baker:
                 mask_nodes.add_baked_mask(nt, m_image, m_layout)
                 key_column(nt, path.format(MASK_SLICE_NODE), -1, frames, m_s, "CONSTANT")
                 masks.add(m_image.name)
-            # every number the frames recorded under a Value node's name of the tree
+            # every number the frames recorded under a Value node's name of the tree;
+            # the planes a frame lacks: `lights.NO_PLANE` (never on the shading point)
+            v = dict(v)
+            for k in range(planes):
+                unused = v[TILT_PLANES][:, 0] <= k
+                for part, x in zip(lights.TILT_PARTS, lights.NO_PLANE, strict=True):
+                    name = lights.TILT_NODE.format(k, part)
+                    col = v.get(name, np.zeros((len(frames), 1))).copy()
+                    col[unused] = x
+                    v[name] = col
             for name, col in v.items():
                 node = nt.nodes.get(name)
                 if node is not None and node.bl_idname == "ShaderNodeValue":

@@ -39,6 +39,7 @@ from ..tiers import (
     COLLIMATED_DISTANCE_FACTOR,
     DEFAULT_ENERGY_MODEL,
     DEFAULT_SPOT_BLEND,
+    EXACT_PROFILE,
     FITTED,
     PHYSICAL,
     THESIS,
@@ -51,7 +52,13 @@ from ..tiers import (
     resolve_energy_model,
 )
 from ..tiers.base import safe_scene_size
-from ..tiers.near_field import ReceiverDistance, rim_plane_normal
+from ..tiers.near_field import (
+    SIDE_REACH,
+    ReceiverDistance,
+    rim_plane_normal,
+    side_plane_rays,
+    side_planes,
+)
 from ..tiers.paraxial import is_beyond_scene
 from .budget import BudgetReport, apply_budget, source_flux
 
@@ -222,9 +229,22 @@ def receiver_distance(occluders, source, scene_size):
         found.append(r * (1.0 + 1e-6) + float(hits[4]))
     if not found:
         return None
-    # with the plane's normal where the four rim rays found one (a tilted table)
+    # with the plane's normal where the four rim rays found one (a tilted table),
+    # and the other planes the beam meets near the lens (a wall beside it)
     z = max(min(found), r)
-    return ReceiverDistance(z, rim_plane_normal(origins, u, hits, r, distance=z))
+    normal = rim_plane_normal(origins, u, hits, r, distance=z)
+    return ReceiverDistance(z, normal, other_planes(occluders, u, c, r, z, normal))
+
+
+def other_planes(occluders, axis, center, radius, z, normal) -> list:
+    """The planes besides the receiver on the axis (`z` from the centre, its
+    `normal` or None) that the beam meets within ``near_field.SIDE_REACH`` R of the
+    lens (`near_field.side_planes`: one batched cast of the side bundles)."""
+    origins, dirs = side_plane_rays(axis, center, radius)
+    hits = cast_bundles(occluders, origins, dirs, SIDE_REACH * radius)
+    u = np.asarray(axis, dtype=float)
+    known = [] if normal is None else [(normal, np.asarray(center, float) + z * u)]
+    return side_planes(origins, dirs, hits, radius, known)
 
 
 def _frames(axis, center, radius):
@@ -638,9 +658,11 @@ def _final_lights(read, selection, cols, rows, tier, model, common) -> _KeptLigh
         near = None
         if np.isfinite(recv[k]):
             z, r = float(recv[k]), float(sub.lens_radius[k])
-            near = ReceiverDistance(
-                z, rim_plane_normal(origins[k], axis[k], hits[k], r, distance=z)
-            )
+            normal = rim_plane_normal(origins[k], axis[k], hits[k], r, distance=z)
+            planes = ()
+            if tier.name == EXACT_PROFILE:  # the only tier that reads them
+                planes = other_planes(occ, axis[k], sub.lens_center[k], r, z, normal)
+            near = ReceiverDistance(z, normal, planes)
         out.append(
             make_blender_light(
                 src,

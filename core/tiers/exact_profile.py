@@ -18,10 +18,16 @@ The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)`
 has a row on the receiver's plane (right past the lens the beam changes by tens
 of per cent within a row), its texels inside the lens filled from outside (the
 texture blends them into the points just outside), and a second channel: the
-rays' mean slope per texel. A receiver tilted against the axis (a marble resting
-on a table, lit from the side) takes each ray's light by the ray's own slope,
-not the apex's; with the receiver's normal the node tree corrects for that
-(`_slope_table`, `tilted_normal`).
+intensity times the rays' mean slope per texel (the product, so that the
+texture's interpolation blends it as it blends the intensity: the mean slope
+interpolated apart put a sun's caustic ring on the wrong side, +10 % flux at 70°).
+A receiver tilted against the axis (a marble resting on a table, lit from the
+side) takes each ray's light by the ray's own slope, not the apex's; with each
+receiver plane's normal the node tree corrects for that where the shading point
+lies on that plane (`_slope_table`, `receiver_planes`). A tilted table that
+passes the lens within R of the axis takes the near field even when it meets the
+axis farther than ``NEAR_RECEIVER`` (`is_near_field`: a marble resting on a table
+lit from 45° or lower).
 
 It also carries a one-dimensional angular profile (``angular``): the best
 distance-independent profile about its own apex (a per-angle weighted median
@@ -96,12 +102,13 @@ def table_geometry(
     receiver: float | None, rows: int = PROFILE_DISTANCES, *, on_row: bool = False
 ) -> tuple[float, float, float]:
     """(apex, h_min, h_max) in R for a receiver `receiver` R from the centre (None:
-    unknown). With `on_row`, a near field's rows are shifted (by under half a row)
-    so that one of the `rows` row centres lies on the receiver: right past the
+    unknown). With `on_row` (the caller has chosen the near field, `is_near_field`:
+    also a tilted table farther on the axis), the near field's rows are shifted (by
+    under half a row) so that one of the `rows` row centres lies on the receiver: right past the
     lens's surface the beam changes by tens of per cent within one row (the
     crossing marginal rays: +50 % on the axis from 1.000 R to 1.017 R for
     D = 100 R, n = 1.5), and a plane between two rows would read their blend."""
-    if receiver is None or receiver >= NEAR_RECEIVER:
+    if receiver is None or (receiver >= NEAR_RECEIVER and not on_row):
         return PROFILE_APEX, PROFILE_H_MIN, PROFILE_H_MAX
     if not on_row:
         return NEAR_APEX, NEAR_H_MIN, NEAR_H_MAX
@@ -140,7 +147,8 @@ class BeamProfile:
     angular_apex: float = 0.0
     angular: np.ndarray = field(default=None, repr=False)  # (K,)
     #: near field: the flux-weighted mean of tan(ray angle to the axis), signed
-    #: outward, of the rays through each texel (M, K) (`_slope_table`)
+    #: outward, of the rays through each texel (M, K) (`_slope_table`); the light's
+    #: image holds table × slope
     slope: np.ndarray | None = field(default=None, repr=False)
 
     @property
@@ -205,7 +213,8 @@ def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> 
     tilted against the axis the irradiance is ``E_perp (n·a + tan α ρ̂·n)`` per ray
     (``n`` its normal, ``a`` the axis, ``ρ̂`` outward), linear in ``tan α``, so this
     mean gives the exact tilted irradiance from the table's (`build_profile_nodes`'s
-    tilt correction). The apex's own rays have ``tan γ``: where no ray passes,
+    tilt correction, which reads the table × this mean: `_profile_dict`'s
+    ``slope_pixels``). The apex's own rays have ``tan γ``: where no ray passes,
     that (no correction)."""
     M, K = prof.table.shape
     iota = np.linspace(0.0, 0.5 * np.pi, int(n_fan) * SLOPE_SUBDIVISION + 1)
@@ -385,7 +394,7 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
 
 
 def _profile_dict(
-    prof: BeamProfile, t_ref: float, R: float, center, axis, key, normal=None
+    prof: BeamProfile, t_ref: float, R: float, center, axis, key, receivers=()
 ) -> dict:
     ang = prof.angular / t_ref
     out = {
@@ -405,12 +414,73 @@ def _profile_dict(
         "key": key,
     }
     if prof.slope is not None:
-        out["slope"] = prof.slope.astype(np.float32)  # the image's green channel
-    if normal is not None and prof.slope is not None:
-        # a receiver tilted against the axis: the node tree's tilt correction
+        # the image's green channel: intensity × mean slope, which the texture's
+        # linear interpolation blends as it blends the intensity (`_slope_table`)
+        out["slope_pixels"] = (prof.table * prof.slope / t_ref).astype(np.float32)
+    if receivers and prof.slope is not None:
+        # receivers tilted against the axis: the node tree's tilt correction, each
+        # plane's own where the shading point lies on it (`build_profile_nodes`)
         out["axis"] = tuple(float(v) for v in axis)
-        out["receiver_normal"] = tuple(float(v) for v in normal)
+        out["receivers"] = [
+            (tuple(float(v) for v in nrm), float(offset)) for nrm, offset in receivers
+        ]
+        out["plane_tolerance"] = float(PLANE_TOLERANCE * R)
     return out
+
+
+#: A shading point within this (R) of a receiver plane takes that plane's tilt
+#: correction (`build_profile_nodes`); elsewhere none.
+PLANE_TOLERANCE = 0.02
+
+
+def receiver_planes(planes, axis, center, apex_world, min_tilt_deg: float = 0.5) -> list:
+    """The tilt correction's planes: for each receiver plane ``(normal, point)``
+    tilted more than `min_tilt_deg` against the `axis` (a plane square to it needs
+    no correction: the factor is 1 there), ``(unit normal, offset)`` with ``offset =
+    normal · (point − apex) > 0`` (world units; the normal turned away from the
+    apex): a shading point ``apex + L ω`` lies on it where ``L (normal · ω) =
+    offset``. A wall parallel to the axis is kept (its light is all slope)."""
+    out = []
+    u = np.asarray(axis, dtype=float)
+    apex = np.asarray(center, dtype=float) + apex_world * u
+    for normal, point in planes:
+        nrm = np.asarray(normal, dtype=float)
+        length = float(np.linalg.norm(nrm))
+        if not math.isfinite(length) or length == 0.0:
+            continue
+        nrm = nrm / length
+        offset = float(nrm @ (np.asarray(point, dtype=float) - apex))
+        if offset < 0.0:
+            nrm, offset = -nrm, -offset
+        if offset > 0.0 and abs(float(nrm @ u)) <= math.cos(math.radians(min_tilt_deg)):
+            out.append((nrm, offset))
+    return out
+
+
+def is_near_field(receiver: float | None, planes=(), axis=None, center=None, R=1.0) -> bool:
+    """Whether a receiver `receiver` R from the lens centre along the axis (None:
+    unknown) takes the near field's table (apex at the centre): nearer than
+    ``NEAR_RECEIVER``, or one of the receiver `planes` (``(normal, point)``, world
+    units) tilted against the `axis` comes nearer than that within R of the axis
+    (it meets the axis ``z0`` R from the centre, ``z0 − tan(tilt) < NEAR_RECEIVER``):
+    a marble resting on a table lit from 45° or lower, whose table passes the lens
+    at the contact point (bench real_scenes rest_45: 1.41 R on the axis; the far
+    table's apex behind the back pole misses the caustic's near side, L1 0.13)."""
+    if receiver is None:
+        return False
+    if receiver < NEAR_RECEIVER:
+        return True
+    u = np.asarray(axis, dtype=float)
+    for normal, point in planes:
+        nrm = tilted_normal(normal, u)
+        if nrm is None:
+            continue
+        c = float(nrm @ u)
+        z0 = float(nrm @ (np.asarray(point, float) - np.asarray(center, float))) / (c * R)
+        tan_tilt = math.sqrt(max(1.0 - c * c, 0.0)) / c
+        if 0.0 < z0 and z0 - tan_tilt < NEAR_RECEIVER:
+            return True
+    return False
 
 
 def tilted_normal(normal, axis, min_tilt_deg: float = 0.5):
@@ -466,17 +536,22 @@ def make_profile_light(
     # power, not by the peak of its caustic.
     t_ref = flux / (2.0 * math.pi) if flux > 0 else 1.0
     I_ref = primary.intensity * t_ref * scale if flux > 0 else 0.0
-    near = (
-        receiver_distance is not None
-        and table_geometry(float(receiver_distance) / R)[0] == NEAR_APEX
-    )
+    z_r = None if receiver_distance is None else float(receiver_distance) / R
+    center = np.asarray(source.lens_center, dtype=float)
+    # the receiver on the axis (its plane where the rim rays found one), then any
+    # other plane the planning found (`ReceiverDistance.planes`: a wall beside the
+    # table): each corrected with its own tilt
+    found = []
+    if getattr(receiver_distance, "normal", None) is not None:
+        found.append((receiver_distance.normal, center + z_r * R * axis))
+    found += list(getattr(receiver_distance, "planes", None) or ())
+    near = is_near_field(z_r, found, axis, center, R)
     # the near table's rows are placed on the receiver (`table_geometry`): its key
     # carries the receiver (R, to 1e-6: a table per distinct resting height)
-    z_near = round(float(receiver_distance) / R, 6) if near else None
-    apex = profile.apex if profile is not None else table_geometry(z_near)[0]
-    normal = tilted_normal(getattr(receiver_distance, "normal", None), axis) if near else None
-    center = np.asarray(source.lens_center, dtype=float)
+    z_near = round(z_r, 6) if near else None
+    apex = profile.apex if profile is not None else (NEAR_APEX if near else PROFILE_APEX)
     location = center + apex * R * axis
+    planes = receiver_planes(found, axis, center, apex * R) if near else []
     notes.append("Cycles only: intensity from the light node tree (EEVEE ignores it)")
     if near:
         notes.append(
@@ -486,22 +561,22 @@ def make_profile_light(
     irradiance = primary.intensity * scale * e_ref / R**2
     primary_irr = primary.intensity / D**2
     if profile is not None:
-        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, normal)
+        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, planes)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
 
         def maker():
             return _profile_dict(
-                cached_profile(*key, near, z_near, normal is not None),
+                cached_profile(*key, near, z_near, bool(planes)),
                 t_ref,
                 R,
                 center,
                 axis,
                 f"D/R {key[0]:.9g} n {key[1]:.9g}"
                 + (f" near {z_near:.6g}" if near else "")
-                + (" tilted" if normal is not None else ""),
-                normal,
+                + (" tilted" if planes else ""),
+                planes,
             )
 
         rows = NEAR_DISTANCES if near else PROFILE_DISTANCES

@@ -120,19 +120,91 @@ def flux_keeping_factor(old_half: float, new_half: float) -> float:
 
 class ReceiverDistance(float):
     """`planning.receiver_distance`'s answer: the distance (a float, as before) and,
-    where the rim rays found one plane, its unit ``normal`` (else None). The
-    EXACT_PROFILE near field corrects its light for a receiver tilted against the
-    axis with it (`exact_profile.tilted_normal`); everything else reads the float."""
+    where the rim rays found one plane, its unit ``normal`` (else None), and the
+    other planes the beam meets near the lens (``planes``: ``(normal, point)``
+    pairs, `side_planes`: a wall beside the table). The EXACT_PROFILE near field
+    corrects its light on each plane tilted against the axis with that plane's
+    normal (`exact_profile.receiver_planes`); everything else reads the float."""
 
     normal: tuple | None
+    planes: tuple
 
-    def __new__(cls, distance: float, normal=None):
+    def __new__(cls, distance: float, normal=None, planes=()):
         out = super().__new__(cls, float(distance))
         out.normal = None if normal is None else tuple(float(v) for v in normal)
+        out.planes = tuple(
+            (tuple(float(v) for v in nrm), tuple(float(v) for v in pt)) for nrm, pt in planes
+        )
         return out
 
     def __reduce__(self):
-        return (ReceiverDistance, (float(self), self.normal))
+        return (ReceiverDistance, (float(self), self.normal, self.planes))
+
+
+#: Side probes (`side_plane_rays`): polar angles from the axis (degrees) and
+#: azimuths of the directions from the lens centre, the bundle's spread (R) and
+#: reach past the lens's surface (R).
+SIDE_POLAR_DEG = (35.0, 60.0, 80.0)
+SIDE_AZIMUTHS = 8
+SIDE_SPREAD = 0.05
+SIDE_REACH = 4.0
+
+
+def side_plane_rays(axis, center, radius: float):
+    """Bundles of four parallel rays (origins B × 4 × 3, unit directions B × 3)
+    leaving the lens's surface outward along directions around the axis
+    (``SIDE_POLAR_DEG`` × ``SIDE_AZIMUTHS``): where the beam may meet another
+    surface than the one on its axis (a wall beside the table)."""
+    u = np.asarray(axis, dtype=float)
+    u = u / np.linalg.norm(u)
+    side = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    side /= np.linalg.norm(side)
+    other = np.cross(u, side)
+    g = np.radians(np.repeat(SIDE_POLAR_DEG, SIDE_AZIMUTHS))
+    phi = np.tile(2.0 * np.pi * np.arange(SIDE_AZIMUTHS) / SIDE_AZIMUTHS, len(SIDE_POLAR_DEG))
+    radial = np.cos(phi)[:, None] * side + np.sin(phi)[:, None] * other
+    d = np.cos(g)[:, None] * u + np.sin(g)[:, None] * radial
+    tangent = np.cross(d, radial)  # square to d and to the radial direction
+    along = np.cos(g)[:, None] * radial - np.sin(g)[:, None] * u
+    start = np.asarray(center, dtype=float) + d * (radius * (1.0 + 1e-4))
+    e = SIDE_SPREAD * radius
+    # a fourth ray, opposite the other two, tells a plane from a corner or a curve
+    origins = np.stack(
+        [start, start + e * tangent, start + e * along, start - e * (tangent + along)], axis=1
+    )
+    return origins, d
+
+
+def side_planes(origins, directions, hits, radius: float, known=()) -> list:
+    """The distinct planes ``(unit normal, point)`` the `side_plane_rays` bundles hit
+    (all four rays of a bundle within ``SIDE_REACH`` R, the fourth within 1e-3 R
+    of the first three's plane: not a corner, not a curved surface), but those in
+    `known` (the same within 1e-3 in the normal and 1e-3 R in the offset): each a
+    receiver with its own tilt."""
+    hits = np.asarray(hits, dtype=float)
+    out = [(np.asarray(n, dtype=float), np.asarray(p, dtype=float)) for n, p in known]
+    found = []
+    for o, d, h in zip(
+        np.asarray(origins, float), np.asarray(directions, float), hits, strict=True
+    ):
+        if not np.all(np.isfinite(h)) or np.any(h > SIDE_REACH * radius):
+            continue
+        pts = o + h[:, None] * d
+        nrm = np.cross(pts[1] - pts[0], pts[2] - pts[0])
+        length = float(np.linalg.norm(nrm))
+        if length == 0.0:
+            continue
+        nrm = nrm / length
+        if abs(float(nrm @ (pts[3] - pts[0]))) > 1e-3 * radius:
+            continue
+        if any(
+            abs(abs(float(nrm @ n)) - 1.0) < 1e-3 and abs(float(nrm @ (pts[0] - p))) < 1e-3 * radius
+            for n, p in out
+        ):
+            continue
+        out.append((nrm, pts[0]))
+        found.append((tuple(nrm), tuple(pts[0])))
+    return found
 
 
 def rim_plane_normal(

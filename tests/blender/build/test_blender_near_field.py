@@ -1,6 +1,6 @@
 """The Exact profile's near field built in Blender: a marble resting on a table lit
 from 60° elevation (bench real_scenes rest_60) gets the tilt correction, its normal
-in the light's own frame (`blender/build/lights._tilt_factor`)."""
+in the light's own frame (`blender/build/lights._tilted`)."""
 
 import math
 
@@ -33,37 +33,21 @@ def _resting_marble(elevation_deg):
     return ll
 
 
-def _constant_after(nt, socket_name, operation):
-    """The constant second input of the `operation` math node fed by the Separate
-    XYZ's `socket_name` output."""
-    (sep,) = [n for n in nt.nodes if n.type == "SEPXYZ"]
-    out = sep.outputs[socket_name]
-    found = [
-        n.inputs[1].default_value
-        for n in nt.nodes
-        if n.type == "MATH"
-        and n.operation == operation
-        and n.inputs[0].is_linked
-        and n.inputs[0].links[0].from_socket == out
-        and not n.inputs[1].is_linked
-    ]
-    (value,) = found
-    return value
-
-
 def test_a_tilted_table_gets_the_tilt_correction_in_the_lights_frame(empty_blend):
     """The table's normal, turned along the beam, is (0, 0, −1) in the world; the
     node tree holds it in the light's frame: the light's rotation takes it back.
-    The image's green channel holds the rays' slopes, red the intensity."""
+    The image's green channel holds intensity × the rays' mean slope, red the
+    intensity."""
+    from lens_lights.blender.build.lights import TILT_NODE
+
     ll = _resting_marble(60.0)
     assert "near field" in ll.lens_lights.note
     nt = ll.data.node_tree
     assert any(n.type == "SEPARATE_COLOR" for n in nt.nodes)
-    local = (
-        _constant_after(nt, "X", "MULTIPLY_ADD"),
-        _constant_after(nt, "Y", "MULTIPLY"),
-        _constant_after(nt, "Z", "MULTIPLY_ADD"),
-    )
+    local = tuple(nt.nodes[TILT_NODE.format(0, "n" + c)].outputs[0].default_value for c in "xyz")
+    # its offset from the light (at the lens centre): R along the normal
+    assert nt.nodes[TILT_NODE.format(0, "offset")].outputs[0].default_value == pytest.approx(R)
+    assert TILT_NODE.format(1, "nx") not in nt.nodes  # one plane: the table
     bpy.context.view_layer.update()  # matrix_world from the rotation set by the builder
     rot = np.array(ll.matrix_world.to_3x3().normalized())
     world = rot @ np.array(local)

@@ -72,14 +72,15 @@ def test_tracks_hold_each_frames_tables_like_the_values():
 
 def test_tracks_carry_the_numbers_a_frame_records_beyond_the_channels():
     # a node tree's numbers, recorded under its Value nodes' names: held like the
-    # channels, missing on a present frame: 0
+    # channels, missing on a present frame: 0 (the bake keys a missing tilt plane
+    # `lights.NO_PLANE` itself, from the frame's recorded plane count)
     per_frame = [
-        [bp.FrameLight("a", {"Lens bake tilt x": 0.25, "Lens bake mask scale": 2.0})],
+        [bp.FrameLight("a", {"Lens tilt 0 nx": 0.25, "Lens bake mask scale": 2.0})],
         [],
-        [bp.FrameLight("a", {"Lens bake tilt x": -0.5})],
+        [bp.FrameLight("a", {"Lens tilt 0 nx": -0.5})],
     ]
     (a,) = bp.build_tracks([1, 2, 3], per_frame)
-    assert a.values["Lens bake tilt x"][:, 0].tolist() == [0.25, 0.25, -0.5]
+    assert a.values["Lens tilt 0 nx"][:, 0].tolist() == [0.25, 0.25, -0.5]
     assert a.values["Lens bake mask scale"][:, 0].tolist() == [2.0, 2.0, 0.0]
 
 
