@@ -123,6 +123,12 @@ def fallback_reason(metallic: float, transmission: float, glossy_only: bool) -> 
     return ""
 
 
+def share_text(part: float, whole: float) -> str:
+    """`part` of `whole` as people read it: "12 %", "0.4 %", "under 0.1 %"."""
+    x = part / whole
+    return "under 0.1 %" if x < 1e-3 else f"{100 * x:.2g} %"
+
+
 @dataclass
 class LayerFigures:
     """What a bake made, for the report."""
@@ -132,16 +138,25 @@ class LayerFigures:
     rays: int = 0
     flux_emitted: float = 0.0
     flux_in_layers: float = 0.0
-    flux_lost: float = 0.0  # missed every receiver, or landed beyond a raster
+    flux_lost: float = 0.0  # missed every receiver
+    flux_outside: float = 0.0  # on a receiver, outside every layer (out of view, beyond a raster)
     fallback_lights: int = 0
     fallback_receivers: tuple = ()
 
     def text(self) -> str:
-        lost = self.flux_lost / self.flux_emitted if self.flux_emitted > 0 else 0.0
+        parts = [
+            f"{share_text(flux, self.flux_emitted)} {what}"
+            for flux, what in (
+                (self.flux_lost, "missed every receiver"),
+                (self.flux_outside, "landed outside the layers (out of view or past their edge)"),
+            )
+            if flux > 0 and self.flux_emitted > 0
+        ]
         out = (
             f"{self.layers} caustic layer{'s' if self.layers != 1 else ''} "
-            f"({self.faces} texels, {self.rays} rays; {100 * lost:.2g} % of the flux "
-            "missed the receivers)"
+            f"({self.faces} texels, {self.rays} rays"
+            + (f"; of the flux, {' and '.join(parts)}" if parts else "")
+            + ")"
         )
         if self.fallback_receivers:
             n = self.fallback_lights
@@ -160,7 +175,8 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
         rays=int(layer.n_rays),
         flux_emitted=float(layer.flux_emitted),
         flux_in_layers=float(layer.flux_in_rasters),
-        flux_lost=float(layer.flux_lost + layer.flux_outside),
+        flux_lost=float(layer.flux_lost),
+        flux_outside=float(layer.flux_outside),
         fallback_lights=fallback_lights,
         fallback_receivers=tuple(fallback_receivers),
     )
