@@ -241,10 +241,12 @@ def plan_linking(beams: Beams, center, radius, owner, budget: int = MAX_SETS) ->
     needs = np.zeros(n_obj, dtype=bool)
     needs[owner[beams.lens[linked]]] = True
     edge = needs[dst] & (src != dst)
-    conflicts = [(int(r), int(s)) for r, s in zip(rows[src == dst], spheres[src == dst])]
+    conflicts = [
+        (int(r), int(s)) for r, s in zip(rows[src == dst], spheres[src == dst], strict=True)
+    ]
     # the conflict graph between objects that need a group: weight = pairs
     weight: dict = {}
-    for a, b in zip(src[edge].tolist(), dst[edge].tolist()):
+    for a, b in zip(src[edge].tolist(), dst[edge].tolist(), strict=True):
         k = (a, b) if a < b else (b, a)
         weight[k] = weight.get(k, 0) + 1
     nbrs: dict = {int(o): {} for o in np.nonzero(needs)[0]}
@@ -266,7 +268,7 @@ def plan_linking(beams: Beams, center, radius, owner, budget: int = MAX_SETS) ->
         free = np.nonzero(cost == 0)[0]
         group[o] = int(free[0]) if len(free) else int(np.argmin(cost))
     bad = edge & (group[src] == group[dst]) & (group[src] >= 0)
-    conflicts += [(int(r), int(s)) for r, s in zip(rows[bad], spheres[bad])]
+    conflicts += [(int(r), int(s)) for r, s in zip(rows[bad], spheres[bad], strict=True)]
     if ungrouped:
         linked &= group[owner[beams.lens]] >= 0
         conflicts = [(r, s) for r, s in conflicts if linked[r]]
@@ -288,7 +290,9 @@ def sets_used(group, user_signature, other_user_sets: int) -> int:
     sets on objects that are not lenses."""
     pairs = {
         (int(g), int(u))
-        for g, u in zip(np.asarray(group).tolist(), np.asarray(user_signature).tolist())
+        for g, u in zip(
+            np.asarray(group).tolist(), np.asarray(user_signature).tolist(), strict=True
+        )
         if g >= 0 or u >= 0
     }
     return len(pairs) + int(other_user_sets)

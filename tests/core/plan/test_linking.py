@@ -72,7 +72,7 @@ def _check(beams, center, radius, owner, plan):
     lens of its group unless listed as a conflict; every light reaching its own lens
     is linked (with a group)."""
     rows, spheres = reach_pairs(beams, center, radius)
-    found = set(zip(rows.tolist(), spheres.tolist()))
+    found = set(zip(rows.tolist(), spheres.tolist(), strict=True))
     brute = _brute_reached(beams, center, radius)
     assert brute <= found, sorted(brute - found)[:5]
     listed = set(plan.conflicts)
@@ -215,7 +215,7 @@ def test_merge_bands_keeps_the_widest():
     assert len(a) == 2 and a.max() == 0.9 and e[0] == -np.inf and e[-1] == np.inf
     assert (np.diff(e) > 0).all()
     # every original band's angle is covered by its merged band
-    for lo, ang in zip([-np.inf, 1, 2, 3], [0.1, 0.5, 0.2, 0.9]):
+    for lo, ang in zip([-np.inf, 1, 2, 3], [0.1, 0.5, 0.2, 0.9], strict=True):
         k = np.searchsorted(e, lo, side="right") - 1
         assert a[k] >= ang
 
