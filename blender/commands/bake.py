@@ -49,6 +49,7 @@ import dataclasses
 import math
 import time
 import traceback
+from types import SimpleNamespace
 
 import bpy
 import numpy as np
@@ -56,7 +57,7 @@ from mathutils import Vector
 
 from ...core.animation import layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
-from ...core.report.message import error_text
+from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
 from ..build import baked_layers, cleanup, cycles_caustics, layers, lights
 from ..build.marks import (
@@ -323,16 +324,36 @@ class Baker:
         tracks = light_tracks.build_tracks(self.frames, self.per_frame)
         images = _profile_images(tracks, 1.0 + self.profile_step)
         collection = lights.lights_collection(scene)
-        links: dict = {}
+        made, firsts = [], []
         for track in tracks:
             planned, lens_ob = self.firsts[track.key]
             bl = planned.light
             if track.profile_group is not None:  # no per-frame image: the nodes come below
                 bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
             ob = lights.create_light(
-                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
+                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, None
             )
             self._key_track(ob, track, images)
+            made.append(ob)
+            firsts.append(bl)
+        # the lights move: every beam taken as reaching every lens (each lens its own
+        # group while Blender's sets last, then shared: the report lists them)
+        lens_objects = [lens for _, lens in (self.firsts[t.key] for t in tracks)]
+        index = {o.as_pointer(): k for k, o in enumerate(dict.fromkeys(lens_objects))}
+        spheres = list(dict.fromkeys(lens_objects))
+        firsts = [
+            SimpleNamespace(light=bl, source=SimpleNamespace(lens=index[o.as_pointer()]))
+            for bl, o in zip(firsts, lens_objects, strict=True)
+        ]
+        self.linking = lights.link_lights(
+            scene,
+            made,
+            firsts,
+            np.zeros((len(spheres), 3)),
+            np.zeros(len(spheres)),
+            spheres,
+            everywhere=True,
+        )
         return dict(objects=len(tracks), images=len({v[0].name for v in images.values()}))
 
     def _key_track(self, ob, track, images):
@@ -465,9 +486,16 @@ def finish(baker):
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]
     settings.last_report = light_tracks.bake_message(figures)
+    linking = getattr(baker, "linking", None)
+    note = linking and linking_groups_note(
+        linking.ungrouped, linking.conflicts, (), linking.user_sets
+    )
+    level = "WARNING" if note else "INFO"
+    if note:
+        settings.last_report += "; " + note
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"
-    return "INFO", settings.last_report, figures
+    return level, settings.last_report, figures
 
 
 class LENS_LIGHTS_OT_bake(bpy.types.Operator):

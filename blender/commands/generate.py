@@ -35,7 +35,12 @@ import traceback
 import bpy
 
 from ...core.plan.cycles_caustics import describe as describe_caustics
-from ...core.report.message import error_text, linking_note, linking_sets_note, report_message
+from ...core.report.message import (
+    error_text,
+    linking_groups_note,
+    linking_note,
+    report_message,
+)
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
 from ..build import cleanup, cycles_caustics, lights
@@ -107,6 +112,7 @@ def generate(context):
         # 2. Build.
         t = time.perf_counter()
         plan = work.plan
+        linking = None
         total = max(len(plan.lights), 1)
         try:
             cleanup.clear(scene)
@@ -121,6 +127,11 @@ def generate(context):
                     progress=lambda k: progress(60 + 40 * k / total),
                     arrays=work.read.arrays,
                 )
+                a, tl = work.read.arrays, time.perf_counter()
+                linking = lights.link_lights(
+                    scene, made, plan.lights, a.center, a.radius, work.read.sphere_objects
+                )
+                work.timings["linking"] = time.perf_counter() - tl
             caustics_note = cycles_caustics.after_build(scene, plan, work.read, len(made))
         except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
@@ -156,10 +167,15 @@ def generate(context):
     if eevee_note:
         level = "WARNING" if level == "INFO" else level
         message = f"{message}; {eevee_note}"
-    sets_note = linking_sets_note(lights.linking_sets(scene))
-    if sets_note:
-        level = "WARNING" if level == "INFO" else level
-        message = f"{message}; {sets_note}"
+    if linking is not None:
+        linking.blender_says = lights.linking_messages(context)
+        figures["linking"] = vars(linking)
+        sets_note = linking_groups_note(
+            linking.ungrouped, linking.conflicts, linking.blender_says, linking.user_sets
+        )
+        if sets_note:
+            level = "WARNING" if level == "INFO" else level
+            message = f"{message}; {sets_note}"
     if caustics_note:
         message = f"{message}; {caustics_note}"
         if caustics_note.startswith("Cycles' refractive caustics are on"):

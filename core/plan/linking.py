@@ -42,6 +42,10 @@ MAX_SETS = 63
 MAX_COLLECTIONS = 64
 #: Bands a profile light's reach is kept in (consecutive rows merged).
 MAX_BANDS = 16
+#: Another lens counts as reached when the beam enters it deeper than this share of
+#: its radius: the far tail of a resting lens's light grazes the bottom of every
+#: neighbour on the table (the rays it would stop there are a vanishing share).
+GRAZE = 0.05
 
 
 @dataclass
@@ -222,14 +226,35 @@ def reach_pairs(beams: Beams, center, radius, cell_size: float | None = None):
     return np.concatenate(out_r), np.concatenate(out_s)
 
 
-def plan_linking(beams: Beams, center, radius, owner, budget: int = MAX_SETS) -> LinkingPlan:
+def plan_linking(
+    beams: Beams,
+    center,
+    radius,
+    owner,
+    budget: int = MAX_SETS,
+    graze: float = GRAZE,
+    everywhere: bool = False,
+) -> LinkingPlan:
     """Groups for the lenses' objects (`owner[s]`: the object of sphere s) so that no
-    linked light's beam reaches another lens of its group, with at most `budget`
-    groups; see the module's docstring."""
+    linked light's beam reaches another lens of its group (deeper than `graze` of its
+    radius), with at most `budget` groups; see the module's docstring. `everywhere`:
+    take every beam as reaching every lens (beams that move, as a bake's: each lens
+    its own group while the budget lasts)."""
     owner = np.asarray(owner, dtype=int).reshape(-1)
     n_obj = int(owner.max()) + 1 if len(owner) else 0
-    rows, spheres = reach_pairs(beams, center, radius)
+    radius = np.asarray(radius, dtype=float).reshape(-1)
+    if everywhere:
+        n, m = len(beams.lens), len(radius)
+        rows, spheres = np.repeat(np.arange(n), m), np.tile(np.arange(m), n)
+    else:
+        rows, spheres = reach_pairs(beams, center, radius)
     own = spheres == beams.lens[rows]
+    if graze > 0 and not everywhere:  # other lenses: reached deeper than `graze` of their radius
+        deep = reaches(
+            beams, rows, np.asarray(center, float)[spheres], radius[spheres] * (1 - graze)
+        )
+        keep = own | deep
+        rows, spheres, own = rows[keep], spheres[keep], own[keep]
     linked = np.zeros(len(beams.lens), dtype=bool)
     linked[rows[own]] = True
     # pairs that matter: a linked light reaching a sphere of another object, or of its
