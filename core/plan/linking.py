@@ -130,10 +130,15 @@ def beams_of(lights, lens) -> Beams:
     """`Beams` of `BlenderLight`s (an Exact profile light: its table's reach; any
     other: its cone) of the spheres `lens`."""
     bands = []
+    seen: dict = {}  # lights with one table (same key and distances) share its bands
     for bl in lights:
         profile = getattr(bl, "profile", None)
         if profile is not None and "pixels" in profile:
-            bands.append(profile_bands(profile))
+            key = profile.get("key")
+            key = (key, profile["h_min"], profile["h_max"]) if key is not None else id(profile)
+            if key not in seen:
+                seen[key] = profile_bands(profile)
+            bands.append(seen[key])
         else:
             bands.append(cone_bands(float(bl.cone_half_angle_deg or bl.spot_size_deg / 2.0)))
     B = max((len(a) for _, a in bands), default=1)
