@@ -42,6 +42,10 @@ MAX_SETS = 63
 MAX_COLLECTIONS = 64
 #: Bands a profile light's reach is kept in (consecutive rows merged).
 MAX_BANDS = 16
+#: A profile texel this far below the table's peak counts as dark: the near field's
+#: table has faint tails out to 90° (1e-12 of its peak beside a resting marble) that
+#: would otherwise reach every lens on the table.
+FAINT = 1e-6
 #: Another lens counts as reached when the beam enters it deeper than this share of
 #: its radius: the far tail of a resting lens's light grazes the bottom of every
 #: neighbour on the table (the rays it would stop there are a vanishing share).
@@ -77,9 +81,12 @@ class LinkingPlan:
     ungrouped: list = field(default_factory=list)
 
 
-def profile_bands(profile: dict, max_bands: int = MAX_BANDS) -> tuple[np.ndarray, np.ndarray]:
+def profile_bands(
+    profile: dict, max_bands: int = MAX_BANDS, faint: float = FAINT
+) -> tuple[np.ndarray, np.ndarray]:
     """(edges, half-angles in radians) of an Exact profile light's reach: for every
-    distance h along the axis, the largest angle γ its table is non-zero at, as the
+    distance h along the axis, the largest angle γ its table exceeds `faint` × its
+    peak at, as the
     node tree reads it (linear between texel centres, clamped at the ends: below the
     first row's h the first row, beyond the last the last; γ up to the next column's
     centre, u = sqrt(γ/γ_max)). Consecutive bands within 2° are merged, then equal
@@ -87,7 +94,7 @@ def profile_bands(profile: dict, max_bands: int = MAX_BANDS) -> tuple[np.ndarray
     px = np.asarray(profile["pixels"], dtype=float)
     H, K = px.shape[:2]
     gmax = math.radians(float(profile["gamma_max_deg"]))
-    nz = px > 0
+    nz = px > faint * float(px.max()) if px.size and px.max() > 0 else px > 0
     last = np.where(nz.any(axis=1), K - 1 - np.argmax(nz[:, ::-1], axis=1), -1)
     u = np.minimum((last + 1.5) / K, 1.0)
     row_angle = np.where(last >= 0, gmax * u * u, -1.0)

@@ -210,6 +210,20 @@ def test_profile_bands_follow_the_table_as_the_node_tree_reads_it():
     assert math.isclose(e[1], 0.01 * 16 ** (1.5 / 4), rel_tol=1e-12)
 
 
+def test_profile_bands_ignore_the_faint_tails():
+    # the same table with a tail of 1e-9 of the peak out to column 6 in rows 0–1:
+    # dark (below 1e-6 of the peak), the reach stays at column 2's centre
+    px = np.zeros((4, 8))
+    px[:2, :2] = 1.0
+    px[:2, 2:7] = 1e-9
+    px[2:, :7] = 1.0
+    profile = dict(pixels=px, gamma_max_deg=90.0, h_min=0.01, h_max=0.16)
+    e, a = profile_bands(profile)
+    assert np.allclose(np.degrees(a), [90 * (2.5 / 8) ** 2, 90 * (7.5 / 8) ** 2])
+    e, a = profile_bands(profile, faint=0.0)  # every non-zero texel
+    assert np.allclose(np.degrees(a), [90 * (7.5 / 8) ** 2])
+
+
 def test_merge_bands_keeps_the_widest():
     e, a = merge_bands([-np.inf, 1, 2, 3, np.inf], [0.1, 0.5, 0.2, 0.9], 2)
     assert len(a) == 2 and a.max() == 0.9 and e[0] == -np.inf and e[-1] == np.inf
