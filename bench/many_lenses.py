@@ -174,6 +174,28 @@ def truth(light, xy, rays):
     return np.array([out[d] for d in dist])
 
 
+def own_lens_excluded():
+    """(lights whose receiver and blocker collection hold their own lens with state
+    EXCLUDE, lights inside their lens): read back from Blender's data."""
+    import bpy
+
+    ok = inside = 0
+    for ob in bpy.context.scene.objects:
+        if not (ob.type == "LIGHT" and ob.lens_lights.is_lens_light):
+            continue
+        lens = bpy.data.objects[ob.lens_lights.source_lens]
+        if (ob.matrix_world.translation - lens.matrix_world.translation).length < R:
+            inside += 1
+        ll = ob.light_linking
+        coll = ll.receiver_collection
+        if coll is None or ll.blocker_collection != coll:
+            continue
+        states = dict(zip(coll.objects, coll.collection_objects, strict=True))
+        if lens in states and states[lens].light_linking.link_state == "EXCLUDE":
+            ok += 1
+    return ok, inside
+
+
 def run_case(label, n, light, args, do_render):
     import bpy
     from lens_lights.blender.commands.generate import generate
@@ -190,6 +212,7 @@ def run_case(label, n, light, args, do_render):
         row["linking"] = figures.get("linking", {})
         row["linking_s"] = figures.get("timings", {}).get("linking", float("nan"))
         row["level"], row["message"] = level, message
+        row["excluded"] = own_lens_excluded()
         if do_render:
             lit, t2 = render(sc, Path(tmp) / "lit.exr")
             row["render_s"] = t1 + t2
@@ -202,7 +225,8 @@ def run_case(label, n, light, args, do_render):
                 np.savez(Path(args.save) / f"n{n}.npz", caustic=lit - base, ratio=ratio, xy=xy)
             worst = np.argsort(np.abs(ratio - 1.0))[::-1][:3]
             row["worst"] = [(f"Marble {k:04d}", float(ratio[k])) for k in worst]
-    print(label, {k: v for k, v in row.items() if k not in ("ratio", "message")}, flush=True)
+    brief = {k: v for k, v in row.items() if k not in ("ratio", "message", "linking")}
+    print(label, brief, {k: v for k, v in row["linking"].items() if k != "conflicts"}, flush=True)
     return row
 
 
@@ -218,15 +242,15 @@ def write_report(rows, args, version):
         f"({args.rays:.0e} rays per distinct light angle). Missing: ratio < 0.05.",
         "",
         "| scene | lenses | lights | generate (s) | linking (s) | groups | linked "
-        "| shared-group pairs | unlinked | Blender says | flux ratio min / median / max "
-        "| missing | render (s) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| own lens excluded / inside it | shared-group pairs | unlinked | Blender says "
+        "| flux ratio min / median / max (mean) | missing | render (s) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     for r in rows:
         link = r["linking"]
         if "ratio" in r:
             q = r["ratio"]
-            stats = f"{q.min():.2f} / {np.median(q):.2f} / {q.max():.2f}"
+            stats = f"{q.min():.2f} / {np.median(q):.2f} / {q.max():.2f} ({q.mean():.3f})"
             missing = str(int((q < 0.05).sum()))
             rs = f"{r['render_s']:.0f}"
         else:
@@ -234,6 +258,7 @@ def write_report(rows, args, version):
         lines.append(
             f"| {r['label']} | {r['n']} | {r['created']} | {r['generate_s']:.1f} "
             f"| {r['linking_s']:.2f} | {link.get('groups', '')} | {link.get('linked', '')} "
+            f"| {r['excluded'][0]} / {r['excluded'][1]} "
             f"| {len(link.get('conflicts', []))} | {len(link.get('ungrouped', []))} "
             f"| {'; '.join(link.get('blender_says', [])) or 'nothing'} | {stats} "
             f"| {missing} | {rs} |"

@@ -497,6 +497,7 @@ class LinkReport:
     lights: int = 0
     ungrouped: list = field(default_factory=list)  # lens object names
     conflicts: list = field(default_factory=list)  # (light name, lens name)
+    instances: int = 0  # lights reaching another instance of their lens's object
     user_sets: int = 0
     user_collections: int = 0
     blender_says: list = field(default_factory=list)  # Blender's own console lines
@@ -604,6 +605,7 @@ def link_lights(
     report.groups, report.budget, report.linked = plan.groups, budget, int(plan.linked.sum())
     report.ungrouped = sorted(by_id[o].name for o in plan.ungrouped)
     report.conflicts = [(objects[r].name, sphere_objects[s].name) for r, s in plan.conflicts]
+    report.instances = len({r for r, _ in plan.instances})
     existing = _group_collections(scene)
     colls = {
         g: _group_collection(scene, g, existing) for g in sorted(set(plan.group.tolist())) if g >= 0

@@ -22,8 +22,9 @@ such lenses apart, within `budget` groups.
   profile light the angles its table is non-zero at, per band of distance along
   the axis (`profile_bands`): its 180° spot is dark beyond the beam.
 * Blender links objects, not instances: the nodes are objects (`owner` of each
-  sphere); a light reaching another instance of its own lens's object is a conflict
-  no grouping can avoid (`conflicts`, as before).
+  sphere); a light reaching another instance of its own lens's object meets a lens
+  no grouping can keep linked (`instances`, as before: README, instances share
+  their linking).
 * When the budget is short, a lens goes to the group where it conflicts least (its
   own lens still out: its caustic stays), and the conflicts are listed for the report.
 """
@@ -74,9 +75,12 @@ class LinkingPlan:
     linked: np.ndarray  # (N,) bool
     groups: int
     budget: int
-    #: (light row, sphere) pairs: a lens of the light's group in its beam (that lens
-    #: neither receives nor blocks the light)
+    #: (light row, sphere) pairs: a lens of another object in the light's group and in
+    #: its beam (that lens neither receives nor blocks the light)
     conflicts: list = field(default_factory=list)
+    #: the same for another instance of the light's own lens's object: no grouping
+    #: avoids it (Blender links objects), as documented, not a shortage of sets
+    instances: list = field(default_factory=list)
     #: objects whose linked lights got no group (budget 0): not excluded from their lens
     ungrouped: list = field(default_factory=list)
 
@@ -180,9 +184,10 @@ def reaches(beams: Beams, rows, center, radius) -> np.ndarray:
     dist = np.linalg.norm(v, axis=1)
     h = np.einsum("ij,ij->i", v, beams.axis[rows])
     inside = dist <= rho
-    safe = np.maximum(dist, 1e-300)
-    phi = np.arccos(np.clip(h / safe, -1.0, 1.0))
-    beta = np.arcsin(np.clip(rho / safe, 0.0, 1.0))
+    # angles by atan2 (SPEC §4.2): φ from the axis, β the sphere's angular radius
+    side = np.linalg.norm(np.cross(v, beams.axis[rows]), axis=1)
+    phi = np.arctan2(side, h)
+    beta = np.arctan2(rho, np.sqrt(np.maximum(dist * dist - rho * rho, 0.0)))
     e, a = beams.band_edges[rows], beams.band_angle[rows]
     overlap = (h[:, None] + rho[:, None] >= e[:, :-1]) & (h[:, None] - rho[:, None] <= e[:, 1:])
     lit = overlap & (a >= 0) & (phi[:, None] <= a + beta[:, None])
@@ -278,7 +283,7 @@ def plan_linking(
     needs = np.zeros(n_obj, dtype=bool)
     needs[owner[beams.lens[linked]]] = True
     edge = needs[dst] & (src != dst)
-    conflicts = [
+    instances = [
         (int(r), int(s)) for r, s in zip(rows[src == dst], spheres[src == dst], strict=True)
     ]
     # the conflict graph between objects that need a group: weight = pairs
@@ -305,10 +310,10 @@ def plan_linking(
         free = np.nonzero(cost == 0)[0]
         group[o] = int(free[0]) if len(free) else int(np.argmin(cost))
     bad = edge & (group[src] == group[dst]) & (group[src] >= 0)
-    conflicts += [(int(r), int(s)) for r, s in zip(rows[bad], spheres[bad], strict=True)]
+    conflicts = [(int(r), int(s)) for r, s in zip(rows[bad], spheres[bad], strict=True)]
     if ungrouped:
         linked &= group[owner[beams.lens]] >= 0
-        conflicts = [(r, s) for r, s in conflicts if linked[r]]
+        instances = [(r, s) for r, s in instances if linked[r]]
     used = int(group.max()) + 1 if n_obj and group.max() >= 0 else 0
     return LinkingPlan(
         group=group,
@@ -316,6 +321,7 @@ def plan_linking(
         groups=used,
         budget=budget,
         conflicts=sorted(set(conflicts)),
+        instances=sorted(set(instances)),
         ungrouped=sorted(ungrouped),
     )
 
