@@ -8,8 +8,8 @@ Scenes (marbles 3 cm apart on a white table, albedo 0.8, Cycles, tier AUTO = Exa
 profile, Maximum Lens Lights above the count):
 
 * 81 marbles under one point light 1 m above the grid's centre (the issue's scene);
-* 500 and 5 000 marbles under a sun straight down, and under a sun at 45° (plan only:
-  its lens lights sit outside their marbles and aim away, so none needs linking).
+* 500 and 5 000 marbles under a sun straight down, and under a sun at 45° (generated,
+  not rendered).
   (A point light over 5 000 marbles would make 5 000 distinct profile tables, ~2 s
   each; the sun makes one, and every marble is then the same.)
 
@@ -268,8 +268,8 @@ def write_report(rows, args, version):
         "A lens that shadows its own light (the old one-collection-per-lens linking past "
         "Blender's 64 sets) gives a ratio of 0; the spread around 1 is Cycles' sampling "
         "noise (each sample picks one of the lights: the worst marbles change with the "
-        "samples and shrink as they grow). The 45° rows are planned, not rendered: their "
-        "lens lights sit outside their marbles and aim away, so none needs linking.",
+        "samples and shrink as they grow; the render is seeded, so a rerun repeats them). "
+        "The 45° rows are generated, not rendered.",
         "",
     ]
     for r in rows:
