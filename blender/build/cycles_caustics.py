@@ -18,7 +18,6 @@ from ...core.plan.cycles_caustics import (
     should_restore,
 )
 
-
 BEYOND = Reason.BEYOND_MAXIMUM
 
 

@@ -8,12 +8,15 @@ demand, under the scene's collection), placed, turned and shaped from a
 * scale (k, k, 1) when the cone is narrower than Blender's 1° minimum;
 * energy, colour, spot_size, spot_blend, radius (`shadow_soft_size`), and EEVEE's
   custom influence distance;
-* light linking and shadow linking: both the receiver and the blocker collection
-  are a collection "Lens link: <lens>" holding the lens with state EXCLUDE, so the
-  light neither lights nor is blocked by its own lens (everything else as usual).
-  One such collection per lens, shared by all of its lights. Objects instanced
-  from one original share its linking: all instances of that original are
-  excluded (Blender links objects, not instances).
+* light linking and shadow linking (`link_lights`, after the lights are made): a
+  light whose beam reaches its own lens has as receiver and blocker collection its
+  lens's group, "Lens link: group k", which holds the group's lenses with state
+  EXCLUDE, so the light neither lights nor is blocked by its own lens (nor by the
+  other lenses of the group, which its beam does not reach: `core/plan/linking.py`
+  groups them, at most 63 groups less what the user's own linking takes). Objects
+  instanced from one original share its linking: all instances of that original
+  are excluded (Blender links objects, not instances). A caustic layer's fallback
+  light keeps a collection "Lens link: <lens>" of its own (`link_collection`).
 * `object.lens_lights` records the origin: primary light, lens, kind, full,
   unblocked share, the tier it was made with (`energy_model`), relative
   brightness, notes.
@@ -39,15 +42,19 @@ more (`remove_unused_profile_images`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import bpy
+import numpy as np
 from mathutils import Vector
 
+from ...core.plan.linking import MAX_COLLECTIONS, MAX_SETS, beams_of, plan_linking, sets_used
 from . import mask_nodes
 from .marks import (
     COLLECTION_MARK,
     COLLECTION_NAME,
     LIGHTS_MARK,
+    LINK_GROUP,
     LINK_MARK,
     LINK_PREFIX,
     PROFILE_KEY,
@@ -130,16 +137,6 @@ def packed_exr(name: str, pixels, depth: str, file_name: str):
         bpy.data.scenes.remove(tmp_scene)
     img.name = name
     return img
-
-
-def linking_sets(scene) -> int:
-    """How many lens-linking collections this extension keeps in `scene` (each is
-    one of Blender's light-linking sets)."""
-    return sum(
-        1
-        for item in scene.lens_lights.created_collections
-        if item.collection is not None and item.collection.get(COLLECTION_MARK) == LINK_MARK
-    )
 
 
 def _is_profile_image(img) -> bool:
@@ -373,7 +370,8 @@ def create_light(
 ):
     """One lens light object from a `PlannedLight` (EXACT_PROFILE: with its node
     tree, and its shadow mask given phase 1's `arrays`; `image_cache` shares
-    profile images within a run)."""
+    profile images within a run). `link_cache` a dict: linked now to a collection of
+    its lens alone (a layer's fallback light); None: by `link_lights` afterwards."""
     name = f"Lens light {planned.light_name} > {planned.lens_name}"
     data = bpy.data.lights.new(name, "SPOT")
     ob = bpy.data.objects.new(name, data)
@@ -384,7 +382,7 @@ def create_light(
         bpy.data.lights.remove(data)
         raise
     collection.objects.link(ob)
-    if lens_object is not None:
+    if lens_object is not None and link_cache is not None:  # else `link_lights` links
         link = link_collection(scene, lens_object, link_cache)
         ob.light_linking.receiver_collection = link
         ob.light_linking.blocker_collection = link
@@ -470,11 +468,11 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
 
 
 def build(scene, plan, lens_objects, progress=None, arrays=None):
-    """Create the planned lights; `lens_objects[i]`: original object of sphere i.
-    `progress(k)` is called with the number of lights made so far. `arrays`: phase 1's
-    `SceneArrays` (a profile light of a non-full source gets its shadow mask)."""
+    """Create the planned lights (unlinked: `link_lights` next); `lens_objects[i]`:
+    original object of sphere i. `progress(k)` is called with the number of lights
+    made so far. `arrays`: phase 1's `SceneArrays` (a profile light of a non-full
+    source gets its shadow mask)."""
     collection = lights_collection(scene)
-    cache: dict = {}
     images: dict = {}
     made = []
     for k, planned in enumerate(plan.lights):
@@ -484,7 +482,7 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
                 planned,
                 lens_objects[planned.source.lens],
                 collection,
-                cache,
+                None,
                 image_cache=images,
                 arrays=arrays,
             )
@@ -512,3 +510,199 @@ def remove_unused_profile_images() -> int:
     if unused:
         bpy.data.batch_remove(unused)
     return len(unused)
+
+
+# --------------------------------------------------------------------------- linking
+
+
+@dataclass
+class LinkReport:
+    """What `link_lights` did: the plan, and for the report the names of the lenses
+    left unlinked and of the (light, lens) pairs sharing a group in spite of a beam."""
+
+    groups: int = 0
+    budget: int = MAX_SETS
+    linked: int = 0
+    lights: int = 0
+    ungrouped: list = field(default_factory=list)  # lens object names
+    conflicts: list = field(default_factory=list)  # (light name, lens name)
+    instances: int = 0  # lights reaching another instance of their lens's object
+    user_sets: int = 0
+    user_collections: int = 0
+    blender_says: list = field(default_factory=list)  # Blender's own console lines
+
+
+def _is_ours(coll) -> bool:
+    return coll is not None and coll.get(COLLECTION_MARK) is not None
+
+
+def _members(coll, state=None, seen=None):
+    """(object, link state) of a linking collection, as Blender reads it: its own
+    objects with their state, a child collection's objects with the child's state."""
+    seen = set() if seen is None else seen
+    if coll.as_pointer() in seen:
+        return
+    seen.add(coll.as_pointer())
+    # (a CollectionObject / CollectionChild names no object: same order as the lists)
+    for ob, member in zip(coll.objects, coll.collection_objects, strict=True):
+        yield ob, state or member.light_linking.link_state
+    for child, link in zip(coll.children, coll.collection_children, strict=True):
+        yield from _members(child, state or link.light_linking.link_state, seen)
+
+
+def user_linking(scene):
+    """The user's own light and shadow linking in `scene`: per kind, the collections
+    its emitters use and each object's membership (signature) in them. Returns
+    (collections, sets, signature per object pointer) with the larger count of the
+    two kinds (ours left out)."""
+    counts = []
+    signatures: dict = {}
+    for attr in ("receiver_collection", "blocker_collection"):
+        colls = {}
+        for ob in scene.objects:
+            ll = getattr(ob, "light_linking", None)
+            coll = getattr(ll, attr, None) if ll is not None else None
+            if coll is not None and not _is_ours(coll):
+                colls[coll.as_pointer()] = coll
+        sig: dict = {}
+        for ptr, coll in colls.items():
+            for ob, state in _members(coll):
+                sig.setdefault(ob.as_pointer(), set()).add((ptr, state))
+        kinds = {frozenset(v) for v in sig.values()}
+        counts.append((len(colls), len(kinds)))
+        for k, v in sig.items():
+            signatures.setdefault(k, set()).update((attr, *x) for x in v)
+    colls = max(c for c, _ in counts)
+    sets = max(s for _, s in counts)
+    return colls, sets, {k: frozenset(v) for k, v in signatures.items()}
+
+
+def _group_collections(scene) -> dict:
+    out = {}
+    for item in scene.lens_lights.created_collections:
+        coll = item.collection
+        if coll is not None and coll.get(COLLECTION_MARK) == LINK_MARK and LINK_GROUP in coll:
+            out.setdefault(int(coll[LINK_GROUP]), coll)
+    return out
+
+
+def _group_collection(scene, g, existing):
+    coll = existing.get(g)
+    if coll is None:
+        coll = bpy.data.collections.new(f"{LINK_PREFIX}group {g + 1}")
+        coll[COLLECTION_MARK] = LINK_MARK
+        coll[LINK_GROUP] = g
+        _register_collection(scene.lens_lights, coll)
+        existing[g] = coll
+    return coll
+
+
+def link_lights(
+    scene, objects, planned, centers, radii, sphere_objects, everywhere=False
+) -> LinkReport:
+    """Light and shadow linking for the lens lights `objects` (made from `planned`,
+    row for row): which need their lens out and each lens's group (`core/plan/linking`),
+    within the budget left by the user's own linking; the group collections made,
+    filled and emptied to match (only what differs is written, for live update), and
+    those no light uses removed. `centers`, `radii`, `sphere_objects`: every sphere of
+    the read (lenses a beam may reach). `everywhere`: every beam taken as reaching
+    every lens (a bake's lights move)."""
+    report = LinkReport(lights=len(objects))
+    ptrs: dict = {}
+    owner = np.array([ptrs.setdefault(o.as_pointer(), len(ptrs)) for o in sphere_objects])
+    by_id = {ptrs[o.as_pointer()]: o for o in sphere_objects}
+    user_colls, user_sets, user_sig = user_linking(scene)
+    report.user_sets, report.user_collections = user_sets, user_colls
+    budget = max(0, min(MAX_SETS - user_sets, MAX_COLLECTIONS - user_colls))
+    lights = [p.light for p in planned]
+    beams = beams_of(lights, [p.source.lens for p in planned])
+    lens_sig = {}
+    for i, ob in by_id.items():  # the user's membership of each lens object, as an id
+        s = user_sig.get(ob.as_pointer())
+        if s:
+            lens_sig[i] = lens_sig.setdefault(s, len(lens_sig))
+    others = len(
+        {v for k, v in user_sig.items() if k not in {o.as_pointer() for o in by_id.values()}}
+    )
+    for _ in range(4):  # the user's collections on lenses split our sets: fit them
+        plan = plan_linking(beams, centers, radii, owner, budget=budget, everywhere=everywhere)
+        sig = np.array([lens_sig.get(i, -1) for i in range(len(by_id))], dtype=int)
+        excess = sets_used(plan.group, sig, others) - MAX_SETS
+        if excess <= 0 or budget == 0:
+            break
+        budget = max(0, budget - excess)
+    report.groups, report.budget, report.linked = plan.groups, budget, int(plan.linked.sum())
+    report.ungrouped = sorted(by_id[o].name for o in plan.ungrouped)
+    report.conflicts = [(objects[r].name, sphere_objects[s].name) for r, s in plan.conflicts]
+    report.instances = len({r for r, _ in plan.instances})
+    existing = _group_collections(scene)
+    colls = {
+        g: _group_collection(scene, g, existing) for g in sorted(set(plan.group.tolist())) if g >= 0
+    }
+    want = {
+        g: {by_id[o].as_pointer(): by_id[o] for o in np.nonzero(plan.group == g)[0]} for g in colls
+    }
+    for g, coll in colls.items():
+        have = {ob.as_pointer(): ob for ob in coll.objects}
+        for ptr, ob in have.items():
+            if ptr not in want[g]:
+                coll.objects.unlink(ob)
+        for ptr, ob in want[g].items():
+            if ptr not in have:
+                coll.objects.link(ob)
+        for member in coll.collection_objects:
+            if member.light_linking.link_state != "EXCLUDE":
+                member.light_linking.link_state = "EXCLUDE"
+    for ob, p, on in zip(objects, planned, plan.linked.tolist(), strict=True):
+        g = int(plan.group[owner[p.source.lens]])
+        coll = colls[g] if on else None
+        ll = ob.light_linking
+        if ll.receiver_collection != coll:
+            ll.receiver_collection = coll
+        if ll.blocker_collection != coll:
+            ll.blocker_collection = coll
+    settings = scene.lens_lights
+    for k in reversed(range(len(settings.created_collections))):
+        coll = settings.created_collections[k].collection
+        if coll is not None and LINK_GROUP in coll and int(coll[LINK_GROUP]) not in colls:
+            settings.created_collections.remove(k)
+            bpy.data.collections.remove(coll)
+    return report
+
+
+#: What Blender prints when a linking limit is passed (depsgraph_light_linking.cc).
+BLENDER_LIMIT_TEXT = "Maximum number of light linking"
+
+
+def linking_messages(context) -> list[str]:
+    """Blender's own console lines about its linking limits: the view layer's
+    depsgraph evaluated with the process's standard output caught (Blender prints
+    them from C, at the relations' rebuild). Empty where it cannot be caught."""
+    import ctypes
+    import os
+    import sys
+    import tempfile
+
+    try:
+        libc = ctypes.CDLL(None)
+    except OSError:
+        return []
+    sys.stdout.flush()
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        saved = os.dup(1)
+        try:
+            libc.fflush(None)
+            os.dup2(tmp.fileno(), 1)
+            context.evaluated_depsgraph_get().update()
+            context.view_layer.update()
+            libc.fflush(None)
+        finally:
+            os.dup2(saved, 1)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode("utf-8", "replace")
+    lines = text.splitlines()
+    for line in lines:  # what is not ours goes on to the console as it would have
+        if BLENDER_LIMIT_TEXT not in line:
+            print(line)
+    return [line.strip() for line in lines if BLENDER_LIMIT_TEXT in line]

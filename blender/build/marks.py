@@ -19,8 +19,9 @@ COLLECTION_MARK = "lens_lights_created"
 
 #: The "Lens Lights" collection the lens lights and layers are in.
 LIGHTS_MARK = "lights"
-#: A light-linking collection (one per lens: "Lens link: …"; the layers' fallback
-#: receivers: "Lens fallback: …").
+#: A light-linking collection (a group of lenses: "Lens link: group k", with
+#: `LINK_GROUP`; one lens of a layer's fallback light: "Lens link: <lens>"; the layers'
+#: fallback receivers: "Lens fallback: …").
 LINK_MARK = "link"
 #: An Exact profile's image (and a shadow mask's): removed once unused.
 PROFILE_MARK = "profile"
@@ -28,6 +29,9 @@ PROFILE_MARK = "profile"
 LAYER_MARK = "layer"
 #: A bake's action, or a baked layer's atlas image: removed once unused.
 BAKE_MARK = "bake"
+
+#: Custom property of a group's linking collection: its group number (0-based).
+LINK_GROUP = "lens_lights_link_group"
 
 #: Custom property of a profile image: its cache key (`lights.profile_image`).
 PROFILE_KEY = "lens_lights_profile_key"

@@ -63,6 +63,7 @@ import hashlib
 import math
 import time
 import traceback
+from types import SimpleNamespace
 
 import bpy
 import numpy as np
@@ -71,7 +72,7 @@ from mathutils import Vector
 from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
 from ...core.plan.cycles_caustics import kept_on_warning
-from ...core.report.message import error_text
+from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
 from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
 from ..build.marks import (
@@ -410,7 +411,7 @@ class Baker:
         tracks = light_tracks.build_tracks(self.frames, self.per_frame)
         images = _profile_images(tracks, 1.0 + self.profile_step)
         collection = lights.lights_collection(scene)
-        links: dict = {}
+        made, firsts = [], []
         masks: set = set()
         for track in tracks:
             planned, lens_ob = self.firsts[track.key]
@@ -418,9 +419,29 @@ class Baker:
             if track.profile_group is not None:  # no per-frame image: the nodes come below
                 bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
             ob = lights.create_light(
-                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, links
+                scene, dataclasses.replace(planned, light=bl), lens_ob, collection, None
             )
             masks |= self._key_track(ob, track, images)
+            made.append(ob)
+            firsts.append(bl)
+        # the lights move: every beam taken as reaching every lens (each lens its own
+        # group while Blender's sets last, then shared: the report lists them)
+        lens_objects = [lens for _, lens in (self.firsts[t.key] for t in tracks)]
+        index = {o.as_pointer(): k for k, o in enumerate(dict.fromkeys(lens_objects))}
+        spheres = list(dict.fromkeys(lens_objects))
+        firsts = [
+            SimpleNamespace(light=bl, source=SimpleNamespace(lens=index[o.as_pointer()]))
+            for bl, o in zip(firsts, lens_objects, strict=True)
+        ]
+        self.linking = lights.link_lights(
+            scene,
+            made,
+            firsts,
+            np.zeros((len(spheres), 3)),
+            np.zeros(len(spheres)),
+            spheres,
+            everywhere=True,
+        )
         profiles = len({v[0].name for v in images.values()})
         return dict(objects=len(tracks), images=profiles, mask_images=len(masks))
 
@@ -578,11 +599,20 @@ def finish(baker):
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]
     settings.last_report = light_tracks.bake_message(figures)
+    level = "INFO"
     if figures.get("caustics_warning"):
         settings.last_report += "; " + figures["caustics_warning"]
+        level = "WARNING"
+    linking = getattr(baker, "linking", None)
+    note = linking and linking_groups_note(
+        linking.ungrouped, linking.conflicts, (), linking.user_sets
+    )
+    if note:
+        settings.last_report += "; " + note
+        level = "WARNING"
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"
-    return "INFO", settings.last_report, figures
+    return level, settings.last_report, figures
 
 
 class LENS_LIGHTS_OT_bake(bpy.types.Operator):

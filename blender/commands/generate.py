@@ -38,8 +38,8 @@ import bpy
 from ...core.plan.cycles_caustics import describe as describe_caustics
 from ...core.report.message import (
     error_text,
+    linking_groups_note,
     linking_note,
-    linking_sets_note,
     made_text,
     report_message,
 )
@@ -115,6 +115,7 @@ def generate(context):
         # 2. Build.
         t = time.perf_counter()
         plan = work.plan
+        linking = None
         total = max(len(plan.lights), 1)
         try:
             cleanup.clear(scene)
@@ -129,6 +130,11 @@ def generate(context):
                     progress=lambda k: progress(60 + 40 * k / total),
                     arrays=work.read.arrays,
                 )
+                a, tl = work.read.arrays, time.perf_counter()
+                linking = lights.link_lights(
+                    scene, made, plan.lights, a.center, a.radius, work.read.sphere_objects
+                )
+                work.timings["linking"] = time.perf_counter() - tl
             made_lights = sum(1 for ob in made if ob.type == "LIGHT")
             made_layers = len(made) - made_lights  # the caustic layers' meshes
             caustics_note, caustics_warn = cycles_caustics.after_build(
@@ -173,10 +179,15 @@ def generate(context):
     if eevee_note:
         level = "WARNING" if level == "INFO" else level
         message = f"{message}; {eevee_note}"
-    sets_note = linking_sets_note(lights.linking_sets(scene))
-    if sets_note:
-        level = "WARNING" if level == "INFO" else level
-        message = f"{message}; {sets_note}"
+    if linking is not None:
+        linking.blender_says = lights.linking_messages(context)
+        figures["linking"] = vars(linking)
+        sets_note = linking_groups_note(
+            linking.ungrouped, linking.conflicts, linking.blender_says, linking.user_sets
+        )
+        if sets_note:
+            level = "WARNING" if level == "INFO" else level
+            message = f"{message}; {sets_note}"
     if caustics_note:
         message = f"{message}; {caustics_note}"
         if caustics_warn:

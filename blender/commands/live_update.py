@@ -268,17 +268,6 @@ def relevant(scene, depsgraph) -> str:
     return why
 
 
-def _link_cache(objects) -> dict:
-    """Each lens' existing linking collection (by lens name), so new lights of a
-    lens share it instead of making another."""
-    cache = {}
-    for ob in objects:
-        coll = ob.light_linking.receiver_collection if ob.type == "LIGHT" else None
-        if coll is not None and coll.get(COLLECTION_MARK) == LINK_MARK and len(coll.objects) == 1:
-            cache.setdefault(coll.objects[0].name, coll)
-    return cache
-
-
 def _remove(scene, objects):
     """Remove `objects` (ours), their orphaned data, their registry entries, and the
     linking collections no lens light uses any more."""
@@ -403,20 +392,30 @@ def update(scene, depsgraph, force=False) -> dict:
             lights.apply_light(existing[i], plan.lights[j], images, read.arrays)
         if m.remove:
             _remove(scene, [existing[i] for i in m.remove])
+        pairs = [(existing[i], plan.lights[j]) for i, j in m.update]
         if m.create:
             collection = lights.lights_collection(scene)
-            links = _link_cache(existing[i] for i, _ in m.update)
             for j in m.create:
                 p = plan.lights[j]
-                lights.create_light(
+                ob = lights.create_light(
                     scene,
                     p,
                     read.sphere_objects[p.source.lens],
                     collection,
-                    links,
+                    None,
                     image_cache=images,
                     arrays=read.arrays,
                 )
+                pairs.append((ob, p))
+        if pairs:  # the groups follow the beams (only what differs is written)
+            lights.link_lights(
+                scene,
+                [ob for ob, _ in pairs],
+                [p for _, p in pairs],
+                read.arrays.center,
+                read.arrays.radius,
+                read.sphere_objects,
+            )
         if images:  # a profile's node tree was rebuilt: its old image may be unused
             lights.remove_unused_profile_images()
         if not m.same_set:

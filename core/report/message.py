@@ -161,22 +161,37 @@ def linking_note(version: tuple, engine: str, inside: int) -> str:
     return ""
 
 
-#: Light-linking sets Blender keeps per scene (its message: "Maximum number of light
-#: linking sets (64) exceeded"); a lens's linking collection is one set.
-MAX_LINKING_SETS = 64
+def _names(names, first=5) -> str:
+    names = list(names)
+    more = f" and {len(names) - first} more" if len(names) > first else ""
+    return ", ".join(names[:first]) + more
 
 
-def linking_sets_note(lenses: int) -> str:
-    """The warning when more lenses have lens lights than Blender has light-linking
-    sets: the lights of the lenses beyond them may not be excluded from their own lens."""
-    if lenses <= MAX_LINKING_SETS:
-        return ""
-    return (
-        f"{plural(lenses, 'lens', 'lenses')} have lens lights but Blender keeps {MAX_LINKING_SETS} "
-        f"light-linking sets per scene: the lights of {lenses - MAX_LINKING_SETS} of them "
-        "may not be excluded from their own lens, which can shadow them (lower Maximum "
-        "Lights, or use fewer lenses)"
-    )
+def linking_groups_note(ungrouped, conflicts, blender_says=(), user_sets=0) -> str:
+    """The warning when lens lights could not be linked exactly within Blender's
+    limits (63 light sets and 64 linking collections per scene, less the user's own):
+    `ungrouped` lens names whose lights are not excluded from their lens (its glass
+    then shadows them), `conflicts` (light, lens) pairs whose lens shares the light's
+    group though its beam reaches it (that lens neither receives nor blocks the
+    light), `blender_says` Blender's own console lines about its limits."""
+    parts = []
+    if ungrouped:
+        parts.append(
+            f"{plural(len(ungrouped), 'lens', 'lenses')} ({_names(ungrouped)}): "
+            "lens lights not excluded from their lens, Blender's light-linking sets are "
+            f"used up{f' ({user_sets} by your own linking)' if user_sets else ''}: the "
+            "lens can shadow them"
+        )
+    if conflicts:
+        pairs = [f"{light} → {lens}" for light, lens in conflicts]
+        parts.append(
+            f"{plural(len(conflicts), 'lens light')} share a linking group with a lens "
+            f"their beam reaches ({_names(pairs, 3)}): that lens neither receives nor "
+            "blocks them (Blender's 63 light-linking sets are too few to keep them apart)"
+        )
+    for line in blender_says:
+        parts.append(f"Blender says: {line}")
+    return "; ".join(parts)
 
 
 def error_text(stage, exc):

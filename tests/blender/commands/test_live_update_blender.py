@@ -7,6 +7,7 @@ import math
 import bpy
 import pytest
 from blender_scene_helpers import basic_scene, generate, lens_lights, set_engine
+from mathutils import Vector
 
 from core.lens import ball_optics
 
@@ -218,7 +219,16 @@ def test_a_light_that_stops_reaching_the_lens_is_removed_and_comes_back(empty_bl
     lamp.data.energy = 1000.0
     bpy.context.view_layer.update()
     (ll,) = lens_lights()
-    assert [o.name for o in ll.light_linking.receiver_collection.objects] == ["Marble"]
+    # its image point lies beyond the marble's back pole and the spot aims away from
+    # the marble (wholly behind the cone's apex): the light cannot reach its lens, so
+    # it needs no linking (core/plan/linking.py), and no linking collection is left
+    marble = bpy.data.objects["Marble"]
+    to_centre = marble.matrix_world.translation - ll.matrix_world.translation
+    axis = ll.matrix_world.to_quaternion() @ Vector((0.0, 0.0, -1.0))
+    assert to_centre.length > R + ll.data.shadow_soft_size
+    assert to_centre.dot(axis) < -(R + ll.data.shadow_soft_size)
+    assert ll.light_linking.receiver_collection is None
+    assert not [c for c in bpy.data.collections if c.name.startswith("Lens link: ")]
 
 
 def test_animation_render_completes_with_live_update(empty_blend, tmp_path):

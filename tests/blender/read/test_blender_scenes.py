@@ -220,11 +220,14 @@ def test_eevee_before_4_3_names_the_lens_lights_inside_their_lens():
     assert linking_note((4, 2, 23), "BLENDER_EEVEE_NEXT", 0) == ""
 
 
-def test_more_lenses_than_light_linking_sets_are_reported():
-    """Blender keeps 64 light-linking sets per scene ("Maximum number of light linking
-    sets (64) exceeded"): 65 lenses with lens lights leave one lens' lights unlinked."""
-    from lens_lights.core.report.message import linking_sets_note
+def test_linking_report_names_the_lenses_and_pairs():
+    """Lenses left unlinked and lenses sharing a group with a beam that reaches them
+    are named; Blender's own console line is passed on."""
+    from lens_lights.core.report.message import linking_groups_note
 
-    assert linking_sets_note(64) == ""
-    note = linking_sets_note(65)
-    assert note.startswith("65 lenses have lens lights") and "the lights of 1 of them" in note
+    assert linking_groups_note([], []) == ""
+    note = linking_groups_note(["Ball 1", "Ball 2"], [("Lens light L > A", "B")], ["Maximum x"], 3)
+    assert note.startswith("2 lenses (Ball 1, Ball 2): lens lights not excluded")
+    assert "(3 by your own linking)" in note
+    assert "1 lens light share a linking group with a lens their beam reaches" in note
+    assert "Lens light L > A → B" in note and note.endswith("Blender says: Maximum x")
