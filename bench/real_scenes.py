@@ -53,6 +53,8 @@ REPORTS = ROOT / "reports"
 IOR = 1.5
 ALBEDO = 0.8
 MARBLE = 0.01  # 2 cm marble (radius, m)
+#: Issue 24's targets: relative L1 and |flux ratio − 1| in every real scene.
+L1_TARGET, FLUX_TARGET = 0.10, 0.05
 
 
 @dataclass
@@ -520,7 +522,8 @@ def write_report(table, args, total, version):
         "# Real scenes: every light type, Cycles and EEVEE (AUTO) vs the reference tracer",
         "",
         f"`./lens-lights bench real_scenes{' --quick' if args.quick else ''}"
-        f"{' --issue14 --report ' + args.report if args.issue14 else ''}` — Blender "
+        f"{' --issue14' if args.issue14 else ''}"
+        f"{' --report ' + args.report if args.report != 'real_scenes' else ''}` — Blender "
         f"{version}, {args.px}×{args.px} px, Cycles {args.cycles_samples} spp (CPU), EEVEE "
         f"{args.eevee_samples} samples (software GL), reference {args.rays:.3g} rays per "
         f"scene; {total / 60:.1f} min in all on 2 shared cores.",
@@ -531,7 +534,7 @@ def write_report(table, args, total, version):
         "fitted to the caustic (view). L1: relative L1 over "
         "the caustic region (truth > 1 % of its peak, or the render > 5 % of it); flux: "
         "render / truth over that region; peak: brightest pixel / the truth's. Targets "
-        "(issues 12 and 14): L1 ≤ 0.15 and flux within ±10 % in Cycles and in EEVEE.",
+        "(issue 24): L1 ≤ 0.10 and flux within ±5 % in Cycles and in EEVEE.",
         "",
         "| scene | view (mm) | run | tier | L1 | flux | peak | target met |",
         "| --- | ---: | --- | --- | ---: | ---: | ---: | :---: |",
@@ -540,7 +543,7 @@ def write_report(table, args, total, version):
         if "default paths" in r["run"]:
             met = "(double light)"
         else:
-            met = "yes" if r["l1"] <= 0.15 and abs(r["flux"] - 1) <= 0.10 else "no"
+            met = "yes" if r["l1"] <= L1_TARGET and abs(r["flux"] - 1) <= FLUX_TARGET else "no"
         lines.append(
             f"| {r['label']} | {1000 * r['view']:.0f} | {r['run']} | {r['tier']} | "
             f"{r['l1']:.3f} | {r['flux']:.3f} | {r['peak']:.2f} | {met} |"

@@ -48,7 +48,7 @@ def load(path):
     return px[..., :3].mean(axis=2)
 
 
-def stock_render(blend, tmp, frame):
+def stock_render(blend, tmp, frame, timeout=600):
     """Render `frame` of `blend` in a new process without the extension: (facts,
     with the lens lights, without them)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
@@ -57,7 +57,7 @@ def stock_render(blend, tmp, frame):
         capture_output=True,
         text=True,
         env=env,
-        timeout=600,
+        timeout=timeout,
     )
     facts = [ln for ln in run.stdout.splitlines() if ln.startswith("FACTS ")]
     assert facts, run.stdout[-2000:] + run.stderr[-2000:]

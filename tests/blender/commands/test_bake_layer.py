@@ -11,18 +11,14 @@ Scene: the measuring scene (white floor albedo 0.8, glass ball R = 0.5, n = 1.5 
 2.5 above the floor, a 1000 W point light moving over frames 1–3, orthographic
 camera straight down on the middle frame's axis point)."""
 
-import json
 import math
-import os
-import subprocess
-import sys
-import textwrap
 
 import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import basic_scene, lens_lights, set_engine
 from measuring_scene import build_measuring_scene, new_material
+from stock_render import stock_render
 
 from core.lens import ball_optics
 
@@ -33,27 +29,6 @@ CENTER = np.array([0.0, 0.0, 2.5])
 FIRST, LAST = np.array([-0.45, 0.0, 4.45]), np.array([-1.1, 0.0, 4.6])
 MID = 0.5 * (FIRST + LAST)
 PX, VIEW = 32, 1.0
-
-STOCK_RENDER = textwrap.dedent(
-    """
-    import json, os, sys
-    import bpy
-    path, out, frame = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    bpy.ops.wm.open_mainfile(filepath=path)
-    scene = bpy.context.scene
-    facts = dict(registered=scene.bl_rna.properties.get("lens_lights") is not None)
-    scene.frame_start = scene.frame_end = frame
-    scene.render.filepath = os.path.join(out, "baked_####")
-    bpy.ops.render.render(animation=True)
-    bpy.data.collections["Lens Lights"].hide_render = True
-    scene.render.filepath = os.path.join(out, "without.exr")
-    bpy.ops.render.render(write_still=True)
-    print("FACTS " + json.dumps(facts), flush=True)
-    sys.stdout.flush()
-    os._exit(0)
-    """
-)
-
 
 def axis_hit(light):
     u = (CENTER - light) / np.linalg.norm(CENTER - light)
@@ -272,13 +247,6 @@ def test_a_glossy_receiver_keeps_its_fitted_spot_per_frame(empty_blend):
     assert not [i for i in bpy.data.images if i.get("lens_lights_created") == "bake"]
 
 
-def load(path):
-    img = bpy.data.images.load(str(path))
-    px = np.array(img.pixels[:], dtype=float).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[..., :3].mean(axis=2)
-
-
 def caustic_figures(diff, hit, light):
     """(centroid's distance from the axis point, brightness at the axis point over
     the exact optics' there) of a caustic image `diff` (radiance)."""
@@ -302,18 +270,9 @@ def test_baked_layer_frame_renders_in_eevee_without_the_extension(extension, tmp
     assert bpy.ops.lens_lights.bake() == {"FINISHED"}
     blend = tmp_path / "baked.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    run = subprocess.run(
-        [sys.executable, "-c", STOCK_RENDER, str(blend), str(tmp_path), "2"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=900,
-    )
-    facts = [ln for ln in run.stdout.splitlines() if ln.startswith("FACTS ")]
-    assert facts, run.stdout[-2000:] + run.stderr[-2000:]
-    assert json.loads(facts[0][6:]) == dict(registered=False)
-    diff = load(tmp_path / "baked_0002.exr") - load(tmp_path / "without.exr")
+    facts, baked, without = stock_render(blend, tmp_path, 2, timeout=900)
+    assert facts["registered"] is False
+    diff = baked - without
     off, ratio = caustic_figures(diff, axis_hit(MID), MID)
     print(
         f"\nbaked layer, frame 2 (EEVEE {PX} px): centroid {off:.4f} from the axis point, "
