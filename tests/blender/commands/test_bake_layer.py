@@ -30,6 +30,7 @@ FIRST, LAST = np.array([-0.45, 0.0, 4.45]), np.array([-1.1, 0.0, 4.6])
 MID = 0.5 * (FIRST + LAST)
 PX, VIEW = 32, 1.0
 
+
 def axis_hit(light):
     u = (CENTER - light) / np.linalg.norm(CENTER - light)
     return CENTER + (CENTER[2] / -u[2]) * u
