@@ -13,8 +13,9 @@ is drawn uniform, and a texel's flux spreads at most to its neighbours' centres 
 texel).
 
 The baked layer reads an image instead (`image_texels`): the same texel values
-sampled with Linear interpolation between texel centres in the raster's warped
-coordinate, each scaled by its area over the measure of its tent there.
+interpolated bilinearly between texel centres in the raster's warped coordinate
+(four Closest reads in `blender/build/baked_layers.py`: EEVEE would mipmap a Linear
+image), each scaled by its area over the measure of its tent there.
 """
 
 from __future__ import annotations
