@@ -152,11 +152,9 @@ class LayerFigures:
             )
             if flux > 0 and self.flux_emitted > 0
         ]
-        out = (
-            f"{self.layers} caustic layer{'s' if self.layers != 1 else ''} "
-            f"({self.faces} texels, {self.rays} rays"
-            + (f"; of the flux, {' and '.join(parts)}" if parts else "")
-            + ")"
+        # (the report's first words count the layers: not said again here)
+        out = f"{self.faces} texels and {self.rays} rays in all" + (
+            f"; of the flux, {' and '.join(parts)}" if parts else ""
         )
         if self.fallback_receivers:
             n = self.fallback_lights

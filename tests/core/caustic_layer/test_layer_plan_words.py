@@ -11,13 +11,13 @@ def _text(**kw):
 def test_lost_and_outside_flux_are_said_apart():
     text = _text(flux_lost=12.0, flux_outside=26.0)
     assert text == (
-        "2 caustic layers (800 texels, 5000 rays; of the flux, 12 % missed every receiver "
-        "and 26 % landed outside the layers (out of view or past their edge))"
+        "800 texels and 5000 rays in all; of the flux, 12 % missed every receiver "
+        "and 26 % landed outside the layers (out of view or past their edge)"
     )
 
 
 def test_a_vanishing_share_reads_under_a_tenth_of_a_percent_and_none_is_not_said():
     assert "under 0.1 % missed every receiver" in _text(flux_lost=1.3e-48)
-    assert "and" not in _text(flux_lost=1.3e-48)
-    assert _text() == "2 caustic layers (800 texels, 5000 rays)"
+    assert "landed outside" not in _text(flux_lost=1.3e-48)
+    assert _text() == "800 texels and 5000 rays in all"
     assert "0.4 % landed outside" in _text(flux_outside=0.4)
