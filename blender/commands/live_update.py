@@ -240,7 +240,7 @@ def relevant(scene, depsgraph) -> str:
     (a material, or the mesh of a lens, receiver or blocker: what the read's
     signature does not hold; planned again)."""
     ours = None
-    watch = _WATCHES.get(scene.as_pointer())
+    watching = _WATCHES.get(scene.as_pointer())
     why = ""
     for update in depsgraph.updates:
         idb = update.id
@@ -259,9 +259,9 @@ def relevant(scene, depsgraph) -> str:
             ours = _ours(scene)
         if orig.as_pointer() in ours:
             continue
-        if watch is None:
+        if watching is None:
             return "edit"
-        said = watch.says(kind, orig, idb, depsgraph, ours)
+        said = watching.says(kind, orig, idb, depsgraph, ours)
         if said == "force":
             return said
         why = why or said
