@@ -14,6 +14,7 @@ from ...core.plan.cycles_caustics import (
     describe,
     double_light_warning,
     kept_on_warning,
+    linked_caster_warning,
     planned_changes,
     should_restore,
 )
@@ -30,10 +31,24 @@ def scene_values(scene) -> dict:
     return {p: getattr(cy, p) for p, _ in SCENE_SETTINGS if cy is not None and hasattr(cy, p)}
 
 
+def linked_casters(lens_objects) -> list[str]:
+    """The lenses among `lens_objects` that are linked from a library with their
+    Shadow Caustics caster on: their settings are the library's (a change to them is
+    not saved with this file), so `replace` leaves them and the report says so."""
+    return sorted(
+        ob.name
+        for ob in lens_objects
+        if ob is not None
+        and ob.library is not None
+        and getattr(_settings(ob), "is_caustics_caster", False)
+    )
+
+
 def replace(scene, lens_objects, keep_scene: bool = False) -> list[Change]:
     """Turn the Cycles caustics of `lens_objects` (and the scene's, unless
-    `keep_scene`) off; record each change. Returns the changes."""
-    lenses = {ob.name: ob for ob in lens_objects if ob is not None}
+    `keep_scene`) off; record each change. Returns the changes. Objects linked from a
+    library are left as they are (`linked_casters`)."""
+    lenses = {ob.name: ob for ob in lens_objects if ob is not None and ob.library is None}
     lens_values = {}
     for name, ob in lenses.items():
         cy = _settings(ob)
@@ -94,7 +109,14 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
         note = describe(changes, by=by)
         note += " (Clear restores them)" if note else ""
         lit_names = [ob.name for ob in lenses]
-        warning = kept_on_warning(engine, values, glass, lit_names, by, unlit)
+        warning = "; ".join(
+            x
+            for x in (
+                kept_on_warning(engine, values, glass, lit_names, by, unlit),
+                linked_caster_warning(engine, linked_casters(lenses), by),
+            )
+            if x
+        )
         return "; ".join(x for x in (note, warning) if x), bool(warning)
     warning = double_light_warning(engine, scene_values(scene), made)
     return warning, bool(warning)

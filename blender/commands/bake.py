@@ -71,7 +71,7 @@ from mathutils import Vector
 
 from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
-from ...core.plan.cycles_caustics import kept_on_warning
+from ...core.plan.cycles_caustics import kept_on_warning, linked_caster_warning
 from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
 from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
@@ -384,12 +384,15 @@ class Baker:
                 values = cycles_caustics.scene_values(scene)
                 glass = sorted(self.unmodelled_glass)
                 cycles_caustics.replace(scene, lenses, keep_scene=bool(glass))
-                figures["caustics_warning"] = kept_on_warning(
-                    scene.render.engine,
-                    values,
-                    glass,
-                    [ob.name for ob in lenses],
-                    "the caustic layers" if self.layer else "the lens lights",
+                by = "the caustic layers" if self.layer else "the lens lights"
+                engine = scene.render.engine
+                figures["caustics_warning"] = "; ".join(
+                    x
+                    for x in (
+                        kept_on_warning(engine, values, glass, [ob.name for ob in lenses], by),
+                        linked_caster_warning(engine, cycles_caustics.linked_casters(lenses), by),
+                    )
+                    if x
                 )
         except Exception:
             cleanup.clear(scene)

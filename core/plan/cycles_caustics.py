@@ -122,6 +122,23 @@ def kept_on_warning(
     )
 
 
+def linked_caster_warning(engine: str, names, by: str = "the lens lights") -> str:
+    """The warning for lenses linked from a library with their Shadow Caustics caster
+    on (`names`): Generate cannot turn it off for good (a linked object's settings
+    are the library's, and a change to them is not saved), so Cycles renders their
+    shadow caustic on top of `by`'; '' when there are none or the engine is not
+    Cycles."""
+    if not names or engine != "CYCLES":
+        return ""
+    return (
+        f"Shadow caustics caster left on for {_names(names)}: linked from a library, "
+        "its settings are the library's and a change would not be saved with this file, "
+        f"so Cycles renders its shadow caustic on top of {by}'. Make it local or a "
+        "library override (Object › Library Override) and Generate again, or turn its "
+        "Shadow Caustics caster off in the library"
+    )
+
+
 def double_light_warning(engine: str, scene_values: dict, lights_made: int) -> str:
     """The warning when Cycles would render the lens lights' caustics a second time
     (Replace Cycles' Caustics off, refractive caustics on, Cycles)."""

@@ -248,3 +248,35 @@ def test_refractive_caustics_stay_on_for_lenses_beyond_the_maximum(empty_blend, 
     scene.lens_lights.max_lights = 2
     level, message, figures = generate()
     assert figures["created"] == 2 and scene.cycles.caustics_refractive is False
+
+
+def test_a_library_linked_lens_keeps_its_caster_flag_and_the_report_says_so(
+    empty_blend, auto_builds_lights, tmp_path
+):
+    # The library: a glass marble with Cycles' shadow caustics caster on.
+    add_sphere("Marble", (0.0, 0.0, 1.0), material=glass_material())
+    bpy.data.objects["Marble"].cycles.is_caustics_caster = True
+    library = tmp_path / "marbles.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(library))
+    # The shot: the marble linked from it, a local floor and lamp.
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with bpy.data.libraries.load(str(library), link=True) as (_, into):
+        into.objects = ["Marble"]
+    marble = into.objects[0]
+    bpy.context.scene.collection.objects.link(marble)
+    assert marble.library is not None and marble.cycles.is_caustics_caster is True
+    bpy.ops.mesh.primitive_plane_add(size=8)
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    set_engine("CYCLES")
+    level, message, figures = generate()
+    assert figures["created"] == 1
+    # Not turned off in memory only (it would be on again in the saved file): left on, said.
+    assert marble.cycles.is_caustics_caster is True
+    assert level == "WARNING"
+    assert "Shadow caustics caster left on for Marble: linked from a library" in message
+    assert "shadow caustics caster of Marble" not in message  # not claimed off
+    shot = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(shot))
+    bpy.ops.wm.open_mainfile(filepath=str(shot))
+    assert bpy.data.objects["Marble"].cycles.is_caustics_caster is True
+    assert "left on for Marble" in bpy.context.scene.lens_lights.last_report

@@ -6,6 +6,7 @@ from core.plan.cycles_caustics import (
     SCENE,
     Change,
     kept_on_warning,
+    linked_caster_warning,
     planned_changes,
 )
 from core.report.message import left_out_text, made_text
@@ -75,3 +76,11 @@ def test_the_warning_names_the_lenses_left_without_a_lens_light():
     )
     both = kept_on_warning("CYCLES", on, ["Cube"], ["Ball"], unlit=["Ball.001"])
     assert "the glass of Cube and Maximum Lens Lights left Ball.001 without" in both
+
+
+def test_the_warning_for_linked_casters():
+    text = linked_caster_warning("CYCLES", ["Marble", "Pebble"])
+    assert text.startswith("Shadow caustics caster left on for Marble, Pebble: linked from a")
+    assert "on top of the lens lights'" in text and "Library Override" in text
+    assert linked_caster_warning("CYCLES", []) == ""
+    assert linked_caster_warning("BLENDER_EEVEE", ["Marble"]) == ""
