@@ -89,8 +89,9 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
     """On Generate, once the lights are made: with Replace Cycles' Caustics on, turn
     Cycles' own caustics of the lenses that got lens lights off — but not the
     scene-wide switch while the scene holds glass Lens Lights does not model
-    (``read.unmodelled_glass``) or lenses Maximum Lens Lights left without a lens
-    light (they would lose their caustic), which are then named;
+    (``read.unmodelled_glass``, lenses sunk into another surface) or lenses Maximum
+    Lens Lights left without a lens light (they would lose their caustic), which
+    are then named;
     else say when they will be rendered twice. Returns the report's words ('' for
     nothing) and whether they are a warning; `layers`: caustic layers were made
     (the words name them)."""
@@ -100,6 +101,8 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
     if scene.lens_lights.replace_cycles_caustics:
         lenses = sorted({read.sphere_objects[p.source.lens] for p in plan.lights}, key=_name)
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
+        # A lens sunk into another surface has no lens light: only Cycles' caustic.
+        glass += sorted({s[1] for s in plan.skipped if s.code == Reason.SUNK})
         # Lenses left without a lens light by Maximum Lens Lights have only Cycles'.
         lit = {ob.name for ob in lenses}
         unlit = sorted({s[1] for s in plan.skipped if s.code == BEYOND} - lit)

@@ -32,6 +32,7 @@ class Reason(IntEnum):
     DIMMER_THAN_CUTOFF = 101
     BEYOND_MAXIMUM = 102
     NOT_AMONG_STRONGEST = 103
+    SUNK = 104  # the lens cuts into another surface (details: none)
 
 
 _KIND = {
@@ -52,6 +53,7 @@ _KIND = {
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off",
     Reason.BEYOND_MAXIMUM: "beyond the maximum of {limit} lens lights",
     Reason.NOT_AMONG_STRONGEST: "not among the {count} strongest by flux",
+    Reason.SUNK: "sunk into another surface",
 }
 
 _TEXT = {
@@ -68,6 +70,11 @@ _TEXT = {
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off ({relative:.3g} < {cutoff:g})",
     Reason.OUTSIDE_EMISSION: (
         "outside the light's emission (beyond the spot's cone or behind the area light)"
+    ),
+    Reason.SUNK: (
+        "sunk into another surface (the lens cuts into it, as a marble sunk into the "
+        "table): its light focuses inside that surface, which Lens Lights does not "
+        "model; Cycles renders that caustic itself"
     ),
 }
 

@@ -62,6 +62,9 @@ from ..tiers.near_field import (
 from ..tiers.paraxial import is_beyond_scene
 from .budget import BudgetReport, apply_budget, source_flux
 
+#: A lens another surface cuts into by more than this share of its radius is sunk
+#: into it (`sunk_lenses`): its light would focus inside that surface.
+SUNK_MARGIN = 0.02
 #: A beam's spot stays this share of the free distance behind the lens.
 FREE_MARGIN = 0.9
 #: The receiver's rays start this many lens radii from the axis (just outside it).
@@ -271,6 +274,46 @@ def cast_bundles(occluders, origins, directions, limit) -> np.ndarray:
         [occluders.first_hit(o, d, limit) for o, d in zip(origins, directions, strict=True)],
         dtype=float,
     )
+
+
+#: Probe directions of `sunk_lenses`: the axes and the cube's diagonals, both ways.
+_PROBES = np.array(
+    [(1, 0, 0), (0, 1, 0), (0, 0, 1)] + [(1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)],
+    dtype=float,
+)
+SUNK_PROBES = (
+    np.concatenate([_PROBES, -_PROBES])
+    / np.linalg.norm(np.concatenate([_PROBES, -_PROBES]), axis=1)[:, None]
+)
+
+
+def sunk_lenses(occluders, center, radius) -> np.ndarray:
+    """Which lenses (rows) another surface cuts into by more than ``SUNK_MARGIN`` of
+    their radius (a marble sunk into the table; one resting on it only touches it):
+    along each of `SUNK_PROBES` a ray from half a radius behind the centre through
+    it, a hit within the lens' own ball short of its far surface (the lens itself
+    is hit there, at 1.5 R) means a surface inside the glass (another sphere's does
+    not count: marbles in a pile may overlap a little). A surface crossing the
+    ball nearer its centre than about 0.8 (1 − margin) R is always met (the nearest
+    probe is within 35° of its normal)."""
+    c = np.asarray(center, dtype=float).reshape(-1, 3)
+    r = np.asarray(radius, dtype=float).reshape(-1)
+    if not len(r):
+        return np.zeros(0, dtype=bool)
+    origins = c[None, :, :] - 0.5 * r[None, :, None] * SUNK_PROBES[:, None, :]
+    reach = (1.5 - SUNK_MARGIN) * r
+    hits = cast_bundles(occluders, origins, SUNK_PROBES, float(reach.max()))
+    # Another sphere's surface does not count: balls in a pile may overlap a little,
+    # each still a lens (the thesis' spheres are independent).
+    centers = np.asarray(getattr(occluders, "centers", np.zeros((0, 3))), dtype=float)
+    radii = np.asarray(getattr(occluders, "radii", np.zeros(0)), dtype=float)
+    for b, i in zip(*np.nonzero(hits <= reach[None, :]), strict=True):
+        if len(radii):
+            p = origins[b, i] + hits[b, i] * SUNK_PROBES[b]
+            gap = np.abs(np.linalg.norm(centers - p, axis=1) - radii)
+            if np.any(gap <= 1e-6 * (radii + np.linalg.norm(p))):
+                hits[b, i] = np.inf
+    return np.any(hits <= reach[None, :], axis=0)
 
 
 def free_distances(occluders, axis, center, radius, scene_size) -> np.ndarray:
@@ -574,6 +617,7 @@ def plan_result(
         first = _scaled(make_light_table(table, cols, model, **common), scale)
         everything = np.arange(len(table))
         kept = _rank(first, names_of(everything), min_b, max_lights, plan.skipped)
+        kept = _without_sunk(read, table, kept, names_of(kept), plan.skipped)
         timings["plan first"] = time.perf_counter() - t
         lights = _final_lights(read, selection, cols, kept, tier, model, common)
         names = names_of(kept)
@@ -583,6 +627,19 @@ def plan_result(
     timings["plan"] = time.perf_counter() - t
     read.occluders.release()  # the depsgraph may go away after this
     return Work(read, result, selection, plan, timings)
+
+
+def _without_sunk(read, table, kept, names, skipped) -> np.ndarray:
+    """`kept` less the rows whose lens another surface cuts into (`sunk_lenses`),
+    each listed in `skipped` (`Reason.SUNK`)."""
+    if not len(kept):
+        return kept
+    lenses, row_lens = np.unique(np.asarray(table.lens)[kept], return_inverse=True)
+    a = read.arrays
+    sunk = sunk_lenses(read.occluders, a.center[lenses], a.radius[lenses])[row_lens]
+    for k in np.flatnonzero(sunk).tolist():
+        skipped.append(SkippedPair(*names(k), Reason.SUNK))
+    return kept[~sunk]
 
 
 class _KeptLights:

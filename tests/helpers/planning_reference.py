@@ -8,6 +8,7 @@ import time
 from types import SimpleNamespace
 
 from core.phase1.point_lights import Phase1Result
+from core.phase1.skip_reasons import Reason, SkippedPair
 from core.plan.planning import (
     PRESELECT_FACTOR,
     Work,
@@ -16,6 +17,7 @@ from core.plan.planning import (
     plan_lights,
     receiver_distance,
     select_sources,
+    sunk_lenses,
 )
 from core.tiers import PHYSICAL, THESIS
 
@@ -61,7 +63,18 @@ def plan_result_per_source(
         **common,
     )
     rows = {id(src): k for k, src in enumerate(selection.sources)}
-    chosen = [p.source for p in first.lights]
+    # the same rule as the columns path: a lens another surface cuts into gets no light
+    sunk = sunk_lenses(
+        read.occluders,
+        [p.source.lens_center for p in first.lights],
+        [p.source.lens_radius for p in first.lights],
+    )
+    sunk_pairs = [
+        SkippedPair(p.light_name, p.lens_name, Reason.SUNK)
+        for p, s in zip(first.lights, sunk, strict=True)
+        if s
+    ]
+    chosen = [p.source for p, s in zip(first.lights, sunk, strict=True) if not s]
     size = read.scene_size
 
     def far_limit(src):
@@ -81,7 +94,7 @@ def plan_result_per_source(
         energy_scale=[selection.scale[rows[id(s)]] for s in chosen],
         **common,
     )
-    plan.skipped[:0] = first.skipped
+    plan.skipped[:0] = first.skipped + sunk_pairs
     timings["plan"] = time.perf_counter() - t
     read.occluders.release()  # the depsgraph may go away after this
     return Work(read, result, selection, plan, timings)

@@ -280,3 +280,24 @@ def test_a_library_linked_lens_keeps_its_caster_flag_and_the_report_says_so(
     bpy.ops.wm.open_mainfile(filepath=str(shot))
     assert bpy.data.objects["Marble"].cycles.is_caustics_caster is True
     assert "left on for Marble" in bpy.context.scene.lens_lights.last_report
+
+
+def test_a_marble_sunk_into_the_table_gets_no_lens_light_and_keeps_cycles_caustic(
+    empty_blend, auto_builds_lights
+):
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=8)
+    bpy.context.object.name = "Table"
+    add_sphere("Sunk", (0.0, 0.0, 0.0), material=glass_material())  # centre on the table
+    add_point_light("Lamp", (-2.0, 0.0, 2.0))  # 45°
+    level, message, figures = generate()
+    assert lens_lights() == [] and figures["created"] == 0
+    assert "sunk into another surface" in message
+    assert scene.cycles.caustics_refractive is True  # Cycles' own caustic stays
+    # beside a resting marble that does get its lens light: the switch stays on, said
+    add_sphere("Resting", (3.0, 0.0, 0.5), material=glass_material())
+    level, message, figures = generate()
+    assert [ob.lens_lights.source_lens for ob in lens_lights()] == ["Resting"]
+    assert scene.cycles.caustics_refractive is True
+    assert "does not model the glass of Sunk," in message and level == "WARNING"
