@@ -371,7 +371,7 @@ def test_linked_library_data(empty_blend, tmp_path):
     ball = bpy.data.objects["Library ball"]
     bpy.context.scene.collection.objects.link(ball)  # the linked object itself, at the origin
     add_point_light("Lamp", (3.0, 0.0, 8.0))
-    floor()
+    floor().location.z = -0.5  # under the linked ball (at the origin), not through it
     before, replaced = snapshot(), replaced_snapshot()
     level, message, figures = generate()
     assert figures["created"] == 2, message
