@@ -33,6 +33,7 @@ import numpy as np
 from ..lens.glass import LensOptics
 from ..phase1.point_lights import Phase1Result, take
 from ..phase1.skip_reasons import Reason, SkippedPair
+from ..scene.ray_hits import sphere_hits_bundles
 from ..tiers import (
     AUTO,
     CAUSTIC_LAYER,
@@ -303,16 +304,15 @@ def sunk_lenses(occluders, center, radius) -> np.ndarray:
     origins = c[None, :, :] - 0.5 * r[None, :, None] * SUNK_PROBES[:, None, :]
     reach = (1.5 - SUNK_MARGIN) * r
     hits = cast_bundles(occluders, origins, SUNK_PROBES, float(reach.max()))
-    # Another sphere's surface does not count: balls in a pile may overlap a little,
-    # each still a lens (the thesis' spheres are independent).
+    # Another sphere's surface does not count (balls in a pile may overlap a little,
+    # each still a lens): a hit counts only nearer than the spheres' own.
     centers = np.asarray(getattr(occluders, "centers", np.zeros((0, 3))), dtype=float)
-    radii = np.asarray(getattr(occluders, "radii", np.zeros(0)), dtype=float)
-    for b, i in zip(*np.nonzero(hits <= reach[None, :]), strict=True):
-        if len(radii):
-            p = origins[b, i] + hits[b, i] * SUNK_PROBES[b]
-            gap = np.abs(np.linalg.norm(centers - p, axis=1) - radii)
-            if np.any(gap <= 1e-6 * (radii + np.linalg.norm(p))):
-                hits[b, i] = np.inf
+    if len(centers):
+        radii = np.asarray(occluders.radii, dtype=float)
+        spheres = sphere_hits_bundles(centers, radii, origins, SUNK_PROBES)
+        with np.errstate(invalid="ignore"):
+            nearer = spheres - 1e-9 * (spheres + r[None, :])
+        hits = np.where(hits < np.where(np.isfinite(spheres), nearer, np.inf), hits, np.inf)
     return np.any(hits <= reach[None, :], axis=0)
 
 
