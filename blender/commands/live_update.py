@@ -143,7 +143,6 @@ class _Watch:
     watched: frozenset  # objects whose edits always count (lenses, glass, in the light)
     meshes: frozenset  # their data
     known: dict  # every object the depsgraph held: name → `_slots`
-    held: frozenset  # the names of the objects the depsgraph held
 
     def says(self, kind, orig, evaluated, depsgraph, ours) -> str:
         """ "" / "edit" / "force" for one update (see `relevant`)."""
@@ -157,7 +156,7 @@ class _Watch:
             held = frozenset(
                 o.original.name for o in depsgraph.objects if o.original.as_pointer() not in ours
             )
-            return "" if held == self.held else "edit"
+            return "" if held == self.known.keys() else "edit"
         name = orig.name
         if name in self.watched or _always(orig) or self.known.get(name) != _slots(orig):
             return "edit"
@@ -230,7 +229,7 @@ def _watch_of(scene, depsgraph, work) -> _Watch | None:
         ob = bpy.data.objects.get(name)
         if ob is not None and ob.data is not None:
             meshes.add(ob.data.name)
-    return _Watch(capsules, frozenset(watched), frozenset(meshes), known, frozenset(known))
+    return _Watch(capsules, frozenset(watched), frozenset(meshes), known)
 
 
 def relevant(scene, depsgraph) -> str:
