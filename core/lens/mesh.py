@@ -130,6 +130,39 @@ class MeshLens(Lens):
     def trace_branches(self, origins, directions, max_depth: int = 8, min_weight: float = 1e-3):
         return self._walk(origins, directions, max_depth, min_weight, split=True)
 
+    # ------------------------------------------------------------------ the topology
+
+    @cached_property
+    def _edges(self):
+        """Each interior edge once: (triangle a, triangle b, corner k of a where the
+        edge starts, its two vertex indices), from the sorted half-edges."""
+        t = len(self.triangles)
+        k0 = np.tile(np.arange(3), t)
+        tri = np.repeat(np.arange(t), 3)
+        a, b = self.triangles[tri, k0], self.triangles[tri, (k0 + 1) % 3]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        order = np.lexsort((hi, lo))
+        lo, hi, tri, k0 = lo[order], hi[order], tri[order], k0[order]
+        i = np.nonzero((lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1]))[0]
+        return tri[i], tri[i + 1], lo[i], hi[i]
+
+    @cached_property
+    def convex(self) -> bool:
+        """Whether the mesh is convex: at every edge each face's far vertex lies on or
+        behind the other face (a closed surface convex at every edge is convex). Then
+        light that has left it never meets it again: no re-entry test."""
+        ta, tb, _, _ = self._edges
+        if len(ta) * 2 != 3 * len(self.triangles):
+            return False  # not every edge shared by two faces
+        v = self.vertices
+        tol = 1e-9 * max(self.radius, 1e-300)
+        for x, cy in ((ta, self.triangles[tb]), (tb, self.triangles[ta])):
+            n, p0 = self.face_normals[x], v[self.triangles[x, 0]]
+            ahead = _dot(v[cy] - p0[:, None, :], n[:, None, :]).max(axis=1)
+            if (ahead > tol).any():
+                return False
+        return True
+
     # ------------------------------------------------------------------ the groups
 
     @cached_property
@@ -139,25 +172,17 @@ class MeshLens(Lens):
         t = len(self.triangles)
         if t == 0:
             return np.zeros(0, dtype=np.int64)
-        k0 = np.tile(np.arange(3), t)
-        k1 = (k0 + 1) % 3
-        tri = np.repeat(np.arange(t), 3)
-        a, b = self.triangles[tri, k0], self.triangles[tri, k1]
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        order = np.lexsort((hi, lo))
-        lo, hi, tri, k0, k1, a = lo[order], hi[order], tri[order], k0[order], k1[order], a[order]
-        same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
-        i, j = np.nonzero(same)[0], np.nonzero(same)[0] + 1
+        ta, tb, lo, hi = self._edges
         cn = self.corner_normals
 
         def normal_at(rows, vertex):  # the corner normal of triangle rows at that vertex
-            kk = np.where(a[rows] == vertex, k0[rows], k1[rows])
-            return cn[tri[rows], kk]
+            k = np.argmax(self.triangles[rows] == vertex[:, None], axis=1)
+            return cn[rows, k]
 
-        smooth = np.ones(len(i), dtype=bool)
-        for v in (lo[i], hi[i]):
-            smooth &= _dot(normal_at(i, v), normal_at(j, v)) >= SMOOTH_COS
-        ea, eb = tri[i][smooth], tri[j][smooth]
+        smooth = np.ones(len(ta), dtype=bool)
+        for vtx in (lo, hi):
+            smooth &= _dot(normal_at(ta, vtx), normal_at(tb, vtx)) >= SMOOTH_COS
+        ea, eb = ta[smooth], tb[smooth]
         label = np.arange(t)
         while True:  # hook roots onto the smaller root, then jump pointers
             ra, rb = label[ea], label[eb]
@@ -218,6 +243,10 @@ class MeshLens(Lens):
             # one path (`trace`): the reflected part is followed only where it is total
             kids = [kid_t, kid_r] if split else [kid_t, kid_r.take(tir)]
             nxt = _Segments.join(kids)
+            if self.convex:  # what leaves a convex glass never meets it again
+                gone = ~nxt.inside
+                done.append(nxt.take(gone & (nxt.weight >= min_weight) & (nxt.weight > 0.0)))
+                nxt = nxt.take(~gone | (nxt.weight < min_weight) | (nxt.weight <= 0.0))
             small = nxt.weight < min_weight
             small |= nxt.weight <= 0.0
             np.add.at(dropped, nxt.ray[small], nxt.weight[small])
