@@ -7,7 +7,8 @@ reduced bottom-up. No pointers and no Python loop over triangles: building is a 
 a few reductions. Traversal is breadth-first over (ray, node) pairs: at each level every
 pair's box is slab-tested at once and the survivors expand into their two children; at
 the leaves the pairs become (ray, triangle) Möller–Trumbore tests and the nearest hit
-beyond ``t_min`` wins. Rays are processed in chunks to bound memory. Used by the caustic
+beyond ``t_min`` wins. Rays are processed in chunks to bound memory, blocks of them in
+threads (`core.shared.parallel`: numpy's loops let go of the GIL). Used by the caustic
 layer's receivers and by the glass meshes of `core.lens.mesh`.
 """
 
@@ -16,6 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from . import parallel
+
+#: Rays below which a cast runs in the calling thread alone.
+THREAD_ROWS = 8192
 
 
 @dataclass(frozen=True)
@@ -131,11 +137,23 @@ def intersect(bvh: TriangleBvh, origins, dirs, t_min=0.0, t_max=np.inf, chunk: i
     o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
     n = len(o)
     tri, tt, uu, vv = no_hits(n)
-    for s in range(0, n, chunk):
-        sl = slice(s, min(n, s + chunk))
-        tri[sl], tt[sl], uu[sl], vv[sl] = _intersect_chunk(bvh, o[sl], d[sl], t_min[sl], t_max[sl])
+
+    def run(block: slice):  # chunks of one block, in one thread
+        for s in range(block.start, block.stop, chunk):
+            sl = slice(s, min(block.stop, s + chunk))
+            tri[sl], tt[sl], uu[sl], vv[sl] = _intersect_chunk(
+                bvh, o[sl], d[sl], t_min[sl], t_max[sl]
+            )
+
+    # each ray's hit is its own: blocks of rays in threads give the same hits
+    parallel.map_slices(run, n, min_rows=THREAD_ROWS)
     point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
     return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)
+
+
+#: The traversal goes breadth-first down to this level, then subtree by subtree in the
+#: order each ray enters them, a subtree starting beyond the best hit so far skipped.
+SPLIT_LEVEL = 6
 
 
 def _intersect_chunk(bvh, o, d, t_min, t_max):
@@ -144,10 +162,28 @@ def _intersect_chunk(bvh, o, d, t_min, t_max):
     safe = np.where(np.abs(d) < 1e-300, np.where(d < 0.0, -1e-300, 1e-300), d)
     inv = 1.0 / safe
     rays = np.ascontiguousarray(np.concatenate([inv, o * inv], axis=1).T)  # (6, n)
-    ray = np.arange(n)
-    node = np.zeros(n, dtype=np.int64)
     depth = len(bvh.lo) - 1
-    level = -1  # the root's box first, then two levels (four boxes) a step
+    split = min(depth, SPLIT_LEVEL)
+    ray, node, near = _descend(
+        bvh, rays, t_min, t_max, np.arange(n), np.zeros(n, np.int64), -1, split
+    )
+    tri = np.full(n, -1, dtype=np.int64)
+    best = t_max.copy()
+    uu = np.zeros(n)
+    vv = np.zeros(n)
+    dn = np.linalg.norm(d, axis=1)
+    for r, nd in _nearest_first(ray, node, near, n, best):
+        r, nd, nr_ = _descend(bvh, rays, t_min, best, r, nd, split, depth)
+        _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, r, nd, nr_)
+    tt = np.where(tri >= 0, best, np.inf)
+    return tri, tt, uu, vv
+
+
+def _descend(bvh, rays, t_min, t_max, ray, node, level, depth):
+    """The (ray, node) pairs at ``level`` (−1: before the root) down to the pairs at
+    ``depth`` whose boxes the rays cross within (t_min, t_max]; two levels (four
+    boxes) a step. Returns (ray, node, near)."""
+    near = np.zeros(len(ray))
     with np.errstate(invalid="ignore"):
         while level < depth:
             step = 1 if level < 0 or level + 2 > depth else 2
@@ -168,35 +204,32 @@ def _intersect_chunk(bvh, o, d, t_min, t_max):
             node = child[keep]
             near = near[keep]
             level += step
-    return _nearest_in_leaves(bvh, o, d, t_min, t_max, ray, node, near)
+    return ray, node, near
 
 
-def _nearest_in_leaves(bvh, o, d, t_min, t_max, ray, node, near):
-    """The nearest triangle hit among each ray's candidate leaves, leaves tested in
-    rounds in the order the ray enters their boxes (1, 1, 2, 4 … per ray): a leaf whose
-    box starts beyond the best hit so far is never tested (a closed mesh's rays stop
-    after the leaves of their first crossing)."""
-    n = len(o)
-    tri = np.full(n, -1, dtype=np.int64)
-    best = t_max.copy()
-    uu = np.zeros(n)
-    vv = np.zeros(n)
+def _nearest_first(ray, node, near, n, best):
+    """Rounds of (ray, node) pairs: each ray's nearest box, its next, then the next 2,
+    4 …, a box that starts beyond the ray's ``best`` hit so far (read at each round)
+    left out."""
     order = np.lexsort((near, ray))
     ray, node, near = ray[order], node[order], near[order]
-    start = np.searchsorted(ray, np.arange(n))
-    rank = np.arange(len(ray)) - start[ray]
-    ls = bvh.leaf_size
-    dn = np.linalg.norm(d, axis=1)
-    lo = 0
-    width = 1
+    rank = np.arange(len(ray)) - np.searchsorted(ray, np.arange(n))[ray]
+    lo, width = 0, 1
     while len(ray):
         now = rank < lo + width
-        r, nd = ray[now], node[now]
-        go = near[now] <= best[r]
-        r, nd = r[go], nd[go]
+        r, nd, nr_ = ray[now], node[now], near[now]
+        go = nr_ <= best[r]
+        yield r[go], nd[go]
         ray, node, near, rank = ray[~now], node[~now], near[~now], rank[~now]
         lo += width
         width = width if lo < 2 else 2 * width
+
+
+def _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, ray, node, near):
+    """The leaves' triangles against their rays, nearest box first; the nearest hit
+    beyond ``t_min`` and before ``best`` updates (best, tri, uu, vv) in place."""
+    ls = bvh.leaf_size
+    for r, nd in _nearest_first(ray, node, near, len(o), best):
         r = np.repeat(r, ls)
         slot = np.repeat(nd, ls) * ls + np.tile(np.arange(ls), len(nd))
         live = bvh.tri_index[slot] >= 0
@@ -214,8 +247,6 @@ def _nearest_in_leaves(bvh, o, d, t_min, t_max, ray, node, near):
         better = t < best[r]
         r, slot, t, u, v = r[better], slot[better], t[better], u[better], v[better]
         tri[r], best[r], uu[r], vv[r] = bvh.tri_index[slot], t, u, v
-    tt = np.where(tri >= 0, best, np.inf)
-    return tri, tt, uu, vv
 
 
 def _hit_slots(bvh, o, d, dn, slot):
