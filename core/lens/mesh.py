@@ -222,7 +222,9 @@ class MeshLens(Lens):
         for _wave in range(max_depth + 1):
             if len(seg.ray) == 0:
                 break
-            h = bvh_intersect(self.bvh, seg.origin, seg.direction)
+            # a convex mesh: one way in (a face toward the ray), one way out
+            side = np.where(seg.inside, -1, 1) if self.convex else None
+            h = bvh_intersect(self.bvh, seg.origin, seg.direction, facing=side)
             miss = h.triangle < 0
             done.append(seg.take(miss & ~seg.inside))
             lost = miss & seg.inside  # a crack: nothing to leave by
