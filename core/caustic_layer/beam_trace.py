@@ -102,12 +102,30 @@ def flatten_parts(beams: list[BeamGrid]) -> tuple[list[BeamGrid], np.ndarray]:
     return flat, np.asarray(owner, dtype=np.int64)
 
 
+#: The last few built lenses of kinds other than the ball, by record (kept with it, so
+#: its id is not reused): a glass mesh's BVH is built once per Generate, not per trace.
+_BUILT: dict[int, tuple] = {}
+_BUILT_MAX = 16
+
+
 def optics_of(lens: Lens):
     """The `core.lens` lens of a scene record: its ``kind`` from `kinds.LENS_KINDS`
-    with its centre, radius, index, absorption and ``params``."""
-    return kinds.make_lens(
+    with its centre, radius, index, absorption and ``params`` (a kind other than the
+    ball built once per record: the coarse and the final trace share it)."""
+    if lens.kind == "ball":
+        return kinds.make_lens(
+            lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
+        )
+    hit = _BUILT.get(id(lens))
+    if hit is not None and hit[0] is lens:
+        return hit[1]
+    optics = kinds.make_lens(
         lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
     )
+    if len(_BUILT) >= _BUILT_MAX:
+        _BUILT.pop(next(iter(_BUILT)))
+    _BUILT[id(lens)] = (lens, optics)
+    return optics
 
 
 def frames_of(axes: np.ndarray) -> np.ndarray:

@@ -51,6 +51,9 @@ class SheetBake:
     budgets: list[RayBudget]  # per source, (Nr, Na) and its node-ray count
     resolution: int
     index: ReceiverIndex | None = None  # the receivers' index it landed on
+    # per source, for a glass mesh (`mesh_beam`): (cells refined, cells the refinement
+    # budget cut, rays traced); (0, 0, 0) for a ball
+    refinement: list[tuple[int, int, int]] | None = None
 
 
 def bake(
@@ -146,7 +149,8 @@ def bake(
     )
     if view is not None and layer.patches:
         resolution = max(p.resolution for p in layer.patches)
-    return SheetBake(layer, budgets, int(resolution), index)
+    refinement = [(b.refined_cells, b.cut_cells, b.traced_rays) for b in beams]
+    return SheetBake(layer, budgets, int(resolution), index, refinement)
 
 
 def caustic_extents(

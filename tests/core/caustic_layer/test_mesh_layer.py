@@ -134,3 +134,22 @@ def test_cube_flux_is_the_fresnel_pair_over_the_lit_faces():
     expect = light.power / (4 * math.pi) * np.sum(pair * cos_t / rho2) / 400**2
     landed = layer.flux_in_rasters + layer.flux_outside
     assert landed == pytest.approx(expect, rel=0.01)
+
+
+def test_a_ball_and_a_cube_baked_together():
+    """One bake with a ball and a glass mesh: each beam's rasters name it (the mesh's
+    parts count as its own), the refinement figures are the mesh's, flux conserved."""
+    from core.caustic_layer.pipeline import SheetSource, bake
+
+    v, t, floor, light = _cube_scene()
+    ball = Lens(np.array([-2.0, 0.0, 0.5]), 0.5, N)
+    out = bake([SheetSource(light, ball), SheetSource(light, _record(v, t))], floor, grid=(24, 96))
+    layer = out.layer
+    assert _conserved(layer)
+    assert out.refinement[0] == (0, 0, 0) and out.refinement[1][0] > 0
+    named = set().union(*(set(int(s) for s in p.sources) for p in layer.patches))
+    assert named == {0, 1}
+    # the same mesh beam alone lands the same flux as in company
+    alone = bake([SheetSource(light, _record(v, t))], floor, grid=(24, 96)).layer
+    both = bake([SheetSource(light, ball)], floor, grid=(24, 96)).layer
+    assert layer.flux_emitted == pytest.approx(alone.flux_emitted + both.flux_emitted, rel=1e-9)
