@@ -128,17 +128,14 @@ def _normal_cones(c, pad, leaf_size, levels):
     with np.errstate(invalid="ignore"):
         axis = np.nansum(n, axis=1)
         axis /= np.maximum(np.linalg.norm(axis, axis=1), 1e-300)[:, None]
-        ang = np.fmax.reduce(np.arccos(np.clip(np.einsum("lki,li->lk", n, axis), -1, 1)), axis=1)
+        ang = np.fmax.reduce(_angle(n, axis[:, None, :]), axis=1)
         ang = np.where(np.isnan(ang), np.pi, ang)
         axes, angs = [axis], [ang]
         while len(axes[0]) > 1:
             a, b = axes[0][0::2], axes[0][1::2]
             m = a + b
             m /= np.maximum(np.linalg.norm(m, axis=1), 1e-300)[:, None]
-            spread = [
-                np.arccos(np.clip(np.einsum("ij,ij->i", m, x), -1, 1)) + g
-                for x, g in ((a, angs[0][0::2]), (b, angs[0][1::2]))
-            ]
+            spread = [_angle(m, x) + g for x, g in ((a, angs[0][0::2]), (b, angs[0][1::2]))]
             axes.insert(0, m)
             angs.insert(0, np.minimum(np.maximum(*spread), np.pi))
     out = []
@@ -147,6 +144,14 @@ def _normal_cones(c, pad, leaf_size, levels):
         out.append(np.ascontiguousarray(np.concatenate([a.T, sin[None]], axis=0)))
     assert len(out) == levels
     return out
+
+
+def _angle(a, b):
+    """Angle between unit vectors (…, 3), by atan2 (exact near 0 and π); π where one
+    is zero (an axis of normals that cancel: no cone narrower than all directions)."""
+    ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+    zero = (np.sum(a * a, axis=-1) < 0.25) | (np.sum(b * b, axis=-1) < 0.25)
+    return np.where(zero, np.pi, ang)
 
 
 def ray_arrays(origins, dirs, t_min, t_max):
