@@ -40,6 +40,10 @@ _NONE = np.iinfo(np.uint64).max
 #: below which a branch is dropped (a second partial internal reflection, ~0.2 %).
 MAX_DEPTH = 8
 MIN_WEIGHT = 5e-3
+#: The refinement's rays by default: the node rays over this. Grazing rays at a
+#: silhouette bounce long inside, so a sub-grid ray costs about two node rays:
+#: a quarter cost 0.2 s of CPU at 20 000 triangles (reports/mesh_lens_speed.md).
+REFINE_SHARE = 4
 #: A path of this weight that some corners of a cell have and others not: an edge in
 #: the beam, the cell is refined (a first internal reflection, ~4 %, counts).
 STRONG = 0.02
@@ -257,9 +261,9 @@ def trace_mesh_beam(
     """The :class:`MeshBeam` of one (light, mesh) pair. ``bt``: the pair's samples (a
     `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
     centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the
-    shadow's centre); ``refine_rays``: sub-grid rays at most (None: half the node
-    rays); ``strong``: a path appearing at some corners of a cell with this weight
-    makes the cell refined (weaker ones are splatted where they are)."""
+    shadow's centre); ``refine_rays``: sub-grid rays at most (None: the node rays
+    over `REFINE_SHARE`); ``strong``: a path appearing at some corners of a cell with
+    this weight makes the cell refined (weaker ones are splatted where they are)."""
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
     di, dp = float(iota[1] - iota[0]), float(2.0 * np.pi / na)
@@ -285,7 +289,7 @@ def trace_mesh_beam(
     out = MeshBeam(n_rays=int(origins.size // 3))
     lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
     mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
-    budget = out.n_rays // 2 if refine_rays is None else int(refine_rays)
+    budget = out.n_rays // REFINE_SHARE if refine_rays is None else int(refine_rays)
     m = int(np.clip(np.sqrt(budget / max(len(mixed), 1)) - 1.0, 2, 6))
     n_fit = budget // ((m + 1) ** 2)
     if len(mixed) > n_fit:  # the brightest cells refined; the rest drawn as they are

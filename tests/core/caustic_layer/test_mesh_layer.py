@@ -51,8 +51,10 @@ def test_a_fine_smooth_sphere_lands_like_the_ball():
     # the ball drops what reflects inside (about 4 % of each ray, mostly sent back up)
     assert mesh.flux_in_rasters == pytest.approx(ball.flux_in_rasters, rel=0.02)
     assert np.abs(a - b).sum() / b.sum() < 0.08
-    # a smooth sphere's beam has no edges but its rim: few cells refined
-    assert beam.refined_cells < 0.1 * beam.cell_flux.size and beam.cut_cells == 0
+    # a smooth sphere's beam has no edges but its rim: few cells to refine, nearly
+    # all within the budget
+    assert beam.refined_cells + beam.cut_cells < 0.1 * beam.cell_flux.size
+    assert beam.cut_cells < 0.2 * beam.refined_cells
 
 
 def _cube_scene():
