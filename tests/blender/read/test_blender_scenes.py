@@ -115,9 +115,10 @@ def test_what_is_not_modelled_is_named(empty_blend):
     notes = dict(figures["light_notes"])
     assert notes["Narrow panel"].startswith("its spread (30°")
     assert notes["Dark spot"] == "spot light without power (0 W)"
-    assert "light nodes are ignored" in notes["Gobo"]
+    # its node tree's constant strength is read (×3), not a note any more (issue 28)
+    assert "Gobo" not in notes
     assert "not modelled: " in message and "Narrow panel: its spread" in message
-    assert "Ball" not in notes and len(notes) == 3
+    assert "Ball" not in notes and len(notes) == 2
     assert figures["created"] == 2  # the panel and the gobo light
 
 
@@ -127,7 +128,7 @@ def _give_nodes(light_data):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         light_data.use_nodes = True  # (deprecated in 5.x, still what makes the tree)
-    # a plain tree (every 5.x light has one) is no note; a stronger emission is
+    # a plain tree (every 5.x light has one) changes nothing; a stronger emission is read
     light_data.node_tree.nodes["Emission"].inputs["Strength"].default_value = 3.0
 
 
