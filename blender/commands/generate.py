@@ -132,7 +132,13 @@ def generate(context):
                 )
                 a, tl = work.read.arrays, time.perf_counter()
                 linking = lights.link_lights(
-                    scene, made, plan.lights, a.center, a.radius, work.read.sphere_objects
+                    scene,
+                    made,
+                    plan.lights,
+                    a.center,
+                    a.radius,
+                    work.read.sphere_objects,
+                    user_links=lights.user_links_of(plan.lights, work.read.light_objects),
                 )
                 work.timings["linking"] = time.perf_counter() - tl
             counted = layers.made_counts(made)

@@ -248,9 +248,7 @@ def primary_of(props: LightProps, matrix, name: str = ""):
             scale *= float(props.ies.fac(local))
         else:
             profile = LightProfile(props.ies, frame, props.ies_key)
-    notes = []
-    if props.linked:
-        notes.append("its light linking is not copied to its lens lights")
+    notes = []  # (its own light linking: kept by its lens lights, `blender.build.lights`)
     color = tuple(float(c) * float(n) for c, n in zip(props.color, props.nodes_color, strict=True))
     if props.type == SUN:
         strength = float(props.energy) * scale
