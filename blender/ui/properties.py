@@ -137,7 +137,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Live Update",
         default=False,
         description=(
-            "Lens lights follow the scene: when lights, lenses or receivers move, on "
+            "Lens lights and caustic layers follow the scene: when lights, lenses or "
+            "receivers move, on "
             "frame change and on every frame of a render (slower playback; the Caustic "
             "layer is rebuilt on each update)"
         ),
