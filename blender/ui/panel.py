@@ -63,8 +63,8 @@ def _layer_figures(col, ob, meta, width):
         return
     _figure(col, "Caustic layer on: {}", meta.receiver or "-")
     if meta.source_lens:  # (a baked layer keeps its sources by key only)
-        _figure(col, "Lenses: {}", meta.source_lens)
-        _figure(col, "Lights: {}", meta.source_light)
+        _lines(col, iface_("Lenses: {}").format(meta.source_lens), width)
+        _lines(col, iface_("Lights: {}").format(meta.source_light), width)
     _figure(col, "Flux drawn: {} W", f"{meta.relative_brightness:.3g}")
     _lines(col, meta.note, width)
 

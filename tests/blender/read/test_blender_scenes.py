@@ -172,7 +172,10 @@ def test_cycles_caustics_are_replaced_and_restored_by_clear(empty_blend):
         assert "refractive caustics (scene), shadow caustics caster of Ball" in message
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert scene.cycles.caustics_refractive is True and lens.cycles.is_caustics_caster is True
-    assert "restored" in scene.lens_lights.last_report
+    assert scene.lens_lights.last_report.endswith(
+        "Cycles' own caustics back as they were: refractive caustics (scene) on, "
+        "shadow caustics caster of Ball on"
+    )
     assert len(scene.lens_lights.replaced) == 0
 
     # a value the user changes after Generate is theirs: Clear leaves it
