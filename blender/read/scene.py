@@ -86,7 +86,7 @@ from ...core.scene.assembly import (
     perspective_fov,
     render_size,
 )
-from ...core.scene.light_props import IES_FAC, LightNodes, LightRecord
+from ...core.scene.light_props import IES_FAC, LightNodes, LightRecord, uses_light_nodes
 from ...core.scene.model import Camera
 from .materials import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
@@ -790,6 +790,10 @@ def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
     (`fit_meshes`), the read (`core.scene.assembly.assemble`), and the occluders made
     of the instances' meshes."""
     fit_meshes(walk.records, walk.meshes)
+    if scene.render.engine != "CYCLES":  # only Cycles evaluates a light's node tree
+        for r in walk.records:
+            if isinstance(r, LightRecord) and uses_light_nodes(r.nodes):
+                r.nodes, r.nodes_ignored = None, True
     width, height = _render_size(scene)
     read, blocking = assemble(
         walk.records,

@@ -69,6 +69,7 @@ class LightProps:
     ies: IesProfile | None = None  # the IES profile its nodes read, if any
     ies_key: str = ""  # where that profile came from
     nodes_unread: str = ""  # why its nodes cannot be read ("" : they can)
+    nodes_ignored: bool = False  # the render engine does not evaluate its nodes (EEVEE)
     linked: bool = False  # the light has light or shadow linking of its own
 
 
@@ -116,6 +117,7 @@ class LightRecord:
     spread: float = math.pi
     nodes: LightNodes | None = None  # its node tree, if it has and uses one
     linked: bool = False  # the object's own light or shadow linking
+    nodes_ignored: bool = False  # it has nodes the render engine does not evaluate
 
 
 #: The node tree every new light has from Blender 5.0 on (and `use_nodes` makes
@@ -202,6 +204,7 @@ def light_props(record: LightRecord, color: tuple) -> LightProps:
         ies=ies,
         ies_key=record.nodes.ies_key if ies is not None else "",
         nodes_unread=unread,
+        nodes_ignored=record.nodes_ignored,
         linked=record.linked,
     )
 
@@ -249,6 +252,11 @@ def primary_of(props: LightProps, matrix, name: str = ""):
         else:
             profile = LightProfile(props.ies, frame, props.ies_key)
     notes = []  # (its own light linking: kept by its lens lights, `blender.build.lights`)
+    if props.nodes_ignored:
+        notes.append(
+            "its light nodes: the render engine (EEVEE) does not evaluate them, so its "
+            "caustic follows the light as rendered, without them"
+        )
     color = tuple(float(c) * float(n) for c, n in zip(props.color, props.nodes_color, strict=True))
     if props.type == SUN:
         strength = float(props.energy) * scale

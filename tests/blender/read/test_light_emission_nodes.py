@@ -193,3 +193,20 @@ def test_an_ies_file_that_cannot_be_read_leaves_the_light_out(empty_blend):
     assert lens_lights() == []
     ((name, why),) = figures["light_notes"]
     assert name == "Lamp" and why.startswith("its IES file cannot be read (//no such profile.ies")
+
+
+def test_eevee_renders_the_lamp_without_its_nodes_and_the_caustic_follows_it(empty_blend):
+    """EEVEE does not evaluate light node trees (its lamp with an IES dark downward
+    still lights the floor below): the caustic follows the lamp as EEVEE renders it,
+    and the report says why (a Fitted lens light, as the plain lamp's)."""
+    lamp = _marble_under()
+    generate()
+    (plain,) = lens_lights()
+    energy = plain.data.energy
+    set_engine("BLENDER_EEVEE")
+    with_ies(lamp, ies_text([0.0, 30.0, 31.0, 90.0], [0.0], [[0, 0, 500, 500]]))
+    level, message, figures = generate()
+    (ll,) = lens_lights()
+    assert ll.data.energy == pytest.approx(energy, rel=1e-6)
+    ((name, why),) = figures["light_notes"]
+    assert name == "Lamp" and why.startswith("its light nodes: the render engine (EEVEE)")
