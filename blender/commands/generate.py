@@ -78,6 +78,7 @@ def _store(settings, message, figures):
     settings.last_run = True
     settings.last_created = figures.get("created", 0)
     settings.last_layers = figures.get("layers", 0)
+    settings.last_fallback = figures.get("fallback", 0)
     settings.last_sources = figures.get("sources", 0)
     settings.last_skipped = figures.get("skipped", 0)
     settings.last_primaries = figures.get("primaries", 0)
@@ -244,7 +245,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
-        settings.last_created = settings.last_layers = 0
+        settings.last_created = settings.last_layers = settings.last_fallback = 0
         settings.last_report = f"Removed {made_text(*counted.values())}"
         if restored:
             settings.last_report += "; " + describe_restored(restored)

@@ -120,6 +120,8 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         grid = box.grid_flow(columns=2, even_columns=True, align=True)
         if settings.last_layers:
             _figure(grid, "Caustic layers: {}", settings.last_layers)
+        if settings.last_fallback:
+            _figure(grid, "Fallback spots: {}", settings.last_fallback)
         _figure(grid, "Lens lights: {}", settings.last_created)
         _figure(grid, "Sources: {}", settings.last_sources)
         _figure(grid, "Lights: {}", settings.last_primaries)

@@ -149,6 +149,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_run: BoolProperty(default=False, options={"HIDDEN"})
     last_created: IntProperty(name="Created", default=0)
     last_layers: IntProperty(name="Caustic Layers", default=0)
+    last_fallback: IntProperty(name="Fallback Spots", default=0)
     last_sources: IntProperty(name="Secondary Sources", default=0)
     last_skipped: IntProperty(name="Skipped Pairs", default=0)
     last_primaries: IntProperty(name="Lights", default=0)

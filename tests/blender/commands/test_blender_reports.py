@@ -344,6 +344,13 @@ def test_a_layer_and_its_fallback_spot_are_said_in_the_layers_terms(empty_blend)
     ), message
     assert "Fitted spot" not in message  # said once, at the start
     assert figures["created"] == 0 and figures["layers"] == 1 and figures["fallback"] == 1
+    from blender_scene_helpers import draw_panel
+    from lens_lights.blender.ui.panel import VIEW3D_PT_lens_lights
+
+    main = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
+    shown = [text for kind, text in main if kind == "label"]
+    assert "Caustic layers: 1" in shown and "Fallback spots: 1" in shown
+    assert "Lens lights: 0" in shown
     (layer,), (spot,) = layer, spot
     flux = layer.lens_lights.relative_brightness
     text = _object_panel(layer)
