@@ -625,7 +625,7 @@ def _with_lenses_out(scene, user_coll, group_coll, made: dict):
     is refilled only where it differs (live update)."""
     if group_coll is None:
         return user_coll
-    key = f"{user_coll.name_full} + {group_coll.name}"
+    key = f"{user_coll.name_full} + group {int(group_coll.get(LINK_GROUP, 0)) + 1}"
     coll = made.get(key)
     if coll is not None:
         return coll
