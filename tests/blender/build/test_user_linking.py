@@ -108,3 +108,31 @@ def test_a_caustic_layer_leaves_a_linked_lamp_out_by_name(empty_blend):
     assert figures["skipped_by_reason"] == {
         "the light's own linking (no caustic layer keeps it)": 1
     }
+
+
+def test_in_cycles_the_excluded_table_gets_no_caustic(empty_blend, tmp_path):
+    """A render (Cycles, direct light only: the lens light is the only caustic): the
+    lamp leaves the floor out, so the floor under the marble is black, caustic
+    included; without the user's linking the same render shows the caustic."""
+    from measuring_scene import add_glass_ball, build_measuring_scene, direct_light_only
+    from measuring_scene import render_grey
+
+    ms = build_measuring_scene(
+        "CYCLES",
+        resolution=32,
+        floor_size=2.0,
+        view=0.1,
+        camera_height=1.0,
+        lamp=dict(location=(0.0, 0.0, 1.0), power=100.0),
+    )
+    add_glass_ball(0.01, (0.0, 0.0, 0.01), name="Marble")
+    direct_light_only(ms.scene, 16)
+    ms.lamp.light_linking.receiver_collection = _user_collection("No floor", Floor="EXCLUDE")
+    generate()
+    assert len(lens_lights()) == 1
+    dark = render_grey(ms.scene, str(tmp_path / "linked.exr"))
+    assert float(dark.max()) == 0.0
+    ms.lamp.light_linking.receiver_collection = None
+    generate()
+    lit = render_grey(ms.scene, str(tmp_path / "plain.exr"))
+    assert float(lit.max()) > 1.0  # the caustic (and the lamp's own light) are there
