@@ -174,10 +174,13 @@ def _visibility(ob):
     ob.visible_volume_scatter = False
 
 
-def create_layer(scene, patch, info, collection, materials, k, shapes=None, drawn=None):
+def create_layer(
+    scene, patch, info, collection, materials, k, shapes=None, drawn=None, lights=(), lenses=()
+):
     """One layer object (registered and marked like a lens light) drawing `patch`
     (`drawn`: its mesh, by default `smooth.drawn_mesh(patch)`); ``shapes``: see
-    `layer_mesh`."""
+    `layer_mesh`; `lights`, `lenses`: the names of the lights and lenses whose caustic
+    it draws (the panel says them)."""
     name = f"{LAYER_PREFIX}{info.name} {k}"
     drawn = drawn_mesh(patch) if drawn is None else drawn
     ob = bpy.data.objects.new(name, layer_mesh(name, drawn, shapes))
@@ -187,9 +190,11 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None, draw
     meta = ob.lens_lights
     meta.is_lens_light = True
     meta.energy_model = "CAUSTIC_LAYER"
-    meta.source_lens = info.name  # the receiver it lies on
-    meta.relative_brightness = float(patch.flux)
-    meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W"
+    meta.receiver = info.name  # the object it lies on
+    meta.source_light = ", ".join(dict.fromkeys(lights))
+    meta.source_lens = ", ".join(dict.fromkeys(lenses))
+    meta.relative_brightness = float(patch.flux)  # the flux it draws, W
+    meta.note = f"{patch.resolution}² texels"
     scene.lens_lights.created_objects.add().object = ob
     return ob
 
@@ -222,7 +227,20 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
             fallback_sources.update(int(s) for s in patch.sources)
             fallback_objects[info.name] = info.original
             continue
-        layers.append(create_layer(scene, patch, info, collection, materials, k, shapes))
+        beams = [planned[int(s)] for s in patch.sources]
+        layers.append(
+            create_layer(
+                scene,
+                patch,
+                info,
+                collection,
+                materials,
+                k,
+                shapes,
+                lights=[p.light_name for p in beams],
+                lenses=[p.lens_name for p in beams],
+            )
+        )
         if progress is not None and k % 8 == 7:
             progress((k + 1) / max(len(patches), 1))
     lights = []
@@ -235,13 +253,26 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
                 scene, p, lens_objects[p.source.lens], collection, links, model_name="CAUSTIC_LAYER"
             )
             ob.light_linking.receiver_collection = include
-            ob.lens_lights.note = "; ".join(
-                x
-                for x in (ob.lens_lights.note, "Fitted spot for glossy or transparent receivers")
-                if x
-            )
+            ob.lens_lights.receiver = ", ".join(sorted(fallback_objects))
             lights.append(ob)
     return layers, lights, sorted(fallback_objects)
+
+
+def made_counts(objects) -> dict:
+    """What `objects` (the extension's, made or about to be removed) are, for
+    `made_text`: lens lights (``made``), caustic layers (meshes) and the receivers
+    they lie on, the layer's fallback spots and the receivers they light."""
+    layers = [ob for ob in objects if ob.type != "LIGHT"]
+    fallback = [ob for ob in objects if ob.type == "LIGHT" and ob.lens_lights.receiver]
+    return dict(
+        made=len(objects) - len(layers) - len(fallback),
+        layers=len(layers),
+        fallback=len(fallback),
+        on=sorted({ob.lens_lights.receiver for ob in layers if ob.lens_lights.receiver}),
+        fallback_on=sorted(
+            {n for ob in fallback for n in ob.lens_lights.receiver.split(", ") if n}
+        ),
+    )
 
 
 def remove_unused_layer_materials() -> int:

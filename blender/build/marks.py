@@ -35,6 +35,9 @@ LINK_GROUP = "lens_lights_link_group"
 
 #: Custom property of a profile image: its cache key (`lights.profile_image`).
 PROFILE_KEY = "lens_lights_profile_key"
+#: On a linking collection that is a user light's own linking collection with its
+#: lens lights' lenses excluded (`lights.link_lights`): (user collection, group).
+USER_LINK = "lens_lights_user_link"
 
 #: Names of what the builders make.
 COLLECTION_NAME = "Lens Lights"

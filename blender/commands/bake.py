@@ -235,11 +235,12 @@ def _slice_image(track, role: str, name: str):
 
 def _frame_lights(work, firsts: dict, tables: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
-    (PlannedLight, lens object); `tables` (key → pixels) shares equal tables over
-    the frames. An Exact profile light records what Generate's node tree reads on
-    this frame: its near field's own table (its key, intensity and intensity ×
-    slope), its receiver planes' tilt numbers (`lights.tilt_values`; their count
-    under `TILT_PLANES`), its shadow mask (`mask_nodes.shadow_mask`)."""
+    (PlannedLight, lens object, its user light's own linking); `tables` (key →
+    pixels) shares equal tables over the frames. An Exact profile light records
+    what Generate's node tree reads on this frame: its near field's own table (its
+    key, intensity and intensity × slope), its receiver planes' tilt numbers
+    (`lights.tilt_values`; their count under `TILT_PLANES`), its shadow mask
+    (`mask_nodes.shadow_mask`)."""
     out = []
     nears = [
         bool(
@@ -294,8 +295,12 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
                 px, s_max = mask
                 fl.tables["mask"] = (hashlib.sha1(px.tobytes()).hexdigest(), px)
                 values[MASK_SCALE_NODE] = 0.5 / s_max
-        if key not in firsts:
-            firsts[key] = (p, work.read.sphere_objects[p.source.lens])
+        if key not in firsts:  # (its user light's own linking: `lights.user_link`)
+            firsts[key] = (
+                p,
+                work.read.sphere_objects[p.source.lens],
+                lights.user_link(work.read.light_objects[p.source.light]),
+            )
         out.append(fl)
     return out
 
@@ -417,7 +422,7 @@ class Baker:
         made, firsts = [], []
         masks: set = set()
         for track in tracks:
-            planned, lens_ob = self.firsts[track.key]
+            planned, lens_ob, _ = self.firsts[track.key]
             bl = planned.light
             if track.profile_group is not None:  # no per-frame image: the nodes come below
                 bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
@@ -429,7 +434,7 @@ class Baker:
             firsts.append(bl)
         # the lights move: every beam taken as reaching every lens (each lens its own
         # group while Blender's sets last, then shared: the report lists them)
-        lens_objects = [lens for _, lens in (self.firsts[t.key] for t in tracks)]
+        lens_objects = [self.firsts[t.key][1] for t in tracks]
         index = {o.as_pointer(): k for k, o in enumerate(dict.fromkeys(lens_objects))}
         spheres = list(dict.fromkeys(lens_objects))
         firsts = [
@@ -444,6 +449,7 @@ class Baker:
             np.zeros(len(spheres)),
             spheres,
             everywhere=True,
+            user_links=[self.firsts[t.key][2] for t in tracks],
         )
         profiles = len({v[0].name for v in images.values()})
         return dict(objects=len(tracks), images=profiles, mask_images=len(masks))

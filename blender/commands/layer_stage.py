@@ -29,6 +29,7 @@ from ...core.caustic_layer.plan import (
     sheet_sources,
 )
 from ...core.caustic_layer.view import view_of
+from ...core.phase1.skip_reasons import Reason, SkippedPair
 from ...core.tiers import builds_layer
 from ..build import layers as layer_builder
 from ..build import lights as light_builder
@@ -42,6 +43,9 @@ def prepare(depsgraph, work, options: dict):
     if not builds_layer(options.get("energy_model")) or not work.plan.lights:
         return work
     read = work.read
+    _leave_out_linked(work)
+    if not work.plan.lights:
+        return work
     t = time.perf_counter()
     lenses = [
         ob for ob, lens in zip(read.sphere_objects, read.lens_candidates, strict=False) if lens
@@ -81,6 +85,22 @@ def prepare(depsgraph, work, options: dict):
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
     return work
+
+
+def _leave_out_linked(work):
+    """The planned lights of a light with light or shadow linking of its own leave the
+    plan, each pair skipped by name: a layer lies on every receiver its beam lands on,
+    whatever the light's linking says (lens lights keep it: `lights.link_lights`)."""
+    objects = work.read.light_objects
+    keep = []
+    for p in work.plan.lights:
+        if light_builder.user_link(objects[p.source.light]) is None:
+            keep.append(p)
+        else:
+            work.plan.skipped.append(
+                SkippedPair(p.light_name, p.lens_name, Reason.LINKED_LIGHT_IN_LAYER)
+            )
+    work.plan.lights = keep
 
 
 def build(scene, work, progress=None) -> list:

@@ -414,6 +414,7 @@ def update(scene, depsgraph, force=False) -> dict:
                 read.arrays.center,
                 read.arrays.radius,
                 read.sphere_objects,
+                user_links=lights.user_links_of([p for _, p in pairs], read.light_objects),
             )
         if images:  # a profile's node tree was rebuilt: its old image may be unused
             lights.remove_unused_profile_images()

@@ -86,7 +86,7 @@ from ...core.scene.assembly import (
     perspective_fov,
     render_size,
 )
-from ...core.scene.light_props import LightNodes, LightRecord
+from ...core.scene.light_props import IES_FAC, LightNodes, LightRecord, uses_light_nodes
 from ...core.scene.model import Camera
 from .materials import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
@@ -275,13 +275,48 @@ def _light_nodes(ld) -> LightNodes | None:
     if len(emission) != 1:
         return LightNodes(kinds, len(emission))
     e = emission[0].inputs
-    return LightNodes(
+    nodes = LightNodes(
         kinds,
         1,
         tuple(e["Color"].default_value),
         float(e["Strength"].default_value),
         sum(1 for i in e if i.is_linked),
     )
+    if not e["Strength"].is_linked:
+        return nodes
+    link = e["Strength"].links[0]
+    node = link.from_node
+    source = f"{node.bl_idname}.{link.from_socket.identifier}"
+    if source != IES_FAC:
+        return dataclasses.replace(nodes, strength_from=source)
+    text, key, error = _ies_text(node)
+    return dataclasses.replace(
+        nodes,
+        strength_from=source,
+        ies_text=text,
+        ies_key=key,
+        ies_strength=float(node.inputs["Strength"].default_value),
+        ies_linked=sum(1 for i in node.inputs if i.is_linked),
+        ies_error=error,
+    )
+
+
+def _ies_text(node) -> tuple[str, str, str]:
+    """(the IES file's text, where it is, why it could not be read) of an IES
+    Texture node: its internal Text, or its external file."""
+    if node.mode == "INTERNAL":
+        if node.ies is None:
+            return "", "", "no Text chosen"
+        text, where = node.ies.as_string(), node.ies.name_full
+    else:
+        where = bpy.path.abspath(node.filepath, library=node.id_data.library)
+        try:
+            with open(where, encoding="latin-1") as f:
+                text = f.read()
+        except OSError as exc:
+            return "", "", f"{node.filepath}: {exc.strerror or exc}"
+    # the key changes with the text (an edited profile is another profile)
+    return text, f"{where}:{hashlib.sha1(text.encode()).hexdigest()[:16]}", ""
 
 
 def _light_record(ob, orig) -> LightRecord:
@@ -755,6 +790,10 @@ def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
     (`fit_meshes`), the read (`core.scene.assembly.assemble`), and the occluders made
     of the instances' meshes."""
     fit_meshes(walk.records, walk.meshes)
+    if scene.render.engine != "CYCLES":  # only Cycles evaluates a light's node tree
+        for r in walk.records:
+            if isinstance(r, LightRecord) and uses_light_nodes(r.nodes):
+                r.nodes, r.nodes_ignored = None, True
     width, height = _render_size(scene)
     read, blocking = assemble(
         walk.records,

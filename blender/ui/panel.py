@@ -7,7 +7,9 @@ live update)
 and the last run's figures.
 Sub-panel "Object": for the active mesh its lens mode and IOR override; for a lens
 light where it came from, and for an Exact-profile one that the power Blender shows
-for it is a sampling weight (the node tree holds the intensity).
+for it is a sampling weight (the node tree holds the intensity); for a caustic layer
+the receiver it lies on, the lenses and lights whose caustic it draws and its flux
+(for its fallback spot, the glossy or transparent receivers it lights).
 
 Long texts are wrapped to the region's width (`core.report.panel_text`); labels are
 translatable (`iface_` with format placeholders; names and numbers are not
@@ -18,7 +20,7 @@ import bpy
 from bpy.app.translations import pgettext_iface as iface_
 
 from ...core.report.panel_text import chars_per_line, wrap
-from ...core.tiers import EXACT_PROFILE, TIER_LINES, resolve_energy_model
+from ...core.tiers import CAUSTIC_LAYER, EXACT_PROFILE, TIER_LINES, resolve_energy_model
 from ...core.tiers import TIERS as ENERGY_MODELS
 
 #: Shown for an Exact-profile lens light (issue 10): its Blender power is only what
@@ -47,6 +49,24 @@ def _lines(layout, text, width, **kw):
 def _figure(layout, text, value):
     """A label "text: value" with `text` translated."""
     layout.label(text=iface_(text).format(value), translate=False)
+
+
+def _layer_figures(col, ob, meta, width):
+    """A caustic layer (a mesh) or its fallback spot (a light) in the layer's terms:
+    what it lies on or lights, whose caustic it draws, the flux it holds."""
+    if ob.type == "LIGHT":  # the Fitted spot standing in on glossy/transparent receivers
+        _figure(col, "Fallback spot on: {}", meta.receiver or "-")
+        _lines(col, iface_("(glossy or transparent: no caustic layer shows there)"), width)
+        _figure(col, "Light: {}", meta.source_light)
+        _figure(col, "Lens: {}", meta.source_lens)
+        _lines(col, meta.note, width)
+        return
+    _figure(col, "Caustic layer on: {}", meta.receiver or "-")
+    if meta.source_lens:  # (a baked layer keeps its sources by key only)
+        _lines(col, iface_("Lenses: {}").format(meta.source_lens), width)
+        _lines(col, iface_("Lights: {}").format(meta.source_light), width)
+    _figure(col, "Flux drawn: {} W", f"{meta.relative_brightness:.3g}")
+    _lines(col, meta.note, width)
 
 
 class VIEW3D_PT_lens_lights(bpy.types.Panel):
@@ -100,6 +120,8 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         grid = box.grid_flow(columns=2, even_columns=True, align=True)
         if settings.last_layers:
             _figure(grid, "Caustic layers: {}", settings.last_layers)
+        if settings.last_fallback:
+            _figure(grid, "Fallback spots: {}", settings.last_fallback)
         _figure(grid, "Lens lights: {}", settings.last_created)
         _figure(grid, "Sources: {}", settings.last_sources)
         _figure(grid, "Lights: {}", settings.last_primaries)
@@ -129,6 +151,9 @@ class VIEW3D_PT_lens_lights_object(bpy.types.Panel):
         meta = ob.lens_lights
         width = _width(context)
         layout.label(text=ob.name, icon="OBJECT_DATA", translate=False)
+        if meta.is_lens_light and meta.energy_model == CAUSTIC_LAYER:
+            _layer_figures(layout.column(align=True), ob, meta, width)
+            return
         if meta.is_lens_light:
             col = layout.column(align=True)
             _figure(col, "From: {}", meta.source_light)
@@ -141,9 +166,11 @@ class VIEW3D_PT_lens_lights_object(bpy.types.Panel):
             )
             if not meta.full:
                 _figure(col, "Unblocked: {}", f"{meta.unblocked_fraction:.3f}")
+            tier = ENERGY_MODELS.get(meta.energy_model)
             col.label(
                 text=iface_("Model: {}, brightness {}").format(
-                    meta.energy_model, f"{meta.relative_brightness:.3g}"
+                    iface_(tier.label) if tier else meta.energy_model,
+                    f"{meta.relative_brightness:.3g}",
                 ),
                 translate=False,
             )

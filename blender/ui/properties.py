@@ -68,8 +68,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Energy Model",
         items=_ENERGY_MODEL_ITEMS,
         default=DEFAULT_ENERGY_MODEL,
-        description="Which lens-light tier to build (how close to the exact caustic, "
-        "and which engines render it)",
+        description="What to build for each caustic: lens lights of one of four tiers, "
+        "or caustic layers (emissive meshes on the receivers); how close each comes to "
+        "the exact caustic, and which engines render it",
     )
     min_brightness: FloatProperty(
         name="Minimum Brightness",
@@ -78,8 +79,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         soft_max=1.0,
         precision=3,
         description=(
-            "Leave out lens lights whose caustic is dimmer than this share of "
-            "the primary light's irradiance at the lens"
+            "Leave out caustics (lens lights, or beams of a caustic layer) dimmer than "
+            "this share of the primary light's irradiance at the lens"
         ),
     )
     max_lights: IntProperty(
@@ -88,7 +89,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         min=1,
         soft_max=512,
         max=100000,
-        description="Create at most this many lens lights (the brightest)",
+        description="Create at most this many lens lights, or caustics in the layers "
+        "(the brightest)",
     )
     spot_blend: FloatProperty(
         name="Spot Blend",
@@ -122,8 +124,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Replace Cycles' Caustics",
         default=True,
         description=(
-            "Turn Cycles' own caustics of the lenses off while they have lens lights "
-            "(refractive caustics of the scene, shadow caustics of each lens), so that "
+            "Turn Cycles' own caustics of the lenses off while they have lens lights or "
+            "caustic layers (refractive caustics of the scene, shadow caustics of each "
+            "lens), so that "
             "no caustic is rendered twice; Clear restores them. The scene's refractive "
             "caustics stay on (with a warning naming it) while it holds glass Lens "
             "Lights does not model (a glass cylinder, box, ellipsoid, thin-walled glass), "
@@ -134,7 +137,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Live Update",
         default=False,
         description=(
-            "Lens lights follow the scene: when lights, lenses or receivers move, on "
+            "Lens lights and caustic layers follow the scene: when lights, lenses or "
+            "receivers move, on "
             "frame change and on every frame of a render (slower playback; the Caustic "
             "layer is rebuilt on each update)"
         ),
@@ -145,6 +149,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_run: BoolProperty(default=False, options={"HIDDEN"})
     last_created: IntProperty(name="Created", default=0)
     last_layers: IntProperty(name="Caustic Layers", default=0)
+    last_fallback: IntProperty(name="Fallback Spots", default=0)
     last_sources: IntProperty(name="Secondary Sources", default=0)
     last_skipped: IntProperty(name="Skipped Pairs", default=0)
     last_primaries: IntProperty(name="Lights", default=0)
@@ -180,6 +185,7 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     is_lens_light: BoolProperty(default=False, options={"HIDDEN"})
     source_light: StringProperty(name="Primary Light")
     source_lens: StringProperty(name="Lens")
+    receiver: StringProperty(name="Receiver", description="The object a caustic layer lies on")
     kind: StringProperty(name="Kind", description="Real, virtual or collimated")
     full: BoolProperty(name="Full", description="Nothing blocks the light on its way to the lens")
     unblocked_fraction: FloatProperty(name="Unblocked", precision=4)

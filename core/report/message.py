@@ -13,6 +13,7 @@ import numpy as np
 
 from ..phase1.point_lights import Phase1Result, SkipTable
 from ..phase1.skip_reasons import Reason, reason_kind, reason_text
+from ..shared.words import share_text
 
 #: How many skipped pairs / left-out objects a report names.
 REPORT_FIRST = 3
@@ -53,13 +54,23 @@ def plural(n, word, many=None):
     return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
-def made_text(lights: int, layers: int = 0) -> str:
-    """What a run made, in the words of what it is: "1 caustic layer", "2 caustic
-    layers and 1 lens light", "0 lens lights"."""
-    if not layers:
-        return plural(lights, "lens light")
-    text = plural(layers, "caustic layer")
-    return f"{text} and {plural(lights, 'lens light')}" if lights else text
+def made_text(lights: int, layers: int = 0, fallback: int = 0, on=(), fallback_on=()) -> str:
+    """What a run made, each thing by its name: "1 lens light", "2 caustic layers on
+    Table, Wall", "1 caustic layer on Table and 1 fallback spot on glossy or
+    transparent Mirror", "0 lens lights". `layers`: the layer meshes (one
+    per receiver plane their caustics land on), `on` the receivers they lie on;
+    `fallback`: the layer tier's Fitted spots, `fallback_on` the receivers they light."""
+    parts = []
+    if layers:
+        parts.append(plural(layers, "caustic layer") + (f" on {_names(on)}" if on else ""))
+    if fallback:
+        parts.append(
+            f"{plural(fallback, 'fallback spot')} on glossy or transparent "
+            + (_names(fallback_on) if fallback_on else "receivers")
+        )
+    if lights or not parts:
+        parts.append(plural(lights, "lens light"))
+    return " and ".join(parts)
 
 
 def left_out_text(left_out_lenses) -> str:
@@ -75,11 +86,19 @@ def left_out_text(left_out_lenses) -> str:
 
 
 def report_message(
-    work, made: int, *, layers: int = 0, read_as_rendered: bool = True
+    work,
+    made: int,
+    *,
+    layers: int = 0,
+    fallback: int = 0,
+    on=(),
+    fallback_on=(),
+    read_as_rendered: bool = True,
 ) -> tuple[str, str, dict]:
-    """(level, message, figures) of a run that made `made` lens lights and `layers`
-    caustic layers; `read_as_rendered`: False when the scene was read as the
-    viewport shows it (`work.read.how` says why)."""
+    """(level, message, figures) of a run that made `made` lens lights, `layers`
+    caustic layers on the receivers `on` and `fallback` fallback spots lighting
+    `fallback_on` (`made_text`); `read_as_rendered`: False when the scene was read
+    as the viewport shows it (`work.read.how` says why)."""
     read, result, sel, plan = work.read, work.result, work.selection, work.plan
     lights = len(read.light_sources)
     lenses = int(np.count_nonzero(read.lens_candidates))
@@ -90,14 +109,14 @@ def report_message(
         float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights if id(p.source) in rows
     )
     left_share = (1.0 - built / sel.flux_total) if sel.flux_total > 0 else 0.0
-    any_made = made or layers
+    any_made = made or layers or fallback
     left_share = (
         min(max(left_share, 0.0), 1.0) if any_made else (1.0 if sel.flux_total > 0 else 0.0)
     )
 
     level = "INFO"
     parts = [
-        f"Created {made_text(made, layers)} ({plural(lights, 'light')}"
+        f"Created {made_text(made, layers, fallback, on, fallback_on)} ({plural(lights, 'light')}"
         f" × {plural(lenses, 'lens', 'lenses')})"
     ]
     if not lights:
@@ -120,9 +139,10 @@ def report_message(
             )
     if sel.budget.merged:
         parts.append(f"merged {plural(sel.budget.merged, 'source')} into nearby lens lights")
-    if left_share > 0 and len(result.table):
+    share = share_text(left_share, 1.0) if len(result.table) else ""
+    if share:
         what = "is in no caustic layer or lens light" if layers else "has no lens light"
-        parts.append(f"{100.0 * left_share:.3g}% of the lenses' flux {what}")
+        parts.append(f"{share} of the lenses' flux {what}")
     if read.left_out_lenses:
         parts.append(left_out_text(read.left_out_lenses))
     notes = getattr(read, "light_notes", [])
@@ -135,6 +155,7 @@ def report_message(
     figures = dict(
         created=made,
         layers=layers,
+        fallback=fallback,
         sources=len(result.table),
         skipped=skipped,
         skipped_by_reason=counts,
