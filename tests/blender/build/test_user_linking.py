@@ -114,8 +114,12 @@ def test_in_cycles_the_excluded_table_gets_no_caustic(empty_blend, tmp_path):
     """A render (Cycles, direct light only: the lens light is the only caustic): the
     lamp leaves the floor out, so the floor under the marble is black, caustic
     included; without the user's linking the same render shows the caustic."""
-    from measuring_scene import add_glass_ball, build_measuring_scene, direct_light_only
-    from measuring_scene import render_grey
+    from measuring_scene import (
+        add_glass_ball,
+        build_measuring_scene,
+        direct_light_only,
+        render_grey,
+    )
 
     ms = build_measuring_scene(
         "CYCLES",
