@@ -37,6 +37,7 @@ _MODULE_NAMES = (
     "commands.generate",
     "commands.bake",
     "commands.live_update",
+    "commands.bake_check",
     "ui.panel",
     "bi.operators",
 )

@@ -152,6 +152,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_left_out: IntProperty(name="Left Out", default=0)
     last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
     last_report: StringProperty(name="Last Report", default="")
+    #: What the bake was baked from (`core.animation.bake_inputs.BakeInputs` as JSON;
+    #: empty: no bake): the panel and renders say when the scene has changed under it.
+    baked_from: StringProperty(default="", options={"HIDDEN"})
 
     created_objects: CollectionProperty(type=LensLightsCreatedObject, options={"HIDDEN"})
     created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={"HIDDEN"})

@@ -106,9 +106,10 @@ def _shape(record) -> str:
 
 
 def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
-    """Per top object of `inputs` (`core.scene.assembly.ReadInputs`) its print "K where what shape" (K: `LIGHT`, `SURFACE` or
-    `OTHER`; each part `PART_HEX` hex digits), and per entry of `extra` (name →
-    plain data, e.g. the settings) an `OTHER` print of its value."""
+    """Per top object of `inputs` (`core.scene.assembly.ReadInputs`) its print "K
+    where what shape" (K: `LIGHT`, `SURFACE` or `OTHER`; each part `PART_HEX` hex
+    digits), and per entry of `extra` (name → plain data, e.g. the settings) an
+    `OTHER` print of its value."""
     out: dict[str, str] = {}
     records = inputs.records
     what = [canonical(r) for r in records]
@@ -198,8 +199,15 @@ def changes_text(found: list[Change], named: int = NAMED) -> str:
     return ", ".join(words)
 
 
+#: The panel's line under Live Update while a bake exists.
+LIVE_UPDATE_WAITS = (
+    "Live update is off while a bake exists: its keys drive the lens lights "
+    "(Clear or Generate to follow the scene live, Bake again to update the bake)"
+)
+
+
 def stale_text(first: int, last: int, frame: int, found: list[Change]) -> str:
-    """"The bake (frames 1–10) is out of date at frame 5: Marble moved since it was
+    """The words: "The bake (frames 1–10) is out of date at frame 5: Marble moved since it was
     baked; Bake again"."""
     return (
         f"The bake (frames {first}–{last}) is out of date at frame {frame}: "

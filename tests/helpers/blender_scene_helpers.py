@@ -368,6 +368,9 @@ class FakeLayout:
         module, op = idname.split(".")
         getattr(getattr(bpy.ops, module), op).get_rna_type()  # KeyError if it is missing
         self.log.append(("operator", idname))
+        props = SimpleNamespace(idname=idname, text=kw.get("text"))
+        self.log.append(("operator props", props))  # the button's settings, as set
+        return props
 
     def label(self, text="", **kw):
         self.log.append(("label", text))
