@@ -49,8 +49,14 @@ from . import pipeline
 LAST_RENDER_WARNING: str | None = None
 #: Bumped on every depsgraph update: the panel's cached status is then old.
 _GENERATION = 0
-#: Per scene pointer: (cache key, `BakeStatus`).
+#: Per scene pointer: (cache key, `BakeStatus`, when it was computed).
 _STATUS: dict = {}
+#: A check that cost more than this (seconds) is run again at most every
+#: `RECHECK_FACTOR` × its cost (dragging in a big scene: the panel keeps its last
+#: status meanwhile and redraws when the wait is over).
+RECHECK_ABOVE = 0.02
+RECHECK_FACTOR = 10.0
+_REDRAW_PENDING = False
 
 
 def extras(read, options: dict) -> dict:
@@ -147,16 +153,41 @@ def status(context):
         return None
     key = (_GENERATION, scene.frame_current, hash(settings.baked_from))
     cached = _STATUS.get(scene.as_pointer())
-    if cached is not None and cached[0] == key:
-        return cached[1]
+    if cached is not None:
+        if cached[0] == key:
+            return cached[1]
+        cost = cached[1].seconds if cached[1] is not None else 0.0
+        wait = RECHECK_FACTOR * cost - (time.perf_counter() - cached[2])
+        if cost > RECHECK_ABOVE and wait > 0:
+            _redraw_later(wait)
+            return cached[1]
     try:
         render = viewport_differs(context) is None
     except Exception:
         render = False
     depsgraph = context.view_layer.depsgraph
     result = check(scene, depsgraph, render=render)
-    _STATUS[scene.as_pointer()] = (key, result)
+    _STATUS[scene.as_pointer()] = (key, result, time.perf_counter())
     return result
+
+
+def _redraw_later(seconds: float):
+    """Redraw the 3D views' sidebars in `seconds` (once, however often asked)."""
+    global _REDRAW_PENDING
+    if _REDRAW_PENDING:
+        return
+    _REDRAW_PENDING = True
+
+    def redraw():
+        global _REDRAW_PENDING
+        _REDRAW_PENDING = False
+        for window in bpy.context.window_manager.windows:
+            for area in window.screen.areas:
+                if area.type == "VIEW_3D":
+                    area.tag_redraw()
+        return None  # once
+
+    bpy.app.timers.register(redraw, first_interval=seconds)
 
 
 def render_warning(scene, depsgraph) -> str | None:

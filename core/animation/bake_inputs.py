@@ -60,30 +60,57 @@ def quantised(values) -> np.ndarray:
     return np.where(np.isfinite(x), q, x) + 0.0  # + 0.0: no −0
 
 
-def canonical(value) -> str:
+def _number(x: float) -> str:
+    """One number as `quantised` rounds it (in Python: no array for a scalar)."""
+    x = float(x)
+    if x != x or x in (float("inf"), float("-inf")):
+        return repr(x)
+    if abs(x) < FLOOR:
+        return "0.0"
+    return repr(float(f"{x:.{DIGITS}g}") + 0.0)
+
+
+_FIELDS: dict = {}
+
+
+def _fields(cls) -> tuple:
+    """A dataclass' field names but `_SKIPPED` (looked up once per class)."""
+    names = _FIELDS.get(cls)
+    if names is None:
+        names = _FIELDS[cls] = tuple(
+            f.name for f in dataclasses.fields(cls) if f.name not in _SKIPPED
+        )
+    return names
+
+
+def canonical(value, memo: dict | None = None) -> str:
     """A stable text of plain data (dataclasses, sequences, dicts, numbers, text,
-    numpy arrays) with every number `quantised`; `_SKIPPED` fields left out."""
+    numpy arrays) with every number rounded as `quantised` does; `_SKIPPED` fields
+    left out. `memo` (id → text) shares the text of a dataclass met again (a
+    material's optics, read once per material)."""
     if value is None or isinstance(value, (bool, str)):
         return repr(value)
     if isinstance(value, enum.Enum):
         return repr(value.value)
     if isinstance(value, (int, np.integer)):
         return str(int(value))
-    if isinstance(value, (float, np.floating, np.ndarray)):
-        q = quantised(value)
-        return repr(q.tolist()) if q.ndim else repr(float(q))
+    if isinstance(value, (float, np.floating)):
+        return _number(value)
+    if isinstance(value, np.ndarray):
+        return repr(quantised(value).tolist())
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        parts = [
-            f"{f.name}={canonical(getattr(value, f.name))}"
-            for f in dataclasses.fields(value)
-            if f.name not in _SKIPPED
-        ]
-        return f"{type(value).__name__}({', '.join(parts)})"
+        if memo is not None and id(value) in memo:
+            return memo[id(value)]
+        parts = [f"{n}={canonical(getattr(value, n), memo)}" for n in _fields(type(value))]
+        text = f"{type(value).__name__}({', '.join(parts)})"
+        if memo is not None:
+            memo[id(value)] = text
+        return text
     if isinstance(value, dict):
-        items = sorted((str(k), canonical(v)) for k, v in value.items())
+        items = sorted((str(k), canonical(v, memo)) for k, v in value.items())
         return "{" + ", ".join(f"{k}: {v}" for k, v in items) + "}"
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(canonical(v) for v in value) + "]"
+        return "[" + ", ".join(canonical(v, memo) for v in value) + "]"
     return repr(value)
 
 
@@ -94,15 +121,46 @@ def _digest(*chunks) -> str:
     return h.hexdigest()
 
 
-def _shape(record) -> str:
-    """A geometry record's shape: its local box and sphere fit (centre, radius, or
-    why none)."""
-    corners = getattr(record, "corners", None)
-    fit = getattr(record, "fit", None)
-    fit_text = None
-    if fit is not None:
-        fit_text = (fit.ok, canonical(fit.center), canonical(fit.radius), fit.reason)
-    return canonical(corners) + repr(fit_text)
+def _shapes(records) -> list[bytes]:
+    """Each record's shape: its local box and sphere fit (centre, radius, or why
+    none), rounded all at once."""
+    n = len(records)
+    corners = np.full((n, 8, 3), np.nan)
+    fits = np.full((n, 5), np.nan)  # ok, centre, radius
+    reasons = []
+    for k, r in enumerate(records):
+        c = getattr(r, "corners", None)
+        if c is not None:
+            corners[k] = c
+        fit = getattr(r, "fit", None)
+        if fit is not None:
+            fits[k] = (float(fit.ok), *np.asarray(fit.center, float).reshape(3), fit.radius)
+        reasons.append(fit.reason.encode() if fit is not None else b"-")
+    corners, fits = quantised(corners), quantised(fits)
+    return [corners[k].tobytes() + fits[k].tobytes() + reasons[k] for k in range(n)]
+
+
+_PLAIN = (str, int, float, bool, type(None), tuple)
+
+
+def _whats(records, memo) -> list[str]:
+    """`canonical` of each record, once per distinct content (records alike but for
+    their names, e.g. many objects of one material, share one text)."""
+    texts: dict = {}
+    out = []
+    for r in records:
+        key = (type(r), *(getattr(r, n) for n in _fields(type(r))))
+        key = tuple(x if isinstance(x, _PLAIN) else id(x) for x in key)
+        try:
+            text = texts.get(key)
+        except TypeError:  # a tuple holding something unhashable
+            key, text = None, None
+        if text is None:
+            text = canonical(r, memo)
+            if key is not None:
+                texts[key] = text
+        out.append(text)
+    return out
 
 
 def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
@@ -112,10 +170,12 @@ def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
     `OTHER` print of its value."""
     out: dict[str, str] = {}
     records = inputs.records
-    what = [canonical(r) for r in records]
-    shape = [_shape(r) for r in records]
+    memo: dict = {}  # alive while `records` are: ids stay theirs
+    what = _whats(records, memo)
+    shape = _shapes(records)
     gid = np.asarray(inputs.gid, dtype=np.int64).reshape(-1)
     mats = quantised(np.asarray(inputs.matrices, dtype=float).reshape(-1, 4, 4))
+    is_light = np.array([isinstance(r, LightRecord) for r in records], dtype=bool)
     if gid.size:
         owner = inputs.owners()
         names, which = np.unique(owner.astype(str), return_inverse=True)
@@ -124,7 +184,7 @@ def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
         for k, name in enumerate(names):
             rows = order[bounds[k] : bounds[k + 1]]
             gs = gid[rows]
-            light = all(isinstance(records[g], LightRecord) for g in gs)
+            light = bool(is_light[gs].all())
             out[str(name)] = "".join(
                 (
                     LIGHT if light else SURFACE,

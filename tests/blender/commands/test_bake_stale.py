@@ -28,6 +28,16 @@ def baked_scene():
     return sc, marble, lamp
 
 
+@pytest.fixture(autouse=True)
+def check_every_draw(monkeypatch, extension):
+    """The panel checks again on every update here (on a busy machine a tiny scene's
+    check can exceed `RECHECK_ABOVE`, and the panel would keep its last status for a
+    moment: a UI nicety, tested on its own below)."""
+    from lens_lights.blender.commands import bake_check
+
+    monkeypatch.setattr(bake_check, "RECHECK_ABOVE", float("inf"))
+
+
 def panel_labels(context):
     from lens_lights.blender.ui.panel import VIEW3D_PT_lens_lights
 
@@ -171,3 +181,20 @@ def test_clear_and_generate_end_the_bake(empty_blend):
     assert bake_check.has_bake(sc)
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert not bake_check.has_bake(sc) and sc.lens_lights.baked_from == ""
+
+
+def test_a_costly_check_is_run_again_only_after_a_wait(empty_blend, monkeypatch):
+    """While the user drags in a big scene the panel keeps its last status for ten
+    times the last check's cost, then checks again."""
+    from lens_lights.blender.commands import bake_check
+
+    sc, marble, _lamp = baked_scene()
+    first = bake_check.status(bpy.context)
+    assert first is not None and not first.stale
+    monkeypatch.setattr(bake_check, "RECHECK_ABOVE", 0.0)
+    monkeypatch.setattr(bake_check, "RECHECK_FACTOR", 1e6)  # a long wait
+    marble.location.x += 0.3
+    bpy.context.view_layer.update()
+    assert bake_check.status(bpy.context) is first  # kept meanwhile
+    monkeypatch.setattr(bake_check, "RECHECK_FACTOR", 0.0)  # the wait is over
+    assert bake_check.status(bpy.context).stale
