@@ -50,7 +50,12 @@ scene as it was:
      the mesh's raster UVs with a keyed slice index (`baked_layers`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
-after it (the keys drive the lights; a cancel or a failed plan puts it back).
+after it (the keys drive the lights; a cancel or a failed plan puts it back); while
+the bake exists it does nothing even when turned on (`live_update._on`).
+
+What each frame was read from is kept as prints (`bake_check.prints_of`, stored by
+`bake_check.record` in ``scene.lens_lights.baked_from``), so that the panel and
+renders can say when the scene changed under the bake (`bake_check`).
 
 Every action made is marked (`marks.COLLECTION_MARK` = "bake") and removed by
 Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clear`).

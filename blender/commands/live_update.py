@@ -47,6 +47,8 @@ set of lights changes.
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.
 Clear turns live update off (else the lights would come back at the next update).
+While a bake exists (`bake_check.has_bake`) live update does nothing, switch on or
+not: the bake's keys drive its lights, node trees and images (the panel says so).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
 not there at all, so their lights and lenses are missed until a render (whose
 depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.

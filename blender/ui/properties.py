@@ -136,7 +136,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         description=(
             "Lens lights follow the scene: when lights, lenses or receivers move, on "
             "frame change and on every frame of a render (slower playback; the Caustic "
-            "layer is rebuilt on each update)"
+            "layer is rebuilt on each update). Off while a bake exists"
         ),
         update=lambda settings, context: _live_update_switched(settings, context),
     )

@@ -71,6 +71,14 @@ def test_the_panel_says_when_the_marble_moved_since_the_bake(empty_blend):
     marble.location.x -= 0.3
     bpy.context.view_layer.update()
     assert "out of date" not in panel_labels(bpy.context)[0]
+    # moved again and baked again over the button's frames: up to date
+    marble.location.x += 0.3
+    bpy.context.view_layer.update()
+    assert "out of date" in panel_labels(bpy.context)[0]
+    assert bpy.ops.lens_lights.bake(frame_start=1, frame_end=3) == {"FINISHED"}
+    for f in (1, 2, 3):
+        sc.frame_set(f)
+        assert "out of date" not in panel_labels(bpy.context)[0], f
 
 
 def test_a_lamp_edit_and_a_new_object_are_named_and_nothing_else(empty_blend):
