@@ -9,7 +9,9 @@ F frames (Fitted, EEVEE: the check reads the same whatever the tier). Then:
   (`bake_check.status`: the viewport depsgraph read, the prints, the compare; its
   throttle off): median of ``--repeats`` runs, and the read alone, and a cached
   call (a redraw without an update in between);
-* that a sphere moved after the bake is named.
+* that a sphere moved after the bake is named, and a cube moved beside the floor
+  (away from every path of the light) is not (and what that check costs: the
+  paths are built only when something differs).
 
     ./lens-lights bench bake_check [--counts 20 100 1000] [--frames 10] [--repeats 9]
 """
@@ -43,6 +45,10 @@ def run(n, frames, repeats):
     bake_check.RECHECK_ABOVE = float("inf")  # the check itself, never its throttle
     build_scene(n, frames)
     scene = bpy.context.scene
+    side = max(1.0, n**0.5)
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(1.5 * side, 1.5 * side, 0.25))
+    cube = bpy.context.object  # beside the floor, away from every beam
+    cube.name = "Unrelated cube"
     set_engine("BLENDER_EEVEE")
     scene.lens_lights.energy_model = "FITTED"
     scene.frame_start, scene.frame_end = 1, frames
@@ -66,6 +72,12 @@ def run(n, frames, repeats):
     t = time.perf_counter()
     bake_check.status(bpy.context)
     cached = time.perf_counter() - t
+    cube.location.x += 0.5
+    bpy.context.view_layer.update()
+    t = time.perf_counter()
+    aside = bake_check.status(bpy.context)
+    aside_s = time.perf_counter() - t
+    cube_named = aside is None or aside.stale
     bead = bpy.data.objects["Bead.00001"] if n > 1 else bpy.data.objects["Sphere"]
     bead.location.x += 0.01
     bpy.context.view_layer.update()
@@ -81,6 +93,8 @@ def run(n, frames, repeats):
         read=statistics.median(reads),
         cached=cached,
         named=named,
+        cube_named=cube_named,
+        aside=aside_s,
         text=moved.text if moved is not None else "",
     )
 
@@ -103,7 +117,8 @@ def main(argv=None):
         rows.append(r)
         print(
             f"{n} lenses, {args.frames} frames: record {r['bytes']} B, check {ms(r['check'])} ms "
-            f"(read {ms(r['read'])} ms), cached {ms(r['cached'])} ms, moved named: {r['named']}",
+            f"(read {ms(r['read'])} ms), cached {ms(r['cached'])} ms, moved named: {r['named']}, "
+            f"cube named: {r['cube_named']} ({ms(r['aside'])} ms)",
             flush=True,
         )
     lines = [
@@ -122,14 +137,16 @@ def main(argv=None):
         "between. *record*: bytes of `scene.lens_lights.baked_from` in the .blend.",
         "",
         "| lenses | objects | frames | bake s | record B | B / object | check ms | read ms "
-        "| cached ms | a moved sphere named |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+        "| cached ms | a moved sphere named | a cube moved away from the light named "
+        "(check ms) |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |",
     ]
     for r in rows:
         lines.append(
             f"| {r['n']} | {r['objects']} | {r['frames']} | {r['bake']:.1f} | {r['bytes']} "
             f"| {r['bytes'] / r['objects']:.0f} | {ms(r['check'])} | {ms(r['read'])} "
-            f"| {ms(r['cached'])} | {'yes' if r['named'] else 'NO'} |"
+            f"| {ms(r['cached'])} | {'yes' if r['named'] else 'NO'} "
+            f"| {'YES' if r['cube_named'] else 'no'} ({ms(r['aside'])}) |"
         )
     lines += ["", f"The message for the last: “{rows[-1]['text']}”."]
     REPORTS.mkdir(exist_ok=True)

@@ -33,10 +33,14 @@ import bpy
 from ...core.animation.bake_inputs import (
     CAMERA,
     SETTINGS,
+    AWAY,
     BakeInputs,
     Change,
+    away,
     changes,
+    differing,
     frame_prints,
+    light_paths,
     stale_text,
 )
 from ...core.tiers import builds_layer
@@ -68,9 +72,15 @@ def extras(read, options: dict) -> dict:
     return out
 
 
-def prints_of(read, options: dict) -> dict:
-    """The prints of one read (`core.animation.bake_inputs.frame_prints`)."""
-    return frame_prints(read.inputs, extras(read, options))
+def prints_of(read, options: dict, paths=True) -> dict:
+    """The prints of one read (`core.animation.bake_inputs.frame_prints`); `paths`:
+    surfaces away from every path of the light marked so (`light_paths`; not for the
+    Caustic layer, whose beam lands wherever it lands: every object counts)."""
+    if paths and not builds_layer(options["energy_model"]):
+        paths = light_paths(read)
+    else:
+        paths = None
+    return frame_prints(read.inputs, extras(read, options), paths)
 
 
 def read_as_render(how: str) -> bool:
@@ -131,7 +141,12 @@ def check(scene, depsgraph, frame: int | None = None, *, render: bool | None = N
     t = time.perf_counter()
     read = read_depsgraph(depsgraph, scene)
     read.occluders.release()
-    now = prints_of(read, pipeline.options_from(scene.lens_lights))
+    options = pipeline.options_from(scene.lens_lights)
+    now = prints_of(read, options, paths=False)  # the paths only where something differs
+    names = differing(rec.at(frame), now)
+    if names and not builds_layer(options["energy_model"]):
+        for name in away(read.inputs, [n for n in names if n in now], light_paths(read)):
+            now[name] = AWAY + now[name][1:]
     if render is None:
         render = depsgraph.mode == "RENDER"
     same_kind = render == rec.render

@@ -25,7 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..plan import watch
+from ..plan.watch import Capsules
 from ..scene.light_props import LightRecord
+from ..scene.primaries import PrimaryArrays
+from ..tiers.base import COLLIMATED_DISTANCE_FACTOR
 
 #: Significant digits kept of every number before hashing.
 DIGITS = 6
@@ -41,8 +45,9 @@ _SKIPPED = frozenset(
 #: The pseudo-objects' names.
 SETTINGS = "the Lens Lights settings"
 CAMERA = "the camera"
-#: Kinds of entry (the print's first character).
-LIGHT, SURFACE, OTHER = "L", "S", "X"
+#: Kinds of entry (the print's first character). A surface away from every path of
+#: the light when it was baked: `AWAY` (its edits count only where it now touches one).
+LIGHT, SURFACE, OTHER, AWAY = "L", "S", "X", "s"
 #: How many changed objects a message names.
 NAMED = 3
 VERSION = 1
@@ -163,11 +168,86 @@ def _whats(records, memo) -> list[str]:
     return out
 
 
-def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
+def _glassy(record) -> bool:
+    """Glass (a lens, or glass Lens Lights leaves to Cycles) or forced a lens: it
+    counts wherever it is."""
+    o = getattr(record, "optics", None)
+    return getattr(record, "mode", "") == "ALWAYS" or (
+        o is not None and (o.is_transmissive or o.thin_wall > 0)
+    )
+
+
+def light_paths(read) -> Capsules:
+    """Where the light of `read` (a `core.scene.assembly.BlenderSceneRead`) can go
+    that a plan looks at (`core.plan.watch`): every light to every lens it could
+    have, and every such pair's axis through the lens both ways (the receiver, its
+    tilt, the free distance behind the lens), as far as the planner casts."""
+    lenses = np.flatnonzero(np.asarray(read.lens_candidates, bool))
+    primaries = PrimaryArrays.from_primaries(read.primary_lights)
+    origins, sizes, suns = watch.light_extents(primaries)
+    centers = np.asarray(read.arrays.center, float)[lenses]
+    radii = np.asarray(read.arrays.radius, float)[lenses]
+    reach = COLLIMATED_DISTANCE_FACTOR * read.scene_size
+    if not len(origins) or not len(centers):
+        return Capsules.empty()
+    axes = np.where(suns[:, None, None], origins[:, None, :], centers[None] - origins[:, None])
+    n = np.linalg.norm(axes, axis=2)
+    axes = np.where(n[..., None] > 0, axes, (0.0, 0.0, 1.0)).reshape(-1, 3)
+    along = watch.along_axes(
+        np.tile(centers, (len(origins), 1)), np.tile(radii, len(origins)), axes, reach
+    )
+    return Capsules.join([watch.light_to_lens(origins, sizes, suns, centers, radii, reach), along])
+
+
+def owner_boxes(inputs, names) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The world box (lo, hi) of each top object of `names` (all its instances'
+    boxes: local corners through their matrices); an object without corners is
+    left out."""
+    names = set(names)
+    owner = inputs.owners().astype(str)
+    rows = np.flatnonzero(np.isin(owner, list(names)))
+    corners = np.full((len(inputs.records), 8, 3), np.nan)
+    for g, r in enumerate(inputs.records):
+        c = getattr(r, "corners", None)
+        if c is not None:
+            corners[g] = c
+    gid = np.asarray(inputs.gid, dtype=np.int64)[rows]
+    m = np.asarray(inputs.matrices, float).reshape(-1, 4, 4)[rows]
+    world = np.einsum("nij,nkj->nki", m[:, :3, :3], corners[gid]) + m[:, None, :3, 3]
+    out = {}
+    for name in np.unique(owner[rows]):
+        w = world[owner[rows] == name].reshape(-1, 3)
+        w = w[np.isfinite(w).all(axis=1)]
+        if len(w):
+            out[str(name)] = (w.min(axis=0), w.max(axis=0))
+    return out
+
+
+def away(inputs, names, paths: Capsules) -> set[str]:
+    """The top objects of `names` that are surfaces of no glass whose world box
+    touches none of `paths` (`light_paths`): away from the light."""
+    names = {str(n) for n in names}
+    owner = inputs.owners().astype(str)
+    rows = np.isin(owner, list(names))
+    records = inputs.records
+    counted = np.array([isinstance(r, LightRecord) or _glassy(r) for r in records], dtype=bool)
+    gid = np.asarray(inputs.gid, dtype=np.int64)
+    always = set(owner[rows & counted[gid]]) if len(gid) else set()
+    boxes = owner_boxes(inputs, names - always)
+    if not boxes:
+        return set()
+    keys = list(boxes)
+    lo = np.array([boxes[k][0] for k in keys])
+    hi = np.array([boxes[k][1] for k in keys])
+    return {k for k, t in zip(keys, paths.touching(lo, hi), strict=True) if not t}
+
+
+def frame_prints(inputs, extra: dict | None = None, paths: Capsules | None = None) -> dict:
     """Per top object of `inputs` (`core.scene.assembly.ReadInputs`) its print "K
     where what shape" (K: `LIGHT`, `SURFACE` or `OTHER`; each part `PART_HEX` hex
     digits), and per entry of `extra` (name → plain data, e.g. the settings) an
-    `OTHER` print of its value."""
+    `OTHER` print of its value. With `paths` (`light_paths`), a surface that is no
+    glass and touches none of them is `AWAY`."""
     out: dict[str, str] = {}
     records = inputs.records
     memo: dict = {}  # alive while `records` are: ids stay theirs
@@ -193,6 +273,9 @@ def frame_prints(inputs, extra: dict | None = None) -> dict[str, str]:
                     _digest(*(shape[g] for g in gs)),
                 )
             )
+        if paths is not None:
+            for name in away(inputs, names, paths):
+                out[name] = AWAY + out[name][1:]
     zero = "0" * PART_HEX
     for name, value in (extra or {}).items():
         out[name] = OTHER + zero + _digest(canonical(value)) + zero
@@ -206,16 +289,30 @@ class Change:
     kind: str = SURFACE
 
 
+def same(a: str | None, b: str | None) -> bool:
+    """Two prints of one object alike (`AWAY` or not aside)?"""
+    if a is None or b is None:
+        return a is b
+    return a[1:] == b[1:] and a[0].upper() == b[0].upper()
+
+
+def differing(baked: dict, now: dict) -> list[str]:
+    """The names whose prints differ (`same`), in order."""
+    return [n for n in sorted(set(baked) | set(now)) if not same(baked.get(n), now.get(n))]
+
+
 def changes(baked: dict, now: dict, shapes: bool = True) -> list[Change]:
     """What differs between a frame's `baked` prints and those read `now` (names in
     order; per name its first difference: where, what, shape); `shapes` False:
     shapes not compared (the two reads evaluated meshes differently: the viewport's
-    modifier levels against the render's)."""
+    modifier levels against the render's). An object `AWAY` from the light on both
+    sides (or on the one side it is on) is no change: it touched no path of the light
+    when baked and touches none now."""
     out = []
-    for name in sorted(set(baked) | set(now)):
+    for name in differing(baked, now):
         a, b = baked.get(name), now.get(name)
-        if a == b:
-            continue
+        if all(x is None or x[0] == AWAY for x in (a, b)):
+            continue  # away from the light then and now
         if a is None:
             out.append(Change(name, "added", b[0]))
             continue
@@ -226,7 +323,7 @@ def changes(baked: dict, now: dict, shapes: bool = True) -> list[Change]:
         where, what, shape = (slice(1 + k * n, 1 + (k + 1) * n) for k in range(3))
         if a[where] != b[where]:
             out.append(Change(name, "moved", a[0]))
-        elif a[what] != b[what] or a[0] != b[0]:
+        elif a[what] != b[what] or a[0].upper() != b[0].upper():
             out.append(Change(name, "changed", a[0]))
         elif shapes and a[shape] != b[shape]:
             out.append(Change(name, "shape", a[0]))

@@ -81,16 +81,26 @@ def test_the_panel_says_when_the_marble_moved_since_the_bake(empty_blend):
         assert "out of date" not in panel_labels(bpy.context)[0], f
 
 
-def test_a_lamp_edit_and_a_new_object_are_named_and_nothing_else(empty_blend):
+def test_a_lamp_edit_and_an_object_in_the_light_are_named_and_nothing_else(empty_blend):
     from lens_lights.blender.commands import bake_check
 
     sc, _marble, lamp = baked_scene()
     sc.frame_set(1)
     dg = bpy.context.evaluated_depsgraph_get()
     assert bake_check.check(sc, dg, render=True).changes == []
+    # a box 3 m to the side (its near side 2 m from the lamp → marble → floor line):
+    # nothing a plan reads changes, nothing is said
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(3.0, 3.0, 0.5))
+    box = bpy.context.object
+    box.name = "Box"
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert bake_check.check(sc, dg, render=True).changes == []
+    box.location = (-3.0, 2.0, 0.5)  # moved, still away
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert bake_check.check(sc, dg, render=True).changes == []
+    # the lamp's power, and the box under the marble (in its beam): both named
     lamp.data.energy = 500.0
-    bpy.ops.mesh.primitive_cube_add(location=(3.0, 3.0, 0.5))
-    bpy.context.object.name = "Box"
+    box.location = (0.0, 0.0, 1.0)
     dg = bpy.context.evaluated_depsgraph_get()
     status = bake_check.check(sc, dg, render=True)
     assert [(c.name, c.what) for c in status.changes] == [("Box", "added"), ("Lamp", "changed")]

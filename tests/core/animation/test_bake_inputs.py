@@ -3,6 +3,7 @@ prints, a moved, edited, added or removed object is named, float noise below the
 rounding is not seen, and the record of a bake keeps each frame's prints."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from core.animation.bake_inputs import (
     changes,
     changes_text,
     frame_prints,
+    light_paths,
     quantised,
     stale_text,
 )
@@ -20,6 +22,7 @@ from core.lens.glass import MaterialOptics
 from core.lens.sphere_fit import SphereFit
 from core.scene.assembly import GeometryRecord, ReadInputs
 from core.scene.light_props import LightRecord
+from core.scene.primaries import PointPrimary
 
 
 def translation(x, y, z):
@@ -28,8 +31,9 @@ def translation(x, y, z):
     return m
 
 
-def scene(marble=(0.0, 0.0, 1.0), power=1000.0, ior=1.5, noise=0.0, extra_cube=False):
-    """A marble, a table and a lamp (+ two instances of a cube under "Grid")."""
+def scene(marble=(0.0, 0.0, 1.0), power=1000.0, ior=1.5, noise=0.0, extra_cube=False, grid=(9, 12)):
+    """A marble (R 0.5), a table (10 × 10 at z = 0) and a lamp 4 up (+ two cubes of
+    side 2 under "Grid" at x = grid, and maybe one more at x = −9)."""
     cube = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     glass = MaterialOptics(ior=ior, transmission=1.0)
     records = [
@@ -41,8 +45,8 @@ def scene(marble=(0.0, 0.0, 1.0), power=1000.0, ior=1.5, noise=0.0, extra_cube=F
         GeometryRecord("Cube", None, "MESH", cube, optics=MaterialOptics()),
     ]
     gid = [0, 1, 2, 3, 3]
-    mats = [translation(*marble), np.eye(4), translation(0, 0, 4), translation(9, 0, 0)]
-    mats.append(translation(12, 0, 0))
+    mats = [translation(*marble), np.eye(4), translation(0, 0, 4)]
+    mats += [translation(grid[0], 0, 0), translation(grid[1], 0, 0)]
     pid = [-1, -1, -1, 0, 0]
     if extra_cube:
         gid.append(3)
@@ -147,3 +151,32 @@ def test_stale_text_says_range_frame_what_and_what_to_do():
     )
     cam = changes({CAMERA: "X" + "0" * 24}, {CAMERA: "X" + "1" * 24})
     assert changes_text(cam) == "the camera changed"
+
+
+def paths_of(marble=(0.0, 0.0, 1.0)):
+    """The light's paths of `scene`: the lamp (a point at z = 4) to the marble and
+    the marble's axis both ways (as a read holds them; the scene 30 across)."""
+    read = SimpleNamespace(
+        lens_candidates=np.array([True]),
+        primary_lights=[PointPrimary((0.0, 0.0, 4.0), 1000.0, 0.1)],
+        arrays=SimpleNamespace(center=np.array([marble], float), radius=np.array([0.5])),
+        scene_size=30.0,
+    )
+    return light_paths(read)
+
+
+def test_an_object_away_from_the_light_is_no_change_until_it_enters_it():
+    paths = paths_of()
+    base = frame_prints(scene(), paths=paths)
+    # the cubes at x = 9, 12 (side 2) are far from the lamp → marble → table line
+    assert base["Grid"][0] == "s" and base["Table"][0] == "S" and base["Marble"][0] == "S"
+    far = frame_prints(scene(grid=(9, 14)), paths=paths)
+    assert changes(base, far) == []
+    # one of them under the marble, in the axis' capsule (1.05 R = 0.525 wide): counted
+    inside = frame_prints(scene(grid=(1.4, 12)), paths=paths)
+    assert [(c.name, c.what) for c in changes(base, inside)] == [("Grid", "moved")]
+    # a cube 1.6 from the axis (its near face at 0.6 > 0.525) stays away
+    beside = frame_prints(scene(grid=(1.6, 12)), paths=paths)
+    assert changes(base, beside) == []
+    # the table (in the light) counts wherever it goes; the glass marble too
+    assert changes(base, frame_prints(scene(marble=(0, 0, 1.5)), paths=paths_of((0, 0, 1.5))))
