@@ -181,7 +181,11 @@ def status(context):
     except Exception:
         render = False
     depsgraph = context.view_layer.depsgraph
-    result = check(scene, depsgraph, render=render)
+    try:
+        result = check(scene, depsgraph, render=render)
+    except Exception:  # the panel draws on: the render's check still runs
+        traceback.print_exc()
+        result = None
     _STATUS[scene.as_pointer()] = (key, result, time.perf_counter())
     return result
 
