@@ -60,7 +60,8 @@ _STATUS: dict = {}
 #: status meanwhile and redraws when the wait is over).
 RECHECK_ABOVE = 0.02
 RECHECK_FACTOR = 10.0
-_REDRAW_PENDING = False
+#: The pending redraw's timer function (None: none pending).
+_REDRAW = None
 
 
 def extras(read, options: dict) -> dict:
@@ -192,21 +193,30 @@ def status(context):
 
 def _redraw_later(seconds: float):
     """Redraw the 3D views' sidebars in `seconds` (once, however often asked)."""
-    global _REDRAW_PENDING
-    if _REDRAW_PENDING:
+    global _REDRAW
+    if _REDRAW is not None:
         return
-    _REDRAW_PENDING = True
 
     def redraw():
-        global _REDRAW_PENDING
-        _REDRAW_PENDING = False
+        global _REDRAW
+        _REDRAW = None
         for window in bpy.context.window_manager.windows:
             for area in window.screen.areas:
                 if area.type == "VIEW_3D":
                     area.tag_redraw()
         return None  # once
 
+    _REDRAW = redraw
     bpy.app.timers.register(redraw, first_interval=seconds)
+
+
+def cancel_redraw():
+    """Drop a pending redraw (unregistering, loading a file: Blender 4.5's bpy module
+    waits for a pending timer when Python exits)."""
+    global _REDRAW
+    if _REDRAW is not None and bpy.app.timers.is_registered(_REDRAW):
+        bpy.app.timers.unregister(_REDRAW)
+    _REDRAW = None
 
 
 def render_warning(scene, depsgraph) -> str | None:
@@ -245,6 +255,7 @@ def on_frame_change(scene, depsgraph=None):
 @bpy.app.handlers.persistent
 def on_load(*args):
     _STATUS.clear()
+    cancel_redraw()
 
 
 _HANDLERS = (
@@ -271,5 +282,6 @@ def register():
 
 
 def unregister():
+    cancel_redraw()
     for name, fn in _HANDLERS:
         _remove_ours(getattr(bpy.app.handlers, name), fn)

@@ -214,5 +214,8 @@ def test_a_costly_check_is_run_again_only_after_a_wait(empty_blend, monkeypatch)
     marble.location.x += 0.3
     bpy.context.view_layer.update()
     assert bake_check.status(bpy.context) is first  # kept meanwhile
+    assert bpy.app.timers.is_registered(bake_check._REDRAW)  # a redraw after the wait
     monkeypatch.setattr(bake_check, "RECHECK_FACTOR", 0.0)  # the wait is over
     assert bake_check.status(bpy.context).stale
+    bake_check.cancel_redraw()  # (a pending timer delays the bpy module's exit)
+    assert bake_check._REDRAW is None
