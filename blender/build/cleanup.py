@@ -41,6 +41,7 @@ def clear(scene) -> int:
     remove_unused_layer_materials()
     remove_unused_bake_actions()
     settings.created_objects.clear()
+    settings.baked_from = ""  # no bake left (`blender/commands/bake_check.py`)
     keep = []
     for item in settings.created_collections:
         coll = item.collection

@@ -50,7 +50,12 @@ scene as it was:
      the mesh's raster UVs with a keyed slice index (`baked_layers`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
-after it (the keys drive the lights; a cancel or a failed plan puts it back).
+after it (the keys drive the lights; a cancel or a failed plan puts it back); while
+the bake exists it does nothing even when turned on (`live_update._on`).
+
+What each frame was read from is kept as prints (`bake_check.prints_of`, stored by
+`bake_check.record` in ``scene.lens_lights.baked_from``), so that the panel and
+renders can say when the scene changed under the bake (`bake_check`).
 
 Every action made is marked (`marks.COLLECTION_MARK` = "bake") and removed by
 Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clear`).
@@ -84,7 +89,7 @@ from ..build.marks import (
     PROFILE_PREFIX,
 )
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
-from . import layer_stage, pipeline
+from . import bake_check, layer_stage, pipeline
 
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
 MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
@@ -333,6 +338,9 @@ class Baker:
         if self.live_before:
             settings.live_update = False
         self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
+        # what each frame was baked from (`bake_check`), and whether read as rendered
+        self.prints: list = []
+        self.read_as_render = True
         self.lens_objects: set = set()
         self.unmodelled_glass: dict = {}  # name → why: keeps Cycles' refractive caustics on
         self.timings = dict(plan=0.0, build=0.0)
@@ -360,6 +368,8 @@ class Baker:
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
+        self.prints.append(bake_check.prints_of(work.read, options))
+        self.read_as_render &= bake_check.read_as_render(work.read.how)
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
         if self.layer:
@@ -604,6 +614,8 @@ def finish(baker):
     figures["changed"] = True
     LAST_BAKE = figures
     settings = baker.scene.lens_lights
+    if figures["objects"]:
+        bake_check.record(baker.scene, baker.frames, baker.prints, baker.read_as_render)
     settings.last_run = True
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]

@@ -47,6 +47,8 @@ set of lights changes.
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.
 Clear turns live update off (else the lights would come back at the next update).
+While a bake exists (`bake_check.has_bake`) live update does nothing, switch on or
+not: the bake's keys drive its lights, node trees and images (the panel says so).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
 not there at all, so their lights and lenses are missed until a render (whose
 depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.
@@ -72,7 +74,7 @@ from ..build import cleanup, cycles_caustics, lights
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
-from . import layer_stage, pipeline
+from . import bake_check, layer_stage, pipeline
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
@@ -451,7 +453,11 @@ def _on(scene) -> bool:
     settings = getattr(scene, "lens_lights", None)
     # The probe's scene copy carries the setting too: never update it.
     probe = scene.render.engine == render_probe.LENS_LIGHTS_RE_probe.bl_idname
-    return settings is not None and settings.live_update and not probe
+    if settings is None or not settings.live_update or probe:
+        return False
+    # A bake's keys drive its lights, trees and images: never rebuilt under it (the
+    # panel says live update waits; Clear or Generate ends the bake).
+    return not bake_check.has_bake(scene)
 
 
 @bpy.app.handlers.persistent
@@ -494,7 +500,9 @@ def on_load(*args):
 def live_update_changed(settings, context):
     """The checkbox's update: turned on, bring the lights up to date at once."""
     scene = settings.id_data
-    if settings.live_update and context is not None and context.view_layer is not None:
+    if not _on(scene):
+        return  # off, or a bake exists: left alone
+    if context is not None and context.view_layer is not None:
         _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True)
 
 

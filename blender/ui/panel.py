@@ -19,9 +19,11 @@ translated).
 import bpy
 from bpy.app.translations import pgettext_iface as iface_
 
+from ...core.animation.bake_inputs import LIVE_UPDATE_WAITS
 from ...core.report.panel_text import chars_per_line, wrap
 from ...core.tiers import CAUSTIC_LAYER, EXACT_PROFILE, TIER_LINES, resolve_energy_model
 from ...core.tiers import TIERS as ENERGY_MODELS
+from ..commands import bake_check
 
 #: Shown for an Exact-profile lens light (issue 10): its Blender power is only what
 #: Cycles samples it by; the node tree's emission carries the caustic's intensity.
@@ -111,7 +113,12 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         sub.active = settings.use_merge
         sub.prop(settings, "merge_distance", text="")
         col.prop(settings, "replace_cycles_caustics")
-        col.prop(settings, "live_update")
+        baked = bake_check.has_bake(context.scene)
+        sub = col.row()
+        sub.active = not baked  # the bake's keys drive the lights: live update waits
+        sub.prop(settings, "live_update")
+        if baked and settings.live_update:
+            _lines(col.column(align=True), iface_(LIVE_UPDATE_WAITS), width, icon="INFO")
 
         box = layout.box()
         if not settings.last_run:
@@ -131,6 +138,20 @@ class VIEW3D_PT_lens_lights(bpy.types.Panel):
         _figure(box, "Time: {} s", f"{settings.last_seconds:.3f}")
         if settings.last_report:
             _lines(box.column(align=True), settings.last_report, width)
+        if baked:
+            _bake_status(layout, context, width)
+
+
+def _bake_status(layout, context, width):
+    """An out-of-date bake: what changed since, and Bake Again over its frames
+    (`bake_check.status`: read once per depsgraph update or frame, not per redraw)."""
+    status = bake_check.status(context)
+    if status is None or not status.stale:
+        return
+    box = layout.box()
+    _lines(box.column(align=True), status.text, width, icon="ERROR")
+    op = box.operator("lens_lights.bake", text=iface_("Bake Again"), icon="FILE_REFRESH")
+    op.frame_start, op.frame_end = status.first, status.last
 
 
 class VIEW3D_PT_lens_lights_object(bpy.types.Panel):

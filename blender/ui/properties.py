@@ -140,7 +140,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
             "Lens lights and caustic layers follow the scene: when lights, lenses or "
             "receivers move, on "
             "frame change and on every frame of a render (slower playback; the Caustic "
-            "layer is rebuilt on each update)"
+            "layer is rebuilt on each update). Off while a bake exists"
         ),
         update=lambda settings, context: _live_update_switched(settings, context),
     )
@@ -157,6 +157,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_left_out: IntProperty(name="Left Out", default=0)
     last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
     last_report: StringProperty(name="Last Report", default="")
+    #: What the bake was baked from (`core.animation.bake_inputs.BakeInputs` as JSON;
+    #: empty: no bake): the panel and renders say when the scene has changed under it.
+    baked_from: StringProperty(default="", options={"HIDDEN"})
 
     created_objects: CollectionProperty(type=LensLightsCreatedObject, options={"HIDDEN"})
     created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={"HIDDEN"})

@@ -89,6 +89,27 @@ class Groups:
 
 
 @dataclass
+class ReadInputs:
+    """The read's instances as they were read (for the bake's prints,
+    `core.animation.bake_inputs`): the records (`GeometryRecord`, `LightRecord`),
+    each instance's record `gid`, world matrix and instancer `pid` (into
+    `parent_names`; −1: not an instance)."""
+
+    records: Sequence
+    gid: np.ndarray
+    matrices: np.ndarray  # (N, 4, 4)
+    pid: np.ndarray
+    parent_names: Sequence
+
+    def owners(self) -> np.ndarray:
+        """Each instance's top object's name: its instancer's, else its own."""
+        names = np.array([r.name for r in self.records] + list(self.parent_names), dtype=object)
+        gid = np.asarray(self.gid, dtype=np.int64)
+        pid = np.asarray(self.pid, dtype=np.int64)
+        return names[np.where(pid >= 0, len(self.records) + pid, gid)]
+
+
+@dataclass
 class BlenderSceneRead:
     arrays: SceneArrays
     width: int = 0
@@ -122,6 +143,8 @@ class BlenderSceneRead:
     #: RENDER, or "viewport (why the render depsgraph was not read)".
     how: str = RENDER
     lights: list[Light] = field(default_factory=list)
+    #: The instances and records read (`ReadInputs`), for the bake's prints.
+    inputs: ReadInputs | None = None
     surfaces: Sequence = field(default_factory=list)  # `Surface` per sphere
     _scene: Scene | None = field(default=None, repr=False)
 
@@ -543,6 +566,7 @@ def assemble(
             out.left_out_lenses.append((name, reason))
     out.unmodelled_glass = [(name, reason) for name, reason, _lens in glass_left.entries()]
     out.bounds = scene_bounds(box_lo, box_hi, out.arrays.light_position)
+    out.inputs = ReadInputs(records, gid, M, pid, parent_names)
     return out, blocking
 
 
