@@ -38,6 +38,7 @@ from .marks import (
     LINK_MARK,
     MATERIAL_PREFIX,
 )
+from .ownership import register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
@@ -190,7 +191,7 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None, draw
     meta.source_lens = info.name  # the receiver it lies on
     meta.relative_brightness = float(patch.flux)
     meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W"
-    scene.lens_lights.created_objects.add().object = ob
+    register(scene, ob)
     return ob
 
 

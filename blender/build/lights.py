@@ -62,6 +62,7 @@ from .marks import (
     PROFILE_PREFIX,
 )
 from .node_maths import shader_math, slice_coordinates, value_node
+from .ownership import register
 
 
 def _register_collection(settings, coll):
@@ -392,8 +393,7 @@ def create_light(
     meta.source_lens = planned.lens_name
     meta.kind = planned.light.kind
     meta.energy_model = model_name or planned.light.model
-    item = scene.lens_lights.created_objects.add()
-    item.object = ob
+    register(scene, ob)
     return ob
 
 
@@ -490,16 +490,6 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made
-
-
-def created_objects(scene):
-    """The extension's lights in `scene` (listed in the registry and marked)."""
-    out = []
-    for item in scene.lens_lights.created_objects:
-        ob = item.object
-        if ob is not None and ob.lens_lights.is_lens_light and ob not in out:
-            out.append(ob)
-    return out
 
 
 def remove_unused_profile_images() -> int:

@@ -38,6 +38,7 @@ import bpy
 from ...core.plan.cycles_caustics import describe as describe_caustics
 from ...core.report.message import (
     error_text,
+    kept_text,
     linking_groups_note,
     linking_note,
     made_text,
@@ -45,7 +46,7 @@ from ...core.report.message import (
 )
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
-from ..build import cleanup, cycles_caustics, lights
+from ..build import cleanup, cycles_caustics, lights, ownership
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from ..ui.scene_state import has_lens_lights
 from . import layer_stage, pipeline
@@ -85,6 +86,23 @@ def _store(settings, message, figures):
     settings.last_left_out = figures.get("left_out", 0)
     settings.last_seconds = figures.get("seconds", 0.0)
     settings.last_report = message
+
+
+def _kept_note(scene, made=()) -> tuple[str, bool]:
+    """The report's words on the user's lens lights (and layers) kept in `scene` beside
+    the objects `made` now (`kept_text`), and whether a lens has both."""
+    kept = ownership.kept_objects(scene)
+    notes, doubled = [], False
+    for word, is_light in (("lens light", True), ("caustic layer", False)):
+        k = [
+            (ob.name, ob.lens_lights.source_lens) for ob in kept if (ob.type == "LIGHT") == is_light
+        ]
+        m = [
+            (ob.name, ob.lens_lights.source_lens) for ob in made if (ob.type == "LIGHT") == is_light
+        ]
+        doubled = doubled or bool({lens for _, lens in k} & {lens for _, lens in m})
+        notes.append(kept_text(m, k, word))
+    return "; ".join(n for n in notes if n), doubled
 
 
 def generate(context):
@@ -192,6 +210,12 @@ def generate(context):
         message = f"{message}; {caustics_note}"
         if caustics_warn:
             level = "WARNING" if level == "INFO" else level
+    kept_note, doubled = _kept_note(scene, made)
+    if kept_note:  # the user's lens lights, kept: a lens may now have two
+        message = f"{message}; {kept_note}"
+        figures["kept"] = [ob.name for ob in ownership.kept_objects(scene)]
+        if doubled:
+            level = "WARNING" if level == "INFO" else level
     figures["energy_model"] = options["energy_model"]
     figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
     LAST_FIGURES = figures
@@ -234,7 +258,9 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
-        lights_made = sum(1 for ob in lights.created_objects(context.scene) if ob.type == "LIGHT")
+        lights_made = sum(
+            1 for ob in ownership.created_objects(context.scene) if ob.type == "LIGHT"
+        )
         removed = cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
@@ -243,6 +269,9 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         settings.last_report = f"Removed {made_text(lights_made, removed - lights_made)}"
         if restored:
             settings.last_report += "; " + describe_caustics(restored, verb="restored")
+        kept_note, _ = _kept_note(context.scene)
+        if kept_note:  # the user's copies, renamed and moved lens lights stay
+            settings.last_report += "; " + kept_note
         self.report({"INFO"}, settings.last_report)
         return {"FINISHED"}
 
