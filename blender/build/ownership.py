@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import bpy
 
+from ...core.report.message import kept_text
 from .marks import COLLECTION_MARK, KEPT_LINK, KEPT_LINK_PREFIX, LIGHTS_MARK, LINK_MARK
 
 #: An object in one collection and listed in the registry (a pointer property holds
@@ -164,3 +165,17 @@ def keep_users(scene) -> list:
         if ob.data is not None and ob.data.as_pointer() in shared:
             ob.data = ob.data.copy()  # Alt+D: the data stays with the user's light
     return kept
+
+
+def kept_note(scene, made=()) -> tuple[str, bool]:
+    """The report's words on the user's lens lights (and layers) kept in `scene` beside
+    the objects `made` now (`kept_text`: "Marble has 2 lens lights: … (made now) and …
+    (yours, kept)"), and whether a lens has both (its caustic is painted twice)."""
+    kept = kept_objects(scene)
+    notes, doubled = [], False
+    for word, is_light in (("lens light", True), ("caustic layer", False)):
+        k = [(o.name, o.lens_lights.source_lens) for o in kept if (o.type == "LIGHT") == is_light]
+        m = [(o.name, o.lens_lights.source_lens) for o in made if (o.type == "LIGHT") == is_light]
+        doubled = doubled or bool({lens for _, lens in k} & {lens for _, lens in m})
+        notes.append(kept_text(m, k, word))
+    return "; ".join(n for n in notes if n), doubled

@@ -38,7 +38,6 @@ import bpy
 from ...core.plan.cycles_caustics import describe as describe_caustics
 from ...core.report.message import (
     error_text,
-    kept_text,
     linking_groups_note,
     linking_note,
     made_text,
@@ -86,23 +85,6 @@ def _store(settings, message, figures):
     settings.last_left_out = figures.get("left_out", 0)
     settings.last_seconds = figures.get("seconds", 0.0)
     settings.last_report = message
-
-
-def _kept_note(scene, made=()) -> tuple[str, bool]:
-    """The report's words on the user's lens lights (and layers) kept in `scene` beside
-    the objects `made` now (`kept_text`), and whether a lens has both."""
-    kept = ownership.kept_objects(scene)
-    notes, doubled = [], False
-    for word, is_light in (("lens light", True), ("caustic layer", False)):
-        k = [
-            (ob.name, ob.lens_lights.source_lens) for ob in kept if (ob.type == "LIGHT") == is_light
-        ]
-        m = [
-            (ob.name, ob.lens_lights.source_lens) for ob in made if (ob.type == "LIGHT") == is_light
-        ]
-        doubled = doubled or bool({lens for _, lens in k} & {lens for _, lens in m})
-        notes.append(kept_text(m, k, word))
-    return "; ".join(n for n in notes if n), doubled
 
 
 def generate(context):
@@ -210,7 +192,7 @@ def generate(context):
         message = f"{message}; {caustics_note}"
         if caustics_warn:
             level = "WARNING" if level == "INFO" else level
-    kept_note, doubled = _kept_note(scene, made)
+    kept_note, doubled = ownership.kept_note(scene, made)
     if kept_note:  # the user's lens lights, kept: a lens may now have two
         message = f"{message}; {kept_note}"
         figures["kept"] = [ob.name for ob in ownership.kept_objects(scene)]
@@ -269,7 +251,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         settings.last_report = f"Removed {made_text(lights_made, removed - lights_made)}"
         if restored:
             settings.last_report += "; " + describe_caustics(restored, verb="restored")
-        kept_note, _ = _kept_note(context.scene)
+        kept_note, _ = ownership.kept_note(context.scene)
         if kept_note:  # the user's copies, renamed and moved lens lights stay
             settings.last_report += "; " + kept_note
         self.report({"INFO"}, settings.last_report)
