@@ -32,10 +32,11 @@ demand, under the scene's collection), placed, turned and shaped from a
 The values (all but the name, linking and origin) are put by `apply_light`, on a new
 light or on one live update keeps (`live_update`): only what differs is written.
 
-Everything created is listed in `scene.lens_lights.created_*` and marked
-(`object.lens_lights.is_lens_light`, collection custom property
-`marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above every builder) removes only
-what is both listed and marked, and then the marked profile images nothing uses any
+Everything created is listed in `scene.lens_lights.created_*` (objects under their
+name: `ownership.register`) and marked (`object.lens_lights.is_lens_light`,
+collection custom property `marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above
+every builder) removes only what is still exactly the extension's (`ownership`: a
+copy, a renamed or moved lens light is the user's, kept), and then the marked profile images nothing uses any
 more (`remove_unused_profile_images`).
 """
 
