@@ -59,14 +59,13 @@ def _members(scene) -> set:
     return out
 
 
-def _still_ours(item, members: set) -> bool:
-    ob = item.object
+def _still_ours(ob, name: str, members: set) -> bool:
+    """Is `ob`, listed under `name`, still exactly what the extension made?"""
     if ob is None:
         return False
-    meta = ob.lens_lights
-    if not meta.is_lens_light or meta.kept:
+    if not ob.lens_lights.is_lens_light:  # (a kept one is never listed: `keep_users`)
         return False
-    if item.name and ob.name != item.name:  # renamed ("": a file from before the names)
+    if name and ob.name != name:  # renamed ("": a file from before the names)
         return False
     if ob.as_pointer() not in members:  # moved out of "Lens Lights"
         return False
@@ -82,11 +81,12 @@ def created_objects(scene) -> list:
     members = _members(scene)
     out, seen = [], set()
     for item in scene.lens_lights.created_objects:
-        if _still_ours(item, members):
-            ptr = item.object.as_pointer()
+        ob = item.object
+        if _still_ours(ob, item.name, members):
+            ptr = ob.as_pointer()
             if ptr not in seen:
                 seen.add(ptr)
-                out.append(item.object)
+                out.append(ob)
     return out
 
 
@@ -135,16 +135,17 @@ def keep_users(scene) -> list:
     one in the scene, kept now or before)."""
     settings = scene.lens_lights
     members = _members(scene)
-    ours = {}
-    for k in reversed(range(len(settings.created_objects))):
-        item = settings.created_objects[k]
+    ours, theirs = {}, []
+    for k, item in enumerate(settings.created_objects):
         ob = item.object
         if ob is None:
             continue
-        if _still_ours(item, members):
+        if _still_ours(ob, item.name, members):
             ours[ob.as_pointer()] = ob
         elif ob.lens_lights.is_lens_light:
-            settings.created_objects.remove(k)  # renamed or moved: the user's now
+            theirs.append(k)
+    for k in reversed(theirs):
+        settings.created_objects.remove(k)  # renamed or moved: the user's now
     kept = [
         ob for ob in scene.objects if ob.lens_lights.is_lens_light and ob.as_pointer() not in ours
     ]
