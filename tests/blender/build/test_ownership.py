@@ -178,6 +178,18 @@ def test_a_renamed_lens_light_is_kept_and_a_new_one_made(empty_blend):
         "(yours, kept)" in message
     )
     assert figures["kept"] == ["My marble light"]
+    # the Object panel says whose it is (the extension's own: not)
+    from types import SimpleNamespace
+
+    from blender_scene_helpers import draw_panel
+    from lens_lights.blender.ui.panel import VIEW3D_PT_lens_lights_object
+
+    def says_yours(ob):
+        ctx = SimpleNamespace(scene=bpy.context.scene, object=ob, region=None)
+        log = draw_panel(VIEW3D_PT_lens_lights_object, ctx)
+        return any(kind == "label" and text.startswith("Yours:") for kind, text in log)
+
+    assert says_yours(kept_one) and not says_yours(new)
 
 
 @pytest.mark.parametrize("also", [False, True], ids=["moved", "linked_too"])
@@ -228,3 +240,20 @@ def test_live_update_leaves_the_users_copy_alone(empty_blend):
     assert (tuple(dup.location), tuple(dup.rotation_quaternion)) == where
     assert members(linking(dup)[0]) == {"Marble": "EXCLUDE"}
     scene.lens_lights.live_update = False
+
+
+def test_bake_keeps_the_users_copy_and_says_so(empty_blend):
+    resting_marble()
+    scene = bpy.context.scene
+    scene.lens_lights.energy_model = "PHYSICAL"  # (a cheap bake: no profile tables)
+    scene.frame_start, scene.frame_end = 1, 2
+    generate()
+    (ours,) = lens_lights()
+    assert members(linking(ours)[0]) == {"Marble": "EXCLUDE"}
+    dup = duplicate(ours, "My copy")
+    energy = dup.data.energy
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    assert bpy.data.objects.get("My copy") is dup and dup.data.energy == energy
+    assert members(linking(dup)[0]) == {"Marble": "EXCLUDE"} and kept(dup)
+    assert dup.animation_data is None or dup.animation_data.action is None  # not keyed
+    assert "'My copy' (yours, kept)" in scene.lens_lights.last_report
