@@ -66,16 +66,16 @@ def kept_text(made, kept, word: str = "lens light") -> str:
     """The lenses with lens lights of the user's (copies, renamed or moved ones, kept
     by Generate and Clear) beside the ones made now: `made` and `kept` are (name,
     lens) pairs. "Marble has 2 lens lights: 'Lens light Lamp > Marble' (made now) and
-    'My copy' (yours, kept)"; the first `REPORT_FIRST` lenses, then a count; "" when
-    nothing is kept. `word`: what they are ("caustic layer": its lens is the
-    receiver it lies on)."""
+    'My copy' (yours, kept)" (the user's by name); the first `REPORT_FIRST` lenses,
+    then a count; "" when nothing is kept. `word`: what they are ("caustic layer":
+    its lens is the receiver it lies on)."""
     by_lens: dict = {lens: [] for _, lens in kept}
     if not by_lens:
         return ""
     for name, lens in made:
         if lens in by_lens:
             by_lens[lens].append(f"'{name}' (made now)")
-    for name, lens in kept:
+    for name, lens in sorted(kept):
         by_lens[lens].append(f"'{name}' (yours, kept)")
     parts = []
     for lens in sorted(by_lens)[:REPORT_FIRST]:

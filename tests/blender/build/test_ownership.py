@@ -257,3 +257,33 @@ def test_bake_keeps_the_users_copy_and_says_so(empty_blend):
     assert members(linking(dup)[0]) == {"Marble": "EXCLUDE"} and kept(dup)
     assert dup.animation_data is None or dup.animation_data.action is None  # not keyed
     assert "'My copy' (yours, kept)" in scene.lens_lights.last_report
+
+
+def test_a_duplicated_or_renamed_caustic_layer_is_kept(empty_blend):
+    """EEVEE's caustic layer (a mesh on the receiver): a copy of it (Shift+D: its mesh
+    copied) and a renamed one are the user's too: kept with their mesh and material,
+    named in the report; the layer made now is the only one listed."""
+    from blender_scene_helpers import basic_scene
+
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    bpy.context.scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    generate()
+    (layer,) = lens_lights()
+    assert layer.type == "MESH"
+    made_name = layer.name
+    dup = duplicate(layer, "My layer")
+    material = dup.data.materials[0]
+    layer.name = "My renamed layer"
+    level, message, figures = generate()
+    (new,) = [o for o in lens_lights() if o not in (dup, layer)]
+    assert new.name == made_name
+    assert bpy.data.objects.get("My layer") is dup and dup.data.materials[0] is material
+    assert bpy.data.objects.get("My renamed layer") is layer
+    assert (
+        f"Floor has 3 caustic layers: '{made_name}' (made now), 'My layer' (yours, kept) "
+        "and 'My renamed layer' (yours, kept)" in message
+    )
+    bpy.ops.lens_lights.clear()
+    assert lens_lights() == sorted([dup, layer], key=lambda o: o.name)
+    assert material.name in bpy.data.materials and dup.data.materials[0] is material
