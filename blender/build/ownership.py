@@ -91,8 +91,12 @@ def created_objects(scene) -> list:
 
 
 def kept_objects(scene) -> list:
-    """The user's lens lights and layers in `scene` (flagged by `keep_users`)."""
-    return [ob for ob in scene.objects if ob.lens_lights.is_lens_light and ob.lens_lights.kept]
+    """The user's lens lights and layers in `scene`: marked, not the extension's (a
+    copy, renamed or moved; or linked from a library, which cannot be flagged)."""
+    ours = {ob.as_pointer() for ob in created_objects(scene)}
+    return [
+        ob for ob in scene.objects if ob.lens_lights.is_lens_light and ob.as_pointer() not in ours
+    ]
 
 
 def _membership(coll) -> frozenset:
@@ -151,6 +155,8 @@ def keep_users(scene) -> list:
     ]
     copies: dict = {}  # one collection of the user's per collection of ours
     for ob in kept:
+        if ob.library is not None:
+            continue  # linked from a library: read-only, the library's to change
         if not ob.lens_lights.kept:
             ob.lens_lights.kept = True
         ll = ob.light_linking if ob.type == "LIGHT" else None

@@ -287,3 +287,28 @@ def test_a_duplicated_or_renamed_caustic_layer_is_kept(empty_blend):
     bpy.ops.lens_lights.clear()
     assert lens_lights() == sorted([dup, layer], key=lambda o: o.name)
     assert material.name in bpy.data.materials and dup.data.materials[0] is material
+
+
+def test_a_lens_light_linked_from_another_file_is_kept_unchanged(empty_blend, tmp_path):
+    """A lens light linked from a library (another shot's file) carries the mark but
+    is read-only: kept, not written (not flagged, linking untouched), named in the
+    report, and no primary light."""
+    resting_marble()
+    generate()
+    (ours,) = lens_lights()
+    path = tmp_path / "shot.blend"
+    bpy.data.libraries.write(str(path), {ours}, fake_user=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    resting_marble()
+    with bpy.data.libraries.load(str(path), link=True) as (_, into):
+        into.objects = [ORIGINAL]
+    linked = bpy.data.objects[ORIGINAL]
+    assert linked.library is not None
+    bpy.context.scene.collection.objects.link(linked)
+    before = linking(linked)
+    level, message, figures = generate()
+    assert figures["created"] == 1 and figures["primaries"] == 1, message
+    assert linking(linked) == before and not kept(linked)
+    assert f"'{ORIGINAL}' (yours, kept)" in message
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert lens_lights() == [linked]
