@@ -38,6 +38,7 @@ from .marks import (
     LINK_MARK,
     MATERIAL_PREFIX,
 )
+from .ownership import register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
@@ -195,7 +196,7 @@ def create_layer(
     meta.source_lens = ", ".join(dict.fromkeys(lenses))
     meta.relative_brightness = float(patch.flux)  # the flux it draws, W
     meta.note = f"{patch.resolution}² texels"
-    scene.lens_lights.created_objects.add().object = ob
+    register(scene, ob)
     return ob
 
 

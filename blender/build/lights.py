@@ -32,10 +32,11 @@ demand, under the scene's collection), placed, turned and shaped from a
 The values (all but the name, linking and origin) are put by `apply_light`, on a new
 light or on one live update keeps (`live_update`): only what differs is written.
 
-Everything created is listed in `scene.lens_lights.created_*` and marked
-(`object.lens_lights.is_lens_light`, collection custom property
-`marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above every builder) removes only
-what is both listed and marked, and then the marked profile images nothing uses any
+Everything created is listed in `scene.lens_lights.created_*` (objects under their
+name: `ownership.register`) and marked (`object.lens_lights.is_lens_light`,
+collection custom property `marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above
+every builder) removes only what is still exactly the extension's (`ownership`: a
+copy, a renamed or moved lens light is the user's, kept), and then the marked profile images nothing uses any
 more (`remove_unused_profile_images`).
 """
 
@@ -63,6 +64,7 @@ from .marks import (
     USER_LINK,
 )
 from .node_maths import shader_math, slice_coordinates, value_node
+from .ownership import register
 
 
 def _register_collection(settings, coll):
@@ -393,8 +395,7 @@ def create_light(
     meta.source_lens = planned.lens_name
     meta.kind = planned.light.kind
     meta.energy_model = model_name or planned.light.model
-    item = scene.lens_lights.created_objects.add()
-    item.object = ob
+    register(scene, ob)
     return ob
 
 
@@ -491,16 +492,6 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
         if progress is not None and k % 16 == 15:
             progress(k + 1)
     return made
-
-
-def created_objects(scene):
-    """The extension's lights in `scene` (listed in the registry and marked)."""
-    out = []
-    for item in scene.lens_lights.created_objects:
-        ob = item.object
-        if ob is not None and ob.lens_lights.is_lens_light and ob not in out:
-            out.append(ob)
-    return out
 
 
 def remove_unused_profile_images() -> int:

@@ -79,7 +79,7 @@ from ...core.animation.light_keys import keys_of
 from ...core.plan.cycles_caustics import kept_on_warning, linked_caster_warning
 from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
-from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
+from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes, ownership
 from ..build.marks import (
     BAKE_MARK,
     COLLECTION_MARK,
@@ -631,6 +631,10 @@ def finish(baker):
     if note:
         settings.last_report += "; " + note
         level = "WARNING"
+    kept, doubled = ownership.kept_note(baker.scene, ownership.created_objects(baker.scene))
+    if kept:  # the user's copies, renamed and moved lens lights: kept beside the baked
+        settings.last_report += "; " + kept
+        level = "WARNING" if doubled else level
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"
     return level, settings.last_report, figures

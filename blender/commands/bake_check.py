@@ -44,7 +44,7 @@ from ...core.animation.bake_inputs import (
     stale_text,
 )
 from ...core.tiers import builds_layer
-from ..build.lights import created_objects
+from ..build.ownership import created_objects
 from ..read.render_probe import viewport_differs
 from ..read.scene import read_depsgraph
 from . import pipeline

@@ -45,7 +45,7 @@ from ...core.report.message import (
 )
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
-from ..build import cleanup, cycles_caustics, layers, lights
+from ..build import cleanup, cycles_caustics, layers, lights, ownership
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from ..ui.scene_state import has_lens_lights
 from . import layer_stage, pipeline
@@ -194,6 +194,12 @@ def generate(context):
         message = f"{message}; {caustics_note}"
         if caustics_warn:
             level = "WARNING" if level == "INFO" else level
+    kept_note, doubled = ownership.kept_note(scene, made)
+    if kept_note:  # the user's lens lights, kept: a lens may now have two
+        message = f"{message}; {kept_note}"
+        figures["kept"] = [ob.name for ob in ownership.kept_objects(scene)]
+        if doubled:
+            level = "WARNING" if level == "INFO" else level
     figures["energy_model"] = options["energy_model"]
     figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
     LAST_FIGURES = figures
@@ -241,7 +247,7 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
-        counted = layers.made_counts(list(lights.created_objects(context.scene)))
+        counted = layers.made_counts(list(ownership.created_objects(context.scene)))
         cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
@@ -249,6 +255,9 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
         settings.last_report = f"Removed {made_text(*counted.values())}"
         if restored:
             settings.last_report += "; " + describe_restored(restored)
+        kept_note, _ = ownership.kept_note(context.scene)
+        if kept_note:  # the user's copies, renamed and moved lens lights stay
+            settings.last_report += "; " + kept_note
         self.report({"INFO"}, settings.last_report)
         return {"FINISHED"}
 

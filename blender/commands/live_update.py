@@ -30,8 +30,9 @@ update from inside it.
 **How.** No probe render in a handler: the depsgraph the handler is handed is read
 and planned by the pipeline Generate and Bake share (`pipeline.plan_scene`; a
 viewport depsgraph with the render-visibility rules applied by hand, as Generate's
-fallback), and applied to the existing lens
-lights in place: each light is matched to its planned source by a stable key
+fallback), and applied to the existing lens lights in place (only the extension's:
+one the user duplicated, renamed or moved is theirs, left alone:
+`ownership.keep_users`): each light is matched to its planned source by a stable key
 (`core.animation.light_keys`: primary light, lens, kind, tier), updated with only the values
 that changed (`lights.apply_light`: transform, power, colour, cone, blend,
 radius; an Exact profile's node tree and image only when its profile changed), new
@@ -70,7 +71,7 @@ from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
 from ...core.tiers import builds_layer
 from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
-from ..build import cleanup, cycles_caustics, lights
+from ..build import cleanup, cycles_caustics, lights, ownership
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
@@ -106,7 +107,7 @@ def _existing_key(ob):
 def _ours(scene) -> set:
     """Pointers of the extension's objects in `scene` and their data."""
     out = set()
-    for ob in lights.created_objects(scene):
+    for ob in ownership.created_objects(scene):
         out.add(ob.as_pointer())
         if ob.data is not None:
             out.add(ob.data.as_pointer())
@@ -283,7 +284,7 @@ def _remove(scene, objects):
             settings.created_objects.remove(k)
     used = {
         c.as_pointer()
-        for ob in lights.created_objects(scene)
+        for ob in ownership.created_objects(scene)
         if ob.type == "LIGHT"
         for c in (ob.light_linking.receiver_collection, ob.light_linking.blocker_collection)
         if c is not None
@@ -374,6 +375,8 @@ def update(scene, depsgraph, force=False) -> dict:
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
     figures = dict(planned=len(plan.lights), updated=0, created=0, removed=0)
+    # the user's copies, renamed and moved lens lights: theirs, never updated or removed
+    figures["kept"] = len(ownership.keep_users(scene))
     if builds_layer(options["energy_model"]):
         cleanup.clear(scene)  # the layer's meshes: rebuilt whole
         cycles_caustics.restore(scene)
@@ -381,7 +384,7 @@ def update(scene, depsgraph, force=False) -> dict:
         cycles_caustics.after_build(scene, plan, read, len(made))
         figures.update(created=len(made), rebuilt=True)
     else:
-        existing = lights.created_objects(scene)
+        existing = ownership.created_objects(scene)
         old_keys = keys_of([_existing_key(ob) for ob in existing])
         new_keys = keys_of(
             (p.light_name, p.lens_name, p.light.kind, p.light.model) for p in plan.lights

@@ -113,7 +113,8 @@ READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 
 def is_lens_light(ob) -> bool:
     """Whether `ob` (an original object) is one the extension made (a lens light or
-    a caustic layer): the reads skip it."""
+    a caustic layer), or the user's copy of one (kept, `build.ownership`): the reads
+    skip it (a lens light is its lens' image: never a primary, nor a receiver)."""
     settings = getattr(ob, "lens_lights", None)
     return bool(settings and settings.is_lens_light)
 

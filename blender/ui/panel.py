@@ -48,6 +48,13 @@ def _lines(layout, text, width, **kw):
         kw.pop("icon", None)  # only on the first line
 
 
+#: The Object sub-panel's line on a lens light the user duplicated, renamed or moved.
+KEPT_NOTE = (
+    "Yours: a copy, or renamed or moved. Generate and Clear keep it as it is, "
+    "live update leaves it alone"
+)
+
+
 def _figure(layout, text, value):
     """A label "text: value" with `text` translated."""
     layout.label(text=iface_(text).format(value), translate=False)
@@ -176,6 +183,8 @@ class VIEW3D_PT_lens_lights_object(bpy.types.Panel):
             _layer_figures(layout.column(align=True), ob, meta, width)
             return
         if meta.is_lens_light:
+            if meta.kept:  # a copy, renamed or moved: the user's (blender/build/ownership.py)
+                _lines(layout.column(align=True), iface_(KEPT_NOTE), width, icon="INFO")
             col = layout.column(align=True)
             _figure(col, "From: {}", meta.source_light)
             _figure(col, "Lens: {}", meta.source_lens)

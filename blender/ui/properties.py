@@ -46,7 +46,11 @@ _ENERGY_MODEL_ITEMS = energy_model_items(
 
 
 class LensLightsCreatedObject(bpy.types.PropertyGroup):
+    """One object the extension made (`blender/build/ownership.py`): the object and the
+    name it was given (renamed, it is the user's; "" in files from before the names)."""
+
     object: PointerProperty(type=bpy.types.Object)
+    name: StringProperty()
 
 
 class LensLightsCreatedCollection(bpy.types.PropertyGroup):
@@ -197,6 +201,15 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     )
     relative_brightness: FloatProperty(name="Relative Brightness", precision=4)
     note: StringProperty(name="Note")
+    # Set on a lens light (or layer) the user duplicated, renamed or moved: theirs, kept
+    # by Generate, Clear and live update (`blender/build/ownership.py`).
+    kept: BoolProperty(
+        name="Yours",
+        default=False,
+        options={"HIDDEN"},
+        description="A lens light you duplicated, renamed or moved: yours, kept by "
+        "Generate and Clear, never a primary light",
+    )
 
 
 #: What the Live Update switch runs when it is flipped, (settings, context) → None: set

@@ -73,6 +73,32 @@ def made_text(lights: int, layers: int = 0, fallback: int = 0, on=(), fallback_o
     return " and ".join(parts)
 
 
+def kept_text(made, kept, word: str = "lens light") -> str:
+    """The lenses with lens lights of the user's (copies, renamed or moved ones, kept
+    by Generate and Clear) beside the ones made now: `made` and `kept` are (name,
+    lens) pairs. "Marble has 2 lens lights: 'Lens light Lamp > Marble' (made now) and
+    'My copy' (yours, kept)" (the user's by name); the first `REPORT_FIRST` lenses,
+    then a count; "" when nothing is kept. `word`: what they are ("caustic layer":
+    its lens is the receiver it lies on)."""
+    by_lens: dict = {lens: [] for _, lens in kept}
+    if not by_lens:
+        return ""
+    for name, lens in made:
+        if lens in by_lens:
+            by_lens[lens].append(f"'{name}' (made now)")
+    for name, lens in sorted(kept):
+        by_lens[lens].append(f"'{name}' (yours, kept)")
+    parts = []
+    for lens in sorted(by_lens)[:REPORT_FIRST]:
+        names = by_lens[lens]
+        listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        parts.append(f"{lens or 'no lens'} has {plural(len(names), word)}: {listed}")
+    more = len(by_lens) - REPORT_FIRST
+    if more > 0:
+        parts.append(f"and {plural(more, 'more lens', 'more lenses')} with {word}s of yours")
+    return "; ".join(parts)
+
+
 def left_out_text(left_out_lenses) -> str:
     """The objects that look like lenses but are none, with why ("" for none)."""
     if not left_out_lenses:

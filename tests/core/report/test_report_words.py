@@ -157,3 +157,25 @@ def test_the_flux_without_a_light_is_never_rounding_dust():
         message
         == "Created 2 lens lights (1 light × 2 lenses); 50 % of the lenses' flux has no lens light"
     )
+
+
+def test_a_lens_with_the_users_lens_lights_beside_the_new_ones_is_counted_and_named():
+    """Issue 28 item 4: a lens light the user duplicated, renamed or moved is kept; the
+    report says how many the lens now has, and which are whose."""
+    from core.report.message import kept_text
+
+    made = [("Lens light Lamp > Marble", "Marble"), ("Lens light Lamp > Other", "Other")]
+    assert kept_text(made, []) == ""
+    assert kept_text(made, [("My copy", "Marble")]) == (
+        "Marble has 2 lens lights: 'Lens light Lamp > Marble' (made now) and "
+        "'My copy' (yours, kept)"
+    )
+    # after Clear nothing is made now; three copies of two lenses
+    assert kept_text([], [("A", "Marble"), ("B", "Ball"), ("C", "Marble")]) == (
+        "Ball has 1 lens light: 'B' (yours, kept); "
+        "Marble has 2 lens lights: 'A' (yours, kept) and 'C' (yours, kept)"
+    )
+    many = [(f"Copy {k}", f"Lens {k}") for k in range(5)]
+    text = kept_text([], many, "caustic layer")
+    assert text.startswith("Lens 0 has 1 caustic layer: 'Copy 0' (yours, kept); ")
+    assert text.endswith("; and 2 more lenses with caustic layers of yours")
