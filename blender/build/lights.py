@@ -36,8 +36,8 @@ Everything created is listed in `scene.lens_lights.created_*` (objects under the
 name: `ownership.register`) and marked (`object.lens_lights.is_lens_light`,
 collection custom property `marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above
 every builder) removes only what is still exactly the extension's (`ownership`: a
-copy, a renamed or moved lens light is the user's, kept), and then the marked profile images nothing uses any
-more (`remove_unused_profile_images`).
+copy, a renamed or moved lens light is the user's, kept), and then the marked
+profile images nothing uses any more (`remove_unused_profile_images`).
 """
 
 from __future__ import annotations

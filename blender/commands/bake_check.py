@@ -31,9 +31,9 @@ from dataclasses import dataclass, field
 import bpy
 
 from ...core.animation.bake_inputs import (
+    AWAY,
     CAMERA,
     SETTINGS,
-    AWAY,
     BakeInputs,
     Change,
     away,
