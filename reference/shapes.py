@@ -301,6 +301,15 @@ class Box(_Convex):
 # --- triangle meshes -------------------------------------------------------------
 
 
+def _cross(a, b):
+    """Row-wise cross product (np.cross's axis handling costs more than the math)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 @dataclass
 class _Bvh:
     lo: np.ndarray  # (nodes, 3) box corners
@@ -360,7 +369,7 @@ class TriangleMesh:
     vertices: np.ndarray
     triangles: np.ndarray
     corner_normals: np.ndarray | None = None
-    leaf_size: int = 6
+    leaf_size: int = 8
     _bvh: _Bvh = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -379,6 +388,14 @@ class TriangleMesh:
         lo = np.minimum(np.minimum(a, b), c)
         hi = np.maximum(np.maximum(a, b), c)
         self._bvh = _build_bvh(lo, hi, self.leaf_size)
+        bvh = self._bvh
+        # each leaf's triangles in a padded row (-1: none), for batched tests
+        self._leaf_tris = np.full((bvh.lo.shape[0], self.leaf_size), -1)
+        for k in np.flatnonzero(bvh.left < 0):
+            self._leaf_tris[k, : bvh.count[k]] = bvh.order[
+                bvh.start[k] : bvh.start[k] + bvh.count[k]
+            ]
+        self._slack = 1e-12 * float(np.abs(v).max() + 1.0)
         if self.corner_normals is not None:
             self.corner_normals = np.asarray(self.corner_normals, float)
 
@@ -395,38 +412,8 @@ class TriangleMesh:
         ignore, the one it leaves).  ``inside`` is not needed (the nearest triangle
         is the exit from inside, the entry from outside) and is not used."""
         m = o.shape[0]
-        bvh = self._bvh
         skip = np.full(m, -1) if skip_prim is None else np.asarray(skip_prim)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / d
-        best = np.full(m, np.inf)
-        best_tri = np.full(m, -1)
-        rays = np.arange(m)
-        nodes = np.zeros(m, np.int64)
-        while rays.size:
-            # slab test of the pairs' boxes, pruned by the best hit so far
-            t1 = (bvh.lo[nodes] - o[rays]) * inv[rays]
-            t2 = (bvh.hi[nodes] - o[rays]) * inv[rays]
-            tn = np.nanmax(np.minimum(t1, t2), axis=1)
-            tf = np.nanmin(np.maximum(t1, t2), axis=1)
-            keep = (tn <= tf * (1 + 1e-12) + 1e-300) & (tf > t_min) & (tn < best[rays])
-            rays, nodes = rays[keep], nodes[keep]
-            leaf = bvh.left[nodes] < 0
-            if np.any(leaf):
-                lr, ln = rays[leaf], nodes[leaf]
-                cnt = bvh.count[ln]
-                rr = np.repeat(lr, cnt)
-                first = np.repeat(bvh.start[ln], cnt)
-                offs = np.arange(rr.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-                tri = bvh.order[first + offs]
-                t = self._triangle_t(o[rr], d[rr], tri)
-                t = np.where((t > t_min) & (tri != skip[rr]), t, np.inf)
-                np.minimum.at(best, rr, t)
-                won = np.isfinite(t) & (t == best[rr])
-                best_tri[rr[won]] = tri[won]
-            inner = ~leaf
-            rays = np.concatenate([rays[inner], rays[inner]])
-            nodes = np.concatenate([bvh.left[nodes[inner]], bvh.right[nodes[inner]]])
+        best, best_tri = self._nearest(o, d, t_min, skip)
         ok = best_tri >= 0
         tri = np.where(ok, best_tri, 0)
         geo = np.where(ok[:, None], self._n[tri], 0.0)
@@ -442,16 +429,85 @@ class TriangleMesh:
             nrm = np.where(ok[:, None], nrm, 0.0)
         return Hit(best, nrm, geo, np.where(ok, best_tri, -1))
 
+    def _boxes(self, o, inv, nodes, t_min, best):
+        """Entry distance of each ray into each node's box (inf: missed, or not
+        before ``best``)."""
+        bvh = self._bvh
+        t1 = (bvh.lo[nodes] - o) * inv
+        t2 = (bvh.hi[nodes] - o) * inv
+        tn = np.minimum(t1, t2).max(axis=1)
+        tf = np.maximum(t1, t2).min(axis=1)
+        ok = (tn <= tf + self._slack) & (tf > t_min) & (tn < best)
+        return np.where(ok, tn, np.inf)
+
+    def _nearest(self, o, d, t_min, skip):
+        """Depth-first BVH traversal of all rays in lockstep: each ray holds one
+        current node and its own stack; the nearer child first, the farther pushed
+        with its entry distance and skipped once a closer hit is known."""
+        bvh, m, width = self._bvh, o.shape[0], self._leaf_tris.shape[1]
+        inv = 1.0 / np.where(np.abs(d) < 1e-300, 1e-300, d)
+        best = np.full(m, np.inf)
+        best_tri = np.full(m, -1)
+        stack = np.zeros((m, 64), np.int64)
+        stack_t = np.zeros((m, 64))
+        sp = np.zeros(m, np.int64)
+        cur_t = self._boxes(o, inv, np.zeros(m, np.int64), t_min, best)
+        cur = np.where(np.isfinite(cur_t), 0, -1)
+        act = np.flatnonzero(cur >= 0)
+        while act.size:
+            c = cur[act]
+            valid = cur_t[act] < best[act]
+            leaf = valid & (bvh.left[c] < 0)
+            inner = valid & ~leaf
+            if np.any(leaf):
+                r = act[leaf]
+                tt = self._leaf_tris[c[leaf]].reshape(-1)
+                rr = np.repeat(r, width)
+                ok = tt >= 0
+                rr, tt = rr[ok], tt[ok]
+                t = self._triangle_t(o[rr], d[rr], tt)
+                t = np.where((t > t_min) & (tt != skip[rr]), t, np.inf)
+                np.minimum.at(best, rr, t)
+                won = np.isfinite(t) & (t == best[rr])
+                best_tri[rr[won]] = tt[won]
+            popping = [act[~inner]]
+            if np.any(inner):
+                r = act[inner]
+                lc, rc = bvh.left[c[inner]], bvh.right[c[inner]]
+                tl = self._boxes(o[r], inv[r], lc, t_min, best[r])
+                tr = self._boxes(o[r], inv[r], rc, t_min, best[r])
+                left_first = tl <= tr
+                near, far = np.where(left_first, lc, rc), np.where(left_first, rc, lc)
+                tn, tf = np.minimum(tl, tr), np.maximum(tl, tr)
+                both = np.isfinite(tf)
+                pr = r[both]
+                stack[pr, sp[pr]] = far[both]
+                stack_t[pr, sp[pr]] = tf[both]
+                sp[pr] += 1
+                go = np.isfinite(tn)
+                cur[r[go]] = near[go]
+                cur_t[r[go]] = tn[go]
+                popping.append(r[~go])
+            popping = np.concatenate(popping)
+            has = sp[popping] > 0
+            py = popping[has]
+            sp[py] -= 1
+            cur[py] = stack[py, sp[py]]
+            cur_t[py] = stack_t[py, sp[py]]
+            cur[popping[~has]] = -1
+            act = act[cur[act] >= 0]
+        return best, best_tri
+
     def _triangle_t(self, o, d, tri):
         """Möller–Trumbore, both faces; inf where the line misses the triangle."""
         e1, e2 = self._e1[tri], self._e2[tri]
-        pv = np.cross(d, e2)
+        pv = _cross(d, e2)
         det = dot(e1, pv)
         ok = np.abs(det) > 1e-300
         inv = 1.0 / np.where(ok, det, 1.0)
         tv = o - self._a[tri]
         u = dot(tv, pv) * inv
-        qv = np.cross(tv, e1)
+        qv = _cross(tv, e1)
         v = dot(d, qv) * inv
         t = dot(e2, qv) * inv
         ok &= (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0)
