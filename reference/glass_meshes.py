@@ -193,3 +193,53 @@ def box_mesh(shape):
     f = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))], np.int64)
     f = _orient(v, f)
     return v, f, unit(v - np.asarray(shape.center, float))
+
+
+def revolved_mesh(profile, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), n_seg=64):
+    """A closed solid of revolution of a profile of ``(r, z)`` points running from a
+    point on the axis (r = 0) to another; vertex normals from the profile's
+    neighbouring segments (smooth everywhere: let the renderer crease it)."""
+    p = np.asarray(profile, float)
+    seg = np.diff(p, axis=0)
+    # outward normal of each segment: the tangent turned toward +r for a profile
+    # that goes from the top pole down the outside
+    sn = unit(np.column_stack([-seg[:, 1], seg[:, 0]]))
+    vn = np.zeros_like(p)
+    vn[:-1] += sn
+    vn[1:] += sn
+    vn = unit(vn)
+    nrms = [(tuple(n), tuple(n)) for n in vn]
+    v, f, nrm = _revolve([tuple(q) for q in p], nrms, rotation_to(axis), center, n_seg, set())
+    return v, f, nrm
+
+
+def wine_glass_profile(
+    height=0.15,
+    bowl_radius=0.038,
+    wall=0.0022,
+    stem_radius=0.0035,
+    foot_radius=0.032,
+    foot=0.004,
+    n=14,
+):
+    """A wine glass's profile from the bowl's inner bottom (on the axis) up the inside,
+    over the rim, down the outside, the stem and the foot to the foot's bottom centre
+    (z = 0 at the foot's bottom)."""
+    z_bowl = 0.45 * height  # where the bowl meets the stem
+    bowl_h = height - z_bowl
+    t = np.linspace(0.0, 1.0, n)
+    # outer bowl: r grows as sin of a quarter turn and a little inward at the rim
+    r_out = bowl_radius * np.sin(0.5 * math.pi * np.minimum(1.0, 1.25 * t)) * (1.0 - 0.12 * t**3)
+    r_out[0] = stem_radius
+    z_out = z_bowl + bowl_h * t
+    r_in = np.maximum(r_out - wall, 0.0)
+    z_in = z_out + wall * (1 - t)
+    inner = [(0.0, z_bowl + 1.5 * wall)] + [(r, z) for r, z in zip(r_in[1:], z_in[1:], strict=True)]
+    outer = [(r, z) for r, z in zip(r_out[::-1], z_out[::-1], strict=True)]
+    stem = [
+        (stem_radius, z_bowl - 0.2 * z_bowl),
+        (stem_radius, foot + 0.15 * z_bowl),
+        (0.6 * foot_radius, foot),
+    ]
+    foot_p = [(foot_radius, 0.6 * foot), (foot_radius, 0.0), (0.0, 0.0)]
+    return inner + outer + stem + foot_p
