@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 from reference import PointLight, ReceiverPlane, SunLight  # noqa: E402
 from reference.glass_meshes import biconvex_mesh, box_mesh, ellipsoid_mesh, rod_mesh  # noqa: E402
 from reference.glass_tracer import Glass, Receiver, trace_glass  # noqa: E402
-from reference.shapes import Biconvex, Box, Ellipsoid, Rod, TriangleMesh, rotation_to  # noqa: E402
+from reference.shapes import Biconvex, Box, Ellipsoid, Rod, TriangleMesh  # noqa: E402
 from reference.vectors import unit  # noqa: E402
 
 REPORTS = ROOT / "reports"
@@ -203,9 +203,9 @@ def camera_direction(mesh, Z, edges, margin, umbra):
 def write_obj(path, v, f):
     with open(path, "w") as fh:
         for p in v:
-            fh.write("v %.17g %.17g %.17g\n" % tuple(p))
+            fh.write(f"v {p[0]:.17g} {p[1]:.17g} {p[2]:.17g}\n")
         for t in f:
-            fh.write("f %d %d %d\n" % (t[0] + 1, t[1] + 1, t[2] + 1))
+            fh.write(f"f {t[0] + 1} {t[1] + 1} {t[2] + 1}\n")
 
 
 def mitsuba_render(obj, emitter, Z, c0, w, cam_dir, spp, width):

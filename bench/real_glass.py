@@ -82,7 +82,7 @@ from reference.glass_meshes import (  # noqa: E402
     wine_glass_profile,
 )
 from reference.glass_tracer import Glass, Receiver, trace_glass  # noqa: E402
-from reference.shapes import Biconvex, Box, Ellipsoid, Rod, TriangleMesh, rotation_to  # noqa: E402
+from reference.shapes import Biconvex, Box, Ellipsoid, Rod, TriangleMesh  # noqa: E402
 
 REPORTS = ROOT / "reports"
 IOR = 1.5
