@@ -145,7 +145,9 @@ def trace_glass(
     balance); ``"roulette"`` picks one branch with the Fresnel probability (as
     mitsuba does).  ``max_depth``: glass crossings (or reflections) per path;
     beyond it the flux is tallied as ``cut``.  ``outer_reflection``: keep the
-    light reflected off the glass's outside (True) or drop it (False, tallied).
+    light the glass's outside reflects before it has been inside any glass (the
+    emitter's mirror image, a reflective caustic: True) or drop it (False, tallied);
+    light that has been through glass is followed off every surface either way.
     The result is a deterministic function of ``seed`` (and ``chunk``).
     """
     if branching not in ("split", "roulette"):
@@ -191,6 +193,7 @@ def trace_glass(
         medium = np.full(m, -1)
         depth = np.zeros(m, np.int64)
         touched = np.zeros(m, bool)
+        entered = np.zeros(m, bool)  # has been inside glass (its reflections are kept)
         last_solid = np.full(m, -1)
         last_prim = np.full(m, -1)
         tal = np.zeros((len(TALLIES), m))
@@ -199,7 +202,7 @@ def trace_glass(
         alive = w > 0.0
         o, d, w, g0, root = o[alive], d[alive], w[alive], g0[alive], root[alive]
         medium, depth, touched = medium[alive], depth[alive], touched[alive]
-        last_solid, last_prim = last_solid[alive], last_prim[alive]
+        last_solid, last_prim, entered = last_solid[alive], last_prim[alive], entered[alive]
         while o.shape[0]:
             n = o.shape[0]
             segments += n
@@ -314,14 +317,14 @@ def trace_glass(
                 w_t = w_r = wg
                 keep_t, keep_r = go & ~pick_r, go & pick_r
             if not outer_reflection:
-                outer = keep_r & ~from_in
+                outer = keep_r & ~from_in & ~entered[gi]
                 np.add.at(tal[5], root[gi[outer]], w_r[outer])
-                keep_r &= from_in
+                keep_r &= ~outer
             new_medium_t = np.where(from_in, -1, k)
             parts = []
-            for keep, dirs, ww, med in (
-                (keep_t, t_dir, w_t, new_medium_t),
-                (keep_r, r_dir, w_r, medium[gi]),
+            for keep, dirs, ww, med, ent in (
+                (keep_t, t_dir, w_t, new_medium_t, np.ones(gi.size, bool)),
+                (keep_r, r_dir, w_r, medium[gi], entered[gi]),
             ):
                 sel = np.flatnonzero(keep)
                 parts.append(
@@ -335,9 +338,10 @@ def trace_glass(
                         dep[sel],
                         k[sel],
                         prim[gi[sel]],
+                        ent[sel],
                     )
                 )
-            o, d, w, g0, root, medium, depth, last_solid, last_prim = (
+            o, d, w, g0, root, medium, depth, last_solid, last_prim, entered = (
                 np.concatenate(x) for x in zip(*parts, strict=True)
             )
             touched = np.ones(o.shape[0], bool)
@@ -357,6 +361,7 @@ def trace_glass(
                     )
                     medium, depth, touched = medium[survive], depth[survive], touched[survive]
                     last_solid, last_prim = last_solid[survive], last_prim[survive]
+                    entered = entered[survive]
         # per-primary sums -> means and standard errors
         sums[:, 0] += tal.sum(axis=1)
         sums[:, 1] += (tal * tal).sum(axis=1)

@@ -209,3 +209,42 @@ def test_deterministic_given_the_seed():
     a, b, c = trace_glass(*args, seed=1), trace_glass(*args, seed=1), trace_glass(*args, seed=2)
     assert np.array_equal(a.receivers[0].irradiance, b.receivers[0].irradiance)
     assert not np.array_equal(a.receivers[0].irradiance, c.receivers[0].irradiance)
+
+
+@pytest.mark.parametrize("as_one_mesh,outer", [(False, False), (True, True)])
+def test_two_stacked_plates_transmit_the_incoherent_series(as_one_mesh, outer):
+    """Two plates under a parallel beam at normal incidence, as two glass solids or as
+    one non-convex mesh (a ray leaves it and enters it again): each plate passes
+    Ts = (1 - R)/(1 + R) and reflects Rs = 1 - Ts, and the pair passes Ts^2 / (1 - Rs^2)
+    (the light bouncing between them summed), within the roulette's noise (splitting
+    every branch without it grows exponentially with the depth here).  Dropping the
+    outer reflection drops only the first surface's (R), which goes up and away."""
+    from reference.glass_meshes import box_mesh
+
+    plates = [Box((0.0, 0.0, 0.0), (1.2, 1.2, 0.1)), Box((0.0, 0.0, -0.3), (1.2, 1.2, 0.1))]
+    if as_one_mesh:
+        (v1, f1, _), (v2, f2, _) = (box_mesh(p) for p in plates)
+        glass = [
+            Glass(TriangleMesh(np.concatenate([v1, v2]), np.concatenate([f1, f2 + len(v1)])), N)
+        ]
+    else:
+        glass = [Glass(p, N) for p in plates]
+    res = trace_glass(
+        SunLight((0.0, 0.0, -1.0), 1.0),
+        glass,
+        [_below(-0.6)],
+        100_000,
+        seed=9,
+        max_depth=40,
+        outer_reflection=outer,
+    )
+    R = _fresnel_r(1.0, 1.0, N)
+    ts = (1 - R) / (1 + R)
+    expected = ts * ts / (1 - (1 - ts) ** 2)
+    rec, into = res.receivers[0], res.tally["into_glass"]
+    # the share passed: mean over the rays that entered, the noise only the roulette's
+    assert rec.flux == pytest.approx(expected * into, abs=4.0 * rec.flux_se)
+    assert rec.flux / into == pytest.approx(expected, rel=2e-3)
+    assert abs(res.balance()) < 4.0 * res.tally_se["into_glass"]
+    dropped = res.tally["outer_reflection"]
+    assert dropped == (0.0 if outer else pytest.approx(R * into, rel=1e-12))
