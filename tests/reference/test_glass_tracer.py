@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from reference import GlassSphere, PointLight, ReceiverPlane, SunLight, trace_irradiance
-from reference.glass_meshes import corner_normals, ellipsoid_mesh
+from reference.glass_meshes import box_mesh, corner_normals, ellipsoid_mesh
 from reference.glass_tracer import Glass, Receiver, trace_glass
 from reference.shapes import Box, Ellipsoid, Rod, TriangleMesh
 
@@ -219,8 +219,6 @@ def test_two_stacked_plates_transmit_the_incoherent_series(as_one_mesh, outer):
     (the light bouncing between them summed), within the roulette's noise (splitting
     every branch without it grows exponentially with the depth here).  Dropping the
     outer reflection drops only the first surface's (R), which goes up and away."""
-    from reference.glass_meshes import box_mesh
-
     plates = [Box((0.0, 0.0, 0.0), (1.2, 1.2, 0.1)), Box((0.0, 0.0, -0.3), (1.2, 1.2, 0.1))]
     if as_one_mesh:
         (v1, f1, _), (v2, f2, _) = (box_mesh(p) for p in plates)
