@@ -246,3 +246,17 @@ def test_two_stacked_plates_transmit_the_incoherent_series(as_one_mesh, outer):
     assert abs(res.balance()) < 4.0 * res.tally_se["into_glass"]
     dropped = res.tally["outer_reflection"]
     assert dropped == (0.0 if outer else pytest.approx(R * into, rel=1e-12))
+
+
+def test_a_finite_receiver_passes_what_misses_it_to_the_next():
+    """A receiver covering x > 0 only, a plane below it: under a slab in a vertical
+    beam each takes half of what passes the slab (the flux through the slab's two
+    halves), the total that of one infinite plane."""
+    sun = SunLight((0.0, 0.0, -1.0), 1.0)
+    slab = [Glass(Box((0.0, 0.0, 0.0), (1.0, 1.0, 0.1)), N)]
+    half = Receiver(ReceiverPlane((0.0, 0.0, -0.3), (0.0, 0.0, 1.0)), extent=(0.0, 5.0, -5.0, 5.0))
+    res = trace_glass(sun, slab, [half, _below(-0.6)], 100_000, seed=10)
+    whole = trace_glass(sun, slab, [_below(-0.6)], 100_000, seed=10)
+    a, b = res.receivers
+    assert a.flux + b.flux == pytest.approx(whole.receivers[0].flux, rel=1e-12)
+    assert a.flux == pytest.approx(b.flux, abs=4.0 * math.hypot(a.flux_se, b.flux_se))
