@@ -12,7 +12,7 @@ the caustic, the glass hidden from the camera, linear EXR, no world):
 - ``magnifier``: a biconvex magnifying glass (R 10 cm both sides, 1.2 cm thick,
   7 cm across, f ≈ 10 cm) 9 cm above the table in the sun (angle 1°, 20° from the
   zenith): its focal spot, just before focus;
-- ``rod``: a glass rod (r 1 cm, 15 cm long) lying on the table, a point light
+- ``rod``: a glass rod (r 1 cm, 8 cm long) lying on the table, a point light
   (radius 5 cm) at 40° elevation: a line caustic;
 - ``ice_cube``: a 3 cm cube turned 15°, resting on the table, a spot (40°, blend
   0.2, radius 5 cm) at 45° elevation 50 cm away;
@@ -147,12 +147,12 @@ def cases():
         )
     )
     c = (0.0, 0.0, 0.01 + GAP)
-    r = Rod(c, (1.0, 0.0, 0.0), 0.01, 0.15)
+    r = Rod(c, (1.0, 0.0, 0.0), 0.01, 0.08)
     p = _at(40, 0.5, c, azimuth_deg=-100.0)
     out.append(
         Case(
             "rod",
-            "glass rod r 1 cm × 15 cm lying on the table, point light r 5 cm at 40°",
+            "glass rod r 1 cm × 8 cm lying on the table, point light r 5 cm at 40°",
             rod_mesh(r, 64)[:2],
             dict(kind="POINT", position=p, power=200.0, radius=0.05),
             shading="30",
