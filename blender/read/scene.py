@@ -72,6 +72,7 @@ import bpy
 import mathutils
 import numpy as np
 
+from ...core.lens.closed_mesh import LocalMesh
 from ...core.lens.glass import MaterialOptics
 from ...core.lens.mesh_shape import mesh_shape, shape_reason
 from ...core.lens.sphere_fit import fit_sphere
@@ -196,6 +197,41 @@ def _is_glass(record) -> bool:
     return record.mode == "ALWAYS" or (o is not None and (o.is_transmissive or o.thin_wall > 0))
 
 
+def read_local_mesh(mesh) -> LocalMesh:
+    """An evaluated mesh as Blender renders it (`core.lens.closed_mesh.LocalMesh`):
+    its loop triangles, vertices and the shading normal of each triangle corner
+    (``corner_normals``: smooth, flat, Smooth by Angle and custom normals as shaded),
+    in bulk."""
+    tris = mesh.loop_triangles
+    nt = len(tris)
+    v = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", v)
+    t = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("vertices", t)
+    loops = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("loops", loops)
+    cn = np.empty(len(mesh.corner_normals) * 3)
+    mesh.corner_normals.foreach_get("vector", cn)
+    normals = cn.reshape(-1, 3)[loops].reshape(nt, 3, 3)
+    return LocalMesh(v.reshape(-1, 3), t.reshape(nt, 3).astype(np.int64), normals)
+
+
+class _LensMesh:
+    """`GeometryRecord.lens_mesh` of a glass mesh: its `read_local_mesh`, read when
+    the assembly asks (only for glass that is no sphere, or a sphere scaled unevenly)
+    and while the depsgraph is valid, once."""
+
+    __slots__ = ("mesh", "local")
+
+    def __init__(self, mesh):
+        self.mesh, self.local = mesh, None
+
+    def __call__(self):
+        if self.local is None:
+            self.local = read_local_mesh(self.mesh)
+        return self.local
+
+
 def fit_meshes(records, meshes) -> None:
     """Fill in each mesh record's local sphere fit (`GeometryRecord.fit`; `meshes`:
     the evaluated mesh of each record, None for the others), after the walk: the
@@ -209,8 +245,14 @@ def fit_meshes(records, meshes) -> None:
     extents = corners.max(axis=1) - corners.min(axis=1)
     failed = dict(zip(boxed, box_fit_failures(extents), strict=True))
     by_mesh: dict = {}
+    readers: dict = {}
     for k in rows:
         glass = _is_glass(records[k])
+        if glass:
+            reader = readers.get(meshes[k].as_pointer())
+            if reader is None:
+                reader = readers[meshes[k].as_pointer()] = _LensMesh(meshes[k])
+            records[k].lens_mesh = reader
         key = (meshes[k].as_pointer(), glass)
         fit = by_mesh.get(key)
         if fit is None:
