@@ -135,6 +135,8 @@ def generate(context):
                     scene, made, plan.lights, a.center, a.radius, work.read.sphere_objects
                 )
                 work.timings["linking"] = time.perf_counter() - tl
+                # the glass meshes' caustic layers beside the spheres' lens lights
+                made += layer_stage.build_mesh_layers(scene, work)
             made_lights = sum(1 for ob in made if ob.type == "LIGHT")
             made_layers = len(made) - made_lights  # the caustic layers' meshes
             caustics_note, caustics_warn = cycles_caustics.after_build(
@@ -168,6 +170,9 @@ def generate(context):
         message = f"Created {made_text(made_lights, made_layers)}; " + error_text(
             "write the report", exc
         )
+    meshes = layer_stage.mesh_lenses_note(work, made_layers)
+    if meshes:
+        message = f"{message}; {meshes}"
     if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)

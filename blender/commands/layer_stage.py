@@ -8,6 +8,13 @@ lens lights (`build.layers`; with no receiver at all, the planned Fitted spots:
 one undo step with the rest of Generate. What it adds to the plan is in the fields
 `planning.Work` declares for it (``receivers``, ``layer_bake``, ``layer_sources``,
 ``layer_figures``).
+
+The glass meshes read as lenses (`read.mesh_lenses`, issue 25) have no lens light:
+their (light, lens) pairs (`core.caustic_layer.mesh_sources`) are baked here in every
+tier and both engines, after the spheres' sources when the spheres' tier is the
+layer's, alone otherwise (`build_mesh_layers` then builds their layers beside the
+spheres' lens lights). Without the mesh lens kind (`core.lens.kinds`) they are
+reported as glass it cannot model, and Cycles keeps its own caustics for them.
 """
 
 from __future__ import annotations
@@ -28,7 +35,10 @@ from ...core.caustic_layer.plan import (
     sheet_camera,
     sheet_sources,
 )
+from ...core.caustic_layer.mesh_sources import MESH_KIND, mesh_sheet_sources
 from ...core.caustic_layer.view import view_of
+from ...core.lens.kinds import LENS_KINDS
+from ...core.report.message import mesh_lenses_text
 from ...core.tiers import builds_layer
 from ..build import layers as layer_builder
 from ..build import lights as light_builder
@@ -39,19 +49,26 @@ def prepare(depsgraph, work, options: dict):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
     ``layer_bake`` (None: no layer tier or nothing to bake)."""
     work.receivers = work.layer_bake = None
-    if not builds_layer(options.get("energy_model")) or not work.plan.lights:
-        return work
     read = work.read
+    spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
+    meshes = mesh_sources_of(read, work.timings)
+    if not spheres and not meshes:
+        return work
     t = time.perf_counter()
     lenses = [
         ob for ob, lens in zip(read.sphere_objects, read.lens_candidates, strict=False) if lens
     ]
+    lenses += [m.orig for m in read.mesh_lenses]  # no glass receives its own caustic
     work.receivers = read_receivers(depsgraph, exclude=lenses)
     work.timings["receivers"] = time.perf_counter() - t
     if not len(work.receivers.mesh.triangles):
         return work  # nothing to lay a caustic on
     t = time.perf_counter()
-    sources = sheet_sources(work.plan.lights, read.primaries, read.lens_optics, read.arrays)
+    sources = (
+        sheet_sources(work.plan.lights, read.primaries, read.lens_optics, read.arrays)
+        if spheres
+        else []
+    ) + meshes
     cam = depsgraph.scene.camera
     ortho = (
         cam.data.ortho_scale
@@ -81,6 +98,60 @@ def prepare(depsgraph, work, options: dict):
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
     return work
+
+
+def mesh_sources_of(read, timings=None) -> list:
+    """The sheet sources of the read's mesh lenses (`mesh_sheet_sources`), each
+    tagged with its lens' name (``read.mesh_pairs``: (light, mesh lens) per source);
+    without the mesh lens kind none, and the meshes are named as glass left out."""
+    read.mesh_pairs = []
+    if not read.mesh_lenses:
+        return []
+    if MESH_KIND not in LENS_KINDS:  # the tracer is not there: Cycles keeps its caustics
+        why = "a glass mesh: this build of Lens Lights cannot trace meshes"
+        for m in read.mesh_lenses:
+            read.left_out.append((m.name, why))
+            read.left_out_lenses.append((m.name, why))
+            read.unmodelled_glass.append((m.name, why))
+        read.mesh_lenses = []
+        return []
+    t = time.perf_counter()
+    sources, lens_of, _skipped = mesh_sheet_sources(
+        read.arrays, read.primary_lights, read.primaries, read.mesh_lenses
+    )
+    read.mesh_pairs = lens_of
+    if timings is not None:
+        timings["mesh sources"] = time.perf_counter() - t
+    return sources
+
+
+def build_mesh_layers(scene, work, progress=None) -> list:
+    """The mesh lenses' layers when the spheres got lens lights (any tier but the
+    layer's): every object made."""
+    if work.layer_bake is None:
+        work.layer_figures = None
+        return []
+    layers, _lights, fallback = layer_builder.build(
+        scene, work.layer_bake, work.receivers, [], [], progress=progress
+    )
+    work.layer_figures = figures_of(work.layer_bake, 0, fallback)
+    return layers
+
+
+def mesh_lenses_note(work, layers_made: int) -> str:
+    """The report's words on the glass meshes traced as lenses (`mesh_lenses_text`):
+    those with a caustic layer (by name, with their triangle counts), those no light
+    reaches, and those whose layer could not be made (no receiver)."""
+    read = work.read
+    if not read.mesh_lenses:
+        return ""
+    traced = sorted(set(read.mesh_pairs))
+    lit = [(read.mesh_lenses[k].name, read.mesh_lenses[k].n_triangles) for k in traced]
+    unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
+    if lit and not (layers_made and work.layer_bake is not None):
+        names = ", ".join(n for n, _t in lit)
+        return f"no caustic layer for the glass of {names}: nothing receives its caustic"
+    return mesh_lenses_text(lit, unlit)
 
 
 def build(scene, work, progress=None) -> list:

@@ -206,7 +206,7 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
 
     level, message, figures = generate()
     assert figures["created"] == 1 and figures["left_out"] == 3
-    assert "left out 3 objects (Lens Lights models solid glass spheres): " in message
+    assert "left out 3 objects (Lens Lights models solid glass spheres and closed glass meshes): " in message
     assert "Egg (non-uniform scale" in message and "Glass cube (a box, not a sphere)" in message
     assert "Red ball" not in message  # an opaque ball is no lens, not "skipped"
 

@@ -112,7 +112,7 @@ def test_glass_that_is_no_sphere_is_named_by_its_shape(empty_blend, auto_builds_
     level, message, figures = generate()
     assert figures["created"] == 1 and figures["left_out"] == 5
     assert (
-        "left out 5 objects (Lens Lights models solid glass spheres): "
+        "left out 5 objects (Lens Lights models solid glass spheres and closed glass meshes): "
         "Cylinder (a cylinder, not a sphere); Cube (a box, not a sphere); "
         "Tube (an open mesh, not a closed surface); and 2 more"
     ) in message
