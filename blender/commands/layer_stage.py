@@ -35,7 +35,12 @@ from ...core.caustic_layer.plan import (
     sheet_camera,
     sheet_sources,
 )
-from ...core.caustic_layer.mesh_sources import MESH_KIND, mesh_sheet_sources
+from ...core.caustic_layer.mesh_sources import (
+    MESH_KIND,
+    budget_cuts,
+    mesh_min_rays,
+    mesh_sheet_sources,
+)
 from ...core.caustic_layer.view import view_of
 from ...core.lens.kinds import LENS_KINDS
 from ...core.report.message import mesh_lenses_text
@@ -69,6 +74,11 @@ def prepare(depsgraph, work, options: dict):
         if spheres
         else []
     ) + meshes
+    # a glass mesh's floor of rays grows with its triangles (`mesh_min_rays`)
+    triangles = [0] * (len(sources) - len(meshes)) + [
+        read.mesh_lenses[k].n_triangles for k in read.mesh_pairs
+    ]
+    min_rays = [mesh_min_rays(t, MIN_RAYS_PER_SOURCE) for t in triangles]
     cam = depsgraph.scene.camera
     ortho = (
         cam.data.ortho_scale
@@ -86,7 +96,7 @@ def prepare(depsgraph, work, options: dict):
         camera,
         total_rays=TOTAL_RAYS,
         max_rays=MAX_RAYS_PER_SOURCE,
-        min_rays=MIN_RAYS_PER_SOURCE,
+        min_rays=min_rays,
         rays_per_pixel=RAYS_PER_PIXEL,
         resolution=VIEW_MAX_RESOLUTION
         if view is not None
@@ -151,7 +161,17 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     if lit and not (layers_made and work.layer_bake is not None):
         names = ", ".join(n for n, _t in lit)
         return f"no caustic layer for the glass of {names}: nothing receives its caustic"
-    return mesh_lenses_text(lit, unlit)
+    text = mesh_lenses_text(lit, unlit)
+    bake = work.layer_bake
+    first = len(bake.budgets) - len(read.mesh_pairs)
+    names, wanted, got = [], [], []
+    for j, k in enumerate(read.mesh_pairs):
+        m, src = read.mesh_lenses[k], work.layer_sources[first + j]
+        names.append(m.name)
+        wanted.append(mesh_min_rays(m.n_triangles, MIN_RAYS_PER_SOURCE))
+        got.append(bake.budgets[first + j].n_rays * src.n_source)
+    cuts = budget_cuts(names, wanted, got)
+    return f"{text}; {cuts}" if cuts else text
 
 
 def build(scene, work, progress=None) -> list:

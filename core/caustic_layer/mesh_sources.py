@@ -34,6 +34,25 @@ from .shadow import ShadowList
 
 #: The lens kind of a glass mesh (`core.lens.kinds.LENS_KINDS`).
 MESH_KIND = "mesh"
+#: Node rays a glass mesh's beam gets at least per triangle (its facets' caustics
+#: need rays of their own; the ray budget's caps still apply and the report says so).
+RAYS_PER_TRIANGLE = 4
+
+
+def mesh_min_rays(n_triangles: int, min_rays: int) -> int:
+    """The ray budget's floor for a mesh of `n_triangles` (`RAYS_PER_TRIANGLE` each)."""
+    return max(int(min_rays), RAYS_PER_TRIANGLE * int(n_triangles))
+
+
+def budget_cuts(names, wanted, got) -> str:
+    """Where the ray budget cut a mesh's rays below its floor ("" nowhere):
+    "ray budget cut: Rod 16 384 of 80 000 rays"."""
+    cut = [
+        f"{n} {g:,} of {w:,} rays".replace(",", "\u2009")
+        for n, w, g in zip(names, wanted, got, strict=True)
+        if g < 0.9 * w
+    ]
+    return "ray budget cut: " + ", ".join(cut) if cut else ""
 
 
 def mesh_lens_record(m) -> Lens:

@@ -105,7 +105,8 @@ def report_message(
     viewport shows it (`work.read.how` says why)."""
     read, result, sel, plan = work.read, work.result, work.selection, work.plan
     lights = len(read.light_sources)
-    lenses = int(np.count_nonzero(read.lens_candidates))
+    # the glass meshes traced as lenses count beside the spheres
+    lenses = int(np.count_nonzero(read.lens_candidates)) + len(getattr(read, "mesh_lenses", []))
     skipped, first, counts = skip_report(work)
     # Flux without a light: every source's estimated flux minus the built lights'.
     rows = {id(src): t for t, src in enumerate(sel.sources)}
