@@ -102,7 +102,7 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
         lenses = {read.sphere_objects[p.source.lens] for p in plan.lights}
         if layers:  # the glass meshes traced as lenses: their layers replace Cycles'
             meshes = getattr(read, "mesh_lenses", [])
-            lenses |= {meshes[k].orig for k in getattr(read, "mesh_pairs", [])}
+            lenses |= {meshes[k].orig for _light, k in getattr(read, "mesh_pairs", [])}
         lenses = sorted(lenses, key=_name)
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
         # A lens sunk into another surface has no lens light: only Cycles' caustic.

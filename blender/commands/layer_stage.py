@@ -41,6 +41,7 @@ from ...core.caustic_layer.mesh_sources import (
     mesh_min_rays,
     mesh_sheet_sources,
 )
+from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.view import view_of
 from ...core.lens.kinds import LENS_KINDS
 from ...core.report.message import mesh_lenses_text
@@ -76,7 +77,7 @@ def prepare(depsgraph, work, options: dict):
     ) + meshes
     # a glass mesh's floor of rays grows with its triangles (`mesh_min_rays`)
     triangles = [0] * (len(sources) - len(meshes)) + [
-        read.mesh_lenses[k].n_triangles for k in read.mesh_pairs
+        read.mesh_lenses[k].n_triangles for _light, k in read.mesh_pairs
     ]
     min_rays = [mesh_min_rays(t, MIN_RAYS_PER_SOURCE) for t in triangles]
     cam = depsgraph.scene.camera
@@ -111,8 +112,8 @@ def prepare(depsgraph, work, options: dict):
 
 
 def mesh_sources_of(read, timings=None) -> list:
-    """The sheet sources of the read's mesh lenses (`mesh_sheet_sources`), each
-    tagged with its lens' name (``read.mesh_pairs``: (light, mesh lens) per source);
+    """The sheet sources of the read's mesh lenses (`mesh_sheet_sources`), with their
+    pairs in ``read.mesh_pairs`` ((light, mesh lens) indices per source);
     without the mesh lens kind none, and the meshes are named as glass left out."""
     read.mesh_pairs = []
     if not read.mesh_lenses:
@@ -135,6 +136,15 @@ def mesh_sources_of(read, timings=None) -> list:
     return sources
 
 
+def mesh_keys(read) -> list:
+    """The bake's keys of the mesh lenses' sources (`light_keys.keys_of`: light and
+    lens names, kind "mesh"), after the planned lights' in a frame's layer sources."""
+    return keys_of(
+        (read.light_sources[j], read.mesh_lenses[k].name, MESH_KIND, "CAUSTIC_LAYER")
+        for j, k in read.mesh_pairs
+    )
+
+
 def build_mesh_layers(scene, work, progress=None) -> list:
     """The mesh lenses' layers when the spheres got lens lights (any tier but the
     layer's): every object made."""
@@ -155,7 +165,7 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     read = work.read
     if not read.mesh_lenses:
         return ""
-    traced = sorted(set(read.mesh_pairs))
+    traced = sorted({k for _light, k in read.mesh_pairs})
     lit = [(read.mesh_lenses[k].name, read.mesh_lenses[k].n_triangles) for k in traced]
     unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
     if lit and not (layers_made and work.layer_bake is not None):
@@ -165,7 +175,7 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     bake = work.layer_bake
     first = len(bake.budgets) - len(read.mesh_pairs)
     names, wanted, got = [], [], []
-    for j, k in enumerate(read.mesh_pairs):
+    for j, (_light, k) in enumerate(read.mesh_pairs):
         m, src = read.mesh_lenses[k], work.layer_sources[first + j]
         names.append(m.name)
         wanted.append(mesh_min_rays(m.n_triangles, MIN_RAYS_PER_SOURCE))

@@ -80,7 +80,7 @@ def mesh_color(m, color) -> tuple[float, float, float]:
 
 def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses):
     """(the sheet sources of every (light, mesh lens) pair a light reaches, the
-    mesh lens of each (an index into `mesh_lenses`), and phase 1's skipped pairs of
+    pair of each (light index, index into `mesh_lenses`), and phase 1's skipped pairs of
     the meshes as (light, mesh lens, `skip_reasons.Reason` code) rows).
     `arrays`: phase 1's `SceneArrays` of the spheres; `primary_lights` and
     `primaries` the read's (`core.scene.primaries` dataclasses and `PrimaryLight`s)."""
@@ -130,7 +130,7 @@ def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses):
                 blockers=blockers,
             )
         )
-        lens_of.append(k)
+        lens_of.append((int(src.light), k))
     skip = result.skip_table
     rows = np.flatnonzero(np.asarray(skip.lens) >= n_sph)
     skipped = [

@@ -126,7 +126,7 @@ class BlenderSceneRead:
     #: The glass meshes traced as lenses of their own (`core.scene.mesh_lenses`), one
     #: per instance: no phase 1, their caustic layers in both engines.
     mesh_lenses: list = field(default_factory=list)
-    #: The mesh lens of each of the caustic layer's mesh sources (set by the layer stage).
+    #: (light, mesh lens) of each of the caustic layer's mesh sources (the layer stage's).
     mesh_pairs: list = field(default_factory=list)
     bounds: tuple[np.ndarray, np.ndarray] | None = None
     #: What blocks rays (`blender.read.occluders.Occluders`): valid while the depsgraph read is.

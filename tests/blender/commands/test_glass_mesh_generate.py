@@ -159,3 +159,37 @@ def test_an_open_glass_sheet_keeps_cycles_caustics_and_is_named(empty_blend):
     assert len(layers()) == 1
     # the pane's caustic is Cycles' alone: its refractive caustics stay on
     assert bpy.context.scene.cycles.caustics_refractive
+
+
+def test_bake_of_the_layer_tier_keys_the_rods_layer_over_the_frames(empty_blend):
+    rod_scene()
+    set_engine("BLENDER_EEVEE")
+    scene = bpy.context.scene
+    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    lamp = bpy.data.objects["Lamp"]
+    scene.frame_start, scene.frame_end = 1, 2
+    for f, x in ((1, 0.0), (2, 0.3)):
+        lamp.location = (x, 0.0, LAMP_Z)
+        lamp.keyframe_insert("location", frame=f)
+    scene.frame_set(1)
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    report = scene.lens_lights.last_report
+    baked = layers()
+    assert baked, report
+    assert all(o.lens_lights.energy_model == "CAUSTIC_LAYER" for o in baked)
+    assert not [o for o in lens_lights() if o.type == "LIGHT"]
+
+
+def test_bake_outside_the_layer_tier_says_the_rod_is_not_baked_and_keeps_cycles_caustics(
+    empty_blend,
+):
+    rod_scene()
+    add_sphere("Ball", (3.0, 0.0, 1.0), radius=0.5, material=glass_material(ior=1.5))
+    set_engine("CYCLES")
+    scene = bpy.context.scene
+    scene.lens_lights.replace_cycles_caustics = True
+    scene.frame_start, scene.frame_end = 1, 2
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    report = scene.lens_lights.last_report
+    assert "not baked: the caustics of the glass meshes Rod" in report
+    assert scene.cycles.caustics_refractive  # the rod's caustic is Cycles' own
