@@ -21,6 +21,13 @@ from __future__ import annotations
 
 import time
 
+from ...core.animation.light_keys import keys_of
+from ...core.caustic_layer.mesh_sources import (
+    MESH_KIND,
+    budget_cuts,
+    mesh_min_rays,
+    mesh_sheet_sources,
+)
 from ...core.caustic_layer.pipeline import bake
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
@@ -35,13 +42,6 @@ from ...core.caustic_layer.plan import (
     sheet_camera,
     sheet_sources,
 )
-from ...core.caustic_layer.mesh_sources import (
-    MESH_KIND,
-    budget_cuts,
-    mesh_min_rays,
-    mesh_sheet_sources,
-)
-from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.view import view_of
 from ...core.lens.kinds import LENS_KINDS
 from ...core.report.message import mesh_lenses_text

@@ -52,12 +52,16 @@ Rules:
   sphere 4πr², an area light's surface — if its power is not normalised; a sun's
   strength in W/m²); its colour includes the blackbody colour when temperature is used.
 * A sphere's transform may rotate, mirror (negative scale) and scale uniformly;
-  a non-uniform scale (an ellipsoid) or a zero scale is left out and named.
-  Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
-* Glass that is no lens is named by its shape (`fit_meshes`: "a cylinder, not a
-  sphere"); a sphere of thin-walled glass (Principled's Thin Wall, 5.x) is a shell,
-  no lens (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to
-  Never, are ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
+  a non-uniform scale (an ellipsoid) or a zero scale is left out and named, unless
+  it is glass (below). Meshes without vertices (e.g. an instancer's own empty mesh)
+  are ignored.
+* Glass that is no sphere (or a glass sphere scaled unevenly) is a *mesh lens*
+  (``mesh_lenses``, `core.scene.mesh_lenses`) when its evaluated mesh is closed and
+  outward (`core.lens.closed_mesh`; read by `read_local_mesh` only when asked),
+  else left out with why ("open mesh: …", or its shape: "a flat sheet"); a sphere
+  of thin-walled glass (Principled's Thin Wall, 5.x) is a shell, no lens
+  (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to Never, are
+  ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
 * Lights the extension created are skipped entirely.
 """
 
