@@ -14,7 +14,8 @@ would meet it from behind, or where the refracted or reflected ray it gives woul
 back to the wrong side of the triangle, that crossing uses the geometric normal instead
 (continuous at the places where both agree, and no ray is stuck or leaks). Each new
 segment starts a hair (``eps``, 1e-7 of the radius) off the surface on the side it
-travels to, so it cannot hit the triangle it left.
+travels to (along its own line, which stays exact), so it cannot hit the triangle it
+left.
 """
 
 from __future__ import annotations
@@ -48,20 +49,27 @@ def _unit(v):
 @dataclass
 class _Segments:
     """Live path segments (flat, one row each): which ray, where it starts (``origin``,
-    a hair off the surface; ``at`` the exact point), its direction, power, length inside
-    so far, crossings, path hash, the triangle it left (−1: none) and whether it was
-    launched into the glass."""
+    a hair off the surface; ``at`` the exact point), its direction, its power in the
+    s and p parts of the last crossing (``ws``, ``wp``; ``s_dir`` the unit s direction
+    there, 0 before the first), length inside so far, crossings, path hash, the
+    triangle it left (−1: none) and whether it was launched into the glass."""
 
     ray: np.ndarray
     origin: np.ndarray
     at: np.ndarray
     direction: np.ndarray
-    weight: np.ndarray
+    ws: np.ndarray
+    wp: np.ndarray
+    s_dir: np.ndarray
     path: np.ndarray
     crossings: np.ndarray
     signature: np.ndarray
     face: np.ndarray
     inside: np.ndarray
+
+    @property
+    def weight(self) -> np.ndarray:
+        return self.ws + self.wp
 
     def take(self, mask) -> _Segments:
         return _Segments(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
@@ -130,6 +138,42 @@ class MeshLens(Lens):
     def trace_branches(self, origins, directions, max_depth: int = 8, min_weight: float = 1e-3):
         return self._walk(origins, directions, max_depth, min_weight, split=True)
 
+    # ------------------------------------------------------------------ the topology
+
+    @cached_property
+    def _edges(self):
+        """Each interior edge once: (triangle a, triangle b, corner k of a where the
+        edge starts, its two vertex indices), from the sorted half-edges."""
+        t = len(self.triangles)
+        k0 = np.tile(np.arange(3), t)
+        tri = np.repeat(np.arange(t), 3)
+        a, b = self.triangles[tri, k0], self.triangles[tri, (k0 + 1) % 3]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        order = np.lexsort((hi, lo))
+        lo, hi, tri, k0 = lo[order], hi[order], tri[order], k0[order]
+        i = np.nonzero((lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1]))[0]
+        return tri[i], tri[i + 1], lo[i], hi[i]
+
+    @cached_property
+    def convex(self) -> bool:
+        """Whether the mesh is convex: one piece, and at every edge each face's far
+        vertex lies on or behind the other face (a connected closed surface convex at
+        every edge is convex). Then light that has left it never meets it again: no
+        re-entry test."""
+        ta, tb, _, _ = self._edges
+        if len(ta) * 2 != 3 * len(self.triangles):
+            return False  # not every edge shared by two faces
+        if _components(ta, tb, len(self.triangles)).max(initial=0) > 0:
+            return False  # several pieces
+        v = self.vertices
+        tol = 1e-9 * max(self.radius, 1e-300)
+        for x, cy in ((ta, self.triangles[tb]), (tb, self.triangles[ta])):
+            n, p0 = self.face_normals[x], v[self.triangles[x, 0]]
+            ahead = _dot(v[cy] - p0[:, None, :], n[:, None, :]).max(axis=1)
+            if (ahead > tol).any():
+                return False
+        return True
+
     # ------------------------------------------------------------------ the groups
 
     @cached_property
@@ -139,40 +183,17 @@ class MeshLens(Lens):
         t = len(self.triangles)
         if t == 0:
             return np.zeros(0, dtype=np.int64)
-        k0 = np.tile(np.arange(3), t)
-        k1 = (k0 + 1) % 3
-        tri = np.repeat(np.arange(t), 3)
-        a, b = self.triangles[tri, k0], self.triangles[tri, k1]
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        order = np.lexsort((hi, lo))
-        lo, hi, tri, k0, k1, a = lo[order], hi[order], tri[order], k0[order], k1[order], a[order]
-        same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
-        i, j = np.nonzero(same)[0], np.nonzero(same)[0] + 1
+        ta, tb, lo, hi = self._edges
         cn = self.corner_normals
 
         def normal_at(rows, vertex):  # the corner normal of triangle rows at that vertex
-            kk = np.where(a[rows] == vertex, k0[rows], k1[rows])
-            return cn[tri[rows], kk]
+            k = np.argmax(self.triangles[rows] == vertex[:, None], axis=1)
+            return cn[rows, k]
 
-        smooth = np.ones(len(i), dtype=bool)
-        for v in (lo[i], hi[i]):
-            smooth &= _dot(normal_at(i, v), normal_at(j, v)) >= SMOOTH_COS
-        ea, eb = tri[i][smooth], tri[j][smooth]
-        label = np.arange(t)
-        while True:  # hook roots onto the smaller root, then jump pointers
-            ra, rb = label[ea], label[eb]
-            low = np.minimum(ra, rb)
-            before = label.copy()
-            np.minimum.at(label, ra, low)
-            np.minimum.at(label, rb, low)
-            while True:
-                nxt = label[label]
-                if np.array_equal(nxt, label):
-                    break
-                label = nxt
-            if np.array_equal(label, before):
-                break
-        return np.unique(label, return_inverse=True)[1]
+        smooth = np.ones(len(ta), dtype=bool)
+        for vtx in (lo, hi):
+            smooth &= _dot(normal_at(ta, vtx), normal_at(tb, vtx)) >= SMOOTH_COS
+        return _components(ta[smooth], tb[smooth], len(self.triangles))
 
     # ------------------------------------------------------------------ the walk
 
@@ -185,7 +206,9 @@ class MeshLens(Lens):
             origin=o,
             at=o,
             direction=d,
-            weight=np.ones(n),
+            ws=np.full(n, 0.5),
+            wp=np.full(n, 0.5),
+            s_dir=np.zeros((n, 3)),
             path=np.zeros(n),
             crossings=np.zeros(n, dtype=np.int64),
             signature=np.zeros(n, dtype=np.uint64),
@@ -218,6 +241,10 @@ class MeshLens(Lens):
             # one path (`trace`): the reflected part is followed only where it is total
             kids = [kid_t, kid_r] if split else [kid_t, kid_r.take(tir)]
             nxt = _Segments.join(kids)
+            if self.convex:  # what leaves a convex glass never meets it again
+                gone = ~nxt.inside
+                done.append(nxt.take(gone & (nxt.weight >= min_weight) & (nxt.weight > 0.0)))
+                nxt = nxt.take(~gone | (nxt.weight < min_weight) | (nxt.weight <= 0.0))
             small = nxt.weight < min_weight
             small |= nxt.weight <= 0.0
             np.add.at(dropped, nxt.ray[small], nxt.weight[small])
@@ -228,18 +255,18 @@ class MeshLens(Lens):
 
     def _cross(self, seg, tri, t, u, v, p, groups, absorbed):
         """One surface crossing of every segment: Beer on the way if it ran inside,
-        then the transmitted and the reflected children (weights T and 1 − T) and
-        where the crossing totally reflects."""
+        then the transmitted and the reflected children (the s and p parts times their
+        Fresnel transmittances t_s, t_p and 1 − t_s, 1 − t_p) and where the crossing
+        totally reflects."""
         ng = self.face_normals[tri]
         exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
-        att = np.where(exiting, np.exp(-self.absorption * t), 1.0)
+        inside = np.where(exiting, np.linalg.norm(p - seg.at, axis=1), 0.0)  # from the surface
+        att = np.exp(-self.absorption * inside)
         np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
-        weight = seg.weight * att
-        path = seg.path + np.where(exiting, t, 0.0)
+        path = seg.path + inside
         cn = self.corner_normals[tri]
-        ns = _unit(
-            (1.0 - u - v)[:, None] * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
-        )
+        bary = np.stack([1.0 - u - v, u, v], axis=1)
+        ns = _unit(np.einsum("nk,nki->ni", bary, cn))
         ns = np.where((_dot(ns, ng) < 0.0)[:, None], -ns, ns)
         sgn = np.where(exiting, -1.0, 1.0)[:, None]
         facing = sgn * ng  # geometric normal toward the incoming side
@@ -258,20 +285,32 @@ class MeshLens(Lens):
         n1 = np.where(exiting, self.ior, 1.0)
         n2 = np.where(exiting, 1.0, self.ior)
         ts, tp = fresnel_from_cosines(rf.cos_i, rf.cos_t, n1, n2)
-        trans = np.where(rf.tir, 0.0, 0.5 * (ts + tp))
+        ts, tp = np.where(rf.tir, 0.0, ts), np.where(rf.tir, 0.0, tp)
+        # The s and p powers carried into this crossing's plane of incidence: both s
+        # directions are across the ray, at an angle α (cos² α of each part stays);
+        # at normal incidence (no plane) the last s direction is kept.
+        s_new = np.cross(d, nrm)
+        s_len = np.linalg.norm(s_new, axis=1)
+        first = ~np.any(seg.s_dir, axis=1)
+        plane = s_len > 1e-12
+        s_new = np.where(plane[:, None], s_new / np.maximum(s_len, 1e-300)[:, None], seg.s_dir)
+        c2 = np.where(first | ~plane, 1.0, _dot(seg.s_dir, s_new) ** 2)
+        ws = (seg.ws * c2 + seg.wp * (1.0 - c2)) * att
+        wp = (seg.ws * (1.0 - c2) + seg.wp * c2) * att
         g = groups[tri].astype(np.uint64) * np.uint64(2)
         with np.errstate(over="ignore"):
             sig_t = seg.signature * _HASH + g + np.uint64(1)
             sig_r = seg.signature * _HASH + g + np.uint64(2)
-        off = self.eps * facing
 
-        def child(direction, w, sig, into, side):
+        def child(direction, w_s, w_p, sig, into):
             return _Segments(
                 ray=seg.ray,
-                origin=p + side * off,
+                origin=p + self.eps * direction,
                 at=p,
                 direction=direction,
-                weight=w,
+                ws=w_s,
+                wp=w_p,
+                s_dir=s_new,
                 path=path,
                 crossings=seg.crossings + 1,
                 signature=sig,
@@ -279,9 +318,29 @@ class MeshLens(Lens):
                 inside=into,
             )
 
-        kid_t = child(rf.directions, weight * trans, sig_t, ~exiting, -1.0)
-        kid_r = child(_unit(refl), weight * (1.0 - trans), sig_r, exiting, 1.0)
+        kid_t = child(rf.directions, ws * ts, wp * tp, sig_t, ~exiting)
+        kid_r = child(_unit(refl), ws * (1.0 - ts), wp * (1.0 - tp), sig_r, exiting)
         return kid_t, kid_r, rf.tir
+
+
+def _components(ea, eb, n: int) -> np.ndarray:
+    """(n,) connected component (0, 1, …) of each of n items joined by the pairs
+    (ea, eb): roots hooked onto the smaller root, then pointers jumped, until stable."""
+    label = np.arange(n)
+    while True:
+        ra, rb = label[ea], label[eb]
+        low = np.minimum(ra, rb)
+        before = label.copy()
+        np.minimum.at(label, ra, low)
+        np.minimum.at(label, rb, low)
+        while True:
+            nxt = label[label]
+            if np.array_equal(nxt, label):
+                break
+            label = nxt
+        if np.array_equal(label, before):
+            break
+    return np.unique(label, return_inverse=True)[1]
 
 
 def _flat(origins, directions):

@@ -27,10 +27,11 @@ class TriangleBvh:
     v0: np.ndarray  # (slots, 3) first vertex of each slot's triangle
     e1: np.ndarray  # (slots, 3) edge v1 − v0
     e2: np.ndarray  # (slots, 3) edge v2 − v0
+    normal: np.ndarray  # (slots, 3) e1 × e2 (not unit)
+    edge_scale: np.ndarray  # (slots,) |e1| |e2| (the degenerate-triangle test's scale)
     lo: list[np.ndarray]  # per level (2^ℓ, 3) box minima (NaN: empty)
     hi: list[np.ndarray]  # per level (2^ℓ, 3) box maxima (NaN: empty)
-    lo_t: list[np.ndarray]  # the same, transposed (3, 2^ℓ) for the traversal
-    hi_t: list[np.ndarray]
+    boxes: list[np.ndarray]  # per level (6, 2^ℓ): minima then maxima, for the traversal
 
 
 @dataclass(frozen=True)
@@ -96,10 +97,15 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
         v0=c[:, 0],
         e1=c[:, 1] - c[:, 0],
         e2=c[:, 2] - c[:, 0],
+        normal=np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]),
+        edge_scale=np.linalg.norm(c[:, 1] - c[:, 0], axis=1)
+        * np.linalg.norm(c[:, 2] - c[:, 0], axis=1),
         lo=lo,
         hi=hi,
-        lo_t=[np.ascontiguousarray(x.T) for x in lo],
-        hi_t=[np.ascontiguousarray(x.T) for x in hi],
+        boxes=[
+            np.ascontiguousarray(np.concatenate([a, b], axis=1).T)
+            for a, b in zip(lo, hi, strict=True)
+        ],
     )
 
 
@@ -136,42 +142,104 @@ def _intersect_chunk(bvh, o, d, t_min, t_max):
     n = len(o)
     # 1/d with zero components replaced by a tiny signed number: slabs stay finite.
     safe = np.where(np.abs(d) < 1e-300, np.where(d < 0.0, -1e-300, 1e-300), d)
-    inv = np.ascontiguousarray((1.0 / safe).T)  # (3, n): rows gather fastest
-    oinv = np.ascontiguousarray((o / safe).T)
+    inv = 1.0 / safe
+    rays = np.ascontiguousarray(np.concatenate([inv, o * inv], axis=1).T)  # (6, n)
     ray = np.arange(n)
     node = np.zeros(n, dtype=np.int64)
+    depth = len(bvh.lo) - 1
+    level = -1  # the root's box first, then two levels (four boxes) a step
     with np.errstate(invalid="ignore"):
-        for level in range(len(bvh.lo)):
-            ir, oi = inv[:, ray], oinv[:, ray]
-            t1 = bvh.lo_t[level][:, node] * ir - oi
-            t2 = bvh.hi_t[level][:, node] * ir - oi
-            a, b = np.minimum(t1, t2), np.maximum(t1, t2)
-            near = np.maximum(np.maximum(a[0], a[1]), a[2])
-            far = np.minimum(np.minimum(b[0], b[1]), b[2])
-            keep = (near <= far) & (far >= t_min[ray]) & (near <= t_max[ray])
-            ray, node = ray[keep], node[keep]
-            if level + 1 < len(bvh.lo):
-                ray = np.repeat(ray, 2)
-                node = (np.repeat(node, 2) << 1) | np.tile([0, 1], len(node))
-    ls = bvh.leaf_size
-    ray = np.repeat(ray, ls)
-    slot = (np.repeat(node, ls) * ls) + np.tile(np.arange(ls), len(node))
-    live = bvh.tri_index[slot] >= 0
-    ray, slot = ray[live], slot[live]
-    t, u, v, ok = moller_trumbore(o[ray], d[ray], bvh.v0[slot], bvh.e1[slot], bvh.e2[slot])
-    ok &= (t > t_min[ray]) & (t <= t_max[ray])
-    ray, slot, t, u, v = ray[ok], slot[ok], t[ok], u[ok], v[ok]
-    first = np.lexsort((t, ray))
-    ray, slot, t, u, v = ray[first], slot[first], t[first], u[first], v[first]
-    head = np.ones(len(ray), dtype=bool)
-    head[1:] = ray[1:] != ray[:-1]
+        while level < depth:
+            step = 1 if level < 0 or level + 2 > depth else 2
+            fan = 1 << step if level >= 0 else 1
+            child = (node[:, None] << step) | np.arange(fan) if level >= 0 else node[:, None]
+            boxes = bvh.boxes[level + step]  # (6, 2^ℓ)
+            near = far = None
+            for axis in range(3):
+                ir = rays[axis, ray][:, None]
+                oi = rays[3 + axis, ray][:, None]
+                t1 = boxes[axis][child] * ir - oi
+                t2 = boxes[3 + axis][child] * ir - oi
+                lo_t, hi_t = np.minimum(t1, t2), np.maximum(t1, t2)
+                near = lo_t if near is None else np.maximum(near, lo_t)
+                far = hi_t if far is None else np.minimum(far, hi_t)
+            keep = (near <= far) & (far >= t_min[ray][:, None]) & (near <= t_max[ray][:, None])
+            ray = np.broadcast_to(ray[:, None], keep.shape)[keep]
+            node = child[keep]
+            near = near[keep]
+            level += step
+    return _nearest_in_leaves(bvh, o, d, t_min, t_max, ray, node, near)
+
+
+def _nearest_in_leaves(bvh, o, d, t_min, t_max, ray, node, near):
+    """The nearest triangle hit among each ray's candidate leaves, leaves tested in
+    rounds in the order the ray enters their boxes (1, 1, 2, 4 … per ray): a leaf whose
+    box starts beyond the best hit so far is never tested (a closed mesh's rays stop
+    after the leaves of their first crossing)."""
+    n = len(o)
     tri = np.full(n, -1, dtype=np.int64)
-    tt = np.full(n, np.inf)
+    best = t_max.copy()
     uu = np.zeros(n)
     vv = np.zeros(n)
-    r = ray[head]
-    tri[r], tt[r], uu[r], vv[r] = bvh.tri_index[slot[head]], t[head], u[head], v[head]
+    order = np.lexsort((near, ray))
+    ray, node, near = ray[order], node[order], near[order]
+    start = np.searchsorted(ray, np.arange(n))
+    rank = np.arange(len(ray)) - start[ray]
+    ls = bvh.leaf_size
+    dn = np.linalg.norm(d, axis=1)
+    lo = 0
+    width = 1
+    while len(ray):
+        now = rank < lo + width
+        r, nd = ray[now], node[now]
+        go = near[now] <= best[r]
+        r, nd = r[go], nd[go]
+        ray, node, near, rank = ray[~now], node[~now], near[~now], rank[~now]
+        lo += width
+        width = width if lo < 2 else 2 * width
+        r = np.repeat(r, ls)
+        slot = np.repeat(nd, ls) * ls + np.tile(np.arange(ls), len(nd))
+        live = bvh.tri_index[slot] >= 0
+        r, slot = r[live], slot[live]
+        t, u, v, ok = _hit_slots(bvh, o[r], d[r], dn[r], slot)
+        ok &= (t > t_min[r]) & (t <= best[r])
+        r, slot, t, u, v = r[ok], slot[ok], t[ok], u[ok], v[ok]
+        if len(r) == 0:
+            continue
+        first = np.lexsort((t, r))
+        r, slot, t, u, v = r[first], slot[first], t[first], u[first], v[first]
+        head = np.ones(len(r), dtype=bool)
+        head[1:] = r[1:] != r[:-1]
+        r, slot, t, u, v = r[head], slot[head], t[head], u[head], v[head]
+        better = t < best[r]
+        r, slot, t, u, v = r[better], slot[better], t[better], u[better], v[better]
+        tri[r], best[r], uu[r], vv[r] = bvh.tri_index[slot], t, u, v
+    tt = np.where(tri >= 0, best, np.inf)
     return tri, tt, uu, vv
+
+
+def _hit_slots(bvh, o, d, dn, slot):
+    """Möller–Trumbore against the slots' triangles with their normals precomputed
+    (one cross product per pair): ``det = −d·n``, ``u = e2·(s×d)/det``,
+    ``v = −e1·(s×d)/det``, ``t = s·n/det`` with ``s = o − v0``; the same tolerances
+    as :func:`moller_trumbore`."""
+    nrm = bvh.normal[slot]
+    det = -np.einsum("ij,ij->i", d, nrm)
+    ok = np.abs(det) > 1e-14 * bvh.edge_scale[slot] * dn
+    inv = 1.0 / np.where(ok, det, 1.0)
+    s = o - bvh.v0[slot]
+    sx, sy, sz = s[:, 0], s[:, 1], s[:, 2]
+    dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
+    c = np.empty_like(s)
+    c[:, 0] = sy * dz - sz * dy
+    c[:, 1] = sz * dx - sx * dz
+    c[:, 2] = sx * dy - sy * dx
+    u = np.einsum("ij,ij->i", bvh.e2[slot], c) * inv
+    v = -np.einsum("ij,ij->i", bvh.e1[slot], c) * inv
+    t = np.einsum("ij,ij->i", s, nrm) * inv
+    eps = 1e-12
+    ok &= (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
+    return t, u, v, ok
 
 
 def moller_trumbore(o, d, v0, e1, e2):
