@@ -20,7 +20,12 @@ pytestmark = pytest.mark.blender
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scene_helpers import add_point_light, glass_material  # noqa: E402
+from blender_scene_helpers import (  # noqa: E402
+    add_point_light,
+    collection_instance,
+    collection_of,
+    glass_material,
+)
 
 
 def _read():
@@ -113,3 +118,45 @@ def test_an_open_glass_plane_is_left_out_with_its_reason(empty_blend):
         ("Pane", "open mesh: a surface, not a glass volume (water surfaces are planned)")
     ]
     assert read.unmodelled_glass[0][0] == "Pane"
+
+
+def test_smooth_by_angle_keeps_a_rods_sides_smooth_and_its_caps_flat(empty_blend):
+    """Smooth by Angle (a modifier from 4.1 on): the cylinder's side corners get the
+    radial normal of their vertex, the caps' corners the cap's ±x."""
+    add_point_light("Lamp", (0.0, 0.0, 4.0))
+    bpy.ops.mesh.primitive_cylinder_add(
+        vertices=16, radius=0.25, depth=2.0, location=(0.0, 0.0, 1.0), rotation=(0, math.pi / 2, 0)
+    )
+    rod = _glass(bpy.context.object)
+    rod.name = "Rod"
+    bpy.ops.object.shade_auto_smooth(angle=math.radians(30.0))
+    assert any(md.type == "NODES" for md in rod.modifiers)  # the Smooth by Angle modifier
+    (lens,) = _read().mesh_lenses
+    m = lens.mesh
+    assert m.n_triangles == 16 * 2 + 2 * 14  # the sides' quads, the caps' 16-gons fanned
+    p = m.vertices[m.triangles]  # (T, 3, 3) corner positions; axis along x
+    n = m.corner_normals
+    face = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])  # every vertex is on a rim:
+    on_cap = np.abs(face[:, 0]) > 0.99 * np.linalg.norm(face, axis=1)  # caps face ±x
+    assert on_cap.sum() == 28
+    assert np.allclose(n[on_cap][..., 0], np.sign(p[on_cap][..., 0]), atol=1e-6)
+    radial = p[~on_cap] - (0.0, 0.0, 1.0)
+    radial[..., 0] = 0.0
+    radial /= np.linalg.norm(radial, axis=-1, keepdims=True)
+    assert np.allclose(n[~on_cap], radial, atol=1e-5)
+
+
+def test_instances_of_a_glass_mesh_are_each_a_lens_placed_by_their_matrix(empty_blend):
+    add_point_light("Lamp", (0.0, 0.0, 6.0))
+    block = cube("Ice", location=(0.0, 0.0, 0.0))
+    coll = collection_of("Ice tray", block)
+    collection_instance("Tray A", coll, location=(2.0, 0.0, 1.0))
+    collection_instance("Tray B", coll, location=(-2.0, 0.0, 1.0), scale=(2.0, 2.0, 2.0))
+    read = _read()
+    assert sorted(m.name for m in read.mesh_lenses) == ["Tray A/Ice", "Tray B/Ice"]
+    by = {m.name: m.mesh for m in read.mesh_lenses}
+    assert np.allclose(by["Tray A/Ice"].center, (2.0, 0.0, 1.0), atol=1e-6)
+    assert np.allclose(by["Tray B/Ice"].center, (-2.0, 0.0, 1.0), atol=1e-6)
+    # a unit cube, doubled: half-diagonal √3 / 2 × 2
+    assert by["Tray B/Ice"].radius == pytest.approx(math.sqrt(3.0), rel=1e-6)
+    assert by["Tray A/Ice"].radius == pytest.approx(math.sqrt(3.0) / 2.0, rel=1e-6)
