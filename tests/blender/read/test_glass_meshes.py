@@ -130,7 +130,10 @@ def test_smooth_by_angle_keeps_a_rods_sides_smooth_and_its_caps_flat(empty_blend
     rod = _glass(bpy.context.object)
     rod.name = "Rod"
     bpy.ops.object.shade_auto_smooth(angle=math.radians(30.0))
-    assert any(md.type == "NODES" for md in rod.modifiers)  # the Smooth by Angle modifier
+    if bpy.app.version >= (5, 0, 0):
+        assert any(md.type == "NODES" for md in rod.modifiers)  # the Smooth by Angle modifier
+    elif not rod.modifiers:  # 4.5's bpy module has no Essentials asset: sharp edges instead
+        bpy.ops.object.shade_smooth_by_angle(angle=math.radians(30.0))
     (lens,) = _read().mesh_lenses
     m = lens.mesh
     assert m.n_triangles == 16 * 2 + 2 * 14  # the sides' quads, the caps' 16-gons fanned
