@@ -42,6 +42,7 @@ from ...core.caustic_layer.plan import (
     sheet_camera,
     sheet_sources,
 )
+from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
 from ...core.lens.kinds import LENS_KINDS
 from ...core.report.message import mesh_lenses_text
@@ -75,11 +76,6 @@ def prepare(depsgraph, work, options: dict):
         if spheres
         else []
     ) + meshes
-    # a glass mesh's floor of rays grows with its triangles (`mesh_min_rays`)
-    triangles = [0] * (len(sources) - len(meshes)) + [
-        read.mesh_lenses[k].n_triangles for _light, k in read.mesh_pairs
-    ]
-    min_rays = [mesh_min_rays(t, MIN_RAYS_PER_SOURCE) for t in triangles]
     cam = depsgraph.scene.camera
     ortho = (
         cam.data.ortho_scale
@@ -88,6 +84,17 @@ def prepare(depsgraph, work, options: dict):
     )
     camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
     has_camera = cam is not None and cam.type == "CAMERA"
+    # a glass mesh's floor of rays grows with its triangles and its size on screen
+    work.layer_floors = floors = [MIN_RAYS_PER_SOURCE] * (len(sources) - len(meshes)) + [
+        mesh_min_rays(
+            read.mesh_lenses[k].n_triangles,
+            MIN_RAYS_PER_SOURCE,
+            2.0
+            * s.lens.radius
+            / pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px),
+        )
+        for (_light, k), s in zip(read.mesh_pairs, meshes, strict=True)
+    ]
     # the rasters follow what the camera sees (without one: the budget's one resolution)
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
     work.layer_sources = sources  # the bake lands them again (core/animation/layer_segments.py)
@@ -97,7 +104,7 @@ def prepare(depsgraph, work, options: dict):
         camera,
         total_rays=TOTAL_RAYS,
         max_rays=MAX_RAYS_PER_SOURCE,
-        min_rays=min_rays,
+        min_rays=floors,
         rays_per_pixel=RAYS_PER_PIXEL,
         resolution=VIEW_MAX_RESOLUTION
         if view is not None
@@ -178,7 +185,7 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     for j, (_light, k) in enumerate(read.mesh_pairs):
         m, src = read.mesh_lenses[k], work.layer_sources[first + j]
         names.append(m.name)
-        wanted.append(mesh_min_rays(m.n_triangles, MIN_RAYS_PER_SOURCE))
+        wanted.append(work.layer_floors[first + j])
         got.append(bake.budgets[first + j].n_rays * src.n_source)
     cuts = budget_cuts(names, wanted, got)
     return f"{text}; {cuts}" if cuts else text

@@ -21,6 +21,8 @@ mesh's mean chord (`closed_mesh.mean_chord`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..lens.closed_mesh import mean_chord
@@ -39,9 +41,12 @@ MESH_KIND = "mesh"
 RAYS_PER_TRIANGLE = 4
 
 
-def mesh_min_rays(n_triangles: int, min_rays: int) -> int:
-    """The ray budget's floor for a mesh of `n_triangles` (`RAYS_PER_TRIANGLE` each)."""
-    return max(int(min_rays), RAYS_PER_TRIANGLE * int(n_triangles))
+def mesh_min_rays(n_triangles: int, min_rays: int, pixels: float = math.inf) -> int:
+    """The ray budget's floor for a mesh of `n_triangles` (`RAYS_PER_TRIANGLE` each),
+    no more than `RAYS_PER_TRIANGLE` per pixel² of its bounding disc on screen
+    (`pixels`: its diameter in pixels; a mesh seen small needs no ray per facet)."""
+    on_screen = RAYS_PER_TRIANGLE * float(pixels) ** 2
+    return max(int(min_rays), int(min(RAYS_PER_TRIANGLE * int(n_triangles), on_screen)))
 
 
 def budget_cuts(names, wanted, got) -> str:
