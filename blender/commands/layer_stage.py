@@ -45,6 +45,7 @@ from ...core.caustic_layer.plan import (
 from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
 from ...core.lens.kinds import LENS_KINDS
+from ...core.phase1.skip_reasons import Reason
 from ...core.report.message import mesh_lenses_text
 from ...core.tiers import builds_layer
 from ..build import layers as layer_builder
@@ -58,7 +59,7 @@ def prepare(depsgraph, work, options: dict):
     work.receivers = work.layer_bake = None
     read = work.read
     spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
-    meshes = mesh_sources_of(read, work.timings)
+    meshes = mesh_sources_of(read, work.timings, options.get("max_lights"))
     if not spheres and not meshes:
         return work
     t = time.perf_counter()
@@ -118,7 +119,7 @@ def prepare(depsgraph, work, options: dict):
     return work
 
 
-def mesh_sources_of(read, timings=None) -> list:
+def mesh_sources_of(read, timings=None, max_pairs=None) -> list:
     """The sheet sources of the read's mesh lenses (`mesh_sheet_sources`), with their
     pairs in ``read.mesh_pairs`` ((light, mesh lens) indices per source);
     without the mesh lens kind none, and the meshes are named as glass left out."""
@@ -134,10 +135,11 @@ def mesh_sources_of(read, timings=None) -> list:
         read.mesh_lenses = []
         return []
     t = time.perf_counter()
-    sources, lens_of, _skipped = mesh_sheet_sources(
-        read.arrays, read.primary_lights, read.primaries, read.mesh_lenses
+    sources, lens_of, skipped = mesh_sheet_sources(
+        read.arrays, read.primary_lights, read.primaries, read.mesh_lenses, max_pairs
     )
     read.mesh_pairs = lens_of
+    read.mesh_beyond = sum(1 for *_pair, code in skipped if code == int(Reason.BEYOND_MAXIMUM))
     if timings is not None:
         timings["mesh sources"] = time.perf_counter() - t
     return sources
@@ -179,6 +181,11 @@ def mesh_lenses_note(work, layers_made: int) -> str:
         names = ", ".join(n for n, _t in lit)
         return f"no caustic layer for the glass of {names}: nothing receives its caustic"
     text = mesh_lenses_text(lit, unlit)
+    if read.mesh_beyond:
+        text += (
+            f"; {read.mesh_beyond} dimmer light × glass mesh pair"
+            f"{'s' if read.mesh_beyond != 1 else ''} left out (beyond Maximum Lens Lights)"
+        )
     bake = work.layer_bake
     first = len(bake.budgets) - len(read.mesh_pairs)
     names, wanted, got = [], [], []

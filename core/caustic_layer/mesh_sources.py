@@ -27,6 +27,7 @@ import numpy as np
 
 from ..lens.closed_mesh import mean_chord
 from ..phase1.all_lights import compute_phase1_primaries
+from ..phase1.skip_reasons import Reason
 from ..scene.arrays import SceneArrays
 from ..tiers.base import effective_primary, unblocked_share
 from .emitters import Lens, PointLight
@@ -83,12 +84,22 @@ def mesh_color(m, color) -> tuple[float, float, float]:
     return tuple(float(x) for x in c)
 
 
-def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses):
+def cap_flux(power, distance, radius):
+    """The flux a point light of `power` sends into a sphere of `radius` at
+    `distance` (the share of its directions inside the sphere's cone)."""
+    s = min(float(radius) / max(float(distance), 1e-300), 1.0)
+    return float(power) * 0.5 * (1.0 - math.sqrt(1.0 - s * s))
+
+
+def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses, max_pairs=None):
     """(the sheet sources of every (light, mesh lens) pair a light reaches, the
     pair of each (light index, index into `mesh_lenses`), and phase 1's skipped pairs of
     the meshes as (light, mesh lens, `skip_reasons.Reason` code) rows).
     `arrays`: phase 1's `SceneArrays` of the spheres; `primary_lights` and
-    `primaries` the read's (`core.scene.primaries` dataclasses and `PrimaryLight`s)."""
+    `primaries` the read's (`core.scene.primaries` dataclasses and `PrimaryLight`s);
+    `max_pairs`: keep the pairs with the most flux into the mesh's bounding sphere
+    (Maximum Lens Lights), the others counted in the third list with the code
+    `Reason.BEYOND_MAXIMUM`."""
     if not mesh_lenses or not primary_lights:
         return [], [], []
     n_sph = len(arrays.radius)
@@ -141,4 +152,16 @@ def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses):
     skipped = [
         (int(skip.light[r]), int(skip.lens[r]) - n_sph, int(skip.code[r])) for r in rows.tolist()
     ]
+    if max_pairs is not None and len(sources) > max_pairs:
+        flux = [
+            cap_flux(
+                s.emitter.power, np.linalg.norm(s.emitter.position - s.lens.center), s.lens.radius
+            )
+            for s in sources
+        ]
+        keep = sorted(np.argsort(flux, kind="stable")[::-1][: int(max_pairs)].tolist())
+        dropped = sorted(set(range(len(sources))) - set(keep))
+        skipped += [(*lens_of[i], int(Reason.BEYOND_MAXIMUM)) for i in dropped]
+        sources = [sources[i] for i in keep]
+        lens_of = [lens_of[i] for i in keep]
     return sources, lens_of, skipped

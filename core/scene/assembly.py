@@ -128,6 +128,8 @@ class BlenderSceneRead:
     mesh_lenses: list = field(default_factory=list)
     #: (light, mesh lens) of each of the caustic layer's mesh sources (the layer stage's).
     mesh_pairs: list = field(default_factory=list)
+    #: How many (light, mesh lens) pairs Maximum Lens Lights left out (the layer stage's).
+    mesh_beyond: int = 0
     bounds: tuple[np.ndarray, np.ndarray] | None = None
     #: What blocks rays (`blender.read.occluders.Occluders`): valid while the depsgraph read is.
     occluders: object = None
