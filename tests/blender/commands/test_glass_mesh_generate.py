@@ -191,3 +191,22 @@ def test_bake_outside_the_layer_tier_says_the_rod_is_not_baked_and_keeps_cycles_
     report = scene.lens_lights.last_report
     assert "not baked: the caustics of the glass meshes Rod" in report
     assert scene.cycles.caustics_refractive  # the rod's caustic is Cycles' own
+
+
+def test_live_update_rebuilds_the_rods_layer_beside_the_lens_lights(empty_blend):
+    from lens_lights.blender.commands import live_update
+
+    rod_scene()
+    add_sphere("Ball", (3.0, 0.0, 1.0), radius=0.5, material=glass_material(ior=1.5))
+    set_engine("CYCLES")
+    generate()
+    (old,) = layers()
+    flux_before = layer_flux(old)
+    bpy.data.objects["Lamp"].location.z = 3.0  # nearer: more of its light through the rod
+    bpy.context.view_layer.update()
+    figures = live_update.update(bpy.context.scene, bpy.context.evaluated_depsgraph_get(), True)
+    assert figures["mesh_layers"] == 1 and figures["updated"] == 1  # the ball's light in place
+    (new,) = layers()
+    assert [o.type for o in lens_lights()].count("LIGHT") == 1
+    # the rod subtends more from 2 above its axis than from 3: its layer's flux grows
+    assert layer_flux(new) > 1.2 * flux_before
