@@ -30,6 +30,7 @@ INWARD_REASON = (
     "Mesh › Normals › Recalculate Outside"
 )
 NO_FACES_REASON = "no faces"
+ZERO_SIZE_REASON = "zero size: nothing is rendered"
 
 
 def non_manifold_reason(edges: int) -> str:
@@ -90,6 +91,9 @@ def problem(vertices, triangles) -> str:
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     if not len(t):
         return NO_FACES_REASON
+    v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    if not np.ptp(v[t.reshape(-1)], axis=0).max() > 0.0:
+        return ZERO_SIZE_REASON
     w = welded(vertices, t)
     w = w[(w[:, 0] != w[:, 1]) & (w[:, 1] != w[:, 2]) & (w[:, 2] != w[:, 0])]
     if len(w) < 4:

@@ -547,6 +547,12 @@ def assemble(
     bad_meshed = _mesh_groups(records, groups, np.unique(gid[bad]))
     mesh_rows = np.sort(np.concatenate([mesh_rows, bad[bad_meshed[gid[bad]]]]))
     bad = bad[~bad_meshed[gid[bad]]]
+    # a mesh scaled to nothing (or not finite) has no volume: left out for its scale
+    det = np.linalg.det(M[mesh_rows, :3, :3]) if len(mesh_rows) else np.zeros(0)
+    flat = mesh_rows[~(np.isfinite(det) & (np.abs(det) > 1e-30))]
+    mesh_rows = np.setdiff1d(mesh_rows, flat)
+    left.add_grouped(flat, scale_codes(M[flat]), lambda i: scale_reason(M[i]), lens_of)
+    glass_left.add_grouped(flat, scale_codes(M[flat]), lambda i: scale_reason(M[i]), lens_of)
     out.mesh_lenses = [
         place(
             names[i],
