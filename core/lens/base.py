@@ -42,13 +42,16 @@ class BranchRays(ExitRays):
     each), equal on neighbouring rays that took the same path; ``exit_face`` (B, …): the
     triangle (or −1) it last left by. Per ray (…): ``absorbed`` inside the glass and
     ``dropped`` by the budget (depth, minimum weight) or lost through a crack, so that
-    ``weight.sum(0) + absorbed + dropped == 1``."""
+    ``weight.sum(0) + absorbed + dropped == 1``; ``leaked`` (…) bool, None when the
+    kind cannot leak: part of the ray was lost through a crack (a path inside the glass
+    that met no surface)."""
 
     crossings: np.ndarray
     signature: np.ndarray
     exit_face: np.ndarray
     absorbed: np.ndarray
     dropped: np.ndarray
+    leaked: np.ndarray | None = None
 
 
 class Lens(ABC):

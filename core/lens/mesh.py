@@ -87,7 +87,8 @@ class _Segments:
 class MeshLens(Lens):
     """A closed, outward-oriented triangle mesh of glass in air.
 
-    ``center``/``radius``: its bounding sphere (world); ``ior``: relative index;
+    ``center``/``radius``: its bounding sphere (world; the radius grown to hold every
+    vertex if it does not); ``ior``: relative index;
     ``absorption``: Beer per unit length (as the ball's); ``vertices`` (V, 3) world
     coordinates; ``triangles`` (T, 3) vertex indices; ``corner_normals`` (T, 3, 3): the
     shading normal at each triangle corner as Blender shades (None: flat, the face
@@ -99,10 +100,12 @@ class MeshLens(Lens):
         self, center, radius, ior, absorption, vertices, triangles, corner_normals=None
     ) -> None:
         self.center = np.asarray(center, dtype=float).reshape(3)
-        self.radius = float(radius)
         self.ior = float(ior)
         self.absorption = float(absorption)
         self.vertices = np.asarray(vertices, dtype=float).reshape(-1, 3)
+        # the ray grids cover the bounding sphere: it must hold every vertex
+        reach = np.linalg.norm(self.vertices - self.center, axis=1).max(initial=0.0)
+        self.radius = max(float(radius), float(reach) * (1.0 + 1e-9))
         self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         corners = self.vertices[self.triangles]
         cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -222,7 +225,9 @@ class MeshLens(Lens):
         for _wave in range(max_depth + 1):
             if len(seg.ray) == 0:
                 break
-            h = bvh_intersect(self.bvh, seg.origin, seg.direction)
+            # a convex mesh: one way in (a face toward the ray), one way out
+            side = np.where(seg.inside, -1, 1) if self.convex else None
+            h = bvh_intersect(self.bvh, seg.origin, seg.direction, facing=side)
             miss = h.triangle < 0
             done.append(seg.take(miss & ~seg.inside))
             lost = miss & seg.inside  # a crack: nothing to leave by
@@ -386,4 +391,5 @@ def _assemble(out: _Segments, o, d, shape, absorbed, dropped, leaked) -> BranchR
         exit_face=face.reshape(nb, *shape),
         absorbed=absorbed.reshape(shape),
         dropped=dropped.reshape(shape),
+        leaked=leaked.reshape(shape),
     )

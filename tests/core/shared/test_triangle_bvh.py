@@ -63,3 +63,34 @@ def test_rays_from_inside_a_closed_sphere_all_hit_it_once_ahead():
     assert np.all(hits.triangle >= 0)
     np.testing.assert_allclose(hits.t, t, rtol=1e-9)
     np.testing.assert_array_equal(hits.triangle, k)
+
+
+def _brute_side(verts, tris, o, d, side):
+    """The nearest hit among the triangles on ``side`` (+1: facing the ray)."""
+    v0 = verts[tris[:, 0]]
+    n = np.cross(verts[tris[:, 1]] - v0, verts[tris[:, 2]] - v0)
+    out = []
+    for i in range(len(o)):
+        keep = side * (d[i] @ n.T) < 0
+        k, t = _brute(verts, tris[keep], o[i : i + 1], d[i : i + 1], [0.0], [np.inf])
+        out.append(np.nonzero(keep)[0][k[0]] if k[0] >= 0 else -1)
+    return np.array(out)
+
+
+def test_one_side_of_a_convex_mesh_is_its_one_way_in_or_out():
+    m = uv_sphere((0.2, 0.1, -0.3), 1.5, 20, 40)
+    verts, tris = np.asarray(m.vertices) * [1.0, 0.6, 0.8], np.asarray(m.triangles)
+    bvh = build_bvh(verts, tris)
+    rng = np.random.default_rng(7)
+    outside = rng.normal(size=(150, 3))
+    outside = 5 * outside / np.linalg.norm(outside, axis=1)[:, None]
+    d_in = rng.uniform(-0.8, 0.8, (150, 3)) - outside
+    inside = rng.uniform(-0.4, 0.4, (150, 3)) + [0.2, 0.1, -0.3]
+    d_out = rng.normal(size=(150, 3))
+    for o, d, side in ((outside, d_in, 1), (inside, d_out, -1)):
+        got = intersect(bvh, o, d, facing=side)
+        want = _brute_side(verts, tris, o, d, side)
+        np.testing.assert_array_equal(got.triangle, want)
+        assert (want >= 0).sum() > 100
+        two_sided = intersect(bvh, o, d)  # the same face: the nearest either way
+        np.testing.assert_array_equal(two_sided.triangle, want)
