@@ -245,10 +245,12 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
         if progress is not None and k % 8 == 7:
             progress((k + 1) / max(len(patches), 1))
     lights = []
-    if fallback_sources:
+    if any(s < len(planned) for s in fallback_sources):
         include = _include_collection(scene, list(fallback_objects.values()), "receivers")
         links: dict = {}
         for s in sorted(fallback_sources):
+            if s >= len(planned):  # a mesh lens' source: no spot stands for it
+                continue
             p = planned[s]
             ob = create_light(
                 scene, p, lens_objects[p.source.lens], collection, links, model_name="CAUSTIC_LAYER"

@@ -91,6 +91,9 @@ from ..build.marks import (
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from . import bake_check, layer_stage, pipeline
 
+#: Why a glass mesh traced as a lens gets nothing from a bake outside the layer tier.
+MESH_NOT_BAKED = "a glass mesh: its caustic layer is baked in the Caustic layer tier only"
+
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
 MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
 #: Recorded per frame (not keyed): how many receiver planes the frame's tilt has.
@@ -372,6 +375,11 @@ class Baker:
         self.read_as_render &= bake_check.read_as_render(work.read.how)
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
+        if self.layer:  # the glass meshes traced: their layers replace Cycles' caustics
+            meshes = work.read.mesh_lenses
+            self.lens_objects.update(meshes[k].orig for _j, k in work.read.mesh_pairs)
+        else:  # the glass meshes' layers are baked in the layer's tier only
+            self.unmodelled_glass.update((m.name, MESH_NOT_BAKED) for m in work.read.mesh_lenses)
         if self.layer:
             self.works.append(work)  # built per frame (its meshes)
         self.timings["plan"] += time.perf_counter() - t
@@ -528,7 +536,7 @@ class Baker:
             else:
                 infos = work.receivers.objects
                 skip = frozenset(k for k, info in enumerate(infos) if info.fallback)
-                keys = [fl.key for fl in self.per_frame[i]]
+                keys = [fl.key for fl in self.per_frame[i]] + layer_stage.mesh_keys(work.read)
                 names = [info.name for info in infos]
                 inputs.append(
                     layer_segments.FrameLayers(
@@ -635,6 +643,13 @@ def finish(baker):
     if kept:  # the user's copies, renamed and moved lens lights: kept beside the baked
         settings.last_report += "; " + kept
         level = "WARNING" if doubled else level
+    unbaked = sorted(n for n, why in baker.unmodelled_glass.items() if why == MESH_NOT_BAKED)
+    if unbaked:
+        settings.last_report += (
+            f"; not baked: the caustics of the glass meshes {', '.join(unbaked)} (their "
+            "caustic layers are baked in the Caustic layer tier; Cycles renders their own)"
+        )
+        level = "WARNING"
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"
     return level, settings.last_report, figures

@@ -142,6 +142,8 @@ def generate(context):
                     user_links=lights.user_links_of(plan.lights, work.read.light_objects),
                 )
                 work.timings["linking"] = time.perf_counter() - tl
+                # the glass meshes' caustic layers beside the spheres' lens lights
+                made += layer_stage.build_mesh_layers(scene, work)
             counted = layers.made_counts(made)
             caustics_note, caustics_warn = cycles_caustics.after_build(
                 scene, plan, work.read, len(made), layers=counted["layers"] > 0
@@ -170,6 +172,9 @@ def generate(context):
         level = "WARNING"
         figures = dict(created=counted["made"], layers=counted["layers"])
         message = f"Created {made_text(*counted.values())}; " + error_text("write the report", exc)
+    meshes = layer_stage.mesh_lenses_note(work, counted["layers"])
+    if meshes:
+        message = f"{message}; {meshes}"
     if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)

@@ -219,6 +219,7 @@ def _watch_of(scene, depsgraph, work) -> _Watch | None:
         return None  # costlier than it saves: every edit counts
     watched = {read.sphere_objects[i].name for i in lenses}
     watched.update(name for name, _ in read.left_out_lenses)
+    watched.update(m.orig.name for m in read.mesh_lenses)  # the glass meshes traced
     known = {ob.original.name: _slots(ob.original) for ob in objects}
     solid = [
         ob for ob in objects if ob.type not in _NO_GEOMETRY and ob.original.name not in watched
@@ -423,6 +424,9 @@ def update(scene, depsgraph, force=False) -> dict:
             )
         if images:  # a profile's node tree was rebuilt: its old image may be unused
             lights.remove_unused_profile_images()
+        # the glass meshes' layers (the old ones were removed above: a layer never matches)
+        meshes = layer_stage.build_mesh_layers(scene, work)
+        figures["mesh_layers"] = len(meshes)
         if not m.same_set:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))

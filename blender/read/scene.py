@@ -52,12 +52,16 @@ Rules:
   sphere 4πr², an area light's surface — if its power is not normalised; a sun's
   strength in W/m²); its colour includes the blackbody colour when temperature is used.
 * A sphere's transform may rotate, mirror (negative scale) and scale uniformly;
-  a non-uniform scale (an ellipsoid) or a zero scale is left out and named.
-  Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
-* Glass that is no lens is named by its shape (`fit_meshes`: "a cylinder, not a
-  sphere"); a sphere of thin-walled glass (Principled's Thin Wall, 5.x) is a shell,
-  no lens (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to
-  Never, are ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
+  a non-uniform scale (an ellipsoid) or a zero scale is left out and named, unless
+  it is glass (below). Meshes without vertices (e.g. an instancer's own empty mesh)
+  are ignored.
+* Glass that is no sphere (or a glass sphere scaled unevenly) is a *mesh lens*
+  (``mesh_lenses``, `core.scene.mesh_lenses`) when its evaluated mesh is closed and
+  outward (`core.lens.closed_mesh`; read by `read_local_mesh` only when asked),
+  else left out with why ("open mesh: …", or its shape: "a flat sheet"); a sphere
+  of thin-walled glass (Principled's Thin Wall, 5.x) is a shell, no lens
+  (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to Never, are
+  ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
 * Lights the extension created are skipped entirely.
 """
 
@@ -72,6 +76,7 @@ import bpy
 import mathutils
 import numpy as np
 
+from ...core.lens.closed_mesh import LocalMesh
 from ...core.lens.glass import MaterialOptics
 from ...core.lens.mesh_shape import mesh_shape, shape_reason
 from ...core.lens.sphere_fit import fit_sphere
@@ -197,6 +202,41 @@ def _is_glass(record) -> bool:
     return record.mode == "ALWAYS" or (o is not None and (o.is_transmissive or o.thin_wall > 0))
 
 
+def read_local_mesh(mesh) -> LocalMesh:
+    """An evaluated mesh as Blender renders it (`core.lens.closed_mesh.LocalMesh`):
+    its loop triangles, vertices and the shading normal of each triangle corner
+    (``corner_normals``: smooth, flat, Smooth by Angle and custom normals as shaded),
+    in bulk."""
+    tris = mesh.loop_triangles
+    nt = len(tris)
+    v = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", v)
+    t = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("vertices", t)
+    loops = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("loops", loops)
+    cn = np.empty(len(mesh.corner_normals) * 3)
+    mesh.corner_normals.foreach_get("vector", cn)
+    normals = cn.reshape(-1, 3)[loops].reshape(nt, 3, 3)
+    return LocalMesh(v.reshape(-1, 3), t.reshape(nt, 3).astype(np.int64), normals)
+
+
+class _LensMesh:
+    """`GeometryRecord.lens_mesh` of a glass mesh: its `read_local_mesh`, read when
+    the assembly asks (only for glass that is no sphere, or a sphere scaled unevenly)
+    and while the depsgraph is valid, once."""
+
+    __slots__ = ("mesh", "local")
+
+    def __init__(self, mesh):
+        self.mesh, self.local = mesh, None
+
+    def __call__(self):
+        if self.local is None:
+            self.local = read_local_mesh(self.mesh)
+        return self.local
+
+
 def fit_meshes(records, meshes) -> None:
     """Fill in each mesh record's local sphere fit (`GeometryRecord.fit`; `meshes`:
     the evaluated mesh of each record, None for the others), after the walk: the
@@ -210,8 +250,14 @@ def fit_meshes(records, meshes) -> None:
     extents = corners.max(axis=1) - corners.min(axis=1)
     failed = dict(zip(boxed, box_fit_failures(extents), strict=True))
     by_mesh: dict = {}
+    readers: dict = {}
     for k in rows:
         glass = _is_glass(records[k])
+        if glass:
+            reader = readers.get(meshes[k].as_pointer())
+            if reader is None:
+                reader = readers[meshes[k].as_pointer()] = _LensMesh(meshes[k])
+            records[k].lens_mesh = reader
         key = (meshes[k].as_pointer(), glass)
         fit = by_mesh.get(key)
         if fit is None:

@@ -63,7 +63,7 @@ def bake(
     rays_per_pixel: float = 1.0,
     max_rays: int = 65536,
     total_rays: int = 1_000_000,
-    min_rays: int = 1024,
+    min_rays: int | list[int] = 1024,
     texel_fraction: float = 0.5,
     grid: tuple[int, int] | None = None,
     blur_shares: bool = True,

@@ -61,14 +61,17 @@ def allocate(
     fluxes, extents, pixels, total_rays: int = 1_000_000, samples=None, **kwargs
 ) -> list[RayBudget]:
     """Budgets for many sources: :func:`ray_budget` each (``samples``: per source, the
-    samples of an extended emitter sharing it), then scaled down together if the sum
-    of all samples' rays exceeds ``total_rays``."""
+    samples of an extended emitter sharing it; ``min_rays`` one number or one per
+    source: a glass mesh's grows with its triangles), then scaled down together if
+    the sum of all samples' rays exceeds ``total_rays``."""
     fluxes = np.asarray(fluxes, dtype=float)
     top = fluxes.max() if len(fluxes) and fluxes.max() > 0 else 1.0
     ks = [1] * len(fluxes) if samples is None else [max(int(k), 1) for k in samples]
+    mins = kwargs.pop("min_rays", None)
+    mins = [mins] * len(fluxes) if mins is None or np.isscalar(mins) else list(mins)
     out = [
-        ray_budget(f / top, e, p, samples=k, **kwargs)
-        for f, e, p, k in zip(fluxes, extents, pixels, ks, strict=True)
+        ray_budget(f / top, e, p, samples=k, **kwargs, **({} if m is None else {"min_rays": m}))
+        for f, e, p, k, m in zip(fluxes, extents, pixels, ks, mins, strict=True)
     ]
     total = sum(b.n_rays * k for b, k in zip(out, ks, strict=True))
     if total > total_rays:

@@ -99,6 +99,29 @@ def kept_text(made, kept, word: str = "lens light") -> str:
     return "; ".join(parts)
 
 
+def thousands(n: int) -> str:
+    """An integer with thin spaces between its thousands: "1 240", "20 000"."""
+    return f"{int(n):,}".replace(",", "\u2009")
+
+
+def mesh_lenses_text(lit, unlit=()) -> str:
+    """The glass meshes traced as lenses: `lit` (name, triangles) of those whose
+    caustic layers were made, `unlit` names of those no light reaches ("" for none):
+    "caustic layers for 2 glass objects (Rod: 1 240 triangles, Lens: 2 000 triangles)"."""
+    parts = []
+    if lit:
+        shown = ", ".join(f"{n}: {thousands(t)} triangles" for n, t in lit[:REPORT_FIRST])
+        more = len(lit) - REPORT_FIRST
+        shown += f", and {more} more" if more > 0 else ""
+        parts.append(f"caustic layers for {plural(len(lit), 'glass object')} ({shown})")
+    if unlit:
+        names = ", ".join(list(unlit)[:REPORT_FIRST])
+        more = len(unlit) - REPORT_FIRST
+        names += f" and {more} more" if more > 0 else ""
+        parts.append(f"no light reaches the glass of {names}")
+    return "; ".join(parts)
+
+
 def left_out_text(left_out_lenses) -> str:
     """The objects that look like lenses but are none, with why ("" for none)."""
     if not left_out_lenses:
@@ -107,7 +130,7 @@ def left_out_text(left_out_lenses) -> str:
     more = len(left_out_lenses) - REPORT_FIRST
     return (
         f"left out {plural(len(left_out_lenses), 'object')} (Lens Lights models solid glass "
-        f"spheres): {shown}" + (f"; and {more} more" if more > 0 else "")
+        f"spheres and closed glass meshes): {shown}" + (f"; and {more} more" if more > 0 else "")
     )
 
 
@@ -127,7 +150,8 @@ def report_message(
     as the viewport shows it (`work.read.how` says why)."""
     read, result, sel, plan = work.read, work.result, work.selection, work.plan
     lights = len(read.light_sources)
-    lenses = int(np.count_nonzero(read.lens_candidates))
+    # the glass meshes traced as lenses count beside the spheres
+    lenses = int(np.count_nonzero(read.lens_candidates)) + len(getattr(read, "mesh_lenses", []))
     skipped, first, counts = skip_report(work)
     # Flux without a light: every source's estimated flux minus the built lights'.
     rows = {id(src): t for t, src in enumerate(sel.sources)}

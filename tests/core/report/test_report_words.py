@@ -32,11 +32,11 @@ def test_left_out_glass_is_named_with_its_shape():
     ]
     assert left_out_text([]) == ""
     assert left_out_text(left[:1]) == (
-        "left out 1 object (Lens Lights models solid glass spheres): "
+        "left out 1 object (Lens Lights models solid glass spheres and closed glass meshes): "
         "Cylinder (a cylinder, not a sphere)"
     )
     assert left_out_text(left) == (
-        "left out 4 objects (Lens Lights models solid glass spheres): "
+        "left out 4 objects (Lens Lights models solid glass spheres and closed glass meshes): "
         "Cylinder (a cylinder, not a sphere); Cube (a box, not a sphere); "
         "Egg (an ellipsoid (axes 1 : 0.71 : 0.71), not a sphere); and 1 more"
     )
