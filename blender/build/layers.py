@@ -212,11 +212,14 @@ def _include_collection(scene, objects, tag):
     return coll
 
 
-def build(scene, bake, receivers, planned, lens_objects, progress=None):
+def build(scene, bake, receivers, planned, lens_objects, progress=None, mesh_names=()):
     """The layers of `bake` (`core.caustic_layer.pipeline.SheetBake`) on `receivers`
     (`blender.read.receivers.Receivers`); for the sources whose caustic lands on a receiver
     a layer cannot show, their Fitted spot (`planned[i]`), lighting only those
-    receivers. Returns (layer objects, fallback lights, fallback receiver names)."""
+    receivers. The sources after the planned ones are glass meshes', named by
+    `mesh_names` ((light, lens) each). Returns (layer objects, fallback lights, fallback
+    receiver names)."""
+    names = [(p.light_name, p.lens_name) for p in planned] + list(mesh_names)
     collection = lights_collection(scene)
     materials: dict = {}
     shapes: dict = {}  # one topology per raster resolution: later meshes copy it
@@ -228,7 +231,7 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
             fallback_sources.update(int(s) for s in patch.sources)
             fallback_objects[info.name] = info.original
             continue
-        beams = [planned[int(s)] for s in patch.sources]
+        beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
         layers.append(
             create_layer(
                 scene,
@@ -238,8 +241,8 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
                 materials,
                 k,
                 shapes,
-                lights=[p.light_name for p in beams],
-                lenses=[p.lens_name for p in beams],
+                lights=[light for light, _lens in beams],
+                lenses=[lens for _light, lens in beams],
             )
         )
         if progress is not None and k % 8 == 7:

@@ -173,6 +173,12 @@ def mesh_keys(read) -> list:
     )
 
 
+def mesh_names(read) -> list:
+    """(light, glass mesh) names of the mesh lenses' sources, in their order."""
+    pairs = getattr(read, "mesh_pairs", [])
+    return [(read.light_sources[j], read.mesh_lenses[k].name) for j, k in pairs]
+
+
 def build_mesh_layers(scene, work, progress=None) -> list:
     """The mesh lenses' layers when the spheres got lens lights (any tier but the
     layer's): every object made."""
@@ -180,7 +186,7 @@ def build_mesh_layers(scene, work, progress=None) -> list:
         work.layer_figures = None
         return []
     layers, _lights, fallback = layer_builder.build(
-        scene, work.layer_bake, work.receivers, [], [], progress=progress
+        scene, work.layer_bake, work.receivers, [], [], progress, mesh_names(work.read)
     )
     work.layer_figures = figures_of(work.layer_bake, 0, fallback)
     return layers
@@ -229,7 +235,8 @@ def build(scene, work, progress=None) -> list:
         work.receivers,
         work.plan.lights,
         work.read.sphere_objects,
-        progress=progress,
+        progress,
+        mesh_names(work.read),
     )
     work.layer_figures = figures_of(work.layer_bake, len(lights), fallback)
     return layers + lights
