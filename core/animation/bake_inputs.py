@@ -39,8 +39,19 @@ FLOOR = 1e-6
 PART_HEX = 8
 #: Record fields that are no input: names (the key already), Blender's objects,
 #: the mesh that blocks rays (its box and fit stand for it), the fit's error figures.
+#: (``lens_mesh``: a glass mesh's triangles, read on demand by a callable: its shape is
+#: its box and fit, as any surface's.)
 _SKIPPED = frozenset(
-    {"name", "orig", "mesh_source", "fit", "corners", "vertex_deviation", "face_depth"}
+    {
+        "name",
+        "orig",
+        "mesh_source",
+        "lens_mesh",
+        "fit",
+        "corners",
+        "vertex_deviation",
+        "face_depth",
+    }
 )
 #: The pseudo-objects' names.
 SETTINGS = "the Lens Lights settings"
@@ -116,6 +127,8 @@ def canonical(value, memo: dict | None = None) -> str:
         return "{" + ", ".join(f"{k}: {v}" for k, v in items) + "}"
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(canonical(v, memo) for v in value) + "]"
+    if callable(value):  # read on demand: its repr holds an address, new every read
+        return f"<{type(value).__name__}>"
     return repr(value)
 
 

@@ -180,3 +180,23 @@ def test_an_object_away_from_the_light_is_no_change_until_it_enters_it():
     assert changes(base, beside) == []
     # the table (in the light) counts wherever it goes; the glass marble too
     assert changes(base, frame_prints(scene(marble=(0, 0, 1.5)), paths=paths_of((0, 0, 1.5))))
+
+
+def test_a_field_read_on_demand_does_not_flag_the_bake():
+    """A glass mesh's record carries a callable that reads its triangles on demand:
+    its repr holds an address, new at every read, which made every bake out of date
+    at once (the lens' shape is its box and fit, as any surface's)."""
+    import dataclasses
+
+    from core.animation.bake_inputs import canonical
+
+    @dataclasses.dataclass
+    class Record:
+        name: str
+        ior: float
+        reader: object
+
+    a = Record("Rod", 1.5, lambda: 1)
+    b = Record("Rod", 1.5, lambda: 2)
+    assert canonical(a) == canonical(b)
+    assert canonical(a) != canonical(Record("Rod", 1.45, lambda: 1))
