@@ -20,7 +20,9 @@ from ...core.caustic_layer.plan import (
     MAX_RAYS_PER_SOURCE,
     MIN_RAYS_PER_SOURCE,
     RAYS_PER_PIXEL,
+    RAYS_PER_TEXEL,
     TOTAL_RAYS,
+    VIEW_MAX_RAYS_PER_SOURCE,
     VIEW_MAX_RESOLUTION,
     VIEW_TEXEL_FRACTION,
     figures_of,
@@ -68,7 +70,7 @@ def prepare(depsgraph, work, options: dict):
         work.receivers.mesh,
         camera,
         total_rays=TOTAL_RAYS,
-        max_rays=MAX_RAYS_PER_SOURCE,
+        max_rays=MAX_RAYS_PER_SOURCE if view is None else VIEW_MAX_RAYS_PER_SOURCE,
         min_rays=MIN_RAYS_PER_SOURCE,
         rays_per_pixel=RAYS_PER_PIXEL,
         resolution=VIEW_MAX_RESOLUTION
@@ -77,6 +79,7 @@ def prepare(depsgraph, work, options: dict):
         view=view,
         max_texels=FACE_BUDGET,
         texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
+        rays_per_texel=RAYS_PER_TEXEL if view is not None else None,
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})

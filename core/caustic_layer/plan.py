@@ -30,6 +30,12 @@ TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
 MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
+#: With a camera: rays per texel the caustic covers in view (all samples of an extended
+#: light together), up to this many per source. Fewer leave the faint halo's landed
+#: cells tens of texels long, drawn as dashes (16 384 rays: up to +0.27 on a lit table
+#: 0.47 in a close-up; 65 536: none; bench/layer_mirror.py).
+RAYS_PER_TEXEL = 1.0
+VIEW_MAX_RAYS_PER_SOURCE = 65_536
 #: Texels per side of a layer raster at most without a camera (every raster alike) and
 #: with one (each raster spans what it sees of its caustic, about a texel per pixel),
 #: and the texels of all layers together (many lenses: coarser rasters, a fast build).
