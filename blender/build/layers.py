@@ -16,9 +16,20 @@ sampled through the layer's UV map, which holds the receiver's UVs); emission ad
 to a white Transparent BSDF, so where the irradiance is 0 the layer is invisible
 and elsewhere it only adds light over the receiver (EEVEE: blended render method,
 sorted). Ray visibility: the camera, glossy and transmission rays (a mirror shows
-the caustic on the floor it reflects; no spot light paints it any more); no shadow
-(the layer sits between the receiver and its lights), no diffuse (it must not
+the caustic on the floor it reflects in Cycles; no spot light paints it any more); no
+shadow (the layer sits between the receiver and its lights), no diffuse (it must not
 light other objects).
+
+EEVEE's reflections (screen-traced, and its plane and sphere light probes) hold only
+its deferred surfaces, never blended ones: a mirror there shows the receiver without
+the layer. So in EEVEE each layer has a **reflection copy** ("… reflected"): the same
+mesh, hidden from the camera and from every ray (Cycles never sees it) and from
+volume probes, with a Dithered material that is the receiver's diffuse colour lit
+as a diffuse surface plus the layer's emission where the irradiance is not 0, and
+fully transparent elsewhere. Plane and sphere probes capture it, so a mirror with a
+Light Probe Plane (Raytracing on) shows the caustic; over the caustic the mirror
+then shows the receiver as a plain diffuse surface of its colour (its gloss is not
+copied).
 """
 
 from __future__ import annotations
@@ -41,6 +52,8 @@ from .marks import (
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
+REFLECTED_SUFFIX = " reflected"
+REFLECTION_MARK = "lens_lights_reflection"  # object property of a reflection copy
 UV_NAME = "UVMap"
 
 
@@ -97,6 +110,95 @@ def layer_material(info, cache: dict):
     nt.links.new(add.outputs[0], out.inputs["Surface"])
     cache[key] = mat
     return mat
+
+
+def reflection_material(info, cache: dict):
+    """The reflection copy's material for receiver `info` (see the module's text):
+    Dithered; where the layer's irradiance is above 0 the receiver's diffuse colour as a
+    Diffuse BSDF plus the layer's emission, elsewhere a Transparent BSDF."""
+    key = ("reflected", info.name, info.image.name if info.image is not None else None)
+    mat = cache.get(key)
+    if mat is not None:
+        return mat
+    mat = bpy.data.materials.new(MATERIAL_PREFIX + info.name + REFLECTED_SUFFIX)
+    mat[COLLECTION_MARK] = LAYER_MARK
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    if hasattr(mat, "surface_render_method"):
+        mat.surface_render_method = "DITHERED"
+    nt = mat.node_tree
+    nt.nodes.clear()
+    attr = nt.nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = "GEOMETRY"
+    attr.attribute_name = IRRADIANCE
+    if info.image is not None:
+        uv = nt.nodes.new("ShaderNodeUVMap")
+        uv.uv_map = UV_NAME
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = info.image
+        tex.interpolation = info.interpolation
+        tex.extension = info.extension
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        colour = tex.outputs["Color"]
+    else:
+        rgb = nt.nodes.new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = (*info.color[:3], 1.0)
+        colour = rgb.outputs[0]
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    nt.links.new(attr.outputs["Color"], mix.inputs["A"])
+    nt.links.new(colour, mix.inputs["B"])
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0 / math.pi
+    nt.links.new(mix.outputs["Result"], em.inputs["Color"])
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(colour, diffuse.inputs["Color"])
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(em.outputs[0], add.inputs[0])
+    nt.links.new(diffuse.outputs[0], add.inputs[1])
+    # opaque (the receiver's look + the caustic) only where there is a caustic
+    lit = nt.nodes.new("ShaderNodeMath")
+    lit.operation = "GREATER_THAN"
+    lit.inputs[1].default_value = 0.0
+    nt.links.new(attr.outputs["Fac"], lit.inputs[0])
+    tr = nt.nodes.new("ShaderNodeBsdfTransparent")
+    pick = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(lit.outputs[0], pick.inputs[0])
+    nt.links.new(tr.outputs[0], pick.inputs[1])
+    nt.links.new(add.outputs[0], pick.inputs[2])
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(pick.outputs[0], out.inputs["Surface"])
+    cache[key] = mat
+    return mat
+
+
+def is_reflection(ob) -> bool:
+    """Whether `ob` is a layer's reflection copy (`create_reflection`)."""
+    return bool(ob.get(REFLECTION_MARK, False))
+
+
+def create_reflection(scene, layer_ob, info, collection, materials):
+    """The EEVEE reflection copy of `layer_ob` (see the module's text), registered
+    and marked like it (Clear removes it)."""
+    ob = bpy.data.objects.new(layer_ob.name + REFLECTED_SUFFIX, layer_ob.data)
+    ob[REFLECTION_MARK] = True
+    ob.material_slots[0].link = "OBJECT"
+    ob.material_slots[0].material = reflection_material(info, materials)
+    collection.objects.link(ob)
+    for attr in ("camera", "diffuse", "glossy", "transmission", "shadow", "volume_scatter"):
+        setattr(ob, "visible_" + attr, False)
+    if hasattr(ob, "hide_probe_volume"):  # it must not light anything either
+        ob.hide_probe_volume = True
+    meta = ob.lens_lights
+    meta.is_lens_light = True
+    meta.energy_model = "CAUSTIC_LAYER"
+    meta.source_lens = info.name
+    meta.relative_brightness = layer_ob.lens_lights.relative_brightness
+    meta.note = "reflection copy of the caustic layer (EEVEE's mirrors and probes)"
+    scene.lens_lights.created_objects.add().object = ob
+    return ob
 
 
 def layer_mesh(name, drawn, shapes: dict | None = None):
@@ -189,7 +291,9 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None, draw
     meta.energy_model = "CAUSTIC_LAYER"
     meta.source_lens = info.name  # the receiver it lies on
     meta.relative_brightness = float(patch.flux)
-    meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W"
+    meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W" + (
+        " (coarse: out of the camera's view, for reflections)" if patch.coarse else ""
+    )
     scene.lens_lights.created_objects.add().object = ob
     return ob
 
@@ -206,11 +310,12 @@ def _include_collection(scene, objects, tag):
     return coll
 
 
-def build(scene, bake, receivers, planned, lens_objects, progress=None):
+def build(scene, bake, receivers, planned, lens_objects, progress=None, reflections=False):
     """The layers of `bake` (`core.caustic_layer.pipeline.SheetBake`) on `receivers`
-    (`blender.read.receivers.Receivers`); for the sources whose caustic lands on a receiver
-    a layer cannot show, their Fitted spot (`planned[i]`), lighting only those
-    receivers. Returns (layer objects, fallback lights, fallback receiver names)."""
+    (`blender.read.receivers.Receivers`), each with its reflection copy if
+    ``reflections`` (EEVEE); for the sources whose caustic lands on a receiver a layer
+    cannot show, their Fitted spot (`planned[i]`), lighting only those receivers.
+    Returns (layer objects and copies, fallback lights, fallback receiver names)."""
     collection = lights_collection(scene)
     materials: dict = {}
     shapes: dict = {}  # one topology per raster resolution: later meshes copy it
@@ -223,6 +328,8 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None):
             fallback_objects[info.name] = info.original
             continue
         layers.append(create_layer(scene, patch, info, collection, materials, k, shapes))
+        if reflections:
+            layers.append(create_reflection(scene, layers[-1], info, collection, materials))
         if progress is not None and k % 8 == 7:
             progress((k + 1) / max(len(patches), 1))
     lights = []

@@ -45,7 +45,7 @@ from ...core.report.message import (
 )
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
-from ..build import cleanup, cycles_caustics, lights
+from ..build import cleanup, cycles_caustics, layers, lights
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from ..ui.scene_state import has_lens_lights
 from . import layer_stage, pipeline
@@ -136,7 +136,10 @@ def generate(context):
                 )
                 work.timings["linking"] = time.perf_counter() - tl
             made_lights = sum(1 for ob in made if ob.type == "LIGHT")
-            made_layers = len(made) - made_lights  # the caustic layers' meshes
+            # the caustic layers' meshes (not their copies for EEVEE's reflections)
+            made_layers = sum(
+                1 for ob in made if ob.type != "LIGHT" and not layers.is_reflection(ob)
+            )
             caustics_note, caustics_warn = cycles_caustics.after_build(
                 scene, plan, work.read, len(made), layers=made_layers > 0
             )

@@ -32,9 +32,13 @@ from ...core.caustic_layer.plan import (
 )
 from ...core.caustic_layer.view import view_of
 from ...core.tiers import builds_layer
+from ...core.tiers.base import ENGINE_NAMES
 from ..build import layers as layer_builder
 from ..build import lights as light_builder
 from ..read.receivers import read_receivers
+
+#: Render engines that are EEVEE (its identifier before and since Blender 5.0).
+EEVEE_ENGINES = frozenset(k for k, v in ENGINE_NAMES.items() if v == "EEVEE")
 
 
 def prepare(depsgraph, work, options: dict):
@@ -99,6 +103,8 @@ def build(scene, work, progress=None) -> list:
         work.plan.lights,
         work.read.sphere_objects,
         progress=progress,
+        # EEVEE's reflections do not show blended surfaces: a copy for them
+        reflections=scene.render.engine in EEVEE_ENGINES,
     )
     work.layer_figures = figures_of(work.layer_bake, len(lights), fallback)
     return layers + lights

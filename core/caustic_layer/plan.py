@@ -145,16 +145,17 @@ class LayerFigures:
     flux_emitted: float = 0.0
     flux_in_layers: float = 0.0
     flux_lost: float = 0.0  # missed every receiver
-    flux_outside: float = 0.0  # on a receiver, outside every layer (out of view, beyond a raster)
+    flux_outside: float = 0.0  # on a receiver, outside every layer (beyond a raster's edge)
     fallback_lights: int = 0
     fallback_receivers: tuple = ()
+    coarse: int = 0  # layers of a caustic out of the camera's view (drawn coarsely)
 
     def text(self) -> str:
         parts = [
             f"{share_text(flux, self.flux_emitted)} {what}"
             for flux, what in (
                 (self.flux_lost, "missed every receiver"),
-                (self.flux_outside, "landed outside the layers (out of view or past their edge)"),
+                (self.flux_outside, "landed outside the layers (past their edge)"),
             )
             if flux > 0 and self.flux_emitted > 0
         ]
@@ -162,6 +163,11 @@ class LayerFigures:
         out = f"{self.faces} texels and {self.rays} rays in all" + (
             f"; of the flux, {' and '.join(parts)}" if parts else ""
         )
+        if self.coarse:  # drawn: a mirror may show them
+            out += (
+                f"; {self.coarse} of the layers coarse, where the camera does not see the "
+                "caustic (for reflections)"
+            )
         if self.fallback_receivers:
             n = self.fallback_lights
             out += (
@@ -183,4 +189,5 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
         flux_outside=float(layer.flux_outside),
         fallback_lights=fallback_lights,
         fallback_receivers=tuple(fallback_receivers),
+        coarse=sum(1 for p in layer.patches if p.coarse),
     )
