@@ -60,6 +60,12 @@ def lens_lights():
     )
 
 
+def caustic_layers():
+    """The caustic layers among `lens_lights()`: their meshes, without the copies made
+    for EEVEE's reflections (`blender/build/layers.py`)."""
+    return [o for o in lens_lights() if o.type == "MESH" and not o.get("lens_lights_reflection")]
+
+
 def generate():
     from lens_lights.blender.commands.generate import generate as run
 

@@ -16,7 +16,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import basic_scene, lens_lights, set_engine
+from blender_scene_helpers import caustic_layers, basic_scene, lens_lights, set_engine
 from measuring_scene import build_measuring_scene, new_material
 from stock_render import stock_render
 
@@ -62,7 +62,7 @@ def make_scene():
 
 
 def layer_objects():
-    return [o for o in lens_lights() if o.type == "MESH"]
+    return caustic_layers()
 
 
 def face_areas_centres(me):

@@ -11,6 +11,7 @@ import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import (
+    caustic_layers,
     add_point_light,
     add_sphere,
     draw_panel,
@@ -210,7 +211,7 @@ def test_caustic_layer_bake_keeps_one_mesh_per_receiver_and_lamps_over_the_frame
     bpy.ops.object.camera_add(location=(0.0, 0.0, 8.0))
     sc.camera = bpy.context.object
     assert bpy.ops.lens_lights.bake() == {"FINISHED"}
-    layers = [o for o in lens_lights() if o.type == "MESH"]
+    layers = caustic_layers()
     assert len(layers) == 2
     shown = {}
     for f in (1, 2, 3):
