@@ -11,8 +11,8 @@ import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import (
-    caustic_layers,
     basic_scene,
+    caustic_layers,
     generate,
     lens_lights,
     set_engine,

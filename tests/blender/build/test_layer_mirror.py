@@ -14,6 +14,7 @@ import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import generate, set_engine
+from mathutils import Matrix, Vector
 from measuring_scene import (
     add_diffuse_floor,
     add_glass_ball,
@@ -21,7 +22,6 @@ from measuring_scene import (
     new_material,
     new_measuring_scene,
 )
-from mathutils import Matrix, Vector
 
 pytestmark = pytest.mark.blender
 

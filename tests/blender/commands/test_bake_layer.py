@@ -16,7 +16,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import caustic_layers, basic_scene, lens_lights, set_engine
+from blender_scene_helpers import basic_scene, caustic_layers, lens_lights, set_engine
 from measuring_scene import build_measuring_scene, new_material
 from stock_render import stock_render
 

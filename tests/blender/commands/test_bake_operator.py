@@ -11,9 +11,9 @@ import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import (
-    caustic_layers,
     add_point_light,
     add_sphere,
+    caustic_layers,
     draw_panel,
     glass_material,
     lens_lights,

@@ -6,7 +6,7 @@ import math
 
 import bpy
 import pytest
-from blender_scene_helpers import caustic_layers, basic_scene, generate, lens_lights, set_engine
+from blender_scene_helpers import basic_scene, caustic_layers, generate, lens_lights, set_engine
 from mathutils import Vector
 
 from core.lens import ball_optics

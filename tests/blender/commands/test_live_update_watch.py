@@ -6,9 +6,9 @@ metallic each bring the lens lights to what a fresh Generate makes."""
 import bpy
 import pytest
 from blender_scene_helpers import (
-    caustic_layers,
     add_point_light,
     add_sphere,
+    caustic_layers,
     generate,
     glass_material,
     lens_lights,
