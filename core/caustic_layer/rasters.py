@@ -23,7 +23,8 @@ bright core in a wide faint halo, so the texel lines are spaced by a separable s
 median distance from it: texels are fine in the core and grow in the halo, and the faces
 stay rectangles that do not overlap. The resolution is a parameter, so the layer's
 topology is fixed while a light moves; with the camera's ``view`` each raster spans
-only the landings in view and has its own resolution (texels per pixel there). Per
+only the landings in view and has its own resolution (texels per pixel there), and a
+coarse raster over the whole caustic takes what lands out of view. Per
 patch the output is plain data for one emissive mesh: a grid of vertices lifted by
 ``offset`` along the normal toward the light (no z-fighting), quad faces, the
 irradiance per texel (W/m², RGB = flux × light colour × lens tint) and the receiver's
@@ -279,11 +280,15 @@ def build_layer(
     sample of an extended source over its share (False: K sharp images, for
     comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
     beam's flux on a patch without one is lost), instead of fitting them here.
-    ``view`` (`view.View`): each raster spans only the landings in view (none if none
-    is: that flux counts as outside) and has its own resolution, `TEXELS_PER_PIXEL`
-    per pixel there (the pixel at its nearest landings), at most ``resolution``; all
-    rasters together at most ``max_texels`` texels. Without a view every raster has
-    ``resolution`` texels per side."""
+    ``view`` (`view.View`): each raster spans only the landings in view and has its
+    own resolution, `TEXELS_PER_PIXEL` per pixel there (the pixel at its nearest
+    landings), at most ``resolution``; where more than ``clip_fraction`` of its flux
+    lands out of view, a coarse raster (`PatchLayer.coarse`, `COARSE_RESOLUTION` per
+    side) spans all its landings and takes what lands beyond the fine one (a mirror
+    may show it: drawn, not outside). All rasters together at most ``max_texels``
+    texels (the coarse ones `COARSE_SHARE` of them). Without a view every raster has
+    ``resolution`` texels per side. A given ``RasterFrame`` that is ``coarse`` takes
+    what lands beyond the other given raster of its (patch, beams)."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
