@@ -93,8 +93,9 @@ def bake(
     ``max_texels`` in all (`build_layer`); the bake's ``resolution`` is then the
     largest raster's. With a view and ``rays_per_texel``, a source's rays follow the
     texels its caustic covers there (the span of 99 % of its flux, `TEXELS_PER_PIXEL`
-    per pixel at its lens, at most ``resolution`` per side): a closer camera, more
-    rays (within ``max_rays`` and ``total_rays``)."""
+    per pixel where it lands, at most ``resolution`` per side, all sources' at most
+    ``max_texels`` together, as their rasters): a closer camera, more rays (within
+    ``max_rays`` and ``total_rays``)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
     if budgets is not None:
@@ -122,6 +123,10 @@ def bake(
                 view_texels(sp, px, TEXELS_PER_PIXEL, side)
                 for sp, px in zip(spans, near, strict=True)
             ]
+            # the rasters share ``max_texels``: so do the rays that fill them
+            total = float(sum(texels))
+            if max_texels is not None and total > max_texels:
+                texels = [t * max_texels / total for t in texels]
         budgets = allocate(
             [b.total_flux for b in coarse],
             extents,
