@@ -87,7 +87,7 @@ def test_eevee_layers_have_a_reflection_copy_only_probes_see(empty_blend):
     basic_scene()
     set_engine("BLENDER_EEVEE")
     level, message, figures = generate()
-    made = [o for o in lens_lights() if o.type == "MESH"]
+    made = [o for o in lens_lights(copies=True) if o.type == "MESH"]
     copies = [o for o in made if o.get("lens_lights_reflection")]
     assert len(copies) == len(layers()) >= 1
     assert figures["layers"] == len(layers())  # the report counts layers, not copies
@@ -109,7 +109,7 @@ def test_eevee_layers_have_a_reflection_copy_only_probes_see(empty_blend):
     set_engine("CYCLES")
     bpy.context.scene.lens_lights.energy_model = "CAUSTIC_LAYER"
     generate()
-    assert layers() and not [o for o in lens_lights() if o.get("lens_lights_reflection")]
+    assert layers() and not [o for o in lens_lights(copies=True) if o.get("lens_lights_reflection")]
 
 
 def test_auto_in_cycles_keeps_the_exact_profile(empty_blend):
