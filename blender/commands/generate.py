@@ -237,8 +237,10 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
-        lights_made = sum(1 for ob in lights.created_objects(context.scene) if ob.type == "LIGHT")
-        removed = cleanup.clear(context.scene)
+        made = lights.created_objects(context.scene)
+        lights_made = sum(1 for ob in made if ob.type == "LIGHT")
+        copies = sum(1 for ob in made if layers.is_reflection(ob))  # not said: layers' own
+        removed = cleanup.clear(context.scene) - copies
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
         settings.last_created = settings.last_layers = 0

@@ -62,7 +62,8 @@ def make_scene():
 
 
 def layer_objects():
-    return caustic_layers()
+    """The layers in the camera's view (not the coarse ones of the halo out of it)."""
+    return [o for o in caustic_layers() if "coarse" not in o.lens_lights.note]
 
 
 def face_areas_centres(me):
