@@ -32,8 +32,8 @@ MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
 #: With a camera: rays per texel the caustic covers in view (all samples of an extended
 #: light together), up to this many per source. Fewer leave the faint halo's landed
-#: cells tens of texels long, drawn as dashes (16 384 rays: up to +0.27 on a lit table
-#: 0.47 in a close-up; 65 536: none; bench/layer_mirror.py).
+#: cells tens of texels long, drawn as dashes (a close-up's lit table of 0.47: up to
+#: +0.62 at 4 608 rays, +0.27 at 16 384, none at 51 968–65 536; bench/layer_mirror.py).
 RAYS_PER_TEXEL = 1.0
 VIEW_MAX_RAYS_PER_SOURCE = 65_536
 #: Texels per side of a layer raster at most without a camera (every raster alike) and
