@@ -15,7 +15,8 @@ import makes a circle):
   plan they share, with `commands.layer_stage`), `commands.generate` (Generate, Clear),
   `commands.bake` (keys the lens lights over a frame range), `commands.live_update`
   (registers its handlers; keeps the lens lights in step with the scene while
-  ``scene.lens_lights.live_update`` is on);
+  ``scene.lens_lights.live_update`` is on and no bake exists), `commands.bake_check`
+  (registers its handlers: says when the scene changed under a bake);
 * `ui`: `ui.properties` (the settings in the .blend), `ui.panel` (the sidebar),
   `ui.scene_state` (whether a scene has anything to clear: Clear's poll);
 * `bi`: `bi.scene_data` builds and reads the Blender data of `.bi` scenes,
@@ -37,6 +38,7 @@ _MODULE_NAMES = (
     "commands.generate",
     "commands.bake",
     "commands.live_update",
+    "commands.bake_check",
     "ui.panel",
     "bi.operators",
 )

@@ -11,6 +11,12 @@ the conventions of SPEC sections 4, 6, 9 and 10).
 - :mod:`.scene`: the glass sphere, the blockers and the receiving plane
 - :mod:`.tracer`: :func:`trace_irradiance`, the irradiance on the plane with
   per-cell standard errors; :func:`lens_shadow`, the lens's shadow on the plane
+- :mod:`.shapes`: glass solids of any shape with exact ray intersection (ellipsoid,
+  biconvex or plano-convex lens, rod, box, any closed triangle mesh with its BVH);
+  :mod:`.glass_meshes` tessellates the analytic ones (for Blender and mitsuba)
+- :mod:`.glass_tracer`: :func:`trace_glass`, every Fresnel branch through one or
+  several such solids (TIR, Beer absorption) onto receiving planes and past opaque
+  blockers, with per-cell standard errors and an energy balance
 """
 
 from __future__ import annotations

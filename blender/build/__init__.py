@@ -2,6 +2,7 @@
 listed before it):
 
 * `marks`: the mark on everything the extension creates and the names it gives (no bpy);
+* `ownership`: which marked objects are still the extension's, which the user's (kept);
 * `mask_nodes`: an Exact profile light's shadow mask; `lights`: the lens lights, their
   linking collections, profile images and node trees; `layers`: the caustic layers;
   `baked_layers`: the baked layers' meshes, atlas images and materials;

@@ -5,8 +5,9 @@ lens lights and their data (`lights`, with their embedded node trees), the linki
 collections and the "Lens Lights" collection, the profile and shadow mask images
 (`lights`, `mask_nodes`), the caustic layers' materials (`layers`), the baked layers'
 atlas images (`baked_layers`) and the bake's actions (`blender/commands/bake.py`).
-What is removed is what is listed in the scene's registry and marked (`marks`), or
-marked and used by nothing.
+What is removed is what is still exactly the extension's (listed in the scene's
+registry under its name, marked, in its collection: `ownership`), or marked and used
+by nothing; the user's copies, renamed and moved lens lights are kept (`ownership.keep_users`).
 """
 
 from __future__ import annotations
@@ -15,16 +16,20 @@ import bpy
 
 from .baked_layers import remove_unused_bake_images
 from .layers import remove_unused_layer_materials
-from .lights import created_objects, remove_unused_profile_images
+from .lights import remove_unused_profile_images
 from .marks import BAKE_MARK, COLLECTION_MARK, LINK_MARK
+from .ownership import created_objects, keep_users
 
 
 def clear(scene) -> int:
     """Remove every lens light the extension created in `scene` (and its linking
     collections; the "Lens Lights" collection too once nothing else is in it; the
     profile images, layer materials, bake actions and baked images nothing uses any
-    more). Returns how many lights were removed. Nothing else is touched."""
+    more). Returns how many lights were removed. Nothing else is touched: the user's
+    lens lights (copies, renamed or moved ones: `ownership`) are kept, working, with
+    what they use."""
     settings = scene.lens_lights
+    keep_users(scene)
     objects = created_objects(scene)
     refs: dict = {}
     for ob in objects:
@@ -41,6 +46,7 @@ def clear(scene) -> int:
     remove_unused_layer_materials()
     remove_unused_bake_actions()
     settings.created_objects.clear()
+    settings.baked_from = ""  # no bake left (`blender/commands/bake_check.py`)
     keep = []
     for item in settings.created_collections:
         coll = item.collection

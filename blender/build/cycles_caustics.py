@@ -99,7 +99,11 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
         return "", False
     engine = scene.render.engine
     if scene.lens_lights.replace_cycles_caustics:
-        lenses = sorted({read.sphere_objects[p.source.lens] for p in plan.lights}, key=_name)
+        lenses = {read.sphere_objects[p.source.lens] for p in plan.lights}
+        if layers:  # the glass meshes traced as lenses: their layers replace Cycles'
+            meshes = getattr(read, "mesh_lenses", [])
+            lenses |= {meshes[k].orig for _light, k in getattr(read, "mesh_pairs", [])}
+        lenses = sorted(lenses, key=_name)
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
         # A lens sunk into another surface has no lens light: only Cycles' caustic.
         glass += sorted({s[1] for s in plan.skipped if s.code == Reason.SUNK})

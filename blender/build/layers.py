@@ -49,6 +49,7 @@ from .marks import (
     LINK_MARK,
     MATERIAL_PREFIX,
 )
+from .ownership import register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
@@ -194,10 +195,12 @@ def create_reflection(scene, layer_ob, info, collection, materials):
     meta = ob.lens_lights
     meta.is_lens_light = True
     meta.energy_model = "CAUSTIC_LAYER"
-    meta.source_lens = info.name
+    meta.receiver = info.name
+    meta.source_light = layer_ob.lens_lights.source_light
+    meta.source_lens = layer_ob.lens_lights.source_lens
     meta.relative_brightness = layer_ob.lens_lights.relative_brightness
     meta.note = "reflection copy of the caustic layer (EEVEE's mirrors and probes)"
-    scene.lens_lights.created_objects.add().object = ob
+    register(scene, ob)
     return ob
 
 
@@ -276,10 +279,13 @@ def _visibility(ob):
     ob.visible_volume_scatter = False
 
 
-def create_layer(scene, patch, info, collection, materials, k, shapes=None, drawn=None):
+def create_layer(
+    scene, patch, info, collection, materials, k, shapes=None, drawn=None, lights=(), lenses=()
+):
     """One layer object (registered and marked like a lens light) drawing `patch`
     (`drawn`: its mesh, by default `smooth.drawn_mesh(patch)`); ``shapes``: see
-    `layer_mesh`."""
+    `layer_mesh`; `lights`, `lenses`: the names of the lights and lenses whose caustic
+    it draws (the panel says them)."""
     name = f"{LAYER_PREFIX}{info.name} {k}"
     drawn = drawn_mesh(patch) if drawn is None else drawn
     ob = bpy.data.objects.new(name, layer_mesh(name, drawn, shapes))
@@ -289,12 +295,14 @@ def create_layer(scene, patch, info, collection, materials, k, shapes=None, draw
     meta = ob.lens_lights
     meta.is_lens_light = True
     meta.energy_model = "CAUSTIC_LAYER"
-    meta.source_lens = info.name  # the receiver it lies on
-    meta.relative_brightness = float(patch.flux)
-    meta.note = f"caustic layer: {patch.resolution}² texels, {patch.flux:.4g} W" + (
+    meta.receiver = info.name  # the object it lies on
+    meta.source_light = ", ".join(dict.fromkeys(lights))
+    meta.source_lens = ", ".join(dict.fromkeys(lenses))
+    meta.relative_brightness = float(patch.flux)  # the flux it draws, W
+    meta.note = f"{patch.resolution}² texels" + (
         " (coarse: out of the camera's view, for reflections)" if patch.coarse else ""
     )
-    scene.lens_lights.created_objects.add().object = ob
+    register(scene, ob)
     return ob
 
 
@@ -310,12 +318,17 @@ def _include_collection(scene, objects, tag):
     return coll
 
 
-def build(scene, bake, receivers, planned, lens_objects, progress=None, reflections=False):
+def build(
+    scene, bake, receivers, planned, lens_objects, progress=None, mesh_names=(), reflections=False
+):
     """The layers of `bake` (`core.caustic_layer.pipeline.SheetBake`) on `receivers`
     (`blender.read.receivers.Receivers`), each with its reflection copy if
     ``reflections`` (EEVEE); for the sources whose caustic lands on a receiver a layer
-    cannot show, their Fitted spot (`planned[i]`), lighting only those receivers.
-    Returns (layer objects and copies, fallback lights, fallback receiver names)."""
+    cannot show, their Fitted spot (`planned[i]`), lighting only those receivers. The
+    sources after the planned ones are glass meshes', named by `mesh_names` ((light,
+    lens) each). Returns (layer objects and copies, fallback lights, fallback receiver
+    names)."""
+    names = [(p.light_name, p.lens_name) for p in planned] + list(mesh_names)
     collection = lights_collection(scene)
     materials: dict = {}
     shapes: dict = {}  # one topology per raster resolution: later meshes copy it
@@ -327,28 +340,57 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None, reflecti
             fallback_sources.update(int(s) for s in patch.sources)
             fallback_objects[info.name] = info.original
             continue
-        layers.append(create_layer(scene, patch, info, collection, materials, k, shapes))
+        beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
+        layers.append(
+            create_layer(
+                scene,
+                patch,
+                info,
+                collection,
+                materials,
+                k,
+                shapes,
+                lights=[light for light, _lens in beams],
+                lenses=[lens for _light, lens in beams],
+            )
+        )
         if reflections:
             layers.append(create_reflection(scene, layers[-1], info, collection, materials))
         if progress is not None and k % 8 == 7:
             progress((k + 1) / max(len(patches), 1))
     lights = []
-    if fallback_sources:
+    if any(s < len(planned) for s in fallback_sources):
         include = _include_collection(scene, list(fallback_objects.values()), "receivers")
         links: dict = {}
         for s in sorted(fallback_sources):
+            if s >= len(planned):  # a mesh lens' source: no spot stands for it
+                continue
             p = planned[s]
             ob = create_light(
                 scene, p, lens_objects[p.source.lens], collection, links, model_name="CAUSTIC_LAYER"
             )
             ob.light_linking.receiver_collection = include
-            ob.lens_lights.note = "; ".join(
-                x
-                for x in (ob.lens_lights.note, "Fitted spot for glossy or transparent receivers")
-                if x
-            )
+            ob.lens_lights.receiver = ", ".join(sorted(fallback_objects))
             lights.append(ob)
     return layers, lights, sorted(fallback_objects)
+
+
+def made_counts(objects) -> dict:
+    """What `objects` (the extension's, made or about to be removed) are, for
+    `made_text`: lens lights (``made``), caustic layers (meshes) and the receivers
+    they lie on, the layer's fallback spots and the receivers they light."""
+    # (a layer's reflection copy for EEVEE is part of that layer: not counted)
+    layers = [ob for ob in objects if ob.type != "LIGHT" and not is_reflection(ob)]
+    fallback = [ob for ob in objects if ob.type == "LIGHT" and ob.lens_lights.receiver]
+    return dict(
+        made=sum(1 for ob in objects if ob.type == "LIGHT") - len(fallback),
+        layers=len(layers),
+        fallback=len(fallback),
+        on=sorted({ob.lens_lights.receiver for ob in layers if ob.lens_lights.receiver}),
+        fallback_on=sorted(
+            {n for ob in fallback for n in ob.lens_lights.receiver.split(", ") if n}
+        ),
+    )
 
 
 def remove_unused_layer_materials() -> int:

@@ -32,11 +32,12 @@ demand, under the scene's collection), placed, turned and shaped from a
 The values (all but the name, linking and origin) are put by `apply_light`, on a new
 light or on one live update keeps (`live_update`): only what differs is written.
 
-Everything created is listed in `scene.lens_lights.created_*` and marked
-(`object.lens_lights.is_lens_light`, collection custom property
-`marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above every builder) removes only
-what is both listed and marked, and then the marked profile images nothing uses any
-more (`remove_unused_profile_images`).
+Everything created is listed in `scene.lens_lights.created_*` (objects under their
+name: `ownership.register`) and marked (`object.lens_lights.is_lens_light`,
+collection custom property `marks.COLLECTION_MARK`); Clear (`cleanup.clear`, above
+every builder) removes only what is still exactly the extension's (`ownership`: a
+copy, a renamed or moved lens light is the user's, kept), and then the marked
+profile images nothing uses any more (`remove_unused_profile_images`).
 """
 
 from __future__ import annotations
@@ -60,8 +61,10 @@ from .marks import (
     PROFILE_KEY,
     PROFILE_MARK,
     PROFILE_PREFIX,
+    USER_LINK,
 )
 from .node_maths import shader_math, slice_coordinates, value_node
+from .ownership import register
 
 
 def _register_collection(settings, coll):
@@ -392,8 +395,7 @@ def create_light(
     meta.source_lens = planned.lens_name
     meta.kind = planned.light.kind
     meta.energy_model = model_name or planned.light.model
-    item = scene.lens_lights.created_objects.add()
-    item.object = ob
+    register(scene, ob)
     return ob
 
 
@@ -492,16 +494,6 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
     return made
 
 
-def created_objects(scene):
-    """The extension's lights in `scene` (listed in the registry and marked)."""
-    out = []
-    for item in scene.lens_lights.created_objects:
-        ob = item.object
-        if ob is not None and ob.lens_lights.is_lens_light and ob not in out:
-            out.append(ob)
-    return out
-
-
 def remove_unused_profile_images() -> int:
     """Remove the extension's profile images (marked) that nothing uses; an image
     still used (by another scene's lens lights, or by something of the user's) is
@@ -529,6 +521,7 @@ class LinkReport:
     instances: int = 0  # lights reaching another instance of their lens's object
     user_sets: int = 0
     user_collections: int = 0
+    user_linked: int = 0  # lights keeping their user's light's own linking
     blender_says: list = field(default_factory=list)  # Blender's own console lines
 
 
@@ -597,8 +590,69 @@ def _group_collection(scene, g, existing):
     return coll
 
 
+def user_link(light_object):
+    """(receiver, blocker) collections of a user's light's own linking (None each
+    where it has none; None for a light without any)."""
+    ll = getattr(light_object, "light_linking", None)
+    if ll is None:
+        return None
+    rc, bc = ll.receiver_collection, ll.blocker_collection
+    rc = None if rc is None or _is_ours(rc) else rc
+    bc = None if bc is None or _is_ours(bc) else bc
+    return (rc, bc) if rc is not None or bc is not None else None
+
+
+def user_links_of(planned, light_objects) -> list:
+    """`user_link` of each planned light's user light (`light_objects`: the read's,
+    indexed by the source's light)."""
+    return [user_link(light_objects[p.source.light]) for p in planned]
+
+
+def _with_lenses_out(scene, user_coll, group_coll, made: dict):
+    """A linking collection of ours that is `user_coll` (each object in it with its
+    link state, as Blender reads it) with the lenses of `group_coll` excluded: a user
+    light's linking for its lens lights. None for no group: the user's own collection
+    serves as it is. Made once per (user collection, group) and run; an existing one
+    is refilled only where it differs (live update)."""
+    if group_coll is None:
+        return user_coll
+    key = f"{user_coll.name_full} + group {int(group_coll.get(LINK_GROUP, 0)) + 1}"
+    coll = made.get(key)
+    if coll is not None:
+        return coll
+    coll = next(
+        (
+            item.collection
+            for item in scene.lens_lights.created_collections
+            if item.collection is not None and item.collection.get(USER_LINK) == key
+        ),
+        None,
+    )
+    if coll is None:
+        coll = bpy.data.collections.new(f"{LINK_PREFIX}{key}")
+        coll[COLLECTION_MARK] = LINK_MARK
+        coll[USER_LINK] = key
+        _register_collection(scene.lens_lights, coll)
+    want = {ob.as_pointer(): (ob, state) for ob, state in _members(user_coll)}
+    for ob in group_coll.objects:  # the lens out, whatever the user said of it
+        want[ob.as_pointer()] = (ob, "EXCLUDE")
+    for ob in list(coll.objects):
+        if ob.as_pointer() not in want:
+            coll.objects.unlink(ob)
+    have = {ob.as_pointer() for ob in coll.objects}
+    for ptr, (ob, _) in want.items():
+        if ptr not in have:
+            coll.objects.link(ob)
+    for ob, member in zip(coll.objects, coll.collection_objects, strict=True):
+        state = want[ob.as_pointer()][1]
+        if member.light_linking.link_state != state:
+            member.light_linking.link_state = state
+    made[key] = coll
+    return coll
+
+
 def link_lights(
-    scene, objects, planned, centers, radii, sphere_objects, everywhere=False
+    scene, objects, planned, centers, radii, sphere_objects, everywhere=False, user_links=None
 ) -> LinkReport:
     """Light and shadow linking for the lens lights `objects` (made from `planned`,
     row for row): which need their lens out and each lens's group (`core/plan/linking`),
@@ -606,7 +660,9 @@ def link_lights(
     filled and emptied to match (only what differs is written, for live update), and
     those no light uses removed. `centers`, `radii`, `sphere_objects`: every sphere of
     the read (lenses a beam may reach). `everywhere`: every beam taken as reaching
-    every lens (a bake's lights move)."""
+    every lens (a bake's lights move). `user_links`: per light, its user's light's own
+    linking (`user_link`, None: none), which its lens light keeps: the user's
+    collections with its lens group excluded (`_with_lenses_out`)."""
     report = LinkReport(lights=len(objects))
     ptrs: dict = {}
     owner = np.array([ptrs.setdefault(o.as_pointer(), len(ptrs)) for o in sphere_objects])
@@ -653,18 +709,32 @@ def link_lights(
         for member in coll.collection_objects:
             if member.light_linking.link_state != "EXCLUDE":
                 member.light_linking.link_state = "EXCLUDE"
-    for ob, p, on in zip(objects, planned, plan.linked.tolist(), strict=True):
+    users = user_links if user_links is not None else [None] * len(objects)
+    combined: dict = {}
+    for ob, p, on, user in zip(objects, planned, plan.linked.tolist(), users, strict=True):
         g = int(plan.group[owner[p.source.lens]])
         coll = colls[g] if on else None
+        receivers = blockers = coll
+        if user is not None:  # the user's light's own linking, its lens still out
+            if user[0] is not None:
+                receivers = _with_lenses_out(scene, user[0], coll, combined)
+            if user[1] is not None:
+                blockers = _with_lenses_out(scene, user[1], coll, combined)
         ll = ob.light_linking
-        if ll.receiver_collection != coll:
-            ll.receiver_collection = coll
-        if ll.blocker_collection != coll:
-            ll.blocker_collection = coll
+        if ll.receiver_collection != receivers:
+            ll.receiver_collection = receivers
+        if ll.blocker_collection != blockers:
+            ll.blocker_collection = blockers
+    report.user_linked = sum(1 for u in users if u is not None)
     settings = scene.lens_lights
+    kept = {c.as_pointer() for c in combined.values()}
     for k in reversed(range(len(settings.created_collections))):
         coll = settings.created_collections[k].collection
-        if coll is not None and LINK_GROUP in coll and int(coll[LINK_GROUP]) not in colls:
+        stale = coll is not None and (
+            (LINK_GROUP in coll and int(coll[LINK_GROUP]) not in colls)
+            or (USER_LINK in coll and coll.as_pointer() not in kept and user_links is not None)
+        )
+        if stale:
             settings.created_collections.remove(k)
             bpy.data.collections.remove(coll)
     return report

@@ -6,7 +6,9 @@ Everything the extension creates in a file carries the custom property
 (`cleanup.clear`) removes only what is both listed in the scene's registry
 (`scene.lens_lights.created_*`) and marked, or marked and used by nothing (images,
 materials, actions); live update ignores the depsgraph updates of marked data (its own
-edits). Lens light objects are marked by `object.lens_lights.is_lens_light` instead.
+edits). Lens light objects are marked by `object.lens_lights.is_lens_light` instead,
+and are the extension's only while listed under their name in its collection
+(`ownership`: a copy, a renamed or moved one is the user's, kept).
 
 The builders (`lights`, `mask_nodes`, `layers`, `baked_layers`, and the bake's actions,
 `blender/commands/bake.py`) mark; `cleanup` and the panel's poll
@@ -35,6 +37,9 @@ LINK_GROUP = "lens_lights_link_group"
 
 #: Custom property of a profile image: its cache key (`lights.profile_image`).
 PROFILE_KEY = "lens_lights_profile_key"
+#: On a linking collection that is a user light's own linking collection with its
+#: lens lights' lenses excluded (`lights.link_lights`): (user collection, group).
+USER_LINK = "lens_lights_user_link"
 
 #: Names of what the builders make.
 COLLECTION_NAME = "Lens Lights"
@@ -44,4 +49,8 @@ MASK_PREFIX = "Lens mask "
 LAYER_PREFIX = "Lens caustic "
 MATERIAL_PREFIX = "Lens caustic material "
 INCLUDE_PREFIX = "Lens fallback: "
+#: A user's kept lens light's own copy of the linking it had (`ownership`): unmarked, theirs.
+KEPT_LINK_PREFIX = "Kept link: "
+#: Custom property of such a collection (found again for the next kept light).
+KEPT_LINK = "lens_lights_kept_link"
 BAKE_IMAGE_PREFIX = "Lens caustic bake "

@@ -50,7 +50,12 @@ scene as it was:
      the mesh's raster UVs with a keyed slice index (`baked_layers`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
-after it (the keys drive the lights; a cancel or a failed plan puts it back).
+after it (the keys drive the lights; a cancel or a failed plan puts it back); while
+the bake exists it does nothing even when turned on (`live_update._on`).
+
+What each frame was read from is kept as prints (`bake_check.prints_of`, stored by
+`bake_check.record` in ``scene.lens_lights.baked_from``), so that the panel and
+renders can say when the scene changed under the bake (`bake_check`).
 
 Every action made is marked (`marks.COLLECTION_MARK` = "bake") and removed by
 Clear once unused (`cleanup.remove_unused_bake_actions`, called by `cleanup.clear`).
@@ -74,7 +79,7 @@ from ...core.animation.light_keys import keys_of
 from ...core.plan.cycles_caustics import kept_on_warning, linked_caster_warning
 from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
-from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes
+from ..build import baked_layers, cleanup, cycles_caustics, layers, lights, mask_nodes, ownership
 from ..build.marks import (
     BAKE_MARK,
     COLLECTION_MARK,
@@ -84,7 +89,10 @@ from ..build.marks import (
     PROFILE_PREFIX,
 )
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
-from . import layer_stage, pipeline
+from . import bake_check, layer_stage, pipeline
+
+#: Why a glass mesh traced as a lens gets nothing from a bake outside the layer tier.
+MESH_NOT_BAKED = "a glass mesh: its caustic layer is baked in the Caustic layer tier only"
 
 SLICE_NODE, H_MIN_NODE = lights.SLICE_NODE, lights.H_MIN_NODE
 MASK_SLICE_NODE, MASK_SCALE_NODE = mask_nodes.MASK_SLICE_NODE, mask_nodes.MASK_SCALE_NODE
@@ -235,11 +243,12 @@ def _slice_image(track, role: str, name: str):
 
 def _frame_lights(work, firsts: dict, tables: dict) -> list:
     """The `FrameLight`s of one frame's plan; `firsts` gets each new key's
-    (PlannedLight, lens object); `tables` (key → pixels) shares equal tables over
-    the frames. An Exact profile light records what Generate's node tree reads on
-    this frame: its near field's own table (its key, intensity and intensity ×
-    slope), its receiver planes' tilt numbers (`lights.tilt_values`; their count
-    under `TILT_PLANES`), its shadow mask (`mask_nodes.shadow_mask`)."""
+    (PlannedLight, lens object, its user light's own linking); `tables` (key →
+    pixels) shares equal tables over the frames. An Exact profile light records
+    what Generate's node tree reads on this frame: its near field's own table (its
+    key, intensity and intensity × slope), its receiver planes' tilt numbers
+    (`lights.tilt_values`; their count under `TILT_PLANES`), its shadow mask
+    (`mask_nodes.shadow_mask`)."""
     out = []
     nears = [
         bool(
@@ -294,8 +303,12 @@ def _frame_lights(work, firsts: dict, tables: dict) -> list:
                 px, s_max = mask
                 fl.tables["mask"] = (hashlib.sha1(px.tobytes()).hexdigest(), px)
                 values[MASK_SCALE_NODE] = 0.5 / s_max
-        if key not in firsts:
-            firsts[key] = (p, work.read.sphere_objects[p.source.lens])
+        if key not in firsts:  # (its user light's own linking: `lights.user_link`)
+            firsts[key] = (
+                p,
+                work.read.sphere_objects[p.source.lens],
+                lights.user_link(work.read.light_objects[p.source.light]),
+            )
         out.append(fl)
     return out
 
@@ -328,6 +341,9 @@ class Baker:
         if self.live_before:
             settings.live_update = False
         self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
+        # what each frame was baked from (`bake_check`), and whether read as rendered
+        self.prints: list = []
+        self.read_as_render = True
         self.lens_objects: set = set()
         self.unmodelled_glass: dict = {}  # name → why: keeps Cycles' refractive caustics on
         self.timings = dict(plan=0.0, build=0.0)
@@ -355,8 +371,15 @@ class Baker:
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
+        self.prints.append(bake_check.prints_of(work.read, options))
+        self.read_as_render &= bake_check.read_as_render(work.read.how)
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
+        if self.layer:  # the glass meshes traced: their layers replace Cycles' caustics
+            meshes = work.read.mesh_lenses
+            self.lens_objects.update(meshes[k].orig for _j, k in work.read.mesh_pairs)
+        else:  # the glass meshes' layers are baked in the layer's tier only
+            self.unmodelled_glass.update((m.name, MESH_NOT_BAKED) for m in work.read.mesh_lenses)
         if self.layer:
             self.works.append(work)  # built per frame (its meshes)
         self.timings["plan"] += time.perf_counter() - t
@@ -417,7 +440,7 @@ class Baker:
         made, firsts = [], []
         masks: set = set()
         for track in tracks:
-            planned, lens_ob = self.firsts[track.key]
+            planned, lens_ob, _ = self.firsts[track.key]
             bl = planned.light
             if track.profile_group is not None:  # no per-frame image: the nodes come below
                 bl = dataclasses.replace(bl, _profile=None, _profile_maker=None)
@@ -429,7 +452,7 @@ class Baker:
             firsts.append(bl)
         # the lights move: every beam taken as reaching every lens (each lens its own
         # group while Blender's sets last, then shared: the report lists them)
-        lens_objects = [lens for _, lens in (self.firsts[t.key] for t in tracks)]
+        lens_objects = [self.firsts[t.key][1] for t in tracks]
         index = {o.as_pointer(): k for k, o in enumerate(dict.fromkeys(lens_objects))}
         spheres = list(dict.fromkeys(lens_objects))
         firsts = [
@@ -444,6 +467,7 @@ class Baker:
             np.zeros(len(spheres)),
             spheres,
             everywhere=True,
+            user_links=[self.firsts[t.key][2] for t in tracks],
         )
         profiles = len({v[0].name for v in images.values()})
         return dict(objects=len(tracks), images=profiles, mask_images=len(masks))
@@ -512,7 +536,7 @@ class Baker:
             else:
                 infos = work.receivers.objects
                 skip = frozenset(k for k, info in enumerate(infos) if info.fallback)
-                keys = [fl.key for fl in self.per_frame[i]]
+                keys = [fl.key for fl in self.per_frame[i]] + layer_stage.mesh_keys(work.read)
                 names = [info.name for info in infos]
                 inputs.append(
                     layer_segments.FrameLayers(
@@ -598,6 +622,8 @@ def finish(baker):
     figures["changed"] = True
     LAST_BAKE = figures
     settings = baker.scene.lens_lights
+    if figures["objects"]:
+        bake_check.record(baker.scene, baker.frames, baker.prints, baker.read_as_render)
     settings.last_run = True
     settings.last_created = figures["objects"]
     settings.last_seconds = figures["seconds"]
@@ -612,6 +638,17 @@ def finish(baker):
     )
     if note:
         settings.last_report += "; " + note
+        level = "WARNING"
+    kept, doubled = ownership.kept_note(baker.scene, ownership.created_objects(baker.scene))
+    if kept:  # the user's copies, renamed and moved lens lights: kept beside the baked
+        settings.last_report += "; " + kept
+        level = "WARNING" if doubled else level
+    unbaked = sorted(n for n, why in baker.unmodelled_glass.items() if why == MESH_NOT_BAKED)
+    if unbaked:
+        settings.last_report += (
+            f"; not baked: the caustics of the glass meshes {', '.join(unbaked)} (their "
+            "caustic layers are baked in the Caustic layer tier; Cycles renders their own)"
+        )
         level = "WARNING"
     if baker.live_before:
         settings.last_report += "; Live update turned off (the keys drive the lens lights)"

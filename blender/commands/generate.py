@@ -35,7 +35,7 @@ import traceback
 
 import bpy
 
-from ...core.plan.cycles_caustics import describe as describe_caustics
+from ...core.plan.cycles_caustics import describe_restored
 from ...core.report.message import (
     error_text,
     linking_groups_note,
@@ -45,7 +45,7 @@ from ...core.report.message import (
 )
 from ...core.scene.assembly import RENDER
 from ...core.tiers import builds_layer
-from ..build import cleanup, cycles_caustics, layers, lights
+from ..build import cleanup, cycles_caustics, layers, lights, ownership
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from ..ui.scene_state import has_lens_lights
 from . import layer_stage, pipeline
@@ -78,6 +78,7 @@ def _store(settings, message, figures):
     settings.last_run = True
     settings.last_created = figures.get("created", 0)
     settings.last_layers = figures.get("layers", 0)
+    settings.last_fallback = figures.get("fallback", 0)
     settings.last_sources = figures.get("sources", 0)
     settings.last_skipped = figures.get("skipped", 0)
     settings.last_primaries = figures.get("primaries", 0)
@@ -132,16 +133,20 @@ def generate(context):
                 )
                 a, tl = work.read.arrays, time.perf_counter()
                 linking = lights.link_lights(
-                    scene, made, plan.lights, a.center, a.radius, work.read.sphere_objects
+                    scene,
+                    made,
+                    plan.lights,
+                    a.center,
+                    a.radius,
+                    work.read.sphere_objects,
+                    user_links=lights.user_links_of(plan.lights, work.read.light_objects),
                 )
                 work.timings["linking"] = time.perf_counter() - tl
-            made_lights = sum(1 for ob in made if ob.type == "LIGHT")
-            # the caustic layers' meshes (not their copies for EEVEE's reflections)
-            made_layers = sum(
-                1 for ob in made if ob.type != "LIGHT" and not layers.is_reflection(ob)
-            )
+                # the glass meshes' caustic layers beside the spheres' lens lights
+                made += layer_stage.build_mesh_layers(scene, work)
+            counted = layers.made_counts(made)
             caustics_note, caustics_warn = cycles_caustics.after_build(
-                scene, plan, work.read, len(made), layers=made_layers > 0
+                scene, plan, work.read, len(made), layers=counted["layers"] > 0
             )
         except Exception as exc:  # whatever failed: remove what was made, report it
             traceback.print_exc()
@@ -160,17 +165,16 @@ def generate(context):
 
     try:
         level, message, figures = report_message(
-            work,
-            made_lights,
-            layers=made_layers,
-            read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER),
+            work, **counted, read_as_rendered=work.read.how in (RENDER, VIEWPORT_AS_RENDER)
         )
     except Exception as exc:  # the lights are made: say so
         traceback.print_exc()
-        level, figures = "WARNING", dict(created=made_lights, layers=made_layers)
-        message = f"Created {made_text(made_lights, made_layers)}; " + error_text(
-            "write the report", exc
-        )
+        level = "WARNING"
+        figures = dict(created=counted["made"], layers=counted["layers"])
+        message = f"Created {made_text(*counted.values())}; " + error_text("write the report", exc)
+    meshes = layer_stage.mesh_lenses_note(work, counted["layers"])
+    if meshes:
+        message = f"{message}; {meshes}"
     if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)
@@ -195,6 +199,12 @@ def generate(context):
         message = f"{message}; {caustics_note}"
         if caustics_warn:
             level = "WARNING" if level == "INFO" else level
+    kept_note, doubled = ownership.kept_note(scene, made)
+    if kept_note:  # the user's lens lights, kept: a lens may now have two
+        message = f"{message}; {kept_note}"
+        figures["kept"] = [ob.name for ob in ownership.kept_objects(scene)]
+        if doubled:
+            level = "WARNING" if level == "INFO" else level
     figures["energy_model"] = options["energy_model"]
     figures.update(changed=True, seconds=time.perf_counter() - t0, timings=dict(work.timings))
     LAST_FIGURES = figures
@@ -203,8 +213,11 @@ def generate(context):
 
 
 class LENS_LIGHTS_OT_generate(bpy.types.Operator):
-    """Turn every light × glass sphere into a spot light that paints its caustic"""
-
+    bl_description = (
+        "Precompute the caustic every light casts through each glass sphere: lens lights "
+        "(spot lights that paint it; Cycles' default) or, with the Caustic layer model "
+        "(EEVEE's default), emissive meshes on the surfaces it lands on"
+    )
     bl_idname = "lens_lights.generate"
     bl_label = "Generate Lens Lights"
     bl_options = {"REGISTER", "UNDO"}
@@ -222,8 +235,10 @@ class LENS_LIGHTS_OT_generate(bpy.types.Operator):
 
 
 class LENS_LIGHTS_OT_clear(bpy.types.Operator):
-    """Remove the lens lights this extension created (and nothing else)"""
-
+    bl_description = (
+        "Remove the lens lights and caustic layers this extension created (nothing "
+        "else) and put back the Cycles caustics settings it changed"
+    )
     bl_idname = "lens_lights.clear"
     bl_label = "Clear Lens Lights"
     bl_options = {"REGISTER", "UNDO"}
@@ -237,17 +252,17 @@ class LENS_LIGHTS_OT_clear(bpy.types.Operator):
 
     def execute(self, context):
         context.scene.lens_lights.live_update = False  # else the lights come back at once
-        made = lights.created_objects(context.scene)
-        lights_made = sum(1 for ob in made if ob.type == "LIGHT")
-        copies = sum(1 for ob in made if layers.is_reflection(ob))  # not said: layers' own
-        removed = cleanup.clear(context.scene) - copies
+        counted = layers.made_counts(list(ownership.created_objects(context.scene)))
+        cleanup.clear(context.scene)
         restored = cycles_caustics.restore(context.scene)
         settings = context.scene.lens_lights
-        settings.last_created = settings.last_layers = 0
-        lights_made = min(lights_made, removed)
-        settings.last_report = f"Removed {made_text(lights_made, removed - lights_made)}"
+        settings.last_created = settings.last_layers = settings.last_fallback = 0
+        settings.last_report = f"Removed {made_text(*counted.values())}"
         if restored:
-            settings.last_report += "; " + describe_caustics(restored, verb="restored")
+            settings.last_report += "; " + describe_restored(restored)
+        kept_note, _ = ownership.kept_note(context.scene)
+        if kept_note:  # the user's copies, renamed and moved lens lights stay
+            settings.last_report += "; " + kept_note
         self.report({"INFO"}, settings.last_report)
         return {"FINISHED"}
 

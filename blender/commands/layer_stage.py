@@ -8,12 +8,26 @@ lens lights (`build.layers`; with no receiver at all, the planned Fitted spots:
 one undo step with the rest of Generate. What it adds to the plan is in the fields
 `planning.Work` declares for it (``receivers``, ``layer_bake``, ``layer_sources``,
 ``layer_figures``).
+
+The glass meshes read as lenses (`read.mesh_lenses`, issue 25) have no lens light:
+their (light, lens) pairs (`core.caustic_layer.mesh_sources`) are baked here in every
+tier and both engines, after the spheres' sources when the spheres' tier is the
+layer's, alone otherwise (`build_mesh_layers` then builds their layers beside the
+spheres' lens lights). Without the mesh lens kind (`core.lens.kinds`) they are
+reported as glass it cannot model, and Cycles keeps its own caustics for them.
 """
 
 from __future__ import annotations
 
 import time
 
+from ...core.animation.light_keys import keys_of
+from ...core.caustic_layer.mesh_sources import (
+    MESH_KIND,
+    budget_cuts,
+    mesh_min_rays,
+    mesh_sheet_sources,
+)
 from ...core.caustic_layer.pipeline import bake
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
@@ -30,7 +44,11 @@ from ...core.caustic_layer.plan import (
     sheet_camera,
     sheet_sources,
 )
+from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
+from ...core.lens.kinds import LENS_KINDS
+from ...core.phase1.skip_reasons import Reason, SkippedPair
+from ...core.report.message import mesh_lenses_text
 from ...core.tiers import builds_layer
 from ...core.tiers.base import ENGINE_NAMES
 from ..build import layers as layer_builder
@@ -45,19 +63,29 @@ def prepare(depsgraph, work, options: dict):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
     ``layer_bake`` (None: no layer tier or nothing to bake)."""
     work.receivers = work.layer_bake = None
-    if not builds_layer(options.get("energy_model")) or not work.plan.lights:
-        return work
     read = work.read
+    spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
+    if spheres:  # a light with its own linking: no layer (lens lights keep it)
+        _leave_out_linked(work)
+        spheres = bool(work.plan.lights)
+    meshes = mesh_sources_of(read, work.timings, options.get("max_lights"))
+    if not spheres and not meshes:
+        return work
     t = time.perf_counter()
     lenses = [
         ob for ob, lens in zip(read.sphere_objects, read.lens_candidates, strict=False) if lens
     ]
+    lenses += [m.orig for m in read.mesh_lenses]  # no glass receives its own caustic
     work.receivers = read_receivers(depsgraph, exclude=lenses)
     work.timings["receivers"] = time.perf_counter() - t
     if not len(work.receivers.mesh.triangles):
         return work  # nothing to lay a caustic on
     t = time.perf_counter()
-    sources = sheet_sources(work.plan.lights, read.primaries, read.lens_optics, read.arrays)
+    sources = (
+        sheet_sources(work.plan.lights, read.primaries, read.lens_optics, read.arrays)
+        if spheres
+        else []
+    ) + meshes
     cam = depsgraph.scene.camera
     ortho = (
         cam.data.ortho_scale
@@ -66,6 +94,17 @@ def prepare(depsgraph, work, options: dict):
     )
     camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
     has_camera = cam is not None and cam.type == "CAMERA"
+    # a glass mesh's floor of rays grows with its triangles and its size on screen
+    work.layer_floors = floors = [MIN_RAYS_PER_SOURCE] * (len(sources) - len(meshes)) + [
+        mesh_min_rays(
+            read.mesh_lenses[k].n_triangles,
+            MIN_RAYS_PER_SOURCE,
+            2.0
+            * s.lens.radius
+            / pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px),
+        )
+        for (_light, k), s in zip(read.mesh_pairs, meshes, strict=True)
+    ]
     # the rasters follow what the camera sees (without one: the budget's one resolution)
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
     work.layer_sources = sources  # the bake lands them again (core/animation/layer_segments.py)
@@ -75,7 +114,7 @@ def prepare(depsgraph, work, options: dict):
         camera,
         total_rays=TOTAL_RAYS,
         max_rays=MAX_RAYS_PER_SOURCE if view is None else VIEW_MAX_RAYS_PER_SOURCE,
-        min_rays=MIN_RAYS_PER_SOURCE,
+        min_rays=floors,
         rays_per_pixel=RAYS_PER_PIXEL,
         resolution=VIEW_MAX_RESOLUTION
         if view is not None
@@ -90,6 +129,114 @@ def prepare(depsgraph, work, options: dict):
     return work
 
 
+def _leave_out_linked(work):
+    """The planned lights of a light with light or shadow linking of its own leave the
+    plan, each pair skipped by name: a layer lies on every receiver its beam lands on,
+    whatever the light's linking says (lens lights keep it: `lights.link_lights`)."""
+    objects = work.read.light_objects
+    keep = []
+    for p in work.plan.lights:
+        if light_builder.user_link(objects[p.source.light]) is None:
+            keep.append(p)
+        else:
+            work.plan.skipped.append(
+                SkippedPair(p.light_name, p.lens_name, Reason.LINKED_LIGHT_IN_LAYER)
+            )
+    work.plan.lights = keep
+
+
+def mesh_sources_of(read, timings=None, max_pairs=None) -> list:
+    """The sheet sources of the read's mesh lenses (`mesh_sheet_sources`), with their
+    pairs in ``read.mesh_pairs`` ((light, mesh lens) indices per source);
+    without the mesh lens kind none, and the meshes are named as glass left out."""
+    read.mesh_pairs = []
+    if not read.mesh_lenses:
+        return []
+    if MESH_KIND not in LENS_KINDS:  # the tracer is not there: Cycles keeps its caustics
+        why = "a glass mesh: this build of Lens Lights cannot trace meshes"
+        for m in read.mesh_lenses:
+            read.left_out.append((m.name, why))
+            read.left_out_lenses.append((m.name, why))
+            read.unmodelled_glass.append((m.name, why))
+        read.mesh_lenses = []
+        return []
+    t = time.perf_counter()
+    sources, lens_of, skipped = mesh_sheet_sources(
+        read.arrays, read.primary_lights, read.primaries, read.mesh_lenses, max_pairs
+    )
+    read.mesh_pairs = lens_of
+    read.mesh_beyond = sum(1 for *_pair, code in skipped if code == int(Reason.BEYOND_MAXIMUM))
+    if timings is not None:
+        timings["mesh sources"] = time.perf_counter() - t
+    return sources
+
+
+def mesh_keys(read) -> list:
+    """The bake's keys of the mesh lenses' sources (`light_keys.keys_of`: light and
+    lens names, kind "mesh"), after the planned lights' in a frame's layer sources."""
+    return keys_of(
+        (read.light_sources[j], read.mesh_lenses[k].name, MESH_KIND, "CAUSTIC_LAYER")
+        for j, k in read.mesh_pairs
+    )
+
+
+def mesh_names(read) -> list:
+    """(light, glass mesh) names of the mesh lenses' sources, in their order."""
+    pairs = getattr(read, "mesh_pairs", [])
+    return [(read.light_sources[j], read.mesh_lenses[k].name) for j, k in pairs]
+
+
+def build_mesh_layers(scene, work, progress=None) -> list:
+    """The mesh lenses' layers when the spheres got lens lights (any tier but the
+    layer's): every object made."""
+    if work.layer_bake is None:
+        work.layer_figures = None
+        return []
+    layers, _lights, fallback = layer_builder.build(
+        scene,
+        work.layer_bake,
+        work.receivers,
+        [],
+        [],
+        progress,
+        mesh_names(work.read),
+        reflections=scene.render.engine in EEVEE_ENGINES,
+    )
+    work.layer_figures = figures_of(work.layer_bake, 0, fallback)
+    return layers
+
+
+def mesh_lenses_note(work, layers_made: int) -> str:
+    """The report's words on the glass meshes traced as lenses (`mesh_lenses_text`):
+    those with a caustic layer (by name, with their triangle counts), those no light
+    reaches, and those whose layer could not be made (no receiver)."""
+    read = work.read
+    if not read.mesh_lenses:
+        return ""
+    traced = sorted({k for _light, k in read.mesh_pairs})
+    lit = [(read.mesh_lenses[k].name, read.mesh_lenses[k].n_triangles) for k in traced]
+    unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
+    if lit and not (layers_made and work.layer_bake is not None):
+        names = ", ".join(n for n, _t in lit)
+        return f"no caustic layer for the glass of {names}: nothing receives its caustic"
+    text = mesh_lenses_text(lit, unlit)
+    if read.mesh_beyond:
+        text += (
+            f"; {read.mesh_beyond} dimmer light × glass mesh pair"
+            f"{'s' if read.mesh_beyond != 1 else ''} left out (beyond Maximum Lens Lights)"
+        )
+    bake = work.layer_bake
+    first = len(bake.budgets) - len(read.mesh_pairs)
+    names, wanted, got = [], [], []
+    for j, (_light, k) in enumerate(read.mesh_pairs):
+        m, src = read.mesh_lenses[k], work.layer_sources[first + j]
+        names.append(m.name)
+        wanted.append(work.layer_floors[first + j])
+        got.append(bake.budgets[first + j].n_rays * src.n_source)
+    cuts = budget_cuts(names, wanted, got)
+    return f"{text}; {cuts}" if cuts else text
+
+
 def build(scene, work, progress=None) -> list:
     """Stage 2: the layers (and fallback spots); returns every object made and sets
     ``work.layer_figures`` for the report."""
@@ -102,7 +249,8 @@ def build(scene, work, progress=None) -> list:
         work.receivers,
         work.plan.lights,
         work.read.sphere_objects,
-        progress=progress,
+        progress,
+        mesh_names(work.read),
         # EEVEE's reflections do not show blended surfaces: a copy for them
         reflections=scene.render.engine in EEVEE_ENGINES,
     )

@@ -30,8 +30,9 @@ update from inside it.
 **How.** No probe render in a handler: the depsgraph the handler is handed is read
 and planned by the pipeline Generate and Bake share (`pipeline.plan_scene`; a
 viewport depsgraph with the render-visibility rules applied by hand, as Generate's
-fallback), and applied to the existing lens
-lights in place: each light is matched to its planned source by a stable key
+fallback), and applied to the existing lens lights in place (only the extension's:
+one the user duplicated, renamed or moved is theirs, left alone:
+`ownership.keep_users`): each light is matched to its planned source by a stable key
 (`core.animation.light_keys`: primary light, lens, kind, tier), updated with only the values
 that changed (`lights.apply_light`: transform, power, colour, cone, blend,
 radius; an Exact profile's node tree and image only when its profile changed), new
@@ -47,6 +48,8 @@ set of lights changes.
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.
 Clear turns live update off (else the lights would come back at the next update).
+While a bake exists (`bake_check.has_bake`) live update does nothing, switch on or
+not: the bake's keys drive its lights, node trees and images (the panel says so).
 In a viewport depsgraph, objects hidden in the viewport (eye or monitor icon) are
 not there at all, so their lights and lenses are missed until a render (whose
 depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.
@@ -68,11 +71,11 @@ from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
 from ...core.tiers import builds_layer
 from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
-from ..build import cleanup, cycles_caustics, lights
+from ..build import cleanup, cycles_caustics, lights, ownership
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
-from . import layer_stage, pipeline
+from . import bake_check, layer_stage, pipeline
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
@@ -104,7 +107,7 @@ def _existing_key(ob):
 def _ours(scene) -> set:
     """Pointers of the extension's objects in `scene` and their data."""
     out = set()
-    for ob in lights.created_objects(scene):
+    for ob in ownership.created_objects(scene):
         out.add(ob.as_pointer())
         if ob.data is not None:
             out.add(ob.data.as_pointer())
@@ -216,6 +219,7 @@ def _watch_of(scene, depsgraph, work) -> _Watch | None:
         return None  # costlier than it saves: every edit counts
     watched = {read.sphere_objects[i].name for i in lenses}
     watched.update(name for name, _ in read.left_out_lenses)
+    watched.update(m.orig.name for m in read.mesh_lenses)  # the glass meshes traced
     known = {ob.original.name: _slots(ob.original) for ob in objects}
     solid = [
         ob for ob in objects if ob.type not in _NO_GEOMETRY and ob.original.name not in watched
@@ -281,7 +285,7 @@ def _remove(scene, objects):
             settings.created_objects.remove(k)
     used = {
         c.as_pointer()
-        for ob in lights.created_objects(scene)
+        for ob in ownership.created_objects(scene)
         if ob.type == "LIGHT"
         for c in (ob.light_linking.receiver_collection, ob.light_linking.blocker_collection)
         if c is not None
@@ -372,6 +376,8 @@ def update(scene, depsgraph, force=False) -> dict:
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
     figures = dict(planned=len(plan.lights), updated=0, created=0, removed=0)
+    # the user's copies, renamed and moved lens lights: theirs, never updated or removed
+    figures["kept"] = len(ownership.keep_users(scene))
     if builds_layer(options["energy_model"]):
         cleanup.clear(scene)  # the layer's meshes: rebuilt whole
         cycles_caustics.restore(scene)
@@ -379,7 +385,7 @@ def update(scene, depsgraph, force=False) -> dict:
         cycles_caustics.after_build(scene, plan, read, len(made))
         figures.update(created=len(made), rebuilt=True)
     else:
-        existing = lights.created_objects(scene)
+        existing = ownership.created_objects(scene)
         old_keys = keys_of([_existing_key(ob) for ob in existing])
         new_keys = keys_of(
             (p.light_name, p.lens_name, p.light.kind, p.light.model) for p in plan.lights
@@ -414,9 +420,13 @@ def update(scene, depsgraph, force=False) -> dict:
                 read.arrays.center,
                 read.arrays.radius,
                 read.sphere_objects,
+                user_links=lights.user_links_of([p for _, p in pairs], read.light_objects),
             )
         if images:  # a profile's node tree was rebuilt: its old image may be unused
             lights.remove_unused_profile_images()
+        # the glass meshes' layers (the old ones were removed above: a layer never matches)
+        meshes = layer_stage.build_mesh_layers(scene, work)
+        figures["mesh_layers"] = len(meshes)
         if not m.same_set:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
@@ -450,7 +460,11 @@ def _on(scene) -> bool:
     settings = getattr(scene, "lens_lights", None)
     # The probe's scene copy carries the setting too: never update it.
     probe = scene.render.engine == render_probe.LENS_LIGHTS_RE_probe.bl_idname
-    return settings is not None and settings.live_update and not probe
+    if settings is None or not settings.live_update or probe:
+        return False
+    # A bake's keys drive its lights, trees and images: never rebuilt under it (the
+    # panel says live update waits; Clear or Generate ends the bake).
+    return not bake_check.has_bake(scene)
 
 
 @bpy.app.handlers.persistent
@@ -493,7 +507,9 @@ def on_load(*args):
 def live_update_changed(settings, context):
     """The checkbox's update: turned on, bring the lights up to date at once."""
     scene = settings.id_data
-    if settings.live_update and context is not None and context.view_layer is not None:
+    if not _on(scene):
+        return  # off, or a bake exists: left alone
+    if context is not None and context.view_layer is not None:
         _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True)
 
 

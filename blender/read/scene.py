@@ -52,12 +52,16 @@ Rules:
   sphere 4πr², an area light's surface — if its power is not normalised; a sun's
   strength in W/m²); its colour includes the blackbody colour when temperature is used.
 * A sphere's transform may rotate, mirror (negative scale) and scale uniformly;
-  a non-uniform scale (an ellipsoid) or a zero scale is left out and named.
-  Meshes without vertices (e.g. an instancer's own empty mesh) are ignored.
-* Glass that is no lens is named by its shape (`fit_meshes`: "a cylinder, not a
-  sphere"); a sphere of thin-walled glass (Principled's Thin Wall, 5.x) is a shell,
-  no lens (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to
-  Never, are ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
+  a non-uniform scale (an ellipsoid) or a zero scale is left out and named, unless
+  it is glass (below). Meshes without vertices (e.g. an instancer's own empty mesh)
+  are ignored.
+* Glass that is no sphere (or a glass sphere scaled unevenly) is a *mesh lens*
+  (``mesh_lenses``, `core.scene.mesh_lenses`) when its evaluated mesh is closed and
+  outward (`core.lens.closed_mesh`; read by `read_local_mesh` only when asked),
+  else left out with why ("open mesh: …", or its shape: "a flat sheet"); a sphere
+  of thin-walled glass (Principled's Thin Wall, 5.x) is a shell, no lens
+  (`core.scene.assembly.THIN_WALL_REASON`). Both, and glass spheres set to Never, are
+  ``unmodelled_glass``: Generate then keeps Cycles' refractive caustics.
 * Lights the extension created are skipped entirely.
 """
 
@@ -72,6 +76,7 @@ import bpy
 import mathutils
 import numpy as np
 
+from ...core.lens.closed_mesh import LocalMesh
 from ...core.lens.glass import MaterialOptics
 from ...core.lens.mesh_shape import mesh_shape, shape_reason
 from ...core.lens.sphere_fit import fit_sphere
@@ -86,7 +91,7 @@ from ...core.scene.assembly import (
     perspective_fov,
     render_size,
 )
-from ...core.scene.light_props import LightNodes, LightRecord
+from ...core.scene.light_props import IES_FAC, LightNodes, LightRecord, uses_light_nodes
 from ...core.scene.model import Camera
 from .materials import main_material, material_optics, node_tree
 from .occluders import MeshSource, Occluders
@@ -113,7 +118,8 @@ READ_TYPES = GEOMETRY_TYPES | {"LIGHT"}
 
 def is_lens_light(ob) -> bool:
     """Whether `ob` (an original object) is one the extension made (a lens light or
-    a caustic layer): the reads skip it."""
+    a caustic layer), or the user's copy of one (kept, `build.ownership`): the reads
+    skip it (a lens light is its lens' image: never a primary, nor a receiver)."""
     settings = getattr(ob, "lens_lights", None)
     return bool(settings and settings.is_lens_light)
 
@@ -196,6 +202,41 @@ def _is_glass(record) -> bool:
     return record.mode == "ALWAYS" or (o is not None and (o.is_transmissive or o.thin_wall > 0))
 
 
+def read_local_mesh(mesh) -> LocalMesh:
+    """An evaluated mesh as Blender renders it (`core.lens.closed_mesh.LocalMesh`):
+    its loop triangles, vertices and the shading normal of each triangle corner
+    (``corner_normals``: smooth, flat, Smooth by Angle and custom normals as shaded),
+    in bulk."""
+    tris = mesh.loop_triangles
+    nt = len(tris)
+    v = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", v)
+    t = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("vertices", t)
+    loops = np.empty(nt * 3, dtype=np.int32)
+    tris.foreach_get("loops", loops)
+    cn = np.empty(len(mesh.corner_normals) * 3)
+    mesh.corner_normals.foreach_get("vector", cn)
+    normals = cn.reshape(-1, 3)[loops].reshape(nt, 3, 3)
+    return LocalMesh(v.reshape(-1, 3), t.reshape(nt, 3).astype(np.int64), normals)
+
+
+class _LensMesh:
+    """`GeometryRecord.lens_mesh` of a glass mesh: its `read_local_mesh`, read when
+    the assembly asks (only for glass that is no sphere, or a sphere scaled unevenly)
+    and while the depsgraph is valid, once."""
+
+    __slots__ = ("mesh", "local")
+
+    def __init__(self, mesh):
+        self.mesh, self.local = mesh, None
+
+    def __call__(self):
+        if self.local is None:
+            self.local = read_local_mesh(self.mesh)
+        return self.local
+
+
 def fit_meshes(records, meshes) -> None:
     """Fill in each mesh record's local sphere fit (`GeometryRecord.fit`; `meshes`:
     the evaluated mesh of each record, None for the others), after the walk: the
@@ -209,8 +250,14 @@ def fit_meshes(records, meshes) -> None:
     extents = corners.max(axis=1) - corners.min(axis=1)
     failed = dict(zip(boxed, box_fit_failures(extents), strict=True))
     by_mesh: dict = {}
+    readers: dict = {}
     for k in rows:
         glass = _is_glass(records[k])
+        if glass:
+            reader = readers.get(meshes[k].as_pointer())
+            if reader is None:
+                reader = readers[meshes[k].as_pointer()] = _LensMesh(meshes[k])
+            records[k].lens_mesh = reader
         key = (meshes[k].as_pointer(), glass)
         fit = by_mesh.get(key)
         if fit is None:
@@ -275,13 +322,48 @@ def _light_nodes(ld) -> LightNodes | None:
     if len(emission) != 1:
         return LightNodes(kinds, len(emission))
     e = emission[0].inputs
-    return LightNodes(
+    nodes = LightNodes(
         kinds,
         1,
         tuple(e["Color"].default_value),
         float(e["Strength"].default_value),
         sum(1 for i in e if i.is_linked),
     )
+    if not e["Strength"].is_linked:
+        return nodes
+    link = e["Strength"].links[0]
+    node = link.from_node
+    source = f"{node.bl_idname}.{link.from_socket.identifier}"
+    if source != IES_FAC:
+        return dataclasses.replace(nodes, strength_from=source)
+    text, key, error = _ies_text(node)
+    return dataclasses.replace(
+        nodes,
+        strength_from=source,
+        ies_text=text,
+        ies_key=key,
+        ies_strength=float(node.inputs["Strength"].default_value),
+        ies_linked=sum(1 for i in node.inputs if i.is_linked),
+        ies_error=error,
+    )
+
+
+def _ies_text(node) -> tuple[str, str, str]:
+    """(the IES file's text, where it is, why it could not be read) of an IES
+    Texture node: its internal Text, or its external file."""
+    if node.mode == "INTERNAL":
+        if node.ies is None:
+            return "", "", "no Text chosen"
+        text, where = node.ies.as_string(), node.ies.name_full
+    else:
+        where = bpy.path.abspath(node.filepath, library=node.id_data.library)
+        try:
+            with open(where, encoding="latin-1") as f:
+                text = f.read()
+        except OSError as exc:
+            return "", "", f"{node.filepath}: {exc.strerror or exc}"
+    # the key changes with the text (an edited profile is another profile)
+    return text, f"{where}:{hashlib.sha1(text.encode()).hexdigest()[:16]}", ""
 
 
 def _light_record(ob, orig) -> LightRecord:
@@ -755,6 +837,10 @@ def _assemble(scene, walk: _InstanceWalk, how) -> BlenderSceneRead:
     (`fit_meshes`), the read (`core.scene.assembly.assemble`), and the occluders made
     of the instances' meshes."""
     fit_meshes(walk.records, walk.meshes)
+    if scene.render.engine != "CYCLES":  # only Cycles evaluates a light's node tree
+        for r in walk.records:
+            if isinstance(r, LightRecord) and uses_light_nodes(r.nodes):
+                r.nodes, r.nodes_ignored = None, True
     width, height = _render_size(scene)
     read, blocking = assemble(
         walk.records,

@@ -46,7 +46,11 @@ _ENERGY_MODEL_ITEMS = energy_model_items(
 
 
 class LensLightsCreatedObject(bpy.types.PropertyGroup):
+    """One object the extension made (`blender/build/ownership.py`): the object and the
+    name it was given (renamed, it is the user's; "" in files from before the names)."""
+
     object: PointerProperty(type=bpy.types.Object)
+    name: StringProperty()
 
 
 class LensLightsCreatedCollection(bpy.types.PropertyGroup):
@@ -68,8 +72,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Energy Model",
         items=_ENERGY_MODEL_ITEMS,
         default=DEFAULT_ENERGY_MODEL,
-        description="Which lens-light tier to build (how close to the exact caustic, "
-        "and which engines render it)",
+        description="What to build for each caustic: lens lights of one of four tiers, "
+        "or caustic layers (emissive meshes on the receivers); how close each comes to "
+        "the exact caustic, and which engines render it",
     )
     min_brightness: FloatProperty(
         name="Minimum Brightness",
@@ -78,8 +83,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         soft_max=1.0,
         precision=3,
         description=(
-            "Leave out lens lights whose caustic is dimmer than this share of "
-            "the primary light's irradiance at the lens"
+            "Leave out caustics (lens lights, or beams of a caustic layer) dimmer than "
+            "this share of the primary light's irradiance at the lens"
         ),
     )
     max_lights: IntProperty(
@@ -88,7 +93,8 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         min=1,
         soft_max=512,
         max=100000,
-        description="Create at most this many lens lights (the brightest)",
+        description="Create at most this many lens lights, or caustics in the layers "
+        "(the brightest)",
     )
     spot_blend: FloatProperty(
         name="Spot Blend",
@@ -122,8 +128,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Replace Cycles' Caustics",
         default=True,
         description=(
-            "Turn Cycles' own caustics of the lenses off while they have lens lights "
-            "(refractive caustics of the scene, shadow caustics of each lens), so that "
+            "Turn Cycles' own caustics of the lenses off while they have lens lights or "
+            "caustic layers (refractive caustics of the scene, shadow caustics of each "
+            "lens), so that "
             "no caustic is rendered twice; Clear restores them. The scene's refractive "
             "caustics stay on (with a warning naming it) while it holds glass Lens "
             "Lights does not model (a glass cylinder, box, ellipsoid, thin-walled glass), "
@@ -134,9 +141,10 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
         name="Live Update",
         default=False,
         description=(
-            "Lens lights follow the scene: when lights, lenses or receivers move, on "
+            "Lens lights and caustic layers follow the scene: when lights, lenses or "
+            "receivers move, on "
             "frame change and on every frame of a render (slower playback; the Caustic "
-            "layer is rebuilt on each update)"
+            "layer is rebuilt on each update). Off while a bake exists"
         ),
         update=lambda settings, context: _live_update_switched(settings, context),
     )
@@ -145,6 +153,7 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_run: BoolProperty(default=False, options={"HIDDEN"})
     last_created: IntProperty(name="Created", default=0)
     last_layers: IntProperty(name="Caustic Layers", default=0)
+    last_fallback: IntProperty(name="Fallback Spots", default=0)
     last_sources: IntProperty(name="Secondary Sources", default=0)
     last_skipped: IntProperty(name="Skipped Pairs", default=0)
     last_primaries: IntProperty(name="Lights", default=0)
@@ -152,6 +161,9 @@ class LensLightsSceneSettings(bpy.types.PropertyGroup):
     last_left_out: IntProperty(name="Left Out", default=0)
     last_seconds: FloatProperty(name="Time (s)", default=0.0, precision=3)
     last_report: StringProperty(name="Last Report", default="")
+    #: What the bake was baked from (`core.animation.bake_inputs.BakeInputs` as JSON;
+    #: empty: no bake): the panel and renders say when the scene has changed under it.
+    baked_from: StringProperty(default="", options={"HIDDEN"})
 
     created_objects: CollectionProperty(type=LensLightsCreatedObject, options={"HIDDEN"})
     created_collections: CollectionProperty(type=LensLightsCreatedCollection, options={"HIDDEN"})
@@ -180,6 +192,7 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     is_lens_light: BoolProperty(default=False, options={"HIDDEN"})
     source_light: StringProperty(name="Primary Light")
     source_lens: StringProperty(name="Lens")
+    receiver: StringProperty(name="Receiver", description="The object a caustic layer lies on")
     kind: StringProperty(name="Kind", description="Real, virtual or collimated")
     full: BoolProperty(name="Full", description="Nothing blocks the light on its way to the lens")
     unblocked_fraction: FloatProperty(name="Unblocked", precision=4)
@@ -188,6 +201,15 @@ class LensLightsObjectSettings(bpy.types.PropertyGroup):
     )
     relative_brightness: FloatProperty(name="Relative Brightness", precision=4)
     note: StringProperty(name="Note")
+    # Set on a lens light (or layer) the user duplicated, renamed or moved: theirs, kept
+    # by Generate, Clear and live update (`blender/build/ownership.py`).
+    kept: BoolProperty(
+        name="Yours",
+        default=False,
+        options={"HIDDEN"},
+        description="A lens light you duplicated, renamed or moved: yours, kept by "
+        "Generate and Clear, never a primary light",
+    )
 
 
 #: What the Live Update switch runs when it is flipped, (settings, context) → None: set

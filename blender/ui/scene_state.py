@@ -5,6 +5,7 @@ from __future__ import annotations
 import bpy
 
 from ..build.marks import COLLECTION_MARK, LAYER_MARK, LINK_MARK, PROFILE_MARK
+from ..build.ownership import created_objects
 
 
 def has_lens_lights(scene) -> bool:
@@ -17,10 +18,8 @@ def has_lens_lights(scene) -> bool:
     settings = scene.lens_lights
     if len(settings.replaced):
         return True  # Cycles settings to restore (`cycles_caustics`)
-    for item in settings.created_objects:
-        ob = item.object
-        if ob is not None and ob.lens_lights.is_lens_light:
-            return True
+    if created_objects(scene):  # (a copy, renamed or moved lens light is the user's)
+        return True
     for item in settings.created_collections:
         coll = item.collection
         mark = coll.get(COLLECTION_MARK) if coll is not None else None

@@ -812,7 +812,8 @@ def _sphere_columns(block: bytes, count: int):
     if block.translate(None, _NUMBER_BYTES) != _KEY_LETTERS * count:
         return None
     if count == 0:
-        return np.empty((len(_SPHERE_NUMBERS), 0))
+        # Nothing but blanks may follow "O 0" (a stray number is the reader's error).
+        return None if block.strip() else np.empty((len(_SPHERE_NUMBERS), 0))
     padded = np.frombuffer(block + bytes(_MAX_NUMBER_WIDTH), dtype=np.uint8)
     a = padded[: len(block)]
     blank = np.empty(a.size + 2, dtype=bool)

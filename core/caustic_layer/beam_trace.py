@@ -29,9 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..lens import base as lens_base
 from ..lens import kinds
 from ..lens.base import ExitRays
-from . import shadow
+from . import mesh_beam, shadow
 from .emitters import (
     Lens,
     SourceSamples,
@@ -64,6 +65,14 @@ class BeamGrid:
     share_disc: bool = True
     share_cells: np.ndarray | None = None
     share_grid: int = 1
+    # A glass mesh's beam (`mesh_beam`) is several grids: this one (the main sheet) and
+    # its ``parts`` (the other paths' sheets, refined cells, splats), landed alike;
+    # ``refined_cells`` / ``cut_cells``: cells refined, and splatted unrefined (the
+    # refinement budget cut); ``traced_rays``: rays traced for it (sub-grids included).
+    parts: list = dataclasses.field(default_factory=list)
+    refined_cells: int = 0
+    cut_cells: int = 0
+    traced_rays: int = 0
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -71,23 +80,52 @@ class BeamGrid:
 
     @property
     def total_flux(self) -> float:
-        return float(self.cell_flux.sum())
+        return float(self.cell_flux.sum()) + sum(p.total_flux for p in self.parts)
 
     @property
     def n_rays(self) -> int:
-        return int(np.prod(self.exit_points.shape[:3]))
+        return int(np.prod(self.exit_points.shape[:3])) + sum(p.n_rays for p in self.parts)
 
     @property
     def n_cells(self) -> int:
-        return int(self.cell_flux.size)
+        return int(self.cell_flux.size) + sum(p.n_cells for p in self.parts)
+
+
+def flatten_parts(beams: list[BeamGrid]) -> tuple[list[BeamGrid], np.ndarray]:
+    """Every grid of ``beams`` as its own beam (the parts after their beam, each without
+    parts) and, per grid, the index of the beam it belongs to."""
+    flat, owner = [], []
+    for i, b in enumerate(beams):
+        for g in (b, *b.parts):
+            flat.append(dataclasses.replace(g, parts=[]) if g.parts else g)
+            owner.append(i)
+    return flat, np.asarray(owner, dtype=np.int64)
+
+
+#: The last few built lenses of kinds other than the ball, by record (kept with it, so
+#: its id is not reused): a glass mesh's BVH is built once per Generate, not per trace.
+_BUILT: dict[int, tuple] = {}
+_BUILT_MAX = 16
 
 
 def optics_of(lens: Lens):
     """The `core.lens` lens of a scene record: its ``kind`` from `kinds.LENS_KINDS`
-    with its centre, radius, index, absorption and ``params``."""
-    return kinds.make_lens(
+    with its centre, radius, index, absorption and ``params`` (a kind other than the
+    ball built once per record: the coarse and the final trace share it)."""
+    if lens.kind == "ball":
+        return kinds.make_lens(
+            lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
+        )
+    hit = _BUILT.get(id(lens))
+    if hit is not None and hit[0] is lens:
+        return hit[1]
+    optics = kinds.make_lens(
         lens.kind, lens.center, lens.radius, lens.ior, lens.absorption, lens.params
     )
+    if len(_BUILT) >= _BUILT_MAX:
+        _BUILT.pop(next(iter(_BUILT)))
+    _BUILT[id(lens)] = (lens, optics)
+    return optics
 
 
 def frames_of(axes: np.ndarray) -> np.ndarray:
@@ -282,6 +320,19 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
     ``blockers``: one `shadow.ShadowList` (or None) per pair."""
     if not pairs:
         return []
+    blockers = list(blockers) if blockers is not None else [None] * len(pairs)
+    meshes = [i for i, (_, lens) in enumerate(pairs) if _branching(lens.kind)]
+    if meshes:
+        out = [None] * len(pairs)
+        rest = [i for i in range(len(pairs)) if i not in set(meshes)]
+        traced = trace_beams(
+            [pairs[i] for i in rest], n_radial, n_azimuth, n_source, [blockers[i] for i in rest]
+        )
+        for i, beam in zip(rest, traced, strict=True):
+            out[i] = beam
+        for i in meshes:
+            out[i] = _mesh_beam(pairs[i], n_radial, n_azimuth, n_source, blockers[i])
+        return out
     bt = _batch(pairs, n_source)
     nr, na = int(n_radial), int(n_azimuth)
     iota = 0.5 * math.pi * np.arange(nr + 1) / nr
@@ -334,6 +385,56 @@ def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int =
             )
         )
     return out
+
+
+def _branching(kind: str) -> bool:
+    """Whether lenses of ``kind`` follow several paths per ray (a glass mesh)."""
+    cls = kinds.LENS_KINDS.get(kind)
+    return cls is not None and cls.trace_branches is not lens_base.Lens.trace_branches
+
+
+def _mesh_beam(pair, n_radial: int, n_azimuth: int, n_source: int, blockers) -> BeamGrid:
+    """The beam of one (light, glass mesh) pair (`mesh_beam`): the main sheet with the
+    other parts as its ``parts``."""
+    emitter, lens = pair
+    bt = _batch([pair], n_source)
+    nr, na = int(n_radial), int(n_azimuth)
+    iota = 0.5 * math.pi * np.arange(nr + 1) / nr
+    phi = 2.0 * math.pi * (np.arange(na) + 0.5) / na
+    frames = frames_of(bt.axes)
+    sm = bt.samples[0]
+    mb = mesh_beam.trace_mesh_beam(
+        bt, bt.optics[0], iota, phi, frames, sm.emitter, sm.parallel, lens, blockers
+    )
+    color = np.asarray(getattr(emitter, "color", (1.0, 1.0, 1.0)), dtype=float)
+    color = color * np.asarray(lens.tint, dtype=float)
+    rot = _share_rotations(sm, lens)
+    cells = sm.share_cells
+
+    def grid(part) -> BeamGrid:
+        r = part.rows
+        return BeamGrid(
+            exit_points=part.exit_points,
+            exit_dirs=part.exit_dirs,
+            node_density=part.node_density,
+            cell_flux=part.cell_flux,
+            valid=bt.valid[r],
+            color=color,
+            rotations=rot[r],
+            center=np.asarray(lens.center, dtype=float),
+            share_disc=sm.share_disc,
+            share_cells=None if cells is None else np.asarray(cells)[r],
+            share_grid=sm.share_grid,
+        )
+
+    main = grid(mb.parts[0])
+    main.parts = [grid(p) for p in mb.parts[1:]]
+    main.refined_cells, main.cut_cells, main.traced_rays = (
+        mb.refined_cells,
+        mb.cut_cells,
+        mb.n_rays,
+    )
+    return main
 
 
 def _share_rotations(samples: SourceSamples, lens: Lens) -> np.ndarray:

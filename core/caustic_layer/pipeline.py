@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .beam_trace import BeamGrid, trace_beams
+from .beam_trace import BeamGrid, flatten_parts, trace_beams
 from .emitters import Lens
 from .rasters import (
     NEAR_PIXEL_SHARE,
@@ -59,6 +59,9 @@ class SheetBake:
     budgets: list[RayBudget]  # per source, (Nr, Na) and its node-ray count
     resolution: int
     index: ReceiverIndex | None = None  # the receivers' index it landed on
+    # per source, for a glass mesh (`mesh_beam`): (cells refined, cells the refinement
+    # budget cut, rays traced); (0, 0, 0) for a ball
+    refinement: list[tuple[int, int, int]] | None = None
 
 
 def bake(
@@ -68,7 +71,7 @@ def bake(
     rays_per_pixel: float = 1.0,
     max_rays: int = 65536,
     total_rays: int = 1_000_000,
-    min_rays: int = 1024,
+    min_rays: int | list[int] = 1024,
     texel_fraction: float = 0.5,
     grid: tuple[int, int] | None = None,
     blur_shares: bool = True,
@@ -174,7 +177,8 @@ def bake(
     )
     if view is not None and layer.patches:
         resolution = max(p.resolution for p in layer.patches)
-    return SheetBake(layer, budgets, int(resolution), index)
+    refinement = [(b.refined_cells, b.cut_cells, b.traced_rays) for b in beams]
+    return SheetBake(layer, budgets, int(resolution), index, refinement)
 
 
 def caustic_extents(
@@ -193,9 +197,10 @@ def caustic_extents(
     view; all inf without a view)."""
     if not coarse:
         return [[] for _ in bulks] + [[]]
-    own = list(own_objects)
-    landed = land_beams(coarse, index, own if any(o >= 0 for o in own) else None)
-    beam = np.concatenate([np.full(len(lb.patch), i) for i, lb in enumerate(landed)])
+    flat, owner = flatten_parts(coarse)  # a glass mesh's parts count for its beam
+    own = [int(o) for o in np.asarray(list(own_objects), dtype=np.int64)[owner]]
+    landed = land_beams(flat, index, own if any(o >= 0 for o in own) else None)
+    beam = np.concatenate([np.full(len(lb.patch), owner[i]) for i, lb in enumerate(landed)])
     on = np.concatenate([lb.patch >= 0 for lb in landed])
     pts = np.concatenate([lb.point for lb in landed])[on]
     w = np.concatenate([lb.node_flux for lb in landed])[on] + 1e-300

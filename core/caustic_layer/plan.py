@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..lens.glass import LensOptics
+from ..shared.words import share_text
 from ..tiers.base import effective_primary, glass_color, unblocked_share
 from .emitters import Lens, PointLight
 from .pipeline import Camera, SheetSource
@@ -129,12 +130,6 @@ def fallback_reason(metallic: float, transmission: float, glossy_only: bool) -> 
     return ""
 
 
-def share_text(part: float, whole: float) -> str:
-    """`part` of `whole` as people read it: "12 %", "0.4 %", "under 0.1 %"."""
-    x = part / whole
-    return "under 0.1 %" if x < 1e-3 else f"{100 * x:.2g} %"
-
-
 @dataclass
 class LayerFigures:
     """What a bake made, for the report."""
@@ -151,15 +146,15 @@ class LayerFigures:
     coarse: int = 0  # layers of a caustic out of the camera's view (drawn coarsely)
 
     def text(self) -> str:
-        parts = [
-            f"{share_text(flux, self.flux_emitted)} {what}"
-            for flux, what in (
-                (self.flux_lost, "missed every receiver"),
-                (self.flux_outside, "landed outside the layers (past their edge)"),
-            )
-            if flux > 0 and self.flux_emitted > 0
-        ]
-        # (the report's first words count the layers: not said again here)
+        shares = (
+            (share_text(self.flux_lost, self.flux_emitted), "missed every receiver"),
+            (
+                share_text(self.flux_outside, self.flux_emitted),
+                "landed outside the layers (past their edge)",
+            ),
+        )
+        parts = [f"{share} {what}" for share, what in shares if share]
+        # (the report's first words count the layers and fallback spots: not said again)
         out = f"{self.faces} texels and {self.rays} rays in all" + (
             f"; of the flux, {' and '.join(parts)}" if parts else ""
         )
@@ -167,12 +162,6 @@ class LayerFigures:
             out += (
                 f"; {self.coarse} of the layers coarse, where the camera does not see the "
                 "caustic (for reflections)"
-            )
-        if self.fallback_receivers:
-            n = self.fallback_lights
-            out += (
-                f"; {n} Fitted spot{'s' if n != 1 else ''} for glossy or transparent "
-                f"receivers ({', '.join(self.fallback_receivers)})"
             )
         return out
 

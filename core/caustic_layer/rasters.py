@@ -34,13 +34,14 @@ into the mesh drawn, continuous across texels.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .beam_trace import BeamGrid
+from .beam_trace import BeamGrid, flatten_parts
 from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
 from .receiver_patches import ReceiverPatch
@@ -293,6 +294,21 @@ def build_layer(
     plist = index.patches
     if not beams:
         return CausticLayer([], 0.0, 0.0, 0.0, 0.0, 0, 0, 0, {"total": 0.0})
+    # a glass mesh's beam is several grids: each landed as a beam of its own, the
+    # rasters' sources named by the beams given
+    n_given = len(beams)
+    beams, owner = flatten_parts(beams)
+    flat_same = len(beams) == n_given
+    if not flat_same:
+        if own_objects is not None:
+            own_objects = np.asarray(own_objects)[owner]
+        if min_texel is not None and np.ndim(min_texel):
+            min_texel = np.asarray(min_texel)[owner]
+        if raster_frames is not None:
+            raster_frames = [
+                dataclasses.replace(rf, beams=tuple(np.nonzero(np.isin(owner, rf.beams))[0]))
+                for rf in raster_frames
+            ]
     landed = land_beams(beams, index, own_objects)
     t1 = time.perf_counter()
     res = int(resolution)
@@ -495,7 +511,7 @@ def build_layer(
         layers.append(
             PatchLayer(
                 patch=int(p),
-                sources=members[slot],
+                sources=members[slot] if flat_same else np.unique(owner[members[slot]]),
                 object_id=plist[p].object_id,
                 normal=n_out,
                 axis_u=au,

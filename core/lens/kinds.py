@@ -5,9 +5,11 @@ from __future__ import annotations
 
 from .ball import BallLens
 from .base import Lens
+from .mesh import MeshLens
 
 LENS_KINDS: dict[str, type[Lens]] = {
     "ball": BallLens,
+    "mesh": MeshLens,
 }
 
 

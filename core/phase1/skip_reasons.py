@@ -33,6 +33,7 @@ class Reason(IntEnum):
     BEYOND_MAXIMUM = 102
     NOT_AMONG_STRONGEST = 103
     SUNK = 104  # the lens cuts into another surface (details: none)
+    LINKED_LIGHT_IN_LAYER = 105  # the light's own linking, which a layer cannot keep
 
 
 _KIND = {
@@ -54,6 +55,7 @@ _KIND = {
     Reason.BEYOND_MAXIMUM: "beyond the maximum of {limit} lens lights",
     Reason.NOT_AMONG_STRONGEST: "not among the {count} strongest by flux",
     Reason.SUNK: "sunk into another surface",
+    Reason.LINKED_LIGHT_IN_LAYER: "the light's own linking (no caustic layer keeps it)",
 }
 
 _TEXT = {
@@ -69,7 +71,12 @@ _TEXT = {
     Reason.OUT_OF_RANGE: "out of range (the light's distance overflows floating point)",
     Reason.DIMMER_THAN_CUTOFF: "dimmer than the cut-off ({relative:.3g} < {cutoff:g})",
     Reason.OUTSIDE_EMISSION: (
-        "outside the light's emission (beyond the spot's cone or behind the area light)"
+        "outside the light's emission (beyond the spot's cone, behind the area light, "
+        "or where its IES profile is dark)"
+    ),
+    Reason.LINKED_LIGHT_IN_LAYER: (
+        "the light has light or shadow linking of its own, which a caustic layer cannot "
+        "keep (lens lights keep it: choose a lens-light energy model)"
     ),
     Reason.SUNK: (
         "sunk into another surface (the lens cuts into it, as a marble sunk into the "

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..phase1.point_lights import SourceTable, take
+from ..shared.words import share_text
 
 
 def caught_fraction(radius, distance):
@@ -65,10 +66,9 @@ class BudgetReport:
             parts.append(f"{self.merged} merged into nearby ones")
         if self.over_cap:
             parts.append(f"{self.over_cap} over the maximum number")
-        if self.flux_total > 0 and self.flux_dropped > 0:
-            parts.append(
-                f"{100.0 * self.flux_dropped / self.flux_total:.2g}% of the lens flux left out"
-            )
+        share = share_text(self.flux_dropped, self.flux_total)
+        if share:
+            parts.append(f"{share} of the lens flux left out")
         return "; ".join(parts)
 
 

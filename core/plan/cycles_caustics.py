@@ -85,6 +85,20 @@ def describe(changes, verb: str = "turned off", by: str = "the lens lights") -> 
     return f"Cycles' own caustics {verb} ({by} replace them): " + ", ".join(parts)
 
 
+def describe_restored(changes) -> str:
+    """What Clear put back, in true words: 'Cycles' own caustics back as they were:
+    refractive caustics (scene) on, shadow caustics caster of Marble on' ('' when
+    nothing was put back)."""
+    if not changes:
+        return ""
+    parts = []
+    for c in changes:
+        what = _WHAT.get(c.prop, c.prop)
+        what = what if c.owner == SCENE else f"{what} of {c.owner}"
+        parts.append(f"{what} {'on' if c.old else 'off'}")
+    return "Cycles' own caustics back as they were: " + ", ".join(parts)
+
+
 #: How many names a warning lists before "and N more".
 NAMES_SHOWN = 3
 

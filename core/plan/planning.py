@@ -492,6 +492,7 @@ class Work:
     layer_bake: object = None  # caustic_layer.pipeline.SheetBake
     layer_sources: list | None = None
     layer_figures: object = None  # caustic_layer.plan.LayerFigures
+    layer_floors: list | None = None  # per layer source, its ray budget's floor
 
 
 def _primary_columns(read, table) -> Primaries:

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..phase1.point_lights import Phase1Result, SkipTable
 from ..phase1.skip_reasons import Reason, reason_kind, reason_text
+from ..shared.words import share_text
 
 #: How many skipped pairs / left-out objects a report names.
 REPORT_FIRST = 3
@@ -53,13 +54,72 @@ def plural(n, word, many=None):
     return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
-def made_text(lights: int, layers: int = 0) -> str:
-    """What a run made, in the words of what it is: "1 caustic layer", "2 caustic
-    layers and 1 lens light", "0 lens lights"."""
-    if not layers:
-        return plural(lights, "lens light")
-    text = plural(layers, "caustic layer")
-    return f"{text} and {plural(lights, 'lens light')}" if lights else text
+def made_text(lights: int, layers: int = 0, fallback: int = 0, on=(), fallback_on=()) -> str:
+    """What a run made, each thing by its name: "1 lens light", "2 caustic layers on
+    Table, Wall", "1 caustic layer on Table and 1 fallback spot on glossy or
+    transparent Mirror", "0 lens lights". `layers`: the layer meshes (one
+    per receiver plane their caustics land on), `on` the receivers they lie on;
+    `fallback`: the layer tier's Fitted spots, `fallback_on` the receivers they light."""
+    parts = []
+    if layers:
+        parts.append(plural(layers, "caustic layer") + (f" on {_names(on)}" if on else ""))
+    if fallback:
+        parts.append(
+            f"{plural(fallback, 'fallback spot')} on glossy or transparent "
+            + (_names(fallback_on) if fallback_on else "receivers")
+        )
+    if lights or not parts:
+        parts.append(plural(lights, "lens light"))
+    return " and ".join(parts)
+
+
+def kept_text(made, kept, word: str = "lens light") -> str:
+    """The lenses with lens lights of the user's (copies, renamed or moved ones, kept
+    by Generate and Clear) beside the ones made now: `made` and `kept` are (name,
+    lens) pairs. "Marble has 2 lens lights: 'Lens light Lamp > Marble' (made now) and
+    'My copy' (yours, kept)" (the user's by name); the first `REPORT_FIRST` lenses,
+    then a count; "" when nothing is kept. `word`: what they are ("caustic layer":
+    its lens is the receiver it lies on)."""
+    by_lens: dict = {lens: [] for _, lens in kept}
+    if not by_lens:
+        return ""
+    for name, lens in made:
+        if lens in by_lens:
+            by_lens[lens].append(f"'{name}' (made now)")
+    for name, lens in sorted(kept):
+        by_lens[lens].append(f"'{name}' (yours, kept)")
+    parts = []
+    for lens in sorted(by_lens)[:REPORT_FIRST]:
+        names = by_lens[lens]
+        listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        parts.append(f"{lens or 'no lens'} has {plural(len(names), word)}: {listed}")
+    more = len(by_lens) - REPORT_FIRST
+    if more > 0:
+        parts.append(f"and {plural(more, 'more lens', 'more lenses')} with {word}s of yours")
+    return "; ".join(parts)
+
+
+def thousands(n: int) -> str:
+    """An integer with thin spaces between its thousands: "1 240", "20 000"."""
+    return f"{int(n):,}".replace(",", "\u2009")
+
+
+def mesh_lenses_text(lit, unlit=()) -> str:
+    """The glass meshes traced as lenses: `lit` (name, triangles) of those whose
+    caustic layers were made, `unlit` names of those no light reaches ("" for none):
+    "caustic layers for 2 glass objects (Rod: 1 240 triangles, Lens: 2 000 triangles)"."""
+    parts = []
+    if lit:
+        shown = ", ".join(f"{n}: {thousands(t)} triangles" for n, t in lit[:REPORT_FIRST])
+        more = len(lit) - REPORT_FIRST
+        shown += f", and {more} more" if more > 0 else ""
+        parts.append(f"caustic layers for {plural(len(lit), 'glass object')} ({shown})")
+    if unlit:
+        names = ", ".join(list(unlit)[:REPORT_FIRST])
+        more = len(unlit) - REPORT_FIRST
+        names += f" and {more} more" if more > 0 else ""
+        parts.append(f"no light reaches the glass of {names}")
+    return "; ".join(parts)
 
 
 def left_out_text(left_out_lenses) -> str:
@@ -70,19 +130,28 @@ def left_out_text(left_out_lenses) -> str:
     more = len(left_out_lenses) - REPORT_FIRST
     return (
         f"left out {plural(len(left_out_lenses), 'object')} (Lens Lights models solid glass "
-        f"spheres): {shown}" + (f"; and {more} more" if more > 0 else "")
+        f"spheres and closed glass meshes): {shown}" + (f"; and {more} more" if more > 0 else "")
     )
 
 
 def report_message(
-    work, made: int, *, layers: int = 0, read_as_rendered: bool = True
+    work,
+    made: int,
+    *,
+    layers: int = 0,
+    fallback: int = 0,
+    on=(),
+    fallback_on=(),
+    read_as_rendered: bool = True,
 ) -> tuple[str, str, dict]:
-    """(level, message, figures) of a run that made `made` lens lights and `layers`
-    caustic layers; `read_as_rendered`: False when the scene was read as the
-    viewport shows it (`work.read.how` says why)."""
+    """(level, message, figures) of a run that made `made` lens lights, `layers`
+    caustic layers on the receivers `on` and `fallback` fallback spots lighting
+    `fallback_on` (`made_text`); `read_as_rendered`: False when the scene was read
+    as the viewport shows it (`work.read.how` says why)."""
     read, result, sel, plan = work.read, work.result, work.selection, work.plan
     lights = len(read.light_sources)
-    lenses = int(np.count_nonzero(read.lens_candidates))
+    # the glass meshes traced as lenses count beside the spheres
+    lenses = int(np.count_nonzero(read.lens_candidates)) + len(getattr(read, "mesh_lenses", []))
     skipped, first, counts = skip_report(work)
     # Flux without a light: every source's estimated flux minus the built lights'.
     rows = {id(src): t for t, src in enumerate(sel.sources)}
@@ -90,14 +159,14 @@ def report_message(
         float(sel.flux_kept[rows[id(p.source)]]) for p in plan.lights if id(p.source) in rows
     )
     left_share = (1.0 - built / sel.flux_total) if sel.flux_total > 0 else 0.0
-    any_made = made or layers
+    any_made = made or layers or fallback
     left_share = (
         min(max(left_share, 0.0), 1.0) if any_made else (1.0 if sel.flux_total > 0 else 0.0)
     )
 
     level = "INFO"
     parts = [
-        f"Created {made_text(made, layers)} ({plural(lights, 'light')}"
+        f"Created {made_text(made, layers, fallback, on, fallback_on)} ({plural(lights, 'light')}"
         f" × {plural(lenses, 'lens', 'lenses')})"
     ]
     if not lights:
@@ -120,9 +189,10 @@ def report_message(
             )
     if sel.budget.merged:
         parts.append(f"merged {plural(sel.budget.merged, 'source')} into nearby lens lights")
-    if left_share > 0 and len(result.table):
+    share = share_text(left_share, 1.0) if len(result.table) else ""
+    if share:
         what = "is in no caustic layer or lens light" if layers else "has no lens light"
-        parts.append(f"{100.0 * left_share:.3g}% of the lenses' flux {what}")
+        parts.append(f"{share} of the lenses' flux {what}")
     if read.left_out_lenses:
         parts.append(left_out_text(read.left_out_lenses))
     notes = getattr(read, "light_notes", [])
@@ -135,6 +205,7 @@ def report_message(
     figures = dict(
         created=made,
         layers=layers,
+        fallback=fallback,
         sources=len(result.table),
         skipped=skipped,
         skipped_by_reason=counts,

@@ -27,6 +27,7 @@ from ..lens.sphere_fit import BOX_RATIO, SphereFit, uniform_scales
 from .arrays import SceneArrays
 from .instances import Indexed, InstanceNames, LeftOut, instance_names, scale_codes, scale_reason
 from .light_props import LightRecord, light_colors, light_props, primary_of
+from .mesh_lenses import local_lens_mesh, place
 from .model import Camera, Light, Scene, Sphere, Surface
 from .primaries import PointPrimary, PrimaryLight, SunPrimary, nominal_power, tier_primaries
 
@@ -41,6 +42,7 @@ LIGHT_GROUP, SPHERE_GROUP, OTHER_GROUP = range(3)
 THIN_WALL_REASON = "thin-walled glass (Thin Wall): a shell, which focuses nothing"
 #: Why a glass sphere with the lens mode Never is no lens.
 NEVER_REASON = "lens mode Never"
+NO_REFRACTION_REASON = "IOR ≤ 1: it does not refract"
 
 
 @dataclass
@@ -60,6 +62,9 @@ class GeometryRecord:
     #: fits each mesh once: `blender.read.scene`).
     fit: SphereFit | None = None
     mesh_source: object = None  # what blocks rays (`occluders`), or None
+    #: A glass mesh's own triangles (`core.scene.mesh_lenses.local_lens_mesh`'s
+    #: source: a callable read on demand), or None.
+    lens_mesh: object = None
 
 
 @dataclass
@@ -86,6 +91,29 @@ class Groups:
     notes: list  # material notes (spheres)
     light: list  # LightProps (lights)
     mesh_source: list
+    #: A closed glass mesh that is a lens of its own (`mesh_lenses`), else None.
+    lens_mesh: list = field(default_factory=list)
+
+
+@dataclass
+class ReadInputs:
+    """The read's instances as they were read (for the bake's prints,
+    `core.animation.bake_inputs`): the records (`GeometryRecord`, `LightRecord`),
+    each instance's record `gid`, world matrix and instancer `pid` (into
+    `parent_names`; −1: not an instance)."""
+
+    records: Sequence
+    gid: np.ndarray
+    matrices: np.ndarray  # (N, 4, 4)
+    pid: np.ndarray
+    parent_names: Sequence
+
+    def owners(self) -> np.ndarray:
+        """Each instance's top object's name: its instancer's, else its own."""
+        names = np.array([r.name for r in self.records] + list(self.parent_names), dtype=object)
+        gid = np.asarray(self.gid, dtype=np.int64)
+        pid = np.asarray(self.pid, dtype=np.int64)
+        return names[np.where(pid >= 0, len(self.records) + pid, gid)]
 
 
 @dataclass
@@ -116,12 +144,21 @@ class BlenderSceneRead:
     #: (name, why it is no lens) of the rendered glass (a refracting or thin-walled
     #: material) that is not a lens here: Cycles' own caustics are all it gets.
     unmodelled_glass: list[tuple[str, str]] = field(default_factory=list)
+    #: The glass meshes traced as lenses of their own (`core.scene.mesh_lenses`), one
+    #: per instance: no phase 1, their caustic layers in both engines.
+    mesh_lenses: list = field(default_factory=list)
+    #: (light, mesh lens) of each of the caustic layer's mesh sources (the layer stage's).
+    mesh_pairs: list = field(default_factory=list)
+    #: How many (light, mesh lens) pairs Maximum Lens Lights left out (the layer stage's).
+    mesh_beyond: int = 0
     bounds: tuple[np.ndarray, np.ndarray] | None = None
     #: What blocks rays (`blender.read.occluders.Occluders`): valid while the depsgraph read is.
     occluders: object = None
     #: RENDER, or "viewport (why the render depsgraph was not read)".
     how: str = RENDER
     lights: list[Light] = field(default_factory=list)
+    #: The instances and records read (`ReadInputs`), for the bake's prints.
+    inputs: ReadInputs | None = None
     surfaces: Sequence = field(default_factory=list)  # `Surface` per sphere
     _scene: Scene | None = field(default=None, repr=False)
 
@@ -297,6 +334,7 @@ def groups_of(records: Sequence) -> Groups:
         notes=[[] for _ in range(g)],
         light=[None] * g,
         mesh_source=[getattr(r, "mesh_source", None) for r in records],
+        lens_mesh=[None] * g,
     )
     out.kind[lights] = LIGHT_GROUP
     for k, color in zip(lights, light_colors([records[k] for k in lights]), strict=True):
@@ -323,26 +361,44 @@ def groups_of(records: Sequence) -> Groups:
         for k in np.asarray(meshes)[shell].tolist():
             out.reason[k] = THIN_WALL_REASON
     spheres = [k for k in meshes if records[k].fit.ok and not out.reason[k]]
+    # A glass mesh that is no sphere: a lens of its own if it is a closed volume.
+    glass_meshes = [
+        k
+        for k in meshes
+        if not records[k].fit.ok
+        and not out.reason[k]
+        and out.looks_like_lens[k]
+        and records[k].mode != "NEVER"
+    ]
+    for k in glass_meshes:
+        out.lens_mesh[k], why = local_lens_mesh(records[k].lens_mesh)
+        if why:
+            out.reason[k] = why
     for k in meshes:
-        if not records[k].fit.ok and not out.reason[k]:
+        if not records[k].fit.ok and not out.reason[k] and out.lens_mesh[k] is None:
             out.reason[k] = records[k].fit.reason
-    if not spheres:
-        return out
     out.kind[spheres] = SPHERE_GROUP
     out.center[spheres] = np.array(
         [np.asarray(records[k].fit.center, dtype=float) for k in spheres]
     ).reshape(-1, 3)
     out.radius[spheres] = [float(records[k].fit.radius) for k in spheres]
-    optics = [records[k].optics for k in spheres]
+    lensy = spheres + [k for k in glass_meshes if out.lens_mesh[k] is not None]
+    if not lensy:
+        return out
+    optics = [records[k].optics for k in lensy]
     ior, kt, weight = lens_materials(
         [o.ior for o in optics],
         [o.transmission for o in optics],
-        [records[k].mode for k in spheres],
-        [records[k].ior_override if records[k].mode != "NEVER" else None for k in spheres],
+        [records[k].mode for k in lensy],
+        [records[k].ior_override if records[k].mode != "NEVER" else None for k in lensy],
     )
-    out.ior[spheres], out.kt[spheres] = ior, kt
-    out.lens_like[spheres] = (kt > 0.0) & (ior > 1.0)
-    rows = zip(spheres, optics, ior.tolist(), kt.tolist(), weight.tolist(), strict=True)
+    out.ior[lensy], out.kt[lensy] = ior, kt
+    out.lens_like[lensy] = (kt > 0.0) & (ior > 1.0)
+    for k in lensy[len(spheres) :]:
+        if not out.lens_like[k]:  # IOR ≤ 1: glass that bends nothing
+            out.lens_mesh[k] = None
+            out.reason[k] = NO_REFRACTION_REASON
+    rows = zip(lensy, optics, ior.tolist(), kt.tolist(), weight.tolist(), strict=True)
     for k, o, ior_k, kt_k, weight_k in rows:
         surface_optics = MaterialOptics(
             ior=ior_k, transmission=kt_k, tint=o.tint, absorption=o.absorption
@@ -498,6 +554,9 @@ def assemble(
 
     light_pos, light_power_w, light_col = add_lights(out, groups, gid, kind, M, names, left)
     other = np.flatnonzero(kind == OTHER_GROUP)
+    meshed = np.array([m is not None for m in groups.lens_mesh], dtype=bool)
+    mesh_rows = other[meshed[gid[other]]]  # glass meshes traced as lenses
+    other = other[~meshed[gid[other]]]
     left.add_grouped(other, gid[other], lambda i: groups.reason[gid[i]], lens_of)
     glass = other[groups.glass[gid[other]]]
     glass_left.add_grouped(glass, gid[glass], lambda i: groups.reason[gid[i]], lens_of)
@@ -507,6 +566,28 @@ def assemble(
     uniform = np.isfinite(scales)
     bad = sph[~uniform]
     blocking = blocking_instances(groups, gid, kind, M, box_lo, box_hi, bad)
+    # A glass sphere scaled unevenly (an ellipsoid) is a mesh lens when it is closed.
+    bad_meshed = _mesh_groups(records, groups, np.unique(gid[bad]))
+    mesh_rows = np.sort(np.concatenate([mesh_rows, bad[bad_meshed[gid[bad]]]]))
+    bad = bad[~bad_meshed[gid[bad]]]
+    # a mesh scaled to nothing (or not finite) has no volume: left out for its scale
+    det = np.linalg.det(M[mesh_rows, :3, :3]) if len(mesh_rows) else np.zeros(0)
+    flat = mesh_rows[~(np.isfinite(det) & (np.abs(det) > 1e-30))]
+    mesh_rows = np.setdiff1d(mesh_rows, flat)
+    left.add_grouped(flat, scale_codes(M[flat]), lambda i: scale_reason(M[i]), lens_of)
+    glass_left.add_grouped(flat, scale_codes(M[flat]), lambda i: scale_reason(M[i]), lens_of)
+    out.mesh_lenses = [
+        place(
+            names[i],
+            groups.orig[g],
+            groups.lens_mesh[g],
+            M[i],
+            groups.ior[g],
+            groups.kt[g],
+            groups.optics[g],
+        )
+        for i, g in zip(mesh_rows.tolist(), gid[mesh_rows].tolist(), strict=True)
+    ]
     left.add_grouped(bad, scale_codes(M[bad]), lambda i: scale_reason(M[i]), lens_of)
     glass = bad[groups.glass[gid[bad]]]
     glass_left.add_grouped(glass, scale_codes(M[glass]), lambda i: scale_reason(M[i]), lens_of)
@@ -515,7 +596,7 @@ def assemble(
     glass_left.add_grouped(
         never,
         gid[never],
-        lambda i: NEVER_REASON if groups.kt[gid[i]] == 0.0 else "IOR ≤ 1: it does not refract",
+        lambda i: NEVER_REASON if groups.kt[gid[i]] == 0.0 else NO_REFRACTION_REASON,
         lens_of,
     )
     sg = gid[sph]
@@ -543,7 +624,18 @@ def assemble(
             out.left_out_lenses.append((name, reason))
     out.unmodelled_glass = [(name, reason) for name, reason, _lens in glass_left.entries()]
     out.bounds = scene_bounds(box_lo, box_hi, out.arrays.light_position)
+    out.inputs = ReadInputs(records, gid, M, pid, parent_names)
     return out, blocking
+
+
+def _mesh_groups(records, groups: Groups, sphere_groups) -> np.ndarray:
+    """Which groups are glass meshes traced as lenses (a bool per group): those
+    already so, and of the sphere groups `sphere_groups` the refracting ones whose
+    mesh is closed (`groups.lens_mesh` filled in for them)."""
+    for g in np.asarray(sphere_groups, dtype=np.int64).tolist():
+        if groups.lens_like[g] and groups.looks_like_lens[g]:
+            groups.lens_mesh[g], _why = local_lens_mesh(getattr(records[g], "lens_mesh", None))
+    return np.array([m is not None for m in groups.lens_mesh], dtype=bool)
 
 
 def scene_bounds(box_lo, box_hi, points):

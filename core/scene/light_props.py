@@ -13,7 +13,11 @@ Lens Lights does not model (pure; `blender.read.scene` copies the properties int
 
 `LightRecord` (with `LightNodes`) is what the walk copies of one light, as Blender
 holds it; `light_props` makes its `LightProps` (the colour × the blackbody colour,
-whether the node tree changes the light), once per light in the assembly.
+what its node tree does: `node_emission`), once per light in the assembly. A node
+tree is read when it is one Emission (constant colour) whose Strength is a constant
+or an IES Texture's Fac (`ies`: then the primary carries a `ies.LightProfile` and
+phase 1's emission toward each lens is scaled by it); any other tree leaves the
+light out (`UNREAD_NODES`), never lit as if it had none.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ies import IesError, IesProfile, LightProfile, light_frame, parse_ies
 from .primaries import (
     AREA,
     ELLIPSE,
@@ -59,6 +64,12 @@ class LightProps:
     size_y: float = 1.0
     spread: float = math.pi  # area: Cycles' spread (π: Lambertian)
     uses_nodes: bool = False  # a light node tree drives its emission (Cycles)
+    nodes_scale: float = 1.0  # what its nodes multiply its power by (`node_emission`)
+    nodes_color: tuple = (1.0, 1.0, 1.0)  # … and its colour
+    ies: IesProfile | None = None  # the IES profile its nodes read, if any
+    ies_key: str = ""  # where that profile came from
+    nodes_unread: str = ""  # why its nodes cannot be read ("" : they can)
+    nodes_ignored: bool = False  # the render engine does not evaluate its nodes (EEVEE)
     linked: bool = False  # the light has light or shadow linking of its own
 
 
@@ -73,6 +84,14 @@ class LightNodes:
     color: tuple = (1.0, 1.0, 1.0)  # the Emission's Color (one Emission)
     strength: float = 1.0
     linked_inputs: int = 0
+    #: What feeds the Emission's Strength: "" (nothing), IES_FAC (an IES Texture's
+    #: Fac), or the bl_idname and output of another node.
+    strength_from: str = ""
+    ies_text: str = ""  # that IES Texture's file, as text
+    ies_key: str = ""  # where it came from (the Text's or file's name)
+    ies_strength: float = 1.0  # its Strength input
+    ies_linked: int = 0  # how many of its inputs are linked
+    ies_error: str = ""  # why its file could not be read
 
 
 @dataclass
@@ -98,6 +117,7 @@ class LightRecord:
     spread: float = math.pi
     nodes: LightNodes | None = None  # its node tree, if it has and uses one
     linked: bool = False  # the object's own light or shadow linking
+    nodes_ignored: bool = False  # it has nodes the render engine does not evaluate
 
 
 #: The node tree every new light has from Blender 5.0 on (and `use_nodes` makes
@@ -126,9 +146,44 @@ def uses_light_nodes(nodes: LightNodes | None) -> bool:
     return not plain_light_nodes(nodes.kinds, nodes.color, nodes.strength, nodes.linked_inputs)
 
 
+#: `LightNodes.strength_from` for an IES Texture's Fac.
+IES_FAC = "ShaderNodeTexIES.Fac"
+IES_NODE = "ShaderNodeTexIES"
+#: Why a light is left out whose node tree Lens Lights cannot follow.
+UNREAD_NODES = "its emission uses nodes Lens Lights cannot read"
+
+
+def node_emission(nodes: LightNodes | None) -> tuple[float, tuple, IesProfile | None, str]:
+    """What a light's node tree does to its emission, as (scale of its power, colour,
+    IES profile or None, why it cannot be read — "" when it can). Read: one Emission
+    node (constant colour) into the Light Output, its Strength a constant or an IES
+    Texture's Fac (constant Strength, its Vector the default: the light's own
+    frame); anything else is not read."""
+    if nodes is None:
+        return 1.0, (1.0, 1.0, 1.0), None, ""
+    known = set(PLAIN_LIGHT_NODES) | {IES_NODE}
+    if nodes.emissions != 1 or not set(nodes.kinds) <= known:
+        return 1.0, (1.0, 1.0, 1.0), None, UNREAD_NODES
+    color = tuple(float(c) for c in nodes.color[:3])
+    if nodes.strength_from == "":
+        if nodes.linked_inputs:  # its Color is fed by a node
+            return 1.0, (1.0, 1.0, 1.0), None, UNREAD_NODES
+        return float(nodes.strength), color, None, ""
+    if nodes.strength_from != IES_FAC or nodes.linked_inputs != 1 or nodes.ies_linked:
+        return 1.0, (1.0, 1.0, 1.0), None, UNREAD_NODES
+    if nodes.ies_error:
+        return 1.0, (1.0, 1.0, 1.0), None, f"its IES file cannot be read ({nodes.ies_error})"
+    try:
+        profile = parse_ies(nodes.ies_text)
+    except IesError as exc:
+        return 1.0, (1.0, 1.0, 1.0), None, f"its IES profile cannot be read: {exc}"
+    return float(nodes.ies_strength), color, profile, ""
+
+
 def light_props(record: LightRecord, color: tuple) -> LightProps:
     """The `LightProps` of a light read as `record`, with its `color` (the light's
     colour × its blackbody colour: `light_colors`)."""
+    scale, nodes_color, ies, unread = node_emission(record.nodes)
     return LightProps(
         type=record.type,
         energy=record.energy,
@@ -144,6 +199,12 @@ def light_props(record: LightRecord, color: tuple) -> LightProps:
         size_y=record.size_y,
         spread=record.spread,
         uses_nodes=uses_light_nodes(record.nodes),
+        nodes_scale=scale,
+        nodes_color=nodes_color,
+        ies=ies,
+        ies_key=record.nodes.ies_key if ies is not None else "",
+        nodes_unread=unread,
+        nodes_ignored=record.nodes_ignored,
         linked=record.linked,
     )
 
@@ -178,13 +239,25 @@ def primary_of(props: LightProps, matrix, name: str = ""):
     if props.type not in (POINT, SPOT, SUN, AREA):
         return None, f"{props.type.lower()} light: not a Blender light type Lens Lights knows", []
     position, direction, axis_x, sx, sy = from_matrix(m)
-    scale = 2.0 ** float(props.exposure)
-    notes = []
-    if props.uses_nodes:
-        notes.append("its light nodes are ignored (Lens Lights uses its plain power and colour)")
-    if props.linked:
-        notes.append("its light linking is not copied to its lens lights")
-    color = tuple(float(c) for c in props.color)
+    if props.nodes_unread:
+        return None, props.nodes_unread, []
+    # its nodes' constant strength and colour scale it; an IES profile, per direction
+    scale = 2.0 ** float(props.exposure) * float(props.nodes_scale)
+    profile = None
+    if props.ies is not None:
+        frame = light_frame(m)
+        if props.type == SUN:  # one direction: a constant
+            local = np.asarray(frame).reshape(3, 3) @ np.asarray(direction)
+            scale *= float(props.ies.fac(local))
+        else:
+            profile = LightProfile(props.ies, frame, props.ies_key)
+    notes = []  # (its own light linking: kept by its lens lights, `blender.build.lights`)
+    if props.nodes_ignored:
+        notes.append(
+            "its light nodes: the render engine (EEVEE) does not evaluate them, so its "
+            "caustic follows the light as rendered, without them"
+        )
+    color = tuple(float(c) * float(n) for c, n in zip(props.color, props.nodes_color, strict=True))
     if props.type == SUN:
         strength = float(props.energy) * scale
         if not strength > 0 or not math.isfinite(strength):
@@ -225,11 +298,13 @@ def primary_of(props: LightProps, matrix, name: str = ""):
                 size_y=size_y,
                 color=color,
                 name=name,
+                profile=profile,
             ),
             "",
             notes,
         )
     power = light_power(props.energy, props.exposure, props.normalize, props.radius)
+    power *= float(props.nodes_scale)
     kind = props.type.lower()
     if not power > 0 or not math.isfinite(power):
         return None, f"{kind} light without power ({power:g} W)", notes
@@ -244,13 +319,19 @@ def primary_of(props: LightProps, matrix, name: str = ""):
                 radius=float(props.radius),
                 color=color,
                 name=name,
+                profile=profile,
             ),
             "",
             notes,
         )
     return (
         PointPrimary(
-            position=position, power_w=power, radius=float(props.radius), color=color, name=name
+            position=position,
+            power_w=power,
+            radius=float(props.radius),
+            color=color,
+            name=name,
+            profile=profile,
         ),
         "",
         notes,

@@ -9,7 +9,9 @@ the primary's position (a sun: the limit ``D → ∞``) with two numbers per pai
 * ``emission``: the mean radiant intensity the primary sends over the lens's
   disc, in units of its nominal ``P/(4π)`` (a point light: 1; a spot: the share
   of the lens inside its cone, blend included; an area light ``4 cos θ`` far
-  away, the exact form-factor integral near it; a sun: see ``SUN_DISTANCE``);
+  away, the exact form-factor integral near it; a sun: see ``SUN_DISTANCE``),
+  times its IES profile's value toward the lens when its light nodes hold one
+  (``profile``: `ies.LightProfile`);
 * ``source_radius``: the radius of the disc the primary looks like from the
   lens (a sun's at the equivalent distance), which the tiers image to the lens
   light's blur (``tiers.base.lens_light_radius``).
@@ -29,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .blender_spot import smoothstep01
+from .ies import LightProfile
 
 Vec3 = tuple[float, float, float]
 
@@ -60,6 +63,7 @@ class PointPrimary:
     radius: float = 0.0  # light.shadow_soft_size
     color: Vec3 = (1.0, 1.0, 1.0)  # light.color
     name: str = ""
+    profile: LightProfile | None = None  # its IES profile (light nodes), if any
 
 
 @dataclass(frozen=True)
@@ -74,6 +78,7 @@ class SpotPrimary:
     radius: float = 0.0  # light.shadow_soft_size
     color: Vec3 = (1.0, 1.0, 1.0)
     name: str = ""
+    profile: LightProfile | None = None  # its IES profile (light nodes), if any
 
 
 @dataclass(frozen=True)
@@ -100,6 +105,7 @@ class AreaPrimary:
     size_y: float = 1.0  # light.size_y × y scale (SQUARE, DISK: = size_x)
     color: Vec3 = (1.0, 1.0, 1.0)
     name: str = ""
+    profile: LightProfile | None = None  # its IES profile (light nodes), if any
 
     @property
     def area(self) -> float:
@@ -145,6 +151,7 @@ class PrimaryArrays:
     shape: np.ndarray  # (L,) area: shape name ("" otherwise)
     size: np.ndarray  # (L, 2) area: size_x, size_y
     color: np.ndarray  # (L, 3)
+    profiles: tuple = ()  # (L,) each light's `ies.LightProfile`, or None (none: all None)
 
     def __len__(self) -> int:
         return int(self.kind.size)
@@ -195,6 +202,7 @@ class PrimaryArrays:
                 a.size[j] = (p.size_x, p.size_x if square else p.size_y)
             else:
                 raise TypeError(f"not a primary light: {p!r}")
+        a.profiles = tuple(getattr(p, "profile", None) for p in primaries)
         return a
 
     def is_(self, kind: str) -> np.ndarray:
@@ -378,6 +386,13 @@ def emission_toward(arrays: PrimaryArrays, light, centers, radii) -> np.ndarray:
             out[rows] = np.where(
                 arrays.power[j] > 0, flux / (arrays.power[j] / (4.0 * math.pi) * omega), 0.0
             )
+    # an IES profile (light nodes) scales what the light sends toward each lens
+    if any(p is not None for p in arrays.profiles):
+        for j in np.unique(light):
+            profile = arrays.profiles[int(j)]
+            if profile is not None:
+                rows = np.flatnonzero(light == j)
+                out[rows] *= profile.toward(arrays.position[j], centers[rows], radii[rows])
     return out
 
 

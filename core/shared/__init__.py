@@ -1,4 +1,5 @@
-"""Small numeric tools every core package may use: threads over row blocks, ranges.
+"""Small tools every core package may use: threads over row blocks, ranges, a share
+in words (`words`).
 
 Imports numpy only; nothing else of the core.
 """

@@ -358,6 +358,13 @@ def basic_scene():
     return sphere, light
 
 
+class OperatorProps:
+    """What a panel sets on an operator button (hashable: logs go into sets)."""
+
+    def __init__(self, idname, text):
+        self.idname, self.text = idname, text
+
+
 class FakeLayout:
     """Records what a panel draws; checks that every property drawn exists."""
 
@@ -381,6 +388,9 @@ class FakeLayout:
         module, op = idname.split(".")
         getattr(getattr(bpy.ops, module), op).get_rna_type()  # KeyError if it is missing
         self.log.append(("operator", idname))
+        props = OperatorProps(idname, kw.get("text"))
+        self.log.append(("operator props", props))  # the button's settings, as set
+        return props
 
     def label(self, text="", **kw):
         self.log.append(("label", text))

@@ -7,6 +7,7 @@ import math
 from types import SimpleNamespace
 
 import bpy
+import numpy as np
 import pytest
 from blender_scene_helpers import (
     add_point_light,
@@ -111,7 +112,8 @@ def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
     )
     assert sorted(r.light_sources) == ["Lamp", "Viewport-off lamp"]
     left = dict(r.left_out)
-    assert left["Cuboid in render"].startswith("not a sphere")
+    # the render's box is closed glass: a mesh lens (issue 25), not left out
+    assert [m.name for m in r.mesh_lenses] == ["Cuboid in render"]
     assert "Render off" not in left and "In excluded coll" not in left
     # The viewport depsgraph, read directly, is what the viewport shows (minus the
     # render-disabled objects): the monitor- and eye-hidden ones are missing.
@@ -120,10 +122,12 @@ def test_reads_the_scene_as_the_renderer_sees_it(empty_blend):
     v = read_blender_scene(bpy.context.evaluated_depsgraph_get())
     assert v.how == "viewport"
     assert "Viewport off" not in v.sphere_sources and "Viewport-off lamp" not in v.light_sources
-    assert "Cuboid in viewport" in dict(v.left_out) and "Cuboid in render" in v.sphere_sources
-    # Generate uses the render view: 2 lamps × 6 lenses (some pairs may be blocked).
+    assert [m.name for m in v.mesh_lenses] == ["Cuboid in viewport"]
+    assert "Cuboid in render" in v.sphere_sources
+    # Generate uses the render view: 2 lamps × 6 lenses (some pairs may be blocked),
+    # and the render's glass box, traced as a mesh lens (7 lenses in all)
     level, message, figures = generate()
-    assert figures["how"] == "render" and figures["primaries"] == 2 and figures["lenses"] == 6
+    assert figures["how"] == "render" and figures["primaries"] == 2 and figures["lenses"] == 7
     assert figures["created"] + figures["skipped"] == 12
     assert {ll.lens_lights.source_lens for ll in lens_lights()} >= {"Viewport off", "Eye hidden"}
 
@@ -239,15 +243,19 @@ def test_scales_zero_sizes_and_parents(empty_blend):
     assert spheres["Child"][0] == pytest.approx(tuple(want.translation), abs=1e-5)
     assert spheres["Child"][1] == pytest.approx(0.75, rel=1e-4)
     left = dict(r.left_out)
-    assert left["Negative ellipsoid"].startswith("non-uniform scale (1, 2, 2)")
+    # glass ellipsoids (one mirrored) are mesh lenses (issue 25), outward in the world
+    meshes = {m.name: m.mesh for m in r.mesh_lenses}
+    assert sorted(meshes) == ["Child of stretched", "Negative ellipsoid"]
+    from lens_lights.core.lens.closed_mesh import problem
+
+    assert all(problem(m.vertices, m.triangles) == "" for m in meshes.values())
     assert left["Zero scale"].startswith("zero scale: nothing is rendered")
     assert left["Flat"].startswith("zero scale on an axis")
     assert left["Collapsed mesh"].startswith("zero size")
-    assert left["Child of stretched"].startswith("non-uniform scale (1, 1, 3)")
     assert "Empty mesh" not in left  # nothing to render, nothing to say
     level, message, figures = generate()
-    assert figures["created"] == 3 and figures["left_out"] == 5
-    assert "left out 5 objects" in message
+    assert figures["created"] == 3 and figures["left_out"] == 3  # zero, flat, collapsed
+    assert "left out 3 objects" in message
 
 
 def test_nan_and_huge_transforms_do_not_break_generate(empty_blend):
@@ -317,15 +325,17 @@ def test_collection_and_geometry_nodes_instances(empty_blend):
     objects = {n: r.sphere_objects[i].name for i, n in enumerate(names)}
     assert objects["Nest/Bead"] == "Bead" and objects["ObjInst/Bead"] == "Bead"
     assert objects["Geo/Geo"] == "Geo"
-    assert ("Stretched/Stretched (2 instances)",) == tuple(
-        n for n, why in r.left_out_lenses if n.startswith("Stretched")
-    )
-    assert dict(r.left_out)["Stretched/Stretched (2 instances)"].startswith(
-        "non-uniform scale (1, 1, 2)"
-    )
+    # glass spheres stretched by their instance transform: mesh lenses (issue 25),
+    # each placed by its own matrix
+    stretched = {m.name: m.mesh for m in r.mesh_lenses if m.name.startswith("Stretched")}
+    assert sorted(stretched) == ["Stretched/Stretched", "Stretched/Stretched#1"]
+    extents = sorted(tuple(np.ptp(m.vertices, axis=0).round(3)) for m in stretched.values())
+    assert extents == [(0.4, 0.4, 0.8)] * 2  # radius 0.2, z doubled
+    assert not [n for n, _why in r.left_out_lenses if n.startswith("Stretched")]
     assert "Geo" not in dict(r.left_out)  # the instancer's own (empty) mesh
     level, message, figures = generate()
-    assert figures["lenses"] == 7 and figures["created"] + figures["skipped"] == 7
+    # 7 spheres and the 2 stretched glass instances traced as mesh lenses
+    assert figures["lenses"] == 9 and figures["created"] + figures["skipped"] == 7
     links = {
         ll.lens_lights.source_lens: ll.light_linking.blocker_collection for ll in lens_lights()
     }

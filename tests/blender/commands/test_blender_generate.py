@@ -169,6 +169,7 @@ def test_undo_and_redo(empty_blend):
 
 def test_skipped_and_left_out_objects_are_reported(empty_blend):
     from lens_lights.blender.read.scene import read_blender_scene
+    from lens_lights.core.lens.closed_mesh import OPEN_REASON
 
     glass = glass_material()
     basic_scene()
@@ -184,6 +185,9 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     off.hide_render = True
     add_point_light("Sun", (0, 0, 9), energy=0.0, kind="SUN")
     add_sphere("Coarse", (0, 3, 1), material=glass, segments=8, rings=4)
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-3, 0, 1))
+    bpy.context.object.name = "Pane"
+    bpy.context.object.data.materials.append(glass)
     off_coll = bpy.data.collections.new("Render off")
     bpy.context.scene.collection.children.link(off_coll)
     off_coll.hide_render = True
@@ -197,17 +201,21 @@ def test_skipped_and_left_out_objects_are_reported(empty_blend):
     reasons = dict(read.left_out)
     assert "Hidden" not in reasons and "Off" not in reasons  # disabled for rendering
     assert "In a render-disabled collection" not in reasons
-    assert reasons["Glass cube"] == "a box, not a sphere"  # issue 24: not "too coarse"
-    assert reasons["Egg"].startswith("non-uniform scale (1, 1, 1.3)")
-    assert reasons["Coarse"].startswith("too coarse for a sphere")
+    # issue 25: closed glass that is no sphere is a mesh lens (a box, an unevenly
+    # scaled sphere, a sphere too coarse for the fit), open glass is left out
+    assert sorted(m.name for m in read.mesh_lenses) == ["Coarse", "Egg", "Glass cube"]
+    assert reasons["Pane"] == OPEN_REASON
     assert reasons["Sun"].startswith("sun without strength")  # a sun of 0 W/m²
     assert reasons["Floor"].startswith("not a sphere: its bounding box")
-    assert sorted(n for n, _ in read.left_out_lenses) == ["Coarse", "Egg", "Glass cube"]
+    assert [n for n, _ in read.left_out_lenses] == ["Pane"]
 
     level, message, figures = generate()
-    assert figures["created"] == 1 and figures["left_out"] == 3
-    assert "left out 3 objects (Lens Lights models solid glass spheres): " in message
-    assert "Egg (non-uniform scale" in message and "Glass cube (a box, not a sphere)" in message
+    assert figures["created"] == 1 and figures["left_out"] == 1
+    assert (
+        "left out 1 object (Lens Lights models solid glass spheres and closed glass meshes): "
+        f"Pane ({OPEN_REASON})" in message
+    )
+    assert "caustic layers for 3 glass objects" in message
     assert "Red ball" not in message  # an opaque ball is no lens, not "skipped"
 
 

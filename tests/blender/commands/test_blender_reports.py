@@ -8,6 +8,8 @@ what was made (counted in the file, not taken from the report)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import pytest
 
 bpy = pytest.importorskip("bpy")
@@ -19,6 +21,7 @@ from blender_scene_helpers import (  # noqa: E402
     generate,
     glass_material,
     lens_lights,
+    node_material,
     set_engine,
 )
 
@@ -101,21 +104,20 @@ def test_glass_that_is_no_sphere_is_named_by_its_shape(empty_blend, auto_builds_
 
     read = read_blender_scene(bpy.context)
     reasons = dict(read.left_out_lenses)
+    # issue 25: closed glass is a mesh lens of its own; open glass is named
+    assert sorted(m.name for m in read.mesh_lenses) == ["Cube", "Cylinder", "Egg", "Stretched"]
     assert reasons == {
-        "Cylinder": "a cylinder, not a sphere",
-        "Cube": "a box, not a sphere",
-        "Tube": "an open mesh, not a closed surface",
-        "Egg": "an ellipsoid (axes 1 : 0.71 : 0.71), not a sphere",  # 1.4 : 1 : 1
-        "Stretched": "non-uniform scale (1, 2, 1): an ellipsoid, not a sphere",
+        "Tube": "open mesh: a surface, not a glass volume (water surfaces are planned)",
     }
     assert dict(read.unmodelled_glass) == reasons
     level, message, figures = generate()
-    assert figures["created"] == 1 and figures["left_out"] == 5
+    assert figures["created"] == 1 and figures["left_out"] == 1
     assert (
-        "left out 5 objects (Lens Lights models solid glass spheres): "
-        "Cylinder (a cylinder, not a sphere); Cube (a box, not a sphere); "
-        "Tube (an open mesh, not a closed surface); and 2 more"
+        "left out 1 object (Lens Lights models solid glass spheres and closed glass meshes): "
+        "Tube (open mesh: a surface, not a glass volume (water surfaces are planned))"
     ) in message
+    # no floor here: nothing receives the meshes' caustics, and the report says so
+    assert "no caustic layer for the glass of Cylinder, Cube, Egg, Stretched" in message
     assert "too coarse" not in message
 
 
@@ -128,7 +130,7 @@ def test_eevee_says_it_made_a_caustic_layer_not_a_lens_light(empty_blend):
     level, message, figures = generate()
     made = lens_lights()
     assert [ob.type for ob in made] == ["MESH"]  # one caustic layer, no light
-    assert message.startswith("Created 1 caustic layer (1 light × 1 lens)"), message
+    assert message.startswith("Created 1 caustic layer on Floor (1 light × 1 lens)"), message
     assert "lens light" not in message.split(";")[0]
     assert figures["created"] == 0 and figures["layers"] == 1
     settings = bpy.context.scene.lens_lights
@@ -156,7 +158,8 @@ def test_refractive_caustics_stay_on_while_unmodelled_glass_is_there(
     scene = bpy.context.scene
     ball = add_sphere("Ball", (0.0, 0.0, 1.0), material=glass_material())
     ball.cycles.is_caustics_caster = True
-    cube = _glass_object("Glass cube", bpy.ops.mesh.primitive_cube_add, (3.0, 0.0, 1.0))
+    # open glass (issue 25: a closed cube is a mesh lens now, with its own layer)
+    cube = _glass_object("Glass cube", bpy.ops.mesh.primitive_plane_add, (3.0, 0.0, 1.0))
     add_point_light("Lamp", (0.0, 0.0, 4.0))
     assert scene.cycles.caustics_refractive is True
     level, message, figures = generate()
@@ -214,6 +217,7 @@ def test_glass_text_keeps_refractive_caustics_too(empty_blend, auto_builds_light
     """Text (like curves and metaballs) renders as its evaluated mesh, an instance of
     the text object in the depsgraph: that mesh, flat, is the glass named."""
     from lens_lights.blender.read.scene import read_blender_scene
+    from lens_lights.core.lens.closed_mesh import OPEN_REASON
 
     set_engine("CYCLES")
     scene = bpy.context.scene
@@ -224,7 +228,7 @@ def test_glass_text_keeps_refractive_caustics_too(empty_blend, auto_builds_light
     text.data.materials.append(glass_material("Text glass"))
     add_point_light("Lamp", (0.0, 0.0, 4.0))
     assert read_blender_scene(bpy.context).unmodelled_glass == [
-        ("Glass text/Glass text", "a flat sheet, not a closed surface")
+        ("Glass text/Glass text", OPEN_REASON)
     ]
     level, message, figures = generate()
     assert scene.cycles.caustics_refractive is True
@@ -301,3 +305,90 @@ def test_a_marble_sunk_into_the_table_gets_no_lens_light_and_keeps_cycles_causti
     assert [ob.lens_lights.source_lens for ob in lens_lights()] == ["Resting"]
     assert scene.cycles.caustics_refractive is True
     assert "does not model the glass of Sunk," in message and level == "WARNING"
+
+
+# --------------------------------------------------------------------------- issue 28 item 7
+
+
+def _object_panel(ob):
+    from blender_scene_helpers import draw_panel
+    from lens_lights.blender.ui.panel import VIEW3D_PT_lens_lights_object
+
+    context = SimpleNamespace(object=ob, region=None, preferences=None)
+    return [text for kind, text in draw_panel(VIEW3D_PT_lens_lights_object, context)]
+
+
+def test_a_layer_and_its_fallback_spot_are_said_in_the_layers_terms(empty_blend):
+    """One spot through one marble over a table with a small mirror on it (metallic:
+    no layer can show a caustic there): Generate makes one layer mesh on the table
+    and one fallback spot lighting the mirror, and says so; the Object panel says of
+    each what it is (never "Lens: Table"); Clear says what it removed and put back."""
+    set_engine("BLENDER_EEVEE")
+    bpy.ops.mesh.primitive_plane_add(size=8)
+    bpy.context.object.name = "Table"
+    bpy.ops.mesh.primitive_plane_add(size=1, location=(0.0, 0.0, 0.01))
+    mirror = bpy.context.object
+    mirror.name = "Mirror"
+    mirror.data.materials.append(node_material("Metal", "ShaderNodeBsdfPrincipled", Metallic=1.0))
+    add_sphere("Marble", (0.0, 0.0, 1.0), material=glass_material())
+    add_point_light("Lamp", (0.0, 0.0, 4.0), kind="SPOT")
+    scene = bpy.context.scene
+    scene.cycles.caustics_refractive = True
+    level, message, figures = generate()
+    made = lens_lights()
+    layer = [ob for ob in made if ob.type == "MESH"]
+    spot = [ob for ob in made if ob.type == "LIGHT"]
+    assert len(layer) == 1 == len(spot), [ob.name for ob in made]
+    assert message.startswith(
+        "Created 1 caustic layer on Table and 1 fallback spot on glossy or transparent "
+        "Mirror (1 light × 1 lens)"
+    ), message
+    assert "Fitted spot" not in message  # said once, at the start
+    assert figures["created"] == 0 and figures["layers"] == 1 and figures["fallback"] == 1
+    from blender_scene_helpers import draw_panel
+    from lens_lights.blender.ui.panel import VIEW3D_PT_lens_lights
+
+    main = draw_panel(VIEW3D_PT_lens_lights, SimpleNamespace(scene=bpy.context.scene, object=None))
+    shown = [text for kind, text in main if kind == "label"]
+    assert "Caustic layers: 1" in shown and "Fallback spots: 1" in shown
+    assert "Lens lights: 0" in shown
+    (layer,), (spot,) = layer, spot
+    flux = layer.lens_lights.relative_brightness
+    text = _object_panel(layer)
+    assert text[:5] == [
+        layer.name,
+        "Caustic layer on: Table",
+        "Lenses: Marble",
+        "Lights: Lamp",
+        f"Flux drawn: {flux:.3g} W",
+    ], text
+    assert not any(t.startswith(("Lens: ", "From: ", "Unblocked", "Model: ")) for t in text)
+    text = _object_panel(spot)
+    assert text[1] == "Fallback spot on: Mirror", text
+    assert "Light: Lamp" in text and "Lens: Marble" in text
+    assert "glossy or transparent" in " ".join(text)
+    assert bpy.ops.lens_lights.clear() == {"FINISHED"}
+    assert scene.lens_lights.last_report == (
+        "Removed 1 caustic layer on Table and 1 fallback spot on glossy or transparent "
+        "Mirror; Cycles' own caustics back as they were: refractive caustics (scene) on"
+    )
+    assert scene.cycles.caustics_refractive is True
+
+
+def test_a_lens_lights_panel_names_its_model_by_its_label(empty_blend):
+    basic_scene()
+    set_engine("CYCLES")
+    generate()
+    (ll,) = lens_lights()
+    text = _object_panel(ll)
+    assert "From: Lamp" in text and "Lens: Marble" in text
+    model = next(t for t in text if t.startswith("Model: "))
+    assert model.startswith("Model: Exact profile (Cycles), brightness "), text
+
+
+def test_the_operators_tooltips_are_true_for_both_engines(extension):
+    generate_tip = bpy.ops.lens_lights.generate.get_rna_type().description
+    assert "spot light" in generate_tip and "emissive meshes" in generate_tip
+    assert "\n" not in generate_tip
+    clear_tip = bpy.ops.lens_lights.clear.get_rna_type().description
+    assert "caustic layers" in clear_tip

@@ -124,7 +124,7 @@ def test_preselection_makes_few_python_objects(empty_blend, monkeypatch):
     )
     want = 1.0 - flux[mask].sum() / flux.sum()
     assert figures["flux_left_out"] == pytest.approx(want, rel=1e-9)
-    assert f"{100 * want:.3g}% of the lenses' flux has no lens light" in message
+    assert f"{100 * want:.3g} % of the lenses' flux has no lens light" in message
     # the lights are the brightest of the pre-selected, brightest first
     irr = [p.light.reference_irradiance for p in work.plan.lights]
     assert irr == sorted(irr, reverse=True)

@@ -343,7 +343,7 @@ def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monke
                 tuple(round(x, 9) for x in ob.matrix_world.translation),
             )
             for ob in bpy.data.objects
-            if ob.lens_lights.is_lens_light
+            if ob.lens_lights.is_lens_light and ob.type == "LIGHT"  # (the drops' layers: meshes)
         )
         return made, message, figures["lenses"], figures["left_out"]
 

@@ -115,10 +115,15 @@ def test_what_is_not_modelled_is_named(empty_blend):
     notes = dict(figures["light_notes"])
     assert notes["Narrow panel"].startswith("its spread (30°")
     assert notes["Dark spot"] == "spot light without power (0 W)"
-    assert "light nodes are ignored" in notes["Gobo"]
+    # EEVEE (this scene's engine) does not evaluate the gobo's node tree: named; in
+    # Cycles its constant strength is read (×3), no note (issue 28)
+    assert notes["Gobo"].startswith("its light nodes: the render engine (EEVEE)")
     assert "not modelled: " in message and "Narrow panel: its spread" in message
     assert "Ball" not in notes and len(notes) == 3
     assert figures["created"] == 2  # the panel and the gobo light
+    set_engine("CYCLES")
+    level, message, figures = generate()
+    assert "Gobo" not in dict(figures["light_notes"])
 
 
 def _give_nodes(light_data):
@@ -127,7 +132,7 @@ def _give_nodes(light_data):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         light_data.use_nodes = True  # (deprecated in 5.x, still what makes the tree)
-    # a plain tree (every 5.x light has one) is no note; a stronger emission is
+    # a plain tree (every 5.x light has one) changes nothing; a stronger emission is read
     light_data.node_tree.nodes["Emission"].inputs["Strength"].default_value = 3.0
 
 
@@ -171,7 +176,10 @@ def test_cycles_caustics_are_replaced_and_restored_by_clear(empty_blend):
         assert "refractive caustics (scene), shadow caustics caster of Ball" in message
     assert bpy.ops.lens_lights.clear() == {"FINISHED"}
     assert scene.cycles.caustics_refractive is True and lens.cycles.is_caustics_caster is True
-    assert "restored" in scene.lens_lights.last_report
+    assert scene.lens_lights.last_report.endswith(
+        "Cycles' own caustics back as they were: refractive caustics (scene) on, "
+        "shadow caustics caster of Ball on"
+    )
     assert len(scene.lens_lights.replaced) == 0
 
     # a value the user changes after Generate is theirs: Clear leaves it

@@ -200,14 +200,16 @@ def test_subdivision_render_levels_are_read_as_rendered(empty_blend):
         probed = read()
         # as rendered: subdivided, no sphere (the viewport's level 0 is one)
         assert probed.how == "render" and probed.sphere_sources == []
-        # (its poles ~3 % in: issue 24's shape words name the squashed sphere)
-        assert dict(probed.left_out)["Coarse"].startswith("an ellipsoid (axes 1 : 0.9")
+        # (its poles ~3 % in: no sphere, but closed glass: a mesh lens, issue 25)
+        assert [m.name for m in probed.mesh_lenses] == ["Coarse"]
+        rendered = probed.mesh_lenses[0].n_triangles
         # Independently: the viewport at the render's level (nothing differs then) ...
         sub.levels = 2
         assert probe().viewport_differs(bpy.context) is None
         viewport = read()
         assert viewport.how == probe().VIEWPORT_AS_RENDER
         assert viewport.left_out == probed.left_out and viewport.sphere_sources == []
+        assert [m.n_triangles for m in viewport.mesh_lenses] == [rendered]
         # ... unless the viewport may leave the last Subdivision to the GPU
         system.use_gpu_subdivision = True
         assert probe().viewport_differs(bpy.context) == why
@@ -215,7 +217,11 @@ def test_subdivision_render_levels_are_read_as_rendered(empty_blend):
         system.use_gpu_subdivision = gpu_before
     # the level 0 of both: a sphere of radius 1
     sub.levels = sub.render_levels = 0
-    assert spheres(read()) == {"Coarse": ((0.0, 0.0, 3.0), 1.0)}
+    level0 = read()
+    assert spheres(level0) == {"Coarse": ((0.0, 0.0, 3.0), 1.0)} and not level0.mesh_lenses
+    # level 2 makes 16 quads (32 triangles) of a quad (2 triangles), 12 of a triangle
+    n0 = sum(len(p.vertices) - 2 for p in ob.data.polygons)  # level 0's triangles
+    assert 16 * n0 <= rendered <= 24 * n0
 
 
 def _is_viewport_tree(radius_viewport, radius_render, material):

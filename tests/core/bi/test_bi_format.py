@@ -1071,3 +1071,16 @@ def test_bytes_comment_blanking_matches_the_rule(text):
         return  # gave up: the text paths decide
     assert ok and "*/" not in text[pos:]
     assert got.tobytes().decode() == "".join(want)
+
+
+def test_a_stray_number_after_no_objects_is_the_readers_error():
+    """Found by the edited-files property: the bytes path read "O 0" followed by a
+    stray number as a scene without spheres; the record reader names the line."""
+    from core.bi.format import parse_bi_arrays
+
+    text = (
+        "V 1 1\nC 1 2 3\nA 0 0 0\nU 0 0 1\nB 1 1\nL 1\nC 0 0 0\nP 0 0 0\nI 0\n"
+        "O 0                     /* number of objects */\n 1"
+    )
+    with pytest.raises(BiFormatError, match=r"x.bi:11: expected end of file after 0 object"):
+        parse_bi_arrays(text, "x.bi")

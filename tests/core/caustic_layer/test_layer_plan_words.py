@@ -27,8 +27,12 @@ def test_coarse_layers_out_of_view_are_said_as_drawn():
     )
 
 
-def test_a_vanishing_share_reads_under_a_tenth_of_a_percent_and_none_is_not_said():
-    assert "under 0.1 % missed every receiver" in _text(flux_lost=1.3e-48)
-    assert "landed outside" not in _text(flux_lost=1.3e-48)
+def test_a_small_share_reads_under_a_tenth_of_a_percent_and_dust_is_not_said():
+    """Issue 28 item 7: "1.3e-46 % of the flux missed" was floating-point dust (a
+    millionth of the flux is far less than one of the 5000 rays carries)."""
+    assert _text(flux_lost=1.3e-48) == "800 texels and 5000 rays in all"
+    assert _text(flux_lost=1e-5) == "800 texels and 5000 rays in all"  # 1e-7 of it
+    assert "under 0.1 % missed every receiver" in _text(flux_lost=0.05)  # 5e-4 of it
+    assert "landed outside" not in _text(flux_lost=0.05)
     assert _text() == "800 texels and 5000 rays in all"
     assert "0.4 % landed outside" in _text(flux_outside=0.4)

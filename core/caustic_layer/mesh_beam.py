@@ -1,0 +1,393 @@
+"""The beam of one light through a glass mesh (`core.lens.mesh`): sheets, refined cells
+and splats, so that no cell whose corners took different paths is drawn stretched.
+
+The node rays are the (ι, φ) grid of `beam_trace` over the mesh's bounding sphere,
+traced with every branch (`Lens.trace_branches`: internal reflections up to a budget).
+A branch belongs to the beam when it went into the glass (two crossings or more; what
+the outside reflects and what misses the glass is not the caustic). Each node's branches
+are sorted by their path signature (the events and smooth face groups on the way), so
+that slot b of neighbouring nodes that took the same paths is the same path. A cell is
+*coherent* when its four corners carry the same set of paths: then slot b is one smooth
+piece of sheet b over it, drawn by the layer as a quad (bilinear sub-cells). A cell whose
+corners differ (a cube's edge, a rod's cap, the rim of what reaches a face) is refined:
+an m × m sub-grid of rays is traced in it, its coherent sub-cells drawn as quads and the
+rest landed as splats (each sub-corner's branches as points carrying their share).
+Cells beyond the refinement budget are splatted at their own corners (``cut_cells``).
+
+Flux: the emitter's density without the glass, g = I·A·dΩ/d(ι, φ) (or S·dA/d(ι, φ)),
+is integrated over each cell by Gauss–Legendre points (no tracing: it is analytic), as
+four corner-weighted integrals G_c = ∫ g · bilinear_c; a path's flux over the cell is
+Σ_c G_c w_c with w_c its weight (Fresnel × Beer) at corner c. A splat of corner c carries
+G_c w_c, so sheets, refinements and splats add up to the same integral: the traced flux
+through the glass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import shadow
+from .emitters import angular_factor, is_isotropic
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
+_GL2_X, _GL2_W = np.polynomial.legendre.leggauss(2)
+#: A path's signature is this where a node has no path in that slot.
+_NONE = np.iinfo(np.uint64).max
+
+#: Default budget of the branches in the layer: crossings per path, and the weight
+#: below which a branch is dropped (a second partial internal reflection, ~0.2 %).
+MAX_DEPTH = 8
+MIN_WEIGHT = 5e-3
+#: The refinement's rays by default: the node rays over this. Grazing rays at a
+#: silhouette bounce long inside, so a sub-grid ray costs about two node rays:
+#: a quarter cost 0.2 s of CPU at 20 000 triangles (reports/mesh_lens_speed.md).
+REFINE_SHARE = 4
+#: A path of this weight that some corners of a cell have and others not: an edge in
+#: the beam, the cell is refined (a first internal reflection, ~4 %, counts).
+STRONG = 0.02
+
+
+@dataclass
+class MeshPart:
+    """One drawable part: rows (C,) are the source samples each row belongs to;
+    nodes (C, Nr+1, Na) and cells (C, Nr, Na) as a `BeamGrid` (azimuth wraps)."""
+
+    rows: np.ndarray
+    exit_points: np.ndarray
+    exit_dirs: np.ndarray
+    node_density: np.ndarray
+    cell_flux: np.ndarray
+
+
+@dataclass
+class MeshBeam:
+    """The parts of one (light, mesh) pair, the first the main sheet (the node grid's
+    slot 0), and the budget figures: cells refined, cells splatted unrefined (the
+    budget cut), rays traced."""
+
+    parts: list[MeshPart] = field(default_factory=list)
+    refined_cells: int = 0
+    cut_cells: int = 0
+    n_rays: int = 0
+
+
+def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool):
+    """Origins, unit directions and flux density without the glass (per unit (ι, φ))
+    of the rays entering the bounding sphere at (ι, φ) for the samples ``rows``; all
+    arrays of one shape (elementwise `beam_trace._incoming` × the sample's weight and
+    angular factor)."""
+    rows = np.asarray(rows)
+    iota = np.asarray(iota, dtype=float)
+    phi = np.asarray(phi, dtype=float)
+    sin_i, cos_i = np.sin(iota), np.cos(iota)
+    f = frames[rows]  # (…, 2, 3)
+    radial = np.cos(phi)[..., None] * f[..., 0, :] + np.sin(phi)[..., None] * f[..., 1, :]
+    u = bt.axes[rows]
+    r = bt.radius[rows]
+    c = bt.center[rows]
+    if parallel:
+        dirs = np.broadcast_to(u, radial.shape).copy()
+        origins = c - 4.0 * r[..., None] * u + (r * sin_i)[..., None] * radial
+        jac = r * r * sin_i * cos_i
+    else:
+        pts = bt.points[rows]
+        s = r / np.maximum(np.linalg.norm(c - pts, axis=-1), r)
+        sin_psi = s * sin_i
+        cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
+        dirs = cos_psi[..., None] * u + sin_psi[..., None] * radial
+        origins = np.broadcast_to(pts, dirs.shape).copy()
+        jac = np.divide(
+            s * s * sin_i * cos_i, cos_psi, out=np.zeros_like(cos_psi), where=cos_psi > 0.0
+        )
+    ang = 1.0 if parallel or is_isotropic(emitter) else angular_factor(emitter, dirs)
+    valid = bt.valid[rows]
+    return origins, dirs, np.where(valid, bt.weights[rows] * ang * jac, 0.0)
+
+
+def corner_integrals(bt, rows, i0, di, p0, dp, frames, emitter, parallel, gl=(_GL_X, _GL_W)):
+    """(…, 4) integrals of g × each corner's bilinear weight over the cells
+    [i0, i0 + di] × [p0, p0 + dp] (arrays of one shape), corners in the layer's order
+    (ι, φ), (ι + dι, φ), (ι + dι, φ + dφ), (ι, φ + dφ); Gauss–Legendre points ``gl``."""
+    x, w = gl
+    s = 0.5 * (1.0 + x)
+    out = np.zeros((*np.shape(i0), 4))
+    for a in range(len(x)):
+        for b in range(len(x)):
+            _, _, g = rays_at(bt, rows, i0 + di * s[a], p0 + dp * s[b], frames, emitter, parallel)
+            g = g * (0.25 * w[a] * w[b]) * di * dp
+            bil = ((1 - s[a]) * (1 - s[b]), s[a] * (1 - s[b]), s[a] * s[b], (1 - s[a]) * s[b])
+            for k in range(4):
+                out[..., k] += g * bil[k]
+    return out
+
+
+def _grid_corners(k, nr, na, wrap: bool):
+    """Flat node indices (k·nr·na, 4) of each cell's corners on a (k, nr+1, na) node
+    grid, in the layer's order; ``wrap``: the last column's cells close onto column 0
+    (else there is one more node column than cells)."""
+    cols = na if wrap else na + 1
+    kk, ii, jj = np.meshgrid(np.arange(k), np.arange(nr), np.arange(na), indexing="ij")
+    jn = (jj + 1) % cols
+
+    def flat(i, j):
+        return ((kk * (nr + 1) + i) * cols + j).reshape(-1)
+
+    return np.stack([flat(ii, jj), flat(ii + 1, jj), flat(ii + 1, jn), flat(ii, jn)], axis=1)
+
+
+@dataclass
+class _Sorted:
+    """A grid's cells sorted out: ``quads`` — each (cell, path) whose four corners all
+    carry that path: cell index, path signature, the corners' node slots (Q, 4) —;
+    ``splat`` — (cell, corner, slot) entries landed as points —; ``mixed`` (cells,):
+    a path of weight ≥ ``strong`` at some corners only (refine it)."""
+
+    q_cell: np.ndarray
+    q_sig: np.ndarray
+    q_slot: np.ndarray
+    s_cell: np.ndarray
+    s_corner: np.ndarray
+    s_slot: np.ndarray
+    mixed: np.ndarray
+
+
+def _sort_cells(keep, sig, w, corners, strong: float) -> _Sorted:
+    """Every cell's corner paths grouped by (cell, signature) (one sort)."""
+    nb = keep.shape[0]
+    n_cells = len(corners)
+    kf = keep.reshape(nb, -1)[:, corners]  # (nb, C, 4)
+    b, c, q = np.nonzero(kf)
+    node = corners[c, q]
+    sg = sig.reshape(nb, -1)[b, node]
+    wt = w.reshape(nb, -1)[b, node]
+    order = np.lexsort((-wt, q, sg, c))
+    b, c, q, sg, wt = b[order], c[order], q[order], sg[order], wt[order]
+    # a second path with one signature at one corner (rare): a splat
+    first = np.ones(len(c), dtype=bool)
+    first[1:] = (c[1:] != c[:-1]) | (sg[1:] != sg[:-1]) | (q[1:] != q[:-1])
+    dup = ~first
+    b1, c1, q1, sg1, wt1 = b[first], c[first], q[first], sg[first], wt[first]
+    head = np.ones(len(c1), dtype=bool)
+    head[1:] = (c1[1:] != c1[:-1]) | (sg1[1:] != sg1[:-1])
+    gid = np.cumsum(head) - 1
+    n_in = np.bincount(gid)
+    full = n_in[gid] == 4
+    top = np.zeros(len(n_in))
+    np.maximum.at(top, gid, wt1)
+    partial = ~full
+    mixed = np.zeros(n_cells, dtype=bool)
+    mixed[c1[partial & (top[gid] >= strong)]] = True
+    # the full groups: 4 entries each, in corner order (sorted by q within a group)
+    fh = np.nonzero(head & full)[0]
+    q_slot = b1[fh[:, None] + np.arange(4)]
+    return _Sorted(
+        q_cell=c1[fh],
+        q_sig=sg1[fh],
+        q_slot=q_slot,
+        s_cell=np.concatenate([c1[partial], c[dup]]),
+        s_corner=np.concatenate([q1[partial], q[dup]]),
+        s_slot=np.concatenate([b1[partial], b[dup]]),
+        mixed=mixed,
+    )
+
+
+def _quad_part(rows, slots, node, pts, dirs, g, w, flux) -> MeshPart:
+    """Quads (Q cells of their own): nodes (Q, 2, 2) as corners (ι, φ), (ι, φ+),
+    (ι+, φ), (ι+, φ+), cells (Q, 1, 2) of which the second (the azimuth's wrap) is
+    empty. ``slots``, ``node``: (Q, 4) corner slots and flat nodes, layer order."""
+    nb = pts.shape[0]
+    p = pts.reshape(nb, -1, 3)[slots, node]  # (Q, 4, 3)
+    d = dirs.reshape(nb, -1, 3)[slots, node]
+    dens = g.reshape(-1)[node] * w.reshape(nb, -1)[slots, node]
+    grid = [0, 3, 1, 2]  # layer order (00, 10, 11, 01) → node grid (00, 01, 10, 11)
+    q = len(rows)
+    cell = np.zeros((q, 1, 2))
+    cell[:, 0, 0] = flux
+    return MeshPart(
+        rows=rows,
+        exit_points=p[:, grid].reshape(q, 2, 2, 3),
+        exit_dirs=d[:, grid].reshape(q, 2, 2, 3),
+        node_density=dens[:, grid].reshape(q, 2, 2),
+        cell_flux=cell,
+    )
+
+
+def _splat_part(rows, pts, dirs, flux) -> MeshPart:
+    """Points as cells whose four corners are one point (nodes (S, 2, 1))."""
+    two = lambda a: np.stack([a, a], axis=1)[:, :, None]  # noqa: E731
+    return MeshPart(rows, two(pts), two(dirs), np.ones((len(rows), 2, 1)), flux[:, None, None])
+
+
+def _draw(st: _Sorted, cells_ok, rows_of_cell, corners, pts, dirs, g, w, cg):
+    """The quads and splats of the cells ``cells_ok`` (bool per cell)."""
+    nb = pts.shape[0]
+    wf = w.reshape(nb, -1)
+    qk = cells_ok[st.q_cell]
+    qc, qs = st.q_cell[qk], st.q_slot[qk]
+    node = corners[qc]
+    flux = np.einsum("qk,qk->q", cg[qc], wf[qs, node])
+    quads = _quad_part(rows_of_cell[qc], qs, node, pts, dirs, g, w, flux)
+    sk = cells_ok[st.s_cell]
+    sc, sq, sb = st.s_cell[sk], st.s_corner[sk], st.s_slot[sk]
+    sn = corners[sc, sq]
+    sflux = cg[sc, sq] * wf[sb, sn]
+    on = sflux > 0.0
+    splat = (
+        rows_of_cell[sc][on],
+        pts.reshape(nb, -1, 3)[sb, sn][on],
+        dirs.reshape(nb, -1, 3)[sb, sn][on],
+        sflux[on],
+    )
+    return quads, st.q_sig[qk], qc, qs, splat
+
+
+def trace_mesh_beam(
+    bt,
+    optics,
+    iota,
+    phi,
+    frames,
+    emitter,
+    parallel: bool,
+    lens,
+    blockers=None,
+    refine_rays: int | None = None,
+    max_depth: int = MAX_DEPTH,
+    min_weight: float = MIN_WEIGHT,
+    strong: float = STRONG,
+) -> MeshBeam:
+    """The :class:`MeshBeam` of one (light, mesh) pair. ``bt``: the pair's samples (a
+    `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
+    centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the
+    shadow's centre); ``refine_rays``: sub-grid rays at most (None: the node rays
+    over `REFINE_SHARE`); ``strong``: a path appearing at some corners of a cell with
+    this weight makes the cell refined (weaker ones are splatted where they are)."""
+    k = len(bt.weights)
+    nr, na = len(iota) - 1, len(phi)
+    di, dp = float(iota[1] - iota[0]), float(2.0 * np.pi / na)
+    rows = np.broadcast_to(np.arange(k)[:, None, None], (k, nr + 1, na))
+    ii = np.broadcast_to(np.asarray(iota)[None, :, None], rows.shape)
+    pp = np.broadcast_to(np.asarray(phi)[None, None, :], rows.shape)
+    origins, dirs, g = rays_at(bt, rows, ii, pp, frames, emitter, parallel)
+    br = optics.trace_branches(origins, dirs, max_depth, min_weight)
+    keep = (br.crossings >= 2) & (br.weight > 0.0)  # through the glass: the caustic
+    w = np.where(keep, br.weight, 0.0)
+    ci0 = np.broadcast_to(np.arange(k)[:, None, None], (k, nr, na))
+    c_i0 = np.broadcast_to(np.asarray(iota)[None, :-1, None], ci0.shape)
+    c_p0 = np.broadcast_to(np.asarray(phi)[None, None, :], ci0.shape)
+    cg = corner_integrals(bt, ci0, c_i0, di, c_p0, dp, frames, emitter, parallel)
+    # the blockers' shadow: each cell × the mean of its corners' passing share
+    per_cell, per_node = shadow.apply(
+        np.ones((k, nr, na)), np.ones((k, nr + 1, na)), origins, dirs, lens, blockers, parallel
+    )
+    cg = (cg * per_cell[..., None]).reshape(-1, 4)
+    g = g * per_node
+    corners = _grid_corners(k, nr, na, wrap=True)
+    st = _sort_cells(keep, br.signature, w, corners, strong)
+    out = MeshBeam(n_rays=int(origins.size // 3))
+    lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
+    mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
+    budget = out.n_rays // REFINE_SHARE if refine_rays is None else int(refine_rays)
+    m = int(np.clip(np.sqrt(budget / max(len(mixed), 1)) - 1.0, 2, 6))
+    n_fit = budget // ((m + 1) ** 2)
+    if len(mixed) > n_fit:  # the brightest cells refined; the rest drawn as they are
+        mixed = np.sort(mixed[np.argsort(-lit[mixed], kind="stable")][:n_fit])
+    out.refined_cells = int(len(mixed))
+    out.cut_cells = int(np.count_nonzero(st.mixed & (lit > 0.0))) - out.refined_cells
+    ok = np.ones(len(corners), dtype=bool)
+    ok[mixed] = False
+    cell_row = np.repeat(np.arange(k), nr * na)
+    quads, q_sig, q_cell, q_slot, splat = _draw(
+        st, ok, cell_row, corners, br.points, br.directions, g, w, cg
+    )
+    # the most common path over the grid is the main sheet, on the grid itself
+    main = np.zeros(len(q_sig), dtype=bool)
+    if len(q_sig):
+        u, cnt = np.unique(q_sig, return_counts=True)
+        main = q_sig == u[np.argmax(cnt)]
+    out.parts = [
+        _main_sheet(
+            br, w, g, q_cell[main], corners[q_cell[main]], q_slot[main], quads.cell_flux[main, 0, 0]
+        )
+    ]
+    if np.any(~main):
+        out.parts.append(_take_rows(quads, ~main))
+    splats = [splat]
+    if len(mixed):
+        sub, sub_splat, n_sub = _refine(
+            bt, optics, mixed, (k, nr, na), iota, phi, di, dp, m, frames, emitter, parallel,
+            per_cell, max_depth, min_weight,
+        )  # fmt: skip
+        out.parts.append(sub)
+        splats.append(sub_splat)
+        out.n_rays += n_sub
+    r = np.concatenate([s[0] for s in splats])
+    if len(r):
+        out.parts.append(
+            _splat_part(
+                r,
+                np.concatenate([s[1] for s in splats]),
+                np.concatenate([s[2] for s in splats]),
+                np.concatenate([s[3] for s in splats]),
+            )
+        )
+    out.parts = [p for i, p in enumerate(out.parts) if i == 0 or len(p.rows)]
+    return out
+
+
+def _take_rows(part: MeshPart, sel) -> MeshPart:
+    return MeshPart(*(getattr(part, f)[sel] for f in MeshPart.__dataclass_fields__))
+
+
+def _main_sheet(br, w, g, cells, nodes, slots, flux) -> MeshPart:
+    """The main path's quads back on the node grid (K, Nr+1, Na): ``cells`` (Q,) their
+    flat cell indices, ``nodes``/``slots`` (Q, 4) their corners' nodes and slots,
+    ``flux`` (Q,); every other node its first slot (no cell of the sheet uses it)."""
+    k, nn, na = g.shape
+    nb = w.shape[0]
+    slot = np.zeros(k * nn * na, dtype=np.int64)
+    slot[nodes.reshape(-1)] = slots.reshape(-1)
+    cell = np.zeros(k * (nn - 1) * na)
+    cell[cells] = flux
+    node = np.arange(k * nn * na)
+    pts = br.points.reshape(nb, -1, 3)[slot, node].reshape(k, nn, na, 3)
+    dirs = br.directions.reshape(nb, -1, 3)[slot, node].reshape(k, nn, na, 3)
+    dens = (g.reshape(-1) * w.reshape(nb, -1)[slot, node]).reshape(k, nn, na)
+    return MeshPart(np.arange(k), pts, dirs, dens, cell.reshape(k, nn - 1, na))
+
+
+def _refine(
+    bt, optics, cells, shape, iota, phi, di, dp, m, frames, emitter, parallel, per_cell,
+    max_depth, min_weight,
+):  # fmt: skip
+    """Trace an m × m sub-grid in each of ``cells`` (flat indices of the (K, Nr, Na)
+    grid): quads of its coherent sub-cells, splats for the rest."""
+    kc, ic, jc = np.unravel_index(cells, shape)
+    c = len(cells)
+    a = np.arange(m + 1) / m
+    rows = np.broadcast_to(kc[:, None, None], (c, m + 1, m + 1))
+    si = np.asarray(iota)[ic][:, None, None] + di * a[None, :, None]
+    sp = np.asarray(phi)[jc][:, None, None] + dp * a[None, None, :]
+    si, sp = np.broadcast_arrays(si, sp)
+    origins, dirs, g = rays_at(bt, rows, si, sp, frames, emitter, parallel)
+    br = optics.trace_branches(origins, dirs, max_depth, min_weight)
+    keep = (br.crossings >= 2) & (br.weight > 0.0)
+    w = np.where(keep, br.weight, 0.0)
+    sub_rows = np.broadcast_to(kc[:, None, None], (c, m, m))
+    i0 = np.asarray(iota)[ic][:, None, None] + di * a[None, :-1, None]
+    p0 = np.asarray(phi)[jc][:, None, None] + dp * a[None, None, :-1]
+    i0, p0 = np.broadcast_arrays(i0, p0)
+    cg = corner_integrals(
+        bt, sub_rows, i0, di / m, p0, dp / m, frames, emitter, parallel, (_GL2_X, _GL2_W)
+    )
+    cg = (cg * per_cell.reshape(-1)[cells][:, None, None, None]).reshape(-1, 4)
+    g = g * per_cell.reshape(-1)[cells][:, None, None]
+    corners = _grid_corners(c, m, m, wrap=False)
+    st = _sort_cells(keep, br.signature, w, corners, np.inf)
+    ok = np.ones(len(corners), dtype=bool)
+    quads, _, _, _, splat = _draw(
+        st, ok, sub_rows.reshape(-1), corners, br.points, br.directions, g, w, cg
+    )
+    return quads, splat, int(origins.size // 3)

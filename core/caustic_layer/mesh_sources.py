@@ -1,0 +1,167 @@
+"""The caustic layer's sources of the glass meshes read as lenses (issue 25; pure).
+
+A mesh lens has no point-like image (phase 1's paraxial method and the lens-light
+tiers are the ball's), so every (light, mesh lens) pair whose light reaches it goes to
+the caustic layer, in both engines and whatever tier the spheres use. The pair is
+found as a sphere's is: phase 1 runs on the spheres plus each mesh's *bounding
+sphere* (`compute_phase1_primaries`), which gives, as for a ball, the primary as the
+point light that stands for it toward the lens (`tiers.base.effective_primary`: a
+spot's cone share, an area light's Lambertian intensity, a sun at its equivalent
+distance), whether it reaches the lens at all, and the spheres in its way (the
+obstruction test and the shadow list use the bounding sphere: a first
+approximation, a long rod's is much larger than the rod). The spheres' own rows of
+that run are dropped: the spheres' plan is phase 1's without the meshes.
+
+The source's power carries the material's transmission weight² and the unblocked
+share, as a ball's (`plan.sheet_source`); the mesh lens traces Fresnel at every
+crossing and the absorption along each ray (the mean of the material's RGB
+absorption), and the colour carries the tint and the rest of the absorption over the
+mesh's mean chord (`closed_mesh.mean_chord`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..lens.closed_mesh import mean_chord
+from ..phase1.all_lights import compute_phase1_primaries
+from ..phase1.skip_reasons import Reason
+from ..scene.arrays import SceneArrays
+from ..tiers.base import effective_primary, unblocked_share
+from .emitters import Lens, PointLight
+from .pipeline import SheetSource
+from .plan import SOURCE_SAMPLES
+from .shadow import ShadowList
+
+#: The lens kind of a glass mesh (`core.lens.kinds.LENS_KINDS`).
+MESH_KIND = "mesh"
+#: Node rays a glass mesh's beam gets at least per triangle (its facets' caustics
+#: need rays of their own; the ray budget's caps still apply and the report says so).
+RAYS_PER_TRIANGLE = 4
+
+
+def mesh_min_rays(n_triangles: int, min_rays: int, pixels: float = math.inf) -> int:
+    """The ray budget's floor for a mesh of `n_triangles` (`RAYS_PER_TRIANGLE` each),
+    no more than `RAYS_PER_TRIANGLE` per pixel² of its bounding disc on screen
+    (`pixels`: its diameter in pixels; a mesh seen small needs no ray per facet)."""
+    on_screen = RAYS_PER_TRIANGLE * float(pixels) ** 2
+    return max(int(min_rays), int(min(RAYS_PER_TRIANGLE * int(n_triangles), on_screen)))
+
+
+def budget_cuts(names, wanted, got) -> str:
+    """Where the ray budget cut a mesh's rays below its floor ("" nowhere):
+    "ray budget cut: Rod 16 384 of 80 000 rays"."""
+    cut = [
+        f"{n} {g:,} of {w:,} rays".replace(",", "\u2009")
+        for n, w, g in zip(names, wanted, got, strict=True)
+        if g < 0.9 * w
+    ]
+    return "ray budget cut: " + ", ".join(cut) if cut else ""
+
+
+def mesh_lens_record(m) -> Lens:
+    """The caustic layer's record of a `core.scene.mesh_lenses.MeshLensRead`."""
+    a = np.maximum(np.asarray(m.optics.absorption, dtype=float).reshape(3), 0.0)
+    return Lens(
+        center=np.asarray(m.mesh.center, dtype=float),
+        radius=float(m.mesh.radius),
+        ior=float(m.ior),
+        absorption=float(a.mean()),
+        kind=MESH_KIND,
+        params=(m.mesh.vertices, m.mesh.triangles, m.mesh.corner_normals),
+    )
+
+
+def mesh_color(m, color) -> tuple[float, float, float]:
+    """A primary's colour through the mesh: × tint, × the absorption beyond its mean
+    (traced per ray) over the mesh's mean chord."""
+    a = np.maximum(np.asarray(m.optics.absorption, dtype=float).reshape(3), 0.0)
+    tint = np.clip(np.asarray(m.optics.tint, dtype=float).reshape(3), 0.0, 1.0)
+    chord = mean_chord(m.mesh.vertices, m.mesh.triangles)
+    c = np.asarray(color, dtype=float).reshape(3) * tint * np.exp(-(a - a.mean()) * chord)
+    return tuple(float(x) for x in c)
+
+
+def cap_flux(power, distance, radius):
+    """The flux a point light of `power` sends into a sphere of `radius` at
+    `distance` (the share of its directions inside the sphere's cone)."""
+    s = min(float(radius) / max(float(distance), 1e-300), 1.0)
+    return float(power) * 0.5 * (1.0 - math.sqrt(1.0 - s * s))
+
+
+def mesh_sheet_sources(arrays, primary_lights, primaries, mesh_lenses, max_pairs=None):
+    """(the sheet sources of every (light, mesh lens) pair a light reaches, the
+    pair of each (light index, index into `mesh_lenses`), and phase 1's skipped pairs of
+    the meshes as (light, mesh lens, `skip_reasons.Reason` code) rows).
+    `arrays`: phase 1's `SceneArrays` of the spheres; `primary_lights` and
+    `primaries` the read's (`core.scene.primaries` dataclasses and `PrimaryLight`s);
+    `max_pairs`: keep the pairs with the most flux into the mesh's bounding sphere
+    (Maximum Lens Lights), the others counted in the third list with the code
+    `Reason.BEYOND_MAXIMUM`."""
+    if not mesh_lenses or not primary_lights:
+        return [], [], []
+    n_sph = len(arrays.radius)
+    centers = np.array([m.mesh.center for m in mesh_lenses], dtype=float).reshape(-1, 3)
+    radii = np.array([m.mesh.radius for m in mesh_lenses], dtype=float)
+    both = SceneArrays(
+        light_position=arrays.light_position,
+        light_brightness=arrays.light_brightness,
+        light_color=arrays.light_color,
+        center=np.concatenate([np.asarray(arrays.center, float).reshape(-1, 3), centers]),
+        radius=np.concatenate([np.asarray(arrays.radius, float), radii]),
+        # the ball's optics of the bounding sphere are not used: a clear ball stands in
+        ior=np.concatenate([np.asarray(arrays.ior, float), np.full(len(radii), 1.5)]),
+        kt=np.concatenate([np.asarray(arrays.kt, float), np.ones(len(radii))]),
+    )
+    result = compute_phase1_primaries(both, primary_lights)
+    table = result.table
+    sources, lens_of = [], []
+    for t in np.flatnonzero(np.asarray(table.lens) >= n_sph).tolist():
+        src = table.source(t)
+        k = src.lens - n_sph
+        m = mesh_lenses[k]
+        prim = primaries[src.light]
+        eff = effective_primary(src, prim)
+        share = unblocked_share(src)
+        wgt = min(max(float(m.optics.transmission_weight), 0.0), 1.0)
+        power = eff.power_w * wgt * wgt * share
+        if not power > 0.0:
+            continue
+        axis = np.asarray(src.axis, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        emitter = PointLight(
+            position=np.asarray(src.lens_center, float) - float(src.distance) * axis,
+            power=float(power),
+            radius=float(eff.radius),
+            color=mesh_color(m, prim.color),
+        )
+        blockers = ShadowList.of(src, both)
+        sources.append(
+            SheetSource(
+                emitter,
+                mesh_lens_record(m),
+                n_source=1 if eff.radius <= 0.0 else SOURCE_SAMPLES,
+                blockers=blockers,
+            )
+        )
+        lens_of.append((int(src.light), k))
+    skip = result.skip_table
+    rows = np.flatnonzero(np.asarray(skip.lens) >= n_sph)
+    skipped = [
+        (int(skip.light[r]), int(skip.lens[r]) - n_sph, int(skip.code[r])) for r in rows.tolist()
+    ]
+    if max_pairs is not None and len(sources) > max_pairs:
+        flux = [
+            cap_flux(
+                s.emitter.power, np.linalg.norm(s.emitter.position - s.lens.center), s.lens.radius
+            )
+            for s in sources
+        ]
+        keep = sorted(np.argsort(flux, kind="stable")[::-1][: int(max_pairs)].tolist())
+        dropped = sorted(set(range(len(sources))) - set(keep))
+        skipped += [(*lens_of[i], int(Reason.BEYOND_MAXIMUM)) for i in dropped]
+        sources = [sources[i] for i in keep]
+        lens_of = [lens_of[i] for i in keep]
+    return sources, lens_of, skipped
