@@ -48,13 +48,13 @@ from .marks import (
     LAYER_PREFIX,
     LINK_MARK,
     MATERIAL_PREFIX,
+    REFLECTION_MARK,
 )
 from .ownership import register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
 REFLECTED_SUFFIX = " reflected"
-REFLECTION_MARK = "lens_lights_reflection"  # object property of a reflection copy
 UV_NAME = "UVMap"
 
 
