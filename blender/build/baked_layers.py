@@ -167,6 +167,7 @@ def baked_layer(scene, seg, info, collection, material, k: int):
         f"baked caustic layer: a {res}² raster over {len(seg.frames)} "
         f"frame{'s' if len(seg.frames) != 1 else ''} "
         f"(texels at most {seg.coarsening:.2f}× Generate's at the caustic's core)"
+        + (" (coarse: out of the camera's view, for reflections)" if seg.key[-1] else "")
     )
     return ob
 

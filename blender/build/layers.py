@@ -16,9 +16,20 @@ sampled through the layer's UV map, which holds the receiver's UVs); emission ad
 to a white Transparent BSDF, so where the irradiance is 0 the layer is invisible
 and elsewhere it only adds light over the receiver (EEVEE: blended render method,
 sorted). Ray visibility: the camera, glossy and transmission rays (a mirror shows
-the caustic on the floor it reflects; no spot light paints it any more); no shadow
-(the layer sits between the receiver and its lights), no diffuse (it must not
+the caustic on the floor it reflects in Cycles; no spot light paints it any more); no
+shadow (the layer sits between the receiver and its lights), no diffuse (it must not
 light other objects).
+
+EEVEE's reflections (screen-traced, and its plane and sphere light probes) hold only
+its deferred surfaces, never blended ones: a mirror there shows the receiver without
+the layer. So in EEVEE each layer has a **reflection copy** ("… reflected"): the same
+mesh, hidden from the camera and from every ray (Cycles never sees it) and from
+volume probes, with a Dithered material that is the receiver's diffuse colour lit
+as a diffuse surface plus the layer's emission where the irradiance is not 0, and
+fully transparent elsewhere. Plane and sphere probes capture it, so a mirror with a
+Light Probe Plane (Raytracing on) shows the caustic; over the caustic the mirror
+then shows the receiver as a plain diffuse surface of its colour (its gloss is not
+copied).
 """
 
 from __future__ import annotations
@@ -37,11 +48,13 @@ from .marks import (
     LAYER_PREFIX,
     LINK_MARK,
     MATERIAL_PREFIX,
+    REFLECTION_MARK,
 )
 from .ownership import register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
+REFLECTED_SUFFIX = " reflected"
 UV_NAME = "UVMap"
 
 
@@ -98,6 +111,97 @@ def layer_material(info, cache: dict):
     nt.links.new(add.outputs[0], out.inputs["Surface"])
     cache[key] = mat
     return mat
+
+
+def reflection_material(info, cache: dict):
+    """The reflection copy's material for receiver `info` (see the module's text):
+    Dithered; where the layer's irradiance is above 0 the receiver's diffuse colour as a
+    Diffuse BSDF plus the layer's emission, elsewhere a Transparent BSDF."""
+    key = ("reflected", info.name, info.image.name if info.image is not None else None)
+    mat = cache.get(key)
+    if mat is not None:
+        return mat
+    mat = bpy.data.materials.new(MATERIAL_PREFIX + info.name + REFLECTED_SUFFIX)
+    mat[COLLECTION_MARK] = LAYER_MARK
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    if hasattr(mat, "surface_render_method"):
+        mat.surface_render_method = "DITHERED"
+    nt = mat.node_tree
+    nt.nodes.clear()
+    attr = nt.nodes.new("ShaderNodeAttribute")
+    attr.attribute_type = "GEOMETRY"
+    attr.attribute_name = IRRADIANCE
+    if info.image is not None:
+        uv = nt.nodes.new("ShaderNodeUVMap")
+        uv.uv_map = UV_NAME
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = info.image
+        tex.interpolation = info.interpolation
+        tex.extension = info.extension
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        colour = tex.outputs["Color"]
+    else:
+        rgb = nt.nodes.new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = (*info.color[:3], 1.0)
+        colour = rgb.outputs[0]
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 1.0
+    nt.links.new(attr.outputs["Color"], mix.inputs["A"])
+    nt.links.new(colour, mix.inputs["B"])
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0 / math.pi
+    nt.links.new(mix.outputs["Result"], em.inputs["Color"])
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(colour, diffuse.inputs["Color"])
+    add = nt.nodes.new("ShaderNodeAddShader")
+    nt.links.new(em.outputs[0], add.inputs[0])
+    nt.links.new(diffuse.outputs[0], add.inputs[1])
+    # opaque (the receiver's look + the caustic) only where there is a caustic
+    lit = nt.nodes.new("ShaderNodeMath")
+    lit.operation = "GREATER_THAN"
+    lit.inputs[1].default_value = 0.0
+    nt.links.new(attr.outputs["Fac"], lit.inputs[0])
+    tr = nt.nodes.new("ShaderNodeBsdfTransparent")
+    pick = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(lit.outputs[0], pick.inputs[0])
+    nt.links.new(tr.outputs[0], pick.inputs[1])
+    nt.links.new(add.outputs[0], pick.inputs[2])
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(pick.outputs[0], out.inputs["Surface"])
+    cache[key] = mat
+    return mat
+
+
+def is_reflection(ob) -> bool:
+    """Whether `ob` is a layer's reflection copy (`create_reflection`)."""
+    return bool(ob.get(REFLECTION_MARK, False))
+
+
+def create_reflection(scene, layer_ob, info, collection, materials):
+    """The EEVEE reflection copy of `layer_ob` (see the module's text), registered
+    and marked like it (Clear removes it)."""
+    ob = bpy.data.objects.new(layer_ob.name + REFLECTED_SUFFIX, layer_ob.data)
+    ob[REFLECTION_MARK] = True
+    ob.material_slots[0].link = "OBJECT"
+    ob.material_slots[0].material = reflection_material(info, materials)
+    collection.objects.link(ob)
+    for attr in ("camera", "diffuse", "glossy", "transmission", "shadow", "volume_scatter"):
+        setattr(ob, "visible_" + attr, False)
+    if hasattr(ob, "hide_probe_volume"):  # it must not light anything either
+        ob.hide_probe_volume = True
+    meta = ob.lens_lights
+    meta.is_lens_light = True
+    meta.energy_model = "CAUSTIC_LAYER"
+    meta.receiver = info.name
+    meta.source_light = layer_ob.lens_lights.source_light
+    meta.source_lens = layer_ob.lens_lights.source_lens
+    meta.relative_brightness = layer_ob.lens_lights.relative_brightness
+    meta.note = "reflection copy of the caustic layer (EEVEE's mirrors and probes)"
+    register(scene, ob)
+    return ob
 
 
 def layer_mesh(name, drawn, shapes: dict | None = None):
@@ -195,7 +299,9 @@ def create_layer(
     meta.source_light = ", ".join(dict.fromkeys(lights))
     meta.source_lens = ", ".join(dict.fromkeys(lenses))
     meta.relative_brightness = float(patch.flux)  # the flux it draws, W
-    meta.note = f"{patch.resolution}² texels"
+    meta.note = f"{patch.resolution}² texels" + (
+        " (coarse: out of the camera's view, for reflections)" if patch.coarse else ""
+    )
     register(scene, ob)
     return ob
 
@@ -212,13 +318,16 @@ def _include_collection(scene, objects, tag):
     return coll
 
 
-def build(scene, bake, receivers, planned, lens_objects, progress=None, mesh_names=()):
+def build(
+    scene, bake, receivers, planned, lens_objects, progress=None, mesh_names=(), reflections=False
+):
     """The layers of `bake` (`core.caustic_layer.pipeline.SheetBake`) on `receivers`
-    (`blender.read.receivers.Receivers`); for the sources whose caustic lands on a receiver
-    a layer cannot show, their Fitted spot (`planned[i]`), lighting only those
-    receivers. The sources after the planned ones are glass meshes', named by
-    `mesh_names` ((light, lens) each). Returns (layer objects, fallback lights, fallback
-    receiver names)."""
+    (`blender.read.receivers.Receivers`), each with its reflection copy if
+    ``reflections`` (EEVEE); for the sources whose caustic lands on a receiver a layer
+    cannot show, their Fitted spot (`planned[i]`), lighting only those receivers. The
+    sources after the planned ones are glass meshes', named by `mesh_names` ((light,
+    lens) each). Returns (layer objects and copies, fallback lights, fallback receiver
+    names)."""
     names = [(p.light_name, p.lens_name) for p in planned] + list(mesh_names)
     collection = lights_collection(scene)
     materials: dict = {}
@@ -245,6 +354,8 @@ def build(scene, bake, receivers, planned, lens_objects, progress=None, mesh_nam
                 lenses=[lens for _light, lens in beams],
             )
         )
+        if reflections:
+            layers.append(create_reflection(scene, layers[-1], info, collection, materials))
         if progress is not None and k % 8 == 7:
             progress((k + 1) / max(len(patches), 1))
     lights = []
@@ -268,10 +379,11 @@ def made_counts(objects) -> dict:
     """What `objects` (the extension's, made or about to be removed) are, for
     `made_text`: lens lights (``made``), caustic layers (meshes) and the receivers
     they lie on, the layer's fallback spots and the receivers they light."""
-    layers = [ob for ob in objects if ob.type != "LIGHT"]
+    # (a layer's reflection copy for EEVEE is part of that layer: not counted)
+    layers = [ob for ob in objects if ob.type != "LIGHT" and not is_reflection(ob)]
     fallback = [ob for ob in objects if ob.type == "LIGHT" and ob.lens_lights.receiver]
     return dict(
-        made=len(objects) - len(layers) - len(fallback),
+        made=sum(1 for ob in objects if ob.type == "LIGHT") - len(fallback),
         layers=len(layers),
         fallback=len(fallback),
         on=sorted({ob.lens_lights.receiver for ob in layers if ob.lens_lights.receiver}),

@@ -32,6 +32,9 @@ LAYER_MARK = "layer"
 #: A bake's action, or a baked layer's atlas image: removed once unused.
 BAKE_MARK = "bake"
 
+#: Object property of a caustic layer's reflection copy for EEVEE (`layers.create_reflection`).
+REFLECTION_MARK = "lens_lights_reflection"
+
 #: Custom property of a group's linking collection: its group number (0-based).
 LINK_GROUP = "lens_lights_link_group"
 

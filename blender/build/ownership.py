@@ -35,7 +35,14 @@ from __future__ import annotations
 import bpy
 
 from ...core.report.message import kept_text
-from .marks import COLLECTION_MARK, KEPT_LINK, KEPT_LINK_PREFIX, LIGHTS_MARK, LINK_MARK
+from .marks import (
+    COLLECTION_MARK,
+    KEPT_LINK,
+    KEPT_LINK_PREFIX,
+    LIGHTS_MARK,
+    LINK_MARK,
+    REFLECTION_MARK,
+)
 
 #: An object in one collection and listed in the registry (a pointer property holds
 #: a user) has this many users; more: something else links it (another collection?).
@@ -181,8 +188,8 @@ def kept_note(scene, made=()) -> tuple[str, bool]:
     kept = kept_objects(scene)
     notes, doubled = [], False
     for word, is_light in (("lens light", True), ("caustic layer", False)):
-        k = [(o.name, _on(o)) for o in kept if (o.type == "LIGHT") == is_light]
-        m = [(o.name, _on(o)) for o in made if (o.type == "LIGHT") == is_light]
+        k = [(o.name, _on(o)) for o in kept if _is(o, is_light)]
+        m = [(o.name, _on(o)) for o in made if _is(o, is_light)]
         doubled = doubled or bool({lens for _, lens in k} & {lens for _, lens in m})
         notes.append(kept_text(m, k, word))
     return "; ".join(n for n in notes if n), doubled
@@ -195,3 +202,11 @@ def _on(ob) -> str:
     if ob.type == "LIGHT":
         return meta.source_lens
     return meta.receiver or meta.source_lens
+
+
+def _is(ob, light: bool) -> bool:
+    """A lens light (``light``) or a caustic layer (not its copy for EEVEE's reflections,
+    which is part of it)."""
+    if light:
+        return ob.type == "LIGHT"
+    return ob.type != "LIGHT" and not ob.get(REFLECTION_MARK, False)

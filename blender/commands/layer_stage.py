@@ -34,7 +34,9 @@ from ...core.caustic_layer.plan import (
     MAX_RAYS_PER_SOURCE,
     MIN_RAYS_PER_SOURCE,
     RAYS_PER_PIXEL,
+    RAYS_PER_TEXEL,
     TOTAL_RAYS,
+    VIEW_MAX_RAYS_PER_SOURCE,
     VIEW_MAX_RESOLUTION,
     VIEW_TEXEL_FRACTION,
     figures_of,
@@ -48,9 +50,13 @@ from ...core.lens.kinds import LENS_KINDS
 from ...core.phase1.skip_reasons import Reason, SkippedPair
 from ...core.report.message import mesh_lenses_text
 from ...core.tiers import builds_layer
+from ...core.tiers.base import ENGINE_NAMES
 from ..build import layers as layer_builder
 from ..build import lights as light_builder
 from ..read.receivers import read_receivers
+
+#: Render engines that are EEVEE (its identifier before and since Blender 5.0).
+EEVEE_ENGINES = frozenset(k for k, v in ENGINE_NAMES.items() if v == "EEVEE")
 
 
 def prepare(depsgraph, work, options: dict):
@@ -107,7 +113,7 @@ def prepare(depsgraph, work, options: dict):
         work.receivers.mesh,
         camera,
         total_rays=TOTAL_RAYS,
-        max_rays=MAX_RAYS_PER_SOURCE,
+        max_rays=MAX_RAYS_PER_SOURCE if view is None else VIEW_MAX_RAYS_PER_SOURCE,
         min_rays=floors,
         rays_per_pixel=RAYS_PER_PIXEL,
         resolution=VIEW_MAX_RESOLUTION
@@ -116,6 +122,7 @@ def prepare(depsgraph, work, options: dict):
         view=view,
         max_texels=FACE_BUDGET,
         texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
+        rays_per_texel=RAYS_PER_TEXEL if view is not None else None,
     )
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
@@ -186,7 +193,14 @@ def build_mesh_layers(scene, work, progress=None) -> list:
         work.layer_figures = None
         return []
     layers, _lights, fallback = layer_builder.build(
-        scene, work.layer_bake, work.receivers, [], [], progress, mesh_names(work.read)
+        scene,
+        work.layer_bake,
+        work.receivers,
+        [],
+        [],
+        progress,
+        mesh_names(work.read),
+        reflections=scene.render.engine in EEVEE_ENGINES,
     )
     work.layer_figures = figures_of(work.layer_bake, 0, fallback)
     return layers
@@ -237,6 +251,8 @@ def build(scene, work, progress=None) -> list:
         work.read.sphere_objects,
         progress,
         mesh_names(work.read),
+        # EEVEE's reflections do not show blended surfaces: a copy for them
+        reflections=scene.render.engine in EEVEE_ENGINES,
     )
     work.layer_figures = figures_of(work.layer_bake, len(lights), fallback)
     return layers + lights

@@ -62,7 +62,7 @@ class FrameLayers:
 class Segment:
     """One baked layer object: a raster fixed over `frames`."""
 
-    key: tuple  # (receiver name, plane, source keys)
+    key: tuple  # (receiver name, plane, source keys, coarse: out of view)
     object_id: int  # receiver object id (on the segment's first frame)
     frames: list  # indices into the bake's frames
     axes: tuple  # ((c, s, ξ0, dξ) u, v) the union raster's texel lines
@@ -158,7 +158,8 @@ def plan_segments(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tu
             if pl.object_id in fl.skip_objects:
                 continue
             keys = tuple(sorted((fl.source_keys[int(b)] for b in pl.sources), key=repr))
-            key = (*plane_key(pl, fl.receiver_names[pl.object_id]), keys)
+            # a coarse raster (out of view) is a track of its own beside the one in view
+            key = (*plane_key(pl, fl.receiver_names[pl.object_id]), keys, bool(pl.coarse))
             tracks.setdefault(key, []).append((i, pl))
     out = []
     for key, rows in tracks.items():
@@ -193,7 +194,7 @@ def bake_frames(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tupl
         if all(_is_own_raster(s.own[i], s.axes, res) for s in here):
             layers = [s.own[i] for s in here]
         else:
-            given = [RasterFrame(*s.members[i], *s.plane, s.axes) for s in here]
+            given = [RasterFrame(*s.members[i], *s.plane, s.axes, s.key[-1]) for s in here]
             layers = sheet_bake(
                 fl.sources,
                 fl.sheet.index,

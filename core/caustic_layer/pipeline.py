@@ -15,8 +15,16 @@ import numpy as np
 
 from .beam_trace import BeamGrid, flatten_parts, trace_beams
 from .emitters import Lens
-from .rasters import CausticLayer, RasterFrame, build_layer, grouped_quantiles, land_beams
-from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size
+from .rasters import (
+    NEAR_PIXEL_SHARE,
+    TEXELS_PER_PIXEL,
+    CausticLayer,
+    RasterFrame,
+    build_layer,
+    grouped_quantiles,
+    land_beams,
+)
+from .ray_budget import RayBudget, allocate, layer_resolution, pixel_size, view_texels
 from .receiver_bvh import ReceiverMesh
 from .receiver_index import ReceiverIndex, build_index
 from .view import View
@@ -72,6 +80,7 @@ def bake(
     raster_frames: list[RasterFrame] | None = None,
     view: View | None = None,
     max_texels: int | None = None,
+    rays_per_texel: float | None = None,
 ) -> SheetBake:
     """Caustic layers of ``sources`` on ``receivers``. The grid per source comes from
     :func:`.ray_budget.allocate` (flux share and caustic extent from a coarse 4 × 16
@@ -85,7 +94,11 @@ def bake(
     ``view`` (`view.View`, the scene's camera): each raster spans what it sees of its
     caustic, about a texel per pixel there, at most the resolution above per side and
     ``max_texels`` in all (`build_layer`); the bake's ``resolution`` is then the
-    largest raster's."""
+    largest raster's. With a view and ``rays_per_texel``, a source's rays follow the
+    texels its caustic covers there (the span of 99 % of its flux, `TEXELS_PER_PIXEL`
+    per pixel where it lands, at most ``resolution`` per side, all sources' at most
+    ``max_texels`` together, as their rasters): a closer camera, more rays (within
+    ``max_rays`` and ``total_rays``)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
     if budgets is not None:
@@ -97,13 +110,26 @@ def bake(
         coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16)
         own = [s.own_object for s in sources]
         # the rays go where the bulk of the flux is; the texels span nearly all of it
-        extents, spans = caustic_extents(coarse, index, own, extents, bulks=(0.9, 0.99))
+        extents, spans, near = caustic_extents(
+            coarse, index, own, extents, bulks=(0.9, 0.99), view=view
+        )
         pixels = [
             pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px)
             if camera is not None
             else 2.0 * s.lens.radius / 64.0
             for s in sources
         ]
+        texels = None
+        if view is not None and rays_per_texel is not None:
+            side = resolution if isinstance(resolution, int) else 1 << 30
+            texels = [
+                view_texels(sp, px, TEXELS_PER_PIXEL, side)
+                for sp, px in zip(spans, near, strict=True)
+            ]
+            # the rasters share ``max_texels``: so do the rays that fill them
+            total = float(sum(texels))
+            if max_texels is not None and total > max_texels:
+                texels = [t * max_texels / total for t in texels]
         budgets = allocate(
             [b.total_flux for b in coarse],
             extents,
@@ -113,6 +139,8 @@ def bake(
             max_rays=max_rays,
             min_rays=min_rays,
             samples=[s.n_source for s in sources],
+            texels=texels,
+            rays_per_texel=rays_per_texel or 1.0,
         )
     if callable(resolution):
         resolution = resolution(spans, pixels)
@@ -154,14 +182,21 @@ def bake(
 
 
 def caustic_extents(
-    coarse: list[BeamGrid], index: ReceiverIndex, own_objects, diameters, bulks=(0.9,)
+    coarse: list[BeamGrid],
+    index: ReceiverIndex,
+    own_objects,
+    diameters,
+    bulks=(0.9,),
+    view: View | None = None,
 ) -> list[list[float]]:
     """Per share in ``bulks``, per coarse beam, the size of its caustic on the
     receivers: the lens' diameter, or the span of that central share of its landed
     flux if larger (per world axis; a grazing receiver stretches the caustic far beyond
-    the lens)."""
+    the lens). Then, per beam, the pixel of ``view`` where it lands in view (the
+    `NEAR_PIXEL_SHARE` quantile of its flux there, as the rasters take it; inf: none in
+    view; all inf without a view)."""
     if not coarse:
-        return [[] for _ in bulks]
+        return [[] for _ in bulks] + [[]]
     flat, owner = flatten_parts(coarse)  # a glass mesh's parts count for its beam
     own = [int(o) for o in np.asarray(list(own_objects), dtype=np.int64)[owner]]
     landed = land_beams(flat, index, own if any(o >= 0 for o in own) else None)
@@ -176,6 +211,16 @@ def caustic_extents(
     beam = np.concatenate([beam, missing])
     pts = np.concatenate([pts, np.zeros((len(missing), 3))])
     w = np.concatenate([w, np.ones(len(missing))])
+    near = [math.inf] * len(coarse)
+    if view is not None:
+        seen = view.in_view(pts) & (np.arange(len(pts)) < len(pts) - len(missing))
+        if np.any(seen):  # one sort for all beams seen
+            ids, group = np.unique(beam[seen], return_inverse=True)
+            q = grouped_quantiles(
+                view.pixel(pts[seen]), w[seen], group, len(ids), [NEAR_PIXEL_SHARE]
+            )
+            for i, v in zip(ids.tolist(), q[:, 0].tolist(), strict=True):
+                near[i] = v
     qs = [q for b in bulks for q in (0.5 * (1.0 - b), 0.5 * (1.0 + b))]
     per_axis = [grouped_quantiles(pts[:, a], w, beam, len(coarse), qs) for a in range(3)]
     diam = np.asarray(diameters, dtype=float)
@@ -183,4 +228,4 @@ def caustic_extents(
     for k in range(len(bulks)):
         span = np.max([q[:, 2 * k + 1] - q[:, 2 * k] for q in per_axis], axis=0)
         out.append([float(v) for v in np.maximum(np.where(hit, span, 0.0), diam)])
-    return out
+    return out + [[float(p) for p in near]]

@@ -31,6 +31,12 @@ TOTAL_RAYS = 400_000
 MAX_RAYS_PER_SOURCE = 16_384
 MIN_RAYS_PER_SOURCE = 256
 RAYS_PER_PIXEL = 0.5
+#: With a camera: rays per texel the caustic covers in view (all samples of an extended
+#: light together), up to this many per source. Fewer leave the faint halo's landed
+#: cells tens of texels long, drawn as dashes (a close-up's lit table of 0.47: up to
+#: +0.62 at 4 608 rays, +0.27 at 16 384, none at 51 968–65 536; bench/layer_mirror.py).
+RAYS_PER_TEXEL = 1.0
+VIEW_MAX_RAYS_PER_SOURCE = 65_536
 #: Texels per side of a layer raster at most without a camera (every raster alike) and
 #: with one (each raster spans what it sees of its caustic, about a texel per pixel),
 #: and the texels of all layers together (many lenses: coarser rasters, a fast build).
@@ -134,23 +140,30 @@ class LayerFigures:
     flux_emitted: float = 0.0
     flux_in_layers: float = 0.0
     flux_lost: float = 0.0  # missed every receiver
-    flux_outside: float = 0.0  # on a receiver, outside every layer (out of view, beyond a raster)
+    flux_outside: float = 0.0  # on a receiver, outside every layer (beyond a raster's edge)
     fallback_lights: int = 0
     fallback_receivers: tuple = ()
+    coarse: int = 0  # layers of a caustic out of the camera's view (drawn coarsely)
 
     def text(self) -> str:
         shares = (
             (share_text(self.flux_lost, self.flux_emitted), "missed every receiver"),
             (
                 share_text(self.flux_outside, self.flux_emitted),
-                "landed outside the layers (out of view or past their edge)",
+                "landed outside the layers (past their edge)",
             ),
         )
         parts = [f"{share} {what}" for share, what in shares if share]
         # (the report's first words count the layers and fallback spots: not said again)
-        return f"{self.faces} texels and {self.rays} rays in all" + (
+        out = f"{self.faces} texels and {self.rays} rays in all" + (
             f"; of the flux, {' and '.join(parts)}" if parts else ""
         )
+        if self.coarse:  # drawn: a mirror may show them
+            out += (
+                f"; {self.coarse} of the layers coarse, where the camera does not see the "
+                "caustic (for reflections)"
+            )
+        return out
 
 
 def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFigures:
@@ -165,4 +178,5 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
         flux_outside=float(layer.flux_outside),
         fallback_lights=fallback_lights,
         fallback_receivers=tuple(fallback_receivers),
+        coarse=sum(1 for p in layer.patches if p.coarse),
     )

@@ -23,7 +23,8 @@ bright core in a wide faint halo, so the texel lines are spaced by a separable s
 median distance from it: texels are fine in the core and grow in the halo, and the faces
 stay rectangles that do not overlap. The resolution is a parameter, so the layer's
 topology is fixed while a light moves; with the camera's ``view`` each raster spans
-only the landings in view and has its own resolution (texels per pixel there). Per
+only the landings in view and has its own resolution (texels per pixel there), and a
+coarse raster over the whole caustic takes what lands out of view. Per
 patch the output is plain data for one emissive mesh: a grid of vertices lifted by
 ``offset`` along the normal toward the light (no z-fighting), quad faces, the
 irradiance per texel (W/m², RGB = flux × light colour × lens tint) and the receiver's
@@ -70,6 +71,7 @@ class PatchLayer:
     uv_inside: np.ndarray | None  # ((res+1)²,) False: beyond the patch (UV extrapolated);
     #                               None: the patch's UV is affine, valid everywhere
     axes: tuple | None = None  # ((c, s, ξ0, dξ) along u, along v): the texel lines' warp
+    coarse: bool = False  # the coarse raster of a caustic out of the camera's view
 
     @property
     def face_irradiance(self) -> np.ndarray:
@@ -107,6 +109,7 @@ class RasterFrame:
     axis_u: np.ndarray
     axis_v: np.ndarray
     axes: tuple
+    coarse: bool = False  # a coarse raster: it takes what lands beyond the other one
 
 
 @dataclass
@@ -278,11 +281,15 @@ def build_layer(
     sample of an extended source over its share (False: K sharp images, for
     comparison). ``raster_frames``: the rasters to fill (one each, in that order; a
     beam's flux on a patch without one is lost), instead of fitting them here.
-    ``view`` (`view.View`): each raster spans only the landings in view (none if none
-    is: that flux counts as outside) and has its own resolution, `TEXELS_PER_PIXEL`
-    per pixel there (the pixel at its nearest landings), at most ``resolution``; all
-    rasters together at most ``max_texels`` texels. Without a view every raster has
-    ``resolution`` texels per side."""
+    ``view`` (`view.View`): each raster spans only the landings in view and has its
+    own resolution, `TEXELS_PER_PIXEL` per pixel there (the pixel at its nearest
+    landings), at most ``resolution``; where more than ``clip_fraction`` of its flux
+    lands out of view, a coarse raster (`PatchLayer.coarse`, `COARSE_RESOLUTION` per
+    side) spans all its landings and takes what lands beyond the fine one (a mirror
+    may show it: drawn, not outside). All rasters together at most ``max_texels``
+    texels (the coarse ones `COARSE_SHARE` of them). Without a view every raster has
+    ``resolution`` texels per side. A given ``RasterFrame`` that is ``coarse`` takes
+    what lands beyond the other given raster of its (patch, beams)."""
     t0 = time.perf_counter()
     plist = index.patches
     if not beams:
@@ -315,6 +322,7 @@ def build_layer(
     wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
     frames, members, slot_pts, floors, pixels = [], [], [], [], []
+    outer_of, coarse_of = [], []  # per raster: its coarse raster (−1: none); coarse or not
     on = np.nonzero(pid >= 0)[0]
     on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
     p_starts = np.nonzero(np.diff(np.concatenate([[-1], pid[on]])))[0]
@@ -338,23 +346,48 @@ def build_layer(
         for comp in comps:
             sel = np.concatenate([np.arange(b_starts[c], b_ends[c]) for c in comp])
             beams_here = bid[idx[b_starts[comp]]]
-            if view is not None:  # the raster spans what the camera sees of the caustic
-                sel = sel[view.in_view(pts[idx[sel]])]
-                if not len(sel):
-                    continue  # nothing of it in view: no raster (its flux: outside)
-                pix = view.pixel(pts[idx[sel]])
-                pixels.append(weighted_quantile(pix, w_here[sel], NEAR_PIXEL_SHARE))
-            slot_of[beams_here, p] = len(frames)
             floor = 0.0 if min_texel is None else float(np.min(np.asarray(min_texel)[beams_here]))
-            frames.append((p, n_out, au, av))
-            members.append(beams_here)
-            slot_pts.append((x[sel], y[sel], w_here[sel]))
-            floors.append(floor)
+            parts = [(sel, False)]
+            if view is not None:  # the raster spans what the camera sees of the caustic
+                seen = view.in_view(pts[idx[sel]])
+                w_sel = w_here[sel]
+                # and a coarse one all of it, for what lands out of view (a mirror sees it)
+                unseen = float(w_sel[~seen].sum()) > clip_fraction * float(w_sel.sum())
+                parts = [(sel[seen], False)] if np.any(seen) else []
+                parts += [(sel, True)] if unseen else []
+            inner = -1
+            for part, coarse in parts:
+                if view is not None and not coarse:
+                    pix = view.pixel(pts[idx[part]])
+                    pixels.append(weighted_quantile(pix, w_here[part], NEAR_PIXEL_SHARE))
+                elif view is not None:
+                    pixels.append(np.inf)  # (its resolution: `_with_coarse`)
+                if inner >= 0:
+                    outer_of[inner] = len(frames)
+                else:
+                    slot_of[beams_here, p] = len(frames)
+                inner = len(frames)
+                outer_of.append(-1)
+                coarse_of.append(coarse)
+                frames.append((p, n_out, au, av))
+                members.append(beams_here)
+                slot_pts.append((x[part], y[part], w_here[part]))
+                floors.append(floor)
     given = raster_frames or []
-    for rf in given:  # the bake's fixed rasters
-        slot_of[np.asarray(rf.beams, dtype=np.int64), rf.patch] = len(frames)
+    base = len(frames)
+    for rf in given:  # the bake's fixed rasters (in their order: the caller's)
         frames.append((rf.patch, rf.normal, rf.axis_u, rf.axis_v))
         members.append(np.asarray(rf.beams, dtype=np.int64))
+        outer_of.append(-1)
+        coarse_of.append(bool(rf.coarse))
+        if not rf.coarse:
+            slot_of[members[-1], rf.patch] = len(frames) - 1
+    for k, rf in enumerate(given):  # a coarse one takes what lands beyond the other
+        first = slot_of[members[base + k][0], rf.patch] if len(rf.beams) else -1
+        if rf.coarse and first >= 0:
+            outer_of[first] = base + k
+        elif rf.coarse:
+            slot_of[members[base + k], rf.patch] = base + k
     fr = {
         "au": np.array([f[2] for f in frames]).reshape(-1, 3),
         "av": np.array([f[3] for f in frames]).reshape(-1, 3),
@@ -363,12 +396,14 @@ def build_layer(
         for j, name in enumerate(AXIS_FIELDS):
             fr[key + name] = np.array([float(rf.axes[k][j]) for rf in given])
     fr["res"] = np.full(len(frames), res, dtype=np.int64)
+    fr["outer"] = np.asarray(outer_of, dtype=np.int64).reshape(-1)
+    coarse_of = np.asarray(coarse_of, dtype=bool).reshape(-1)
     if not given:  # every raster's texel lines at once (one sort per axis for all)
         gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
         w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
         if view is not None and len(frames):
             fr["res"] = _view_resolutions(slot_pts, gid, w_all, pixels, clip_fraction, res)
-            fr["res"] = _within_texels(fr["res"], max_texels)
+            fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
         c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
         axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, fr["res"], warp, floors)
@@ -493,6 +528,7 @@ def build_layer(
                 uvs=uvs,
                 uv_inside=inside,
                 axes=tuple(tuple(float(fr[k + n][slot]) for n in AXIS_FIELDS) for k in ("u", "v")),
+                coarse=bool(coarse_of[slot]),
             )
         )
     t3 = time.perf_counter()
@@ -593,6 +629,11 @@ NEAR_PIXEL_SHARE = 0.1
 #: for the 60° marble of bench/real_scenes.py).
 TEXELS_PER_PIXEL = 3.0
 MIN_RESOLUTION = 16
+#: Texels per side of the coarse raster that holds a caustic where the camera does not
+#: see it (a mirror or glossy surface may: drawn coarsely, not missing), and the share
+#: of the texel budget those rasters may take at most.
+COARSE_RESOLUTION = 48
+COARSE_SHARE = 0.25
 
 
 def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.ndarray:
@@ -619,6 +660,20 @@ def _within_texels(res: np.ndarray, max_texels: int | None) -> np.ndarray:
         return res
     k = np.sqrt(max_texels / total)
     return np.maximum(np.floor(res * k), MIN_RESOLUTION).astype(np.int64)
+
+
+def _with_coarse(res: np.ndarray, coarse: np.ndarray, res_max: int, max_texels) -> np.ndarray:
+    """The view rasters' resolutions with the coarse ones (out of view) at
+    `COARSE_RESOLUTION` per side: those together at most `COARSE_SHARE` of
+    ``max_texels``, the rasters in view within the rest (`_within_texels`)."""
+    res = res.copy()
+    res[coarse] = min(COARSE_RESOLUTION, max(int(res_max), MIN_RESOLUTION))
+    if max_texels is None:
+        return res
+    res[coarse] = _within_texels(res[coarse], int(COARSE_SHARE * max_texels))
+    rest = max(int(max_texels) - int(np.sum(res[coarse].astype(float) ** 2)), 0)
+    res[~coarse] = _within_texels(res[~coarse], rest)
+    return res
 
 
 def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
@@ -687,19 +742,39 @@ def _deposit(acc, out_acc, points, slots, flux, fr):
     y = np.einsum("ij,ij->i", points, fr["av"][slots])
     ix = _texel_index(x, fr, "u", slots)
     iy = _texel_index(y, fr, "v", slots)
-    _accumulate(acc, out_acc, ix, iy, slots, flux, fr)
+    _accumulate(acc, out_acc, ix, iy, slots, flux, fr, (x, y))
 
 
-def _accumulate(acc, out_acc, ix, iy, slots, flux, fr):
+def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
     """Add ``flux`` at texels (ix, iy) of rasters ``slots`` (broadcast against them;
     raster k has ``fr["res"][k]`` texels per side, stored in a block of ``fr["side"]``²);
-    beyond a raster, to its ``out_acc``."""
+    beyond a raster, into its coarse raster (``fr["outer"]``, found from the plane
+    coordinates ``xy``, which all rasters of a patch share) or, without one, to its
+    ``out_acc``."""
     n = len(acc)
     side = fr["side"]
     res = fr["res"].astype(np.uint64)[slots]
     # unsigned: a negative index compares as huge (one test per side); the texels
     # beyond a raster go to bin n + slot, so one bincount takes both
     inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
+    if xy is not None and np.any(fr["outer"] >= 0):
+        slots = np.broadcast_to(slots, inside.shape)
+        outer = fr["outer"][slots]
+        move = ~inside & (outer >= 0)
+        if np.any(move):
+            x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
+            to = outer[move]
+            flux = np.broadcast_to(flux, inside.shape)
+            _accumulate(
+                acc,
+                out_acc,
+                _texel_index(x, fr, "u", to),
+                _texel_index(y, fr, "v", to),
+                to,
+                flux[move],
+                fr,
+            )
+            flux = np.where(move, 0.0, flux)
     idx = np.where(inside, (slots * side + iy) * side + ix, n + slots)
     both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
     acc += both[:n]
@@ -774,7 +849,13 @@ def _splat_cells(
         w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
         ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
         iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
-        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, fr)
+        xy = None
+        if np.any(fr["outer"] >= 0):  # the plane coordinates, for the coarse rasters
+            xy = (
+                px * su[sel, None] + fr["uc"][slots[sel], None],
+                py * sv[sel, None] + fr["vc"][slots[sel], None],
+            )
+        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, fr, xy)
         n_sub += w.size
     return n_sub
 

@@ -1,6 +1,6 @@
 """What the camera sees, as plain numbers: which points are in view and how large a
 pixel is there (`rasters.build_layer` fits each raster to the part of its caustic in
-view, with texels about a pixel there; none out of view)."""
+view, with texels about a pixel there; a coarse raster for what lands out of view)."""
 
 from __future__ import annotations
 

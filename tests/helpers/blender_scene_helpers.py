@@ -54,10 +54,23 @@ def add_point_light(name, location, energy=1000.0, radius=0.0, kind="POINT"):
     return ob
 
 
-def lens_lights():
+def lens_lights(copies=False):
+    """The extension's objects, by name; without the caustic layers' copies for EEVEE's
+    reflections (`blender/build/layers.py`) unless ``copies``."""
     return sorted(
-        (o for o in bpy.data.objects if o.lens_lights.is_lens_light), key=lambda o: o.name
+        (
+            o
+            for o in bpy.data.objects
+            if o.lens_lights.is_lens_light and (copies or not o.get("lens_lights_reflection"))
+        ),
+        key=lambda o: o.name,
     )
+
+
+def caustic_layers():
+    """The caustic layers among `lens_lights()`: their meshes, without the copies made
+    for EEVEE's reflections (`blender/build/layers.py`)."""
+    return [o for o in lens_lights() if o.type == "MESH" and not o.get("lens_lights_reflection")]
 
 
 def generate():

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from blender_scene_helpers import (
     basic_scene,
+    caustic_layers,
     generate,
     lens_lights,
     set_engine,
@@ -31,7 +32,7 @@ FLUX_TOL = 0.02
 
 
 def layers():
-    return [o for o in lens_lights() if o.type == "MESH"]
+    return caustic_layers()
 
 
 def layer_flux(ob):
@@ -77,6 +78,38 @@ def test_auto_in_eevee_builds_layers_not_lights(empty_blend):
     (ob2,) = layers()
     assert layer_flux(ob2) == pytest.approx(layer_flux_value := layer_flux(ob2))
     assert layer_flux_value == pytest.approx(exact, rel=FLUX_TOL)
+
+
+def test_eevee_layers_have_a_reflection_copy_only_probes_see(empty_blend):
+    # EEVEE's reflections hold no blended surface (issue 28 item 6): each layer gets a
+    # copy on the same mesh, Dithered, hidden from the camera and from every ray (so
+    # Cycles never draws it twice) and from volume probes (it lights nothing).
+    basic_scene()
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    made = [o for o in lens_lights(copies=True) if o.type == "MESH"]
+    copies = [o for o in made if o.get("lens_lights_reflection")]
+    assert len(copies) == len(layers()) >= 1
+    assert figures["layers"] == len(layers())  # the report counts layers, not copies
+    for copy in copies:
+        (ob,) = [o for o in layers() if o.data == copy.data]
+        assert copy.name == ob.name + " reflected"
+        for ray in ("camera", "diffuse", "glossy", "transmission", "shadow", "volume_scatter"):
+            assert not getattr(copy, "visible_" + ray), ray
+        if hasattr(copy, "hide_probe_volume"):
+            assert copy.hide_probe_volume and not copy.hide_probe_plane
+        mat = copy.material_slots[0].material
+        assert copy.material_slots[0].link == "OBJECT" and mat is not ob.data.materials[0]
+        assert mat.get(MARK) == "layer"
+        if hasattr(mat, "surface_render_method"):
+            assert mat.surface_render_method == "DITHERED"
+        types = {n.type for n in mat.node_tree.nodes}
+        assert {"ATTRIBUTE", "EMISSION", "BSDF_DIFFUSE", "BSDF_TRANSPARENT", "MIX_SHADER"} <= types
+    # Cycles sees the layer itself in mirrors (glossy rays): no copy there
+    set_engine("CYCLES")
+    bpy.context.scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    generate()
+    assert layers() and not [o for o in lens_lights(copies=True) if o.get("lens_lights_reflection")]
 
 
 def test_auto_in_cycles_keeps_the_exact_profile(empty_blend):

@@ -16,7 +16,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import basic_scene, lens_lights, set_engine
+from blender_scene_helpers import basic_scene, caustic_layers, lens_lights, set_engine
 from measuring_scene import build_measuring_scene, new_material
 from stock_render import stock_render
 
@@ -62,7 +62,8 @@ def make_scene():
 
 
 def layer_objects():
-    return [o for o in lens_lights() if o.type == "MESH"]
+    """The layers in the camera's view (not the coarse ones of the halo out of it)."""
+    return [o for o in caustic_layers() if "coarse" not in o.lens_lights.note]
 
 
 def face_areas_centres(me):

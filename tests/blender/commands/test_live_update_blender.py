@@ -6,7 +6,7 @@ import math
 
 import bpy
 import pytest
-from blender_scene_helpers import basic_scene, generate, lens_lights, set_engine
+from blender_scene_helpers import basic_scene, caustic_layers, generate, lens_lights, set_engine
 from mathutils import Vector
 
 from core.lens import ball_optics
@@ -126,7 +126,7 @@ def test_caustic_layer_is_rebuilt_on_frame_change(empty_blend):
     scene.lens_lights.live_update = True
 
     def centroid():
-        (ob,) = [o for o in lens_lights() if o.type == "MESH"]
+        (ob,) = caustic_layers()
         xs = [v.co.x for v in ob.data.vertices]
         return sum(xs) / len(xs)
 

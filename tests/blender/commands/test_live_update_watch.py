@@ -8,6 +8,7 @@ import pytest
 from blender_scene_helpers import (
     add_point_light,
     add_sphere,
+    caustic_layers,
     generate,
     glass_material,
     lens_lights,
@@ -151,7 +152,7 @@ def _layer_scene():
 
 
 def _layer_colour():
-    (layer,) = [o for o in lens_lights() if o.type == "MESH" and "Floor" in o.name]
+    (layer,) = [o for o in caustic_layers() if "Floor" in o.name]
     nodes = layer.active_material.node_tree.nodes
     (mix,) = [n for n in nodes if n.type == "MIX" and n.data_type == "RGBA"]
     return tuple(round(x, 5) for x in mix.inputs["B"].default_value)

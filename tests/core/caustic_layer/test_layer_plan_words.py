@@ -12,7 +12,18 @@ def test_lost_and_outside_flux_are_said_apart():
     text = _text(flux_lost=12.0, flux_outside=26.0)
     assert text == (
         "800 texels and 5000 rays in all; of the flux, 12 % missed every receiver "
-        "and 26 % landed outside the layers (out of view or past their edge)"
+        "and 26 % landed outside the layers (past their edge)"
+    )
+
+
+def test_coarse_layers_out_of_view_are_said_as_drawn():
+    # flux drawn by a coarse layer out of the camera's view is in the layers, not
+    # "outside" (issue 28 item 6): the line says how many layers are coarse
+    text = _text(flux_outside=0.4, coarse=1)
+    assert text == (
+        "800 texels and 5000 rays in all; of the flux, 0.4 % landed outside the layers "
+        "(past their edge); 1 of the layers coarse, where the camera does not see the "
+        "caustic (for reflections)"
     )
 
 
