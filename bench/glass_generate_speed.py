@@ -2,7 +2,7 @@
 
 The scene (issue 25's speed case): a floor (8 m plane), a glass pebble — a UV sphere of
 radius 0.5 scaled (1, 1, 0.5), shaded smooth, 1 m above the floor — one point light
-(Blender's default radius) 3 m above it, a 1920 × 1080 camera looking down at it
+(radius 0, as `bpy.data.lights.new` makes it) 3 m above it, a 1920 × 1080 camera looking down at it
 from 5 m. 2 000 triangles (32 × 32 segments: 1 984) and 20 000 (100 × 100: 19 800),
 EEVEE and Cycles. ``bpy.ops``-free: `blender.commands.generate.generate` on the
 context, three times per case; the median wall time and the median of each step's
@@ -181,7 +181,7 @@ def main(argv=None) -> int:
         f"`./lens-lights bench glass_generate_speed --repeat {args.repeat}"
         + (" --before <main at the start>`" if args.before else "`")
         + ": the scene of the bench's docstring (pebble r 0.5 × (1, 1, 0.5), one point"
-        " light of Blender's default radius, floor, 1920 × 1080 camera), Generate run"
+        " light of radius 0, floor, 1920 × 1080 camera), Generate run"
         f" {args.repeat} times per case; median wall time and the median of each step, s.",
         "",
     ]
