@@ -25,6 +25,7 @@ from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.mesh_sources import (
     MESH_KIND,
     budget_cuts,
+    mesh_facets,
     mesh_min_rays,
     mesh_sheet_sources,
 )
@@ -94,16 +95,16 @@ def prepare(depsgraph, work, options: dict):
     )
     camera = sheet_camera(read.camera, read.width, ortho, [s.lens.center for s in sources])
     has_camera = cam is not None and cam.type == "CAMERA"
-    # a glass mesh's floor of rays grows with its triangles and its size on screen
+    # a glass mesh's floor of rays grows with its flat facets and its size on screen
     work.layer_floors = floors = [MIN_RAYS_PER_SOURCE] * (len(sources) - len(meshes)) + [
         mesh_min_rays(
-            read.mesh_lenses[k].n_triangles,
+            mesh_facets(s.lens),
             MIN_RAYS_PER_SOURCE,
             2.0
             * s.lens.radius
             / pixel_size(camera.position, s.lens.center, camera.fov, camera.width_px),
         )
-        for (_light, k), s in zip(read.mesh_pairs, meshes, strict=True)
+        for s in meshes
     ]
     # the rasters follow what the camera sees (without one: the budget's one resolution)
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None

@@ -30,6 +30,7 @@ from ..phase1.all_lights import compute_phase1_primaries
 from ..phase1.skip_reasons import Reason
 from ..scene.arrays import SceneArrays
 from ..tiers.base import effective_primary, unblocked_share
+from .beam_trace import optics_of
 from .emitters import Lens, PointLight
 from .pipeline import SheetSource
 from .plan import SOURCE_SAMPLES
@@ -37,17 +38,28 @@ from .shadow import ShadowList
 
 #: The lens kind of a glass mesh (`core.lens.kinds.LENS_KINDS`).
 MESH_KIND = "mesh"
-#: Node rays a glass mesh's beam gets at least per triangle (its facets' caustics
-#: need rays of their own; the ray budget's caps still apply and the report says so).
+#: Node rays a glass mesh's beam gets at least per facet (a flat facet's caustic
+#: needs rays of its own; the ray budget's caps still apply and the report says so).
 RAYS_PER_TRIANGLE = 4
 
 
-def mesh_min_rays(n_triangles: int, min_rays: int, pixels: float = math.inf) -> int:
-    """The ray budget's floor for a mesh of `n_triangles` (`RAYS_PER_TRIANGLE` each),
-    no more than `RAYS_PER_TRIANGLE` per pixel² of its bounding disc on screen
-    (`pixels`: its diameter in pixels; a mesh seen small needs no ray per facet)."""
+def mesh_facets(lens: Lens) -> int:
+    """The facets a mesh lens record shows: its smooth face groups
+    (`MeshLens.face_groups`: one for a smooth pebble of any triangle count, one per
+    triangle of a flat-shaded mesh). Its optics are built here once
+    (`beam_trace.optics_of` keeps them for the trace)."""
+    groups = optics_of(lens).face_groups
+    return int(groups.max(initial=-1)) + 1
+
+
+def mesh_min_rays(n_facets: int, min_rays: int, pixels: float = math.inf) -> int:
+    """The ray budget's floor for a mesh of `n_facets` flat facets (`mesh_facets`;
+    `RAYS_PER_TRIANGLE` each: a smooth surface's triangles make one sheet that the
+    screen-size budget resolves), no more than `RAYS_PER_TRIANGLE` per pixel² of its
+    bounding disc on screen (`pixels`: its diameter in pixels; a mesh seen small needs
+    no ray per facet)."""
     on_screen = RAYS_PER_TRIANGLE * float(pixels) ** 2
-    return max(int(min_rays), int(min(RAYS_PER_TRIANGLE * int(n_triangles), on_screen)))
+    return max(int(min_rays), int(min(RAYS_PER_TRIANGLE * int(n_facets), on_screen)))
 
 
 def budget_cuts(names, wanted, got) -> str:

@@ -34,6 +34,8 @@ from .refraction import fresnel_from_cosines, refract
 #: Corner normals closer than this (cosine) on both ends of a shared edge: one smooth
 #: face group there (the path signature does not change across the edge).
 SMOOTH_COS = 0.9999
+#: The sine of a fold between two faces below which `MeshLens.convex` calls them flat.
+FLAT_SIN = 1e-4
 _HASH = np.uint64(1_000_003)
 
 
@@ -172,8 +174,12 @@ class MeshLens(Lens):
         tol = 1e-9 * max(self.radius, 1e-300)
         for x, cy in ((ta, self.triangles[tb]), (tb, self.triangles[ta])):
             n, p0 = self.face_normals[x], v[self.triangles[x, 0]]
-            ahead = _dot(v[cy] - p0[:, None, :], n[:, None, :]).max(axis=1)
-            if (ahead > tol).any():
+            off = v[cy] - p0[:, None, :]
+            # a flat quad read from Blender's float32 coordinates bends by ~1e-6 of its
+            # size either way: a fold below FLAT_SIN (of the far vertex's distance)
+            # is flat (a ray grazing so close to the plane carries no flux to speak of)
+            slack = tol + FLAT_SIN * np.linalg.norm(off, axis=2)
+            if (_dot(off, n[:, None, :]) > slack).any():
                 return False
         return True
 

@@ -10,7 +10,14 @@ import math
 
 import numpy as np
 
-from core.caustic_layer.mesh_sources import cap_flux, mesh_color, mesh_sheet_sources
+from core.caustic_layer.emitters import Lens
+from core.caustic_layer.mesh_sources import (
+    cap_flux,
+    mesh_color,
+    mesh_facets,
+    mesh_min_rays,
+    mesh_sheet_sources,
+)
 from core.lens.closed_mesh import LocalMesh, world_mesh
 from core.lens.glass import LensOptics
 from core.phase1.skip_reasons import Reason
@@ -105,3 +112,29 @@ def test_the_colour_carries_the_tint_and_the_absorption_beyond_its_mean():
     # mean chord of the unit cube: 4 V / S = 2/3; absorption beyond the mean (1): −1, 0, 1
     expect = np.array([1.0, 0.5, 0.25]) * np.exp(-np.array([-1.0, 0.0, 1.0]) * 2.0 / 3.0)
     assert np.allclose(mesh_color(cube, (1.0, 1.0, 1.0)), expect)
+
+
+def _sphere_record(n_lat, n_lon, smooth):
+    """A UV sphere (`reference.meshes.uv_sphere`) as a mesh lens record: smooth
+    (the sphere's own normals at the corners) or flat-shaded (no corner normals)."""
+    from reference.meshes import uv_sphere
+
+    m = uv_sphere((0.0, 0.0, 1.0), 0.5, n_lat, n_lon)
+    v, t = np.asarray(m.vertices), np.asarray(m.triangles)
+    nrm = (v[t] - [0.0, 0.0, 1.0]) / 0.5 if smooth else None
+    return Lens(np.array([0.0, 0.0, 1.0]), 0.5 * (1 + 1e-9), 1.5, kind="mesh", params=(v, t, nrm))
+
+
+def test_a_smooth_pebble_is_one_facet_and_a_flat_one_a_facet_per_face():
+    """A smooth sphere of 1 984 triangles shows one facet, and its ray floor is the
+    screen's, not 4 per triangle; flat-shaded, each of its planar quads (two
+    triangles) is a facet (30 rows of 32), and each polar fan one (its neighbouring
+    triangles' normals, tilted 2.8° from the pole 11.25° apart in azimuth, differ by
+    0.55°: under the 0.81° of `SMOOTH_COS`, one smooth group)."""
+    smooth, flat = _sphere_record(32, 32, True), _sphere_record(32, 32, False)
+    assert len(smooth.params[1]) == 2 * 32 * 31 == 1984
+    assert mesh_facets(smooth) == 1
+    assert mesh_facets(flat) == 30 * 32 + 2
+    assert mesh_min_rays(mesh_facets(smooth), 256, pixels=500.0) == 256
+    assert mesh_min_rays(mesh_facets(flat), 256, pixels=500.0) == 4 * 962
+    assert mesh_min_rays(mesh_facets(flat), 256, pixels=10.0) == 400  # 4 per pixel²

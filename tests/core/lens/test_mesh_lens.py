@@ -260,3 +260,44 @@ def test_light_lost_through_a_hole_is_counted_as_leaked():
     assert br.leaked.tolist() == [True, False]
     np.testing.assert_allclose(br.weight.sum(0) + br.absorbed + br.dropped, 1.0, atol=1e-12)
     assert br.dropped[0] == pytest.approx(1 - ((N - 1) / (N + 1)) ** 2, rel=1e-9)
+
+
+def _float32_pebble():
+    """A smooth UV-sphere pebble scaled (1, 1, 0.5) away from the origin, its
+    coordinates rounded to float32 as Blender stores them: its quads (two triangles
+    each) fold by ~1e-7 either way."""
+    v, t, _ = sphere(0.5, 32, 32)
+    v = (v * [1.0, 1.0, 0.5] + [3.0, -2.0, 1.0]).astype(np.float32).astype(float)
+    return v, t
+
+
+def test_a_convex_mesh_in_float32_coordinates_is_still_convex():
+    """Blender's float32 vertices bend its flat quads a little either way: the mesh
+    is still convex (one way in, one way out: the fast walk), and that walk gives
+    every branch the general walk gives (re-entry tested) to rounding."""
+    v, t = _float32_pebble()
+    lens = _mesh(v, t)
+    assert lens.convex
+    general = _mesh(v, t)
+    general.__dict__["convex"] = False  # the walk that tests every ray against the mesh
+    rng = np.random.default_rng(3)
+    light = np.array([3.4, -1.7, 5.0])
+    tgt = np.array([3.0, -2.0, 1.0]) + rng.uniform(-0.55, 0.55, (4000, 3)) * [1, 1, 0.5]
+    dirs = tgt - light
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    o = np.broadcast_to(light, dirs.shape)
+    a = lens.trace_branches(o, dirs, max_depth=8, min_weight=5e-3)
+    b = general.trace_branches(o, dirs, max_depth=8, min_weight=5e-3)
+    through = lambda br: np.where(br.crossings >= 2, br.weight, 0.0).sum(axis=0)  # noqa: E731
+    np.testing.assert_allclose(through(a), through(b), atol=1e-12)
+    assert through(a).sum() > 100.0  # most rays went through
+
+
+def test_a_real_fold_outward_is_not_convex():
+    """A pebble with one vertex pushed in by a thousandth of its size is concave there."""
+    v, t = _float32_pebble()
+    v = v.copy()
+    k = len(v) // 2 + 5  # a vertex on the equator's side, away from the poles
+    c = np.array([3.0, -2.0, 1.0])
+    v[k] = c + (v[k] - c) * (1.0 - 1e-3 * 8)
+    assert not _mesh(v, t).convex

@@ -1,0 +1,207 @@
+"""Generate's wall time on a glass pebble, before and after → reports/glass_generate_speed.md.
+
+The scene (issue 25's speed case): a floor (8 m plane), a glass pebble — a UV sphere of
+radius 0.5 scaled (1, 1, 0.5), shaded smooth, 1 m above the floor — one point light
+(radius 0, as `bpy.data.lights.new` makes it) 3 m above it, a 1920 × 1080 camera looking down at it
+from 5 m. 2 000 triangles (32 × 32 segments: 1 984) and 20 000 (100 × 100: 19 800),
+EEVEE and Cycles. ``bpy.ops``-free: `blender.commands.generate.generate` on the
+context, three times per case; the median wall time and the median of each step's
+time (`generate.LAST_FIGURES["timings"]`), the node and refinement rays traced.
+
+    ./lens-lights bench glass_generate_speed [--before TREE] [--repeat 3]
+
+``--before TREE``: a checkout of the code to compare with (e.g. ``git archive main |
+tar -x -C /tmp/before``); each tree runs in its own process (``--tree``, ``--json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+REPORT = ROOT / "reports" / "glass_generate_speed.md"
+CASES = [(2000, 32, 32), (20000, 100, 100)]
+ENGINES = ["BLENDER_EEVEE_NEXT", "CYCLES"]
+
+
+def load(tree: Path):
+    """The extension of ``tree`` as the package `lens_lights` (as dev_extension)."""
+    sys.path.insert(0, str(tree / "scripts"))
+    spec = importlib.util.spec_from_file_location(
+        "lens_lights", tree / "__init__.py", submodule_search_locations=[str(tree)]
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["lens_lights"] = module
+    spec.loader.exec_module(module)
+    module.register()
+    return module
+
+
+def scene(segments, rings, engine):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    try:
+        sc.render.engine = engine
+    except TypeError:  # Blender 5: EEVEE's name
+        sc.render.engine = "BLENDER_EEVEE"
+    sc.render.resolution_x, sc.render.resolution_y = 1920, 1080
+    bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_uv_sphere_add(
+        radius=0.5, segments=segments, ring_count=rings, location=(0.0, 0.0, 1.0)
+    )
+    peb = bpy.context.object
+    peb.name = "Pebble"
+    peb.scale = (1.0, 1.0, 0.5)
+    bpy.ops.object.shade_smooth()
+    mat = bpy.data.materials.new("Glass")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["IOR"].default_value = 1.5
+    peb.data.materials.append(mat)
+    lamp = bpy.data.lights.new("Lamp", "POINT")
+    lamp.energy = 1000.0
+    ob = bpy.data.objects.new("Lamp", lamp)
+    sc.collection.objects.link(ob)
+    ob.location = (0.3, 0.2, 4.0)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    sc.collection.objects.link(cam)
+    cam.location = (0.0, -3.0, 4.0)
+    cam.rotation_euler = (0.6435, 0.0, 0.0)  # toward (0, 0, 0)
+    sc.camera = cam
+    tris = sum(len(p.vertices) - 2 for p in peb.data.polygons)
+    return tris
+
+
+def run_tree(tree: Path, repeat: int) -> list[dict]:
+    import bpy
+
+    load(tree)
+    from lens_lights.blender.commands import generate as gen
+
+    rows = []
+    for label, seg, rings in CASES:
+        for engine in ENGINES:
+            walls, parts, rays = [], [], None
+            for _ in range(repeat):
+                tris = scene(seg, rings, engine)
+                t = time.perf_counter()
+                gen.generate(bpy.context)
+                walls.append(time.perf_counter() - t)
+                fig = gen.LAST_FIGURES
+                parts.append(dict(fig.get("timings", {})))
+                lb = getattr(bpy.context.scene.lens_lights, "last_report", "")
+                rays = rays or lb
+            keys = sorted({k for p in parts for k in p})
+            med = {k: statistics.median(p.get(k, 0.0) for p in parts) for k in keys}
+            rows.append(
+                dict(
+                    label=label,
+                    triangles=tris,
+                    engine=engine,
+                    wall=statistics.median(walls),
+                    walls=walls,
+                    parts=med,
+                    report=rays,
+                )
+            )
+            print(f"{label} {engine}: {statistics.median(walls):.3f} s", flush=True)
+    return rows
+
+
+def uptime() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+SHOWN = ["read", "phase1", "mesh sources", "receivers", "bake", "build"]
+
+
+def table(rows) -> list[str]:
+    out = ["| triangles | engine | Generate (median) | " + " | ".join(SHOWN) + " | runs |"]
+    out.append("|---:|---|---:|" + "---:|" * len(SHOWN) + "---|")
+    for r in rows:
+        p = r["parts"]
+        cells = [f"{p[k]:.3f}" if k in p else "–" for k in SHOWN]
+        eng = "EEVEE" if "EEVEE" in r["engine"] else "Cycles"
+        runs = ", ".join(f"{w:.2f}" for w in r["walls"])
+        out.append(
+            f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | "
+            + " | ".join(cells)
+            + f" | {runs} |"
+        )
+    return out
+
+
+def bake_parts(rows) -> list[str]:
+    keys = sorted({k for r in rows for k in r["parts"] if k.startswith("bake ")})
+    if not keys:
+        return []
+    out = ["| triangles | engine | " + " | ".join(k[5:] for k in keys) + " |"]
+    out.append("|---:|---|" + "---:|" * len(keys))
+    for r in rows:
+        eng = "EEVEE" if "EEVEE" in r["engine"] else "Cycles"
+        cells = [f"{r['parts'].get(k, 0.0):.3f}" for k in keys]
+        out.append(f"| {r['triangles']} | {eng} | " + " | ".join(cells) + " |")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tree", type=Path, default=None, help="run this tree, write --json")
+    ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--before", type=Path, default=None, help="a checkout to compare with")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    if args.tree is not None:
+        rows = run_tree(args.tree.resolve(), args.repeat)
+        args.json.write_text(json.dumps(rows, indent=1))
+        return 0
+    results = {}
+    for name, tree in [("before", args.before), ("after", ROOT)]:
+        if tree is None:
+            continue
+        out = Path(f"/tmp/glass_generate_speed_{name}_{os.getpid()}.json")
+        load0 = uptime()
+        cmd = [sys.executable, __file__, "--tree", str(tree), "--json", str(out)]
+        subprocess.run(cmd + ["--repeat", str(args.repeat)], check=True)
+        results[name] = (json.loads(out.read_text()), load0, uptime())
+    lines = [
+        "# Generate on a glass pebble: wall time",
+        "",
+        f"`./lens-lights bench glass_generate_speed --repeat {args.repeat}"
+        + (" --before <main at the start>`" if args.before else "`")
+        + ": the scene of the bench's docstring (pebble r 0.5 × (1, 1, 0.5), one point"
+        " light of radius 0, floor, 1920 × 1080 camera), Generate run"
+        f" {args.repeat} times per case; median wall time and the median of each step, s.",
+        "",
+    ]
+    for name, (rows, l0, l1) in results.items():
+        lines += [
+            f"## {name}",
+            "",
+            f"Load average (1, 5, 15 min) at the start: {l0}; at the end: {l1} (2 cores, shared).",
+            "",
+        ]
+        lines += table(rows) + [""] + ["The layer bake's parts:", ""] + bake_parts(rows) + [""]
+        lines += (
+            ["Reports:", ""]
+            + [f"- {r['triangles']} {r['engine']}: {r['report']}" for r in rows]
+            + [""]
+        )
+    REPORT.write_text("\n".join(lines))
+    print(f"wrote {REPORT}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
