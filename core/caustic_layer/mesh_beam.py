@@ -44,14 +44,12 @@ MIN_WEIGHT = 5e-3
 #: silhouette bounce long inside, so a sub-grid ray costs about two node rays:
 #: a quarter cost 0.2 s of CPU at 20 000 triangles (reports/mesh_lens_speed.md).
 REFINE_SHARE = 4
-#: ... but at least this many for a mesh of up to `REFINE_FLOOR_TRIANGLES` (fewer in
-#: proportion above: a mesh's node rays grow with its triangles, `mesh_sources`). A
-#: small node grid (a cube's 12 triangles, an extended light's 16 samples of a few
-#: hundred rays each) has most of its cells on an edge of the beam, and cells cut from
-#: the refinement land as points (speckles): the real_glass bench's ice cube at 0.55
-#: L1 with 1 440 refinement rays, 0.13 with all 2 103 edge cells refined.
+#: ... but at least this many: a small node grid (a cube's 12 triangles, an extended
+#: light's 16 samples of a few hundred rays each) has most of its cells on an edge of
+#: the beam, and cells cut from the refinement land as points (speckles): the
+#: real_glass bench's ice cube at 0.55 L1 with 1 440 refinement rays, 0.13 with all
+#: 2 103 edge cells refined (reports/real_glass.md).
 REFINE_MIN_RAYS = 32_768
-REFINE_FLOOR_TRIANGLES = 1024
 #: A path of this weight that some corners of a cell have and others not: an edge in
 #: the beam, the cell is refined (a first internal reflection, ~4 %, counts).
 STRONG = 0.02
@@ -129,13 +127,6 @@ def corner_integrals(bt, rows, i0, di, p0, dp, frames, emitter, parallel, gl=(_G
             for k in range(4):
                 out[..., k] += g * bil[k]
     return out
-
-
-def refine_floor(n_triangles: int) -> int:
-    """The refinement's rays at least for a mesh of ``n_triangles``: `REFINE_MIN_RAYS`
-    up to `REFINE_FLOOR_TRIANGLES`, then in inverse proportion (a 20 000-triangle
-    mesh's own node rays give it more)."""
-    return int(REFINE_MIN_RAYS * min(1.0, REFINE_FLOOR_TRIANGLES / max(int(n_triangles), 1)))
 
 
 def _grid_corners(k, nr, na, wrap: bool):
@@ -277,7 +268,7 @@ def trace_mesh_beam(
     `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
     centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the
     shadow's centre); ``refine_rays``: sub-grid rays at most (None: the node rays
-    over `REFINE_SHARE`, at least `refine_floor`); ``strong``: a path appearing at
+    over `REFINE_SHARE`, at least `REFINE_MIN_RAYS`); ``strong``: a path appearing at
     some corners of a cell with this weight makes the cell refined (weaker ones are
     splatted where they are)."""
     k = len(bt.weights)
@@ -306,7 +297,7 @@ def trace_mesh_beam(
     lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
     mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
     budget = (
-        max(out.n_rays // REFINE_SHARE, refine_floor(len(getattr(optics, "triangles", ()))))
+        max(out.n_rays // REFINE_SHARE, REFINE_MIN_RAYS)
         if refine_rays is None
         else int(refine_rays)
     )

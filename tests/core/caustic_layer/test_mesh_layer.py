@@ -111,7 +111,7 @@ def test_cube_lit_off_axis_lands_like_binned_rays():
 def test_a_coarse_grid_refines_every_edge_of_the_cube():
     """A node grid as small as an extended light's sample gets (8 × 32, the real_glass
     bench's ice cube): most of its lit cells straddle an edge of the beam. They are all
-    refined (`refine_floor`), none landed as points: the layer matches the binned
+    refined (`REFINE_MIN_RAYS`), none landed as points: the layer matches the binned
     rays (with a quarter of 288 node rays as the budget, 8 of 130 edge cells were
     refined and the rest landed as points: L1 1.02; now 0.12)."""
     v, t, floor, light = _cube_scene()
