@@ -44,6 +44,12 @@ MIN_WEIGHT = 5e-3
 #: silhouette bounce long inside, so a sub-grid ray costs about two node rays:
 #: a quarter cost 0.2 s of CPU at 20 000 triangles (reports/mesh_lens_speed.md).
 REFINE_SHARE = 4
+#: ... but at least this many: a small node grid (a cube's 12 triangles, an extended
+#: light's 16 samples of a few hundred rays each) has most of its cells on an edge of
+#: the beam, and cells cut from the refinement land as points (speckles): the
+#: real_glass bench's ice cube at 0.55 L1 with 1 440 refinement rays, 0.13 with all
+#: 2 103 edge cells refined (reports/real_glass.md).
+REFINE_MIN_RAYS = 32_768
 #: A path of this weight that some corners of a cell have and others not: an edge in
 #: the beam, the cell is refined (a first internal reflection, ~4 %, counts).
 STRONG = 0.02
@@ -262,8 +268,9 @@ def trace_mesh_beam(
     `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
     centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the
     shadow's centre); ``refine_rays``: sub-grid rays at most (None: the node rays
-    over `REFINE_SHARE`); ``strong``: a path appearing at some corners of a cell with
-    this weight makes the cell refined (weaker ones are splatted where they are)."""
+    over `REFINE_SHARE`, at least `REFINE_MIN_RAYS`); ``strong``: a path appearing at
+    some corners of a cell with this weight makes the cell refined (weaker ones are
+    splatted where they are)."""
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
     di, dp = float(iota[1] - iota[0]), float(2.0 * np.pi / na)
@@ -289,7 +296,11 @@ def trace_mesh_beam(
     out = MeshBeam(n_rays=int(origins.size // 3))
     lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
     mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
-    budget = out.n_rays // REFINE_SHARE if refine_rays is None else int(refine_rays)
+    budget = (
+        max(out.n_rays // REFINE_SHARE, REFINE_MIN_RAYS)
+        if refine_rays is None
+        else int(refine_rays)
+    )
     m = int(np.clip(np.sqrt(budget / max(len(mixed), 1)) - 1.0, 2, 6))
     n_fit = budget // ((m + 1) ** 2)
     if len(mixed) > n_fit:  # the brightest cells refined; the rest drawn as they are
