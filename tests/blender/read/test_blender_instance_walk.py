@@ -327,6 +327,12 @@ def test_generate_reads_empties_in_bulk_with_the_walks_result(empty_blend, monke
 
     _empties_scene()
     bpy.context.scene.lens_lights.energy_model = "FITTED"
+    # squashed glass is a glass mesh (issue 25): its many traced layers (a dozen lamps
+    # × the squashed beads) are not what this test compares, and cost minutes; the
+    # bulk read of unevenly scaled instancers is compared above
+    bpy.data.objects["Drop"].lens_lights.lens_mode = "NEVER"
+    bpy.data.objects["Squashed"].scale = (1.0, 1.0, 1.0)
+    bpy.context.view_layer.update()
     bulk = []
     real = sr._bulk_walk
     monkeypatch.setattr(sr, "_bulk_walk", lambda dg: bulk.append(real(dg)) or bulk[-1])
