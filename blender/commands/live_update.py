@@ -171,6 +171,10 @@ def _landings(patches, sources) -> Capsules:
     patch: the faintest, holding `watch.FAINT_SHARE` of all, are left out)."""
     flux, middles, radii, owner = [], [], [], []
     for k, patch in enumerate(patches):
+        if getattr(patch, "coarse", False):
+            # drawn out of the camera's view for mirrors only: its big texels would
+            # watch half the scene (an edit there waits for the next followed one)
+            continue
         corners = patch.vertices[patch.faces]  # (texels, 4, 3)
         middle = corners.mean(axis=1)
         flux.append(patch.face_irradiance.sum(axis=1) * patch.texel_areas().reshape(-1))

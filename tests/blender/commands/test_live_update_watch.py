@@ -187,3 +187,25 @@ def test_the_lamps_colour_is_followed(empty_blend):
     r, g, b = light.data.color
     assert g / r == pytest.approx(0.6, rel=1e-4) and b / r == pytest.approx(0.3, rel=1e-4)
     assert _lights_state() == _fresh()
+
+
+def test_an_edit_away_from_the_light_costs_no_update_beside_a_coarse_layer(empty_blend):
+    """EEVEE, the caustic layer, a camera that does not see the floor: the caustic is
+    drawn by a coarse raster out of view (for mirrors), whose big texels once watched
+    the cube 3 m away and rebuilt the layer on every drag (seconds each)."""
+    import math
+
+    _, _, _, cube = _scene()
+    scene = bpy.context.scene
+    set_engine("BLENDER_EEVEE")
+    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    bpy.ops.object.camera_add(location=(0.0, -6.0, 2.5), rotation=(math.pi / 2, 0.0, 0.0))
+    scene.camera = bpy.context.object
+    scene.lens_lights.live_update = True
+    assert any("coarse" in o.lens_lights.note for o in caustic_layers())
+    bpy.context.view_layer.update()  # the echo of its own build
+    before = _figures()
+    for k in range(5):  # dragging the cube about, 3 m from the beam
+        cube.location.x = 3.0 + 0.1 * k
+        bpy.context.view_layer.update()
+    assert _figures() is before
