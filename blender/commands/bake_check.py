@@ -47,7 +47,7 @@ from ...core.tiers import builds_layer
 from ..build.ownership import created_objects
 from ..read.render_probe import viewport_differs
 from ..read.scene import read_depsgraph
-from . import pipeline
+from . import handlers, pipeline
 
 #: The last warning a render printed (None: none since the extension loaded).
 LAST_RENDER_WARNING: str | None = None
@@ -265,23 +265,10 @@ _HANDLERS = (
 )
 
 
-def _remove_ours(handlers, fn):
-    # By name as well: a reloaded extension's old functions are other objects.
-    for h in list(handlers):
-        if h is fn or (
-            getattr(h, "__module__", None) == fn.__module__ and h.__name__ == fn.__name__
-        ):
-            handlers.remove(h)
-
-
 def register():
-    for name, fn in _HANDLERS:
-        handlers = getattr(bpy.app.handlers, name)
-        _remove_ours(handlers, fn)
-        handlers.append(fn)
+    handlers.install(_HANDLERS)
 
 
 def unregister():
     cancel_redraw()
-    for name, fn in _HANDLERS:
-        _remove_ours(getattr(bpy.app.handlers, name), fn)
+    handlers.remove(_HANDLERS)

@@ -75,7 +75,7 @@ from ..build import cleanup, cycles_caustics, lights, ownership
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
-from . import bake_check, layer_stage, pipeline
+from . import bake_check, handlers, layer_stage, pipeline
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
@@ -527,24 +527,11 @@ _HANDLERS = (
 )
 
 
-def _remove_ours(handlers, fn):
-    # By name as well: a reloaded extension's old functions are other objects.
-    for h in list(handlers):
-        if h is fn or (
-            getattr(h, "__module__", None) == fn.__module__ and h.__name__ == fn.__name__
-        ):
-            handlers.remove(h)
-
-
 def register():
-    for name, fn in _HANDLERS:
-        handlers = getattr(bpy.app.handlers, name)
-        _remove_ours(handlers, fn)
-        handlers.append(fn)
+    handlers.install(_HANDLERS)
     set_live_update_hook(live_update_changed)
 
 
 def unregister():
     set_live_update_hook(None)
-    for name, fn in _HANDLERS:
-        _remove_ours(getattr(bpy.app.handlers, name), fn)
+    handlers.remove(_HANDLERS)
