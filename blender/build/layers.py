@@ -89,14 +89,7 @@ def layer_material(info, cache: dict):
     mix.inputs["Factor"].default_value = 1.0
     nt.links.new(attr.outputs["Color"], mix.inputs["A"])
     if info.image is not None:
-        uv = nt.nodes.new("ShaderNodeUVMap")
-        uv.uv_map = UV_NAME
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = info.image
-        tex.interpolation = info.interpolation
-        tex.extension = info.extension
-        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-        nt.links.new(tex.outputs["Color"], mix.inputs["B"])
+        nt.links.new(_receiver_texture(nt, info), mix.inputs["B"])
     else:
         mix.inputs["B"].default_value = (*info.color[:3], 1.0)
     em = nt.nodes.new("ShaderNodeEmission")
@@ -111,6 +104,19 @@ def layer_material(info, cache: dict):
     nt.links.new(add.outputs[0], out.inputs["Surface"])
     cache[key] = mat
     return mat
+
+
+def _receiver_texture(nt, info):
+    """In node tree `nt`: receiver `info`'s image read through the layer's UVs (as the
+    receiver reads it); its colour output."""
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = UV_NAME
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = info.image
+    tex.interpolation = info.interpolation
+    tex.extension = info.extension
+    nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    return tex.outputs["Color"]
 
 
 def reflection_material(info, cache: dict):
@@ -133,14 +139,7 @@ def reflection_material(info, cache: dict):
     attr.attribute_type = "GEOMETRY"
     attr.attribute_name = IRRADIANCE
     if info.image is not None:
-        uv = nt.nodes.new("ShaderNodeUVMap")
-        uv.uv_map = UV_NAME
-        tex = nt.nodes.new("ShaderNodeTexImage")
-        tex.image = info.image
-        tex.interpolation = info.interpolation
-        tex.extension = info.extension
-        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-        colour = tex.outputs["Color"]
+        colour = _receiver_texture(nt, info)
     else:
         rgb = nt.nodes.new("ShaderNodeRGB")
         rgb.outputs[0].default_value = (*info.color[:3], 1.0)
