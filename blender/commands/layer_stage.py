@@ -19,7 +19,10 @@ reported as glass it cannot model, and Cycles keeps its own caustics for them.
 
 from __future__ import annotations
 
+import hashlib
 import time
+
+import numpy as np
 
 from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.mesh_sources import (
@@ -29,7 +32,7 @@ from ...core.caustic_layer.mesh_sources import (
     mesh_min_rays,
     mesh_sheet_sources,
 )
-from ...core.caustic_layer.pipeline import bake
+from ...core.caustic_layer.pipeline import SheetBake, bake
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
     MAX_RAYS_PER_SOURCE,
@@ -60,9 +63,12 @@ from ..read.receivers import read_receivers
 EEVEE_ENGINES = frozenset(k for k, v in ENGINE_NAMES.items() if v == "EEVEE")
 
 
-def prepare(depsgraph, work, options: dict):
+def prepare(depsgraph, work, options: dict, live=None):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
-    ``layer_bake`` (None: no layer tier or nothing to bake)."""
+    ``layer_bake`` (None: no layer tier or nothing to bake). ``live``
+    (`core.caustic_layer.live.LiveLayer`, live update while the user drags): the
+    coarse layer in the last full bake's rasters when it can stand for it
+    (``layer_bake.coarse``), else the full bake."""
     work.receivers = work.layer_bake = None
     read = work.read
     spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
@@ -109,6 +115,19 @@ def prepare(depsgraph, work, options: dict):
     # the rasters follow what the camera sees (without one: the budget's one resolution)
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
     work.layer_sources = sources  # the bake lands them again (core/animation/layer_segments.py)
+    names = [(p.light_name, p.lens_name) for p in work.plan.lights] if spheres else []
+    names += mesh_names(read)
+    receivers = receivers_key(work.receivers)
+    if live is not None:
+        layer = live.coarse(sources, names, receivers)
+        if layer is not None:
+            full = live.bake
+            work.layer_bake = SheetBake(
+                layer, full.budgets, full.resolution, full.index, coarse=True
+            )
+            work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
+            work.timings["coarse layer"] = time.perf_counter() - t
+            return work
     work.layer_bake = bake(
         sources,
         work.receivers.mesh,
@@ -125,9 +144,35 @@ def prepare(depsgraph, work, options: dict):
         texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
         rays_per_texel=RAYS_PER_TEXEL if view is not None else None,
     )
+    work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
     return work
+
+
+def receivers_key(receivers) -> bytes:
+    """A digest of what the layer lands on and how it is drawn there: the receivers'
+    triangles (and UVs, object ids) and each receiver's name, colour, image and
+    fallback. Equal keys: a layer's rasters and materials still fit."""
+    h = hashlib.blake2b(digest_size=16)
+    mesh = receivers.mesh
+    for arr in (mesh.vertices, mesh.triangles, mesh.uvs, mesh.object_ids):
+        h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
+    for info in receivers.objects:
+        image = info.image.name if info.image is not None else ""
+        h.update(
+            repr(
+                (
+                    info.name,
+                    tuple(info.color),
+                    image,
+                    info.interpolation,
+                    info.extension,
+                    info.fallback,
+                )
+            ).encode()
+        )
+    return h.digest()
 
 
 def _leave_out_linked(work):

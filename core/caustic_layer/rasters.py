@@ -1090,14 +1090,35 @@ def beam_fluxes(
     return out
 
 
-def fixed_layer(rasters: FixedRasters, fluxes: list[BeamFlux], emitted: float) -> CausticLayer:
+def blur_flux(flux: np.ndarray, passes: int) -> np.ndarray:
+    """``flux`` (r, r, ...) spread by ``passes`` binomial [1 2 1]/4 passes along each
+    axis; what would leave the raster stays in its border texel (flux kept)."""
+    for axis in (0, 1):
+        for _ in range(passes):
+            f = np.moveaxis(flux, axis, 0)
+            out = 0.5 * f
+            out[1:] += 0.25 * f[:-1]
+            out[:-1] += 0.25 * f[1:]
+            out[0] += 0.25 * f[0]
+            out[-1] += 0.25 * f[-1]
+            flux = np.moveaxis(out, 0, axis)
+    return flux
+
+
+def fixed_layer(
+    rasters: FixedRasters, fluxes: list[BeamFlux], emitted: float, blur: int = 0
+) -> CausticLayer:
     """The layer of ``rasters`` holding the sum of ``fluxes`` (coloured), the geometry of
-    its patches unchanged (``emitted``: the beams' flux leaving the lenses)."""
+    its patches unchanged (``emitted``: the beams' flux leaving the lenses); ``blur``:
+    binomial passes over each raster's texel flux (`blur_flux`: a coarse splat's
+    sampling noise smoothed, the flux kept)."""
     n_slots, side = len(rasters.patches), rasters.side
     size = n_slots * side * side
     texels = np.concatenate([f.texels for f in fluxes] + [np.zeros(0, dtype=np.int64)])
     flux = np.concatenate([f.flux for f in fluxes] + [np.zeros(0)])
-    color = np.concatenate([np.broadcast_to(f.color, (len(f.texels), 3)) for f in fluxes] + [np.zeros((0, 3))])
+    color = np.concatenate(
+        [np.broadcast_to(f.color, (len(f.texels), 3)) for f in fluxes] + [np.zeros((0, 3))]
+    )
     rgb = np.stack([np.bincount(texels, flux * color[:, c], minlength=size) for c in range(3)], 1)
     plain = np.bincount(texels, flux, minlength=size).reshape(n_slots, side * side).sum(axis=1)
     outside = np.sum([f.outside for f in fluxes], axis=0) if fluxes else np.zeros(n_slots)
@@ -1109,7 +1130,7 @@ def fixed_layer(rasters: FixedRasters, fluxes: list[BeamFlux], emitted: float) -
         patches.append(
             dataclasses.replace(
                 pl,
-                irradiance=rgb[k, :r, :r] / area,
+                irradiance=blur_flux(rgb[k, :r, :r], blur) / area,
                 flux=float(plain[k]),
                 flux_outside=float(outside[k]),
             )

@@ -70,8 +70,20 @@ def vertex_measures(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return np.bincount(triangles.reshape(-1), np.repeat(area / 3.0, 3), minlength=len(vertices))
 
 
-def drawn_mesh(patch) -> DrawnMesh:
-    """The drawn mesh of `patch` (`rasters.PatchLayer`): see the module's text."""
+@dataclass
+class DrawnWeights:
+    """What `drawn_mesh` computes from a raster's geometry alone (its texel lines): per
+    drawn vertex of the grid the texel it carries, the cells' corners, and each
+    texel's measure; a raster refilled in place (live update) reuses them."""
+
+    carried: np.ndarray  # (n²,) texel of each grid vertex
+    cells: np.ndarray  # ((n−1)², 4) the grid cells' corners
+    measure: np.ndarray  # (res²,) the measure of the vertices carrying each texel
+
+
+def drawn_geometry(patch) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, DrawnWeights]:
+    """The drawn mesh's vertices, triangles, UVs (or None) and weights (`DrawnWeights`)
+    of `patch` (`rasters.PatchLayer`): see the module's text."""
     res = int(patch.resolution)
     lo, hi, texel = dual_lines(res)
     n = res + 2
@@ -90,16 +102,29 @@ def drawn_mesh(patch) -> DrawnMesh:
     d = vertex_measures(verts, tris)
     d_grid = d[: n * n] + np.bincount(cells.reshape(-1), np.repeat(0.25 * d[n * n :], 4), n * n)
     measure = np.bincount(carried, d_grid, minlength=res * res)
-    flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
-        -1, 1
-    )
-    value = flux / np.where(measure > 0.0, measure, 1.0)[:, None]
-    at_grid = value[carried]
     uvs = None
     if patch.uvs is not None:
         uv_grid = dual(patch.uvs)
         uvs = np.concatenate([uv_grid, uv_grid[cells].mean(axis=1)])
-    return DrawnMesh(verts, tris, uvs, np.concatenate([at_grid, at_grid[cells].mean(axis=1)]))
+    return verts, tris, uvs, DrawnWeights(carried, cells, measure)
+
+
+def drawn_irradiance(patch, weights: DrawnWeights) -> np.ndarray:
+    """(V, 3) the irradiance at the drawn mesh's vertices of `patch` (its texel
+    values), from its geometry's `weights` (`drawn_geometry`)."""
+    flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
+        -1, 1
+    )
+    m = weights.measure
+    value = flux / np.where(m > 0.0, m, 1.0)[:, None]
+    at_grid = value[weights.carried]
+    return np.concatenate([at_grid, at_grid[weights.cells].mean(axis=1)])
+
+
+def drawn_mesh(patch) -> DrawnMesh:
+    """The drawn mesh of `patch` (`rasters.PatchLayer`): see the module's text."""
+    verts, tris, uvs, weights = drawn_geometry(patch)
+    return DrawnMesh(verts, tris, uvs, drawn_irradiance(patch, weights))
 
 
 def tent_measures(axis, res: int) -> np.ndarray:
