@@ -498,12 +498,12 @@ def _layer_update(scene, work, figures) -> bool:
 
 def _remember_layer(scene, bake):
     """After a layer update: a full layer is the next coarse ones' rasters (its
-    `LiveLayer`), a coarse one waits for the full one (`_refine`, a timer)."""
+    `LiveLayer`), a coarse one waits for the full one (`refine`, a timer)."""
     ptr = scene.as_pointer()
     if bake is not None and bake.coarse:
         _PENDING.add(ptr)
-        if not bpy.app.timers.is_registered(_refine):
-            bpy.app.timers.register(_refine, first_interval=BURST_SECONDS)
+        if not bpy.app.timers.is_registered(refine):
+            bpy.app.timers.register(refine, first_interval=BURST_SECONDS)
         return
     _PENDING.discard(ptr)
     if bake is None or bake.names is None:
@@ -545,10 +545,6 @@ def refine(scene=None, wait=True) -> float | None:
         _PENDING.discard(ptr)
         _run(target, bpy.context.evaluated_depsgraph_get(), "refined", coarse=False)
     return again or None
-
-
-def _refine():
-    return refine()
 
 
 def _run(scene, depsgraph, why, force=False, coarse=None):
@@ -655,5 +651,5 @@ def register():
 def unregister():
     set_live_update_hook(None)
     handlers.remove(_HANDLERS)
-    if bpy.app.timers.is_registered(_refine):
-        bpy.app.timers.unregister(_refine)
+    if bpy.app.timers.is_registered(refine):
+        bpy.app.timers.unregister(refine)

@@ -24,16 +24,25 @@ from .pipeline import SheetBake, SheetSource
 from .rasters import beam_fluxes, fixed_layer, fixed_rasters
 from .smooth import drawn_geometry, drawn_irradiance
 
-#: The coarse beam: node rays (rings, azimuths), samples of an extended light at
-#: most, sub-cells per side of a landed cell at most (10 marbles × 2 lights: 274 000
-#: sub-cells against 4.3 million; its time and L1 against the full layer:
-#: bench/live_update.py).
-COARSE_GRID = (8, 32)
-COARSE_SAMPLES = 4
+#: The coarse beams: (rings, azimuths, samples of an extended light at most) per
+#: source, the finest of these whose cells, over all sources, stay within
+#: `COARSE_CELLS` (the first for many sources); sub-cells per side of a landed cell
+#: at most. 10 marbles × 2 lights: 8 × 32 × 4, 274 000 sub-cells against the full
+#: layer's 4.3 million; one marble: 16 × 64 × 4 (its time and L1 against the full
+#: layer: bench/live_update.py).
+COARSE_GRIDS = ((8, 32, 4), (12, 48, 4), (16, 64, 4), (16, 64, 8), (16, 64, 16))
+COARSE_CELLS = 10_000
 COARSE_SUBDIVISION = 4
 #: Binomial passes over the coarse rasters' texel flux (`rasters.blur_flux`): a coarse
 #: splat's sampling noise smoothed (L1 against the full layer 0.35 → 0.13 at 2).
 COARSE_BLUR = 2
+
+
+def coarse_grid(n_sources: int) -> tuple[int, int, int]:
+    """The coarse beam's (rings, azimuths, samples) for ``n_sources`` sources
+    (`COARSE_GRIDS`)."""
+    fits = [g for g in COARSE_GRIDS if g[0] * g[1] * g[2] * max(n_sources, 1) <= COARSE_CELLS]
+    return fits[-1] if fits else COARSE_GRIDS[0]
 
 
 def source_key(source: SheetSource) -> bytes:
@@ -94,16 +103,19 @@ class LiveLayer:
         if receivers_key != self.receivers_key or any(s.lens.kind != "ball" for s in sources):
             return None
         was = [old[name] for name in names]  # each source's beam in the rasters
-        keys = [source_key(s) for s in sources]
+        nr, na, samples = coarse_grid(len(sources))
+        grid = repr((nr, na, samples)).encode()
+        keys = [source_key(s) + grid for s in sources]
         stale = [i for i, k in enumerate(keys) if self.entries.get(names[i], (None,))[0] != k]
         self.reused += len(sources) - len(stale)
         groups: dict[int, list[int]] = {}
         for i in stale:
-            groups.setdefault(min(sources[i].n_source, COARSE_SAMPLES), []).append(i)
+            groups.setdefault(min(sources[i].n_source, samples), []).append(i)
         for k, ids in groups.items():
             beams = trace_beams(
                 [(sources[i].emitter, sources[i].lens) for i in ids],
-                *COARSE_GRID,
+                nr,
+                na,
                 k,
                 [sources[i].blockers for i in ids],
             )
