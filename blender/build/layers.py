@@ -451,20 +451,22 @@ def _existing_layers(scene, patches, receivers, reflections) -> list | None:
     return out if set(existing) == expected else None
 
 
-def refill(scene, bake, receivers, names, reflections, drawn=None) -> list | None:
+def refill(scene, bake, receivers, names, reflections, drawn=None, anchors=None) -> list | None:
     """The layers of `bake` written into the scene's layer objects in place (the same
     objects and meshes: `refill_mesh`), when they are the layers of the same patches
     on the same receivers (`_existing_layers`); None otherwise (nothing written: build
     anew). ``names``: (light, lens) per source; ``drawn``: per patch its irradiance at
     the drawn mesh's vertices (a coarse layer in the full one's rasters: positions and
-    UVs are left as they are), else the drawn meshes are made here. ``reflections``:
-    the layers have their EEVEE reflection copies (`build`)."""
+    UVs are left as they are; ``anchors``: per patch the first and last vertex its
+    mesh must have, else it is another raster's: an undo brought it back), else the
+    drawn meshes are made here. ``reflections``: the layers have their EEVEE
+    reflection copies (`build`)."""
     patches = bake.layer.patches
     objects = _existing_layers(scene, patches, receivers, reflections)
     if objects is None:
         return None
-    if drawn is not None and any(
-        len(ob.data.vertices) != len(v) for ob, v in zip(objects, drawn, strict=True)
+    if drawn is not None and not all(
+        _holds(ob.data, v, a) for ob, v, a in zip(objects, drawn, anchors, strict=True)
     ):
         return None
     for k, (ob, patch) in enumerate(zip(objects, patches, strict=True)):
@@ -475,6 +477,15 @@ def refill(scene, bake, receivers, names, reflections, drawn=None) -> list | Non
         beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
         _describe(ob, patch, beams)
     return objects
+
+
+def _holds(me, values, anchors) -> bool:
+    """Is `me` the mesh `values` (per vertex) and ``anchors`` (its first and last
+    vertex, float32 as stored) were computed for?"""
+    if len(me.vertices) != len(values) or not len(values):
+        return False
+    got = np.array([me.vertices[0].co, me.vertices[-1].co], dtype=np.float32)
+    return bool(np.array_equal(got, np.asarray(anchors, dtype=np.float32)))
 
 
 def made_counts(objects) -> dict:

@@ -39,10 +39,23 @@ radius; an Exact profile's node tree and image only when its profile changed), n
 keys get new lights, vanished keys' lights are removed. So the objects stay the
 same from frame to frame (selection, undo). When the read's inputs (lights, spheres,
 primaries, the other geometry's transforms and boxes, camera, settings) are those of
-the last update, nothing is planned (a camera-only animation costs the read). The
-Caustic layer tier (EEVEE's AUTO) is rebuilt whole on every update (its meshes depend
-on the traced beam): correct but slow. Cycles' own caustics are re-replaced when the
-set of lights changes.
+the last update, nothing is planned (a camera-only animation costs the read).
+Cycles' own caustics are re-replaced when the set of lights changes.
+
+**The Caustic layer** (EEVEE's AUTO; issue 27). A full layer (Generate's bake) is
+written into the scene's layer objects in place when they are the layers of the same
+patches on the same receivers (`layers.refill`: positions, UVs, irradiance set whole;
+a raster of another resolution replaces its mesh's geometry, the mesh stays), else
+rebuilt. In Blender's window (`INTERACTIVE`; not in background, where no timer runs)
+an update shows the *coarse* layer instead (`core.caustic_layer.live.LiveLayer`:
+each pair's beam on a coarse grid, remembered by its inputs so only the pairs whose
+light or lens changed are traced, splatted alone into the last full layer's rasters;
+only the meshes' irradiance is written), and `refine`, a `bpy.app.timers` timer,
+makes the full one `BURST_SECONDS` after the last update (a drag's or a playback's
+burst is over), as Blender's viewport refines. A render never sees a coarse layer:
+render_init refines at once, and an update with the render's depsgraph (or during a
+render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
+mesh's beam need the full layer at once.
 
 **The switch.** Turning ``live_update`` on brings the lights up to date at once
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
@@ -485,8 +498,11 @@ def _layer_update(scene, work, figures) -> bool:
         return False
     reflections = scene.render.engine in layer_stage.EEVEE_ENGINES
     drawn = last.drawn(bake.layer) if bake.coarse else None
+    anchors = last.anchors() if bake.coarse else None
     t = time.perf_counter()
-    done = layer_builder.refill(scene, bake, work.receivers, bake.names, reflections, drawn)
+    done = layer_builder.refill(
+        scene, bake, work.receivers, bake.names, reflections, drawn, anchors
+    )
     work.timings["layer write"] = time.perf_counter() - t
     if done is None:
         return False

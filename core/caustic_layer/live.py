@@ -90,8 +90,20 @@ class LiveLayer:
         irradiance at the drawn mesh's vertices (`smooth.drawn_irradiance`; the
         rasters' geometry weighed once)."""
         if self._weights is None:
-            self._weights = [drawn_geometry(p)[3] for p in self.bake.layer.patches]
+            self._weighed()
         return [drawn_irradiance(p, w) for p, w in zip(layer.patches, self._weights, strict=True)]
+
+    def anchors(self) -> list[np.ndarray]:
+        """Per patch, the first and last vertex of its drawn mesh (2, 3): a mesh that
+        holds them is this layer's (not one an undo brought back)."""
+        if self._weights is None:
+            self._weighed()
+        return self._anchors
+
+    def _weighed(self):
+        drawn = [drawn_geometry(p) for p in self.bake.layer.patches]
+        self._weights = [d[3] for d in drawn]
+        self._anchors = [d[0][[0, -1]] for d in drawn]
 
     def coarse(self, sources: list[SheetSource], names: list, receivers_key: bytes):
         """The coarse layer of ``sources`` (named ``names``) in the full bake's rasters,

@@ -129,3 +129,16 @@ def test_in_background_every_frame_gets_the_full_layer_in_place(empty_blend):
     state = _layers()
     assert _pointers(state) == _pointers(first)  # no new objects or meshes
     _equal_to_generate(state)
+
+
+def test_a_mesh_of_other_rasters_is_rebuilt_not_written(empty_blend, interactive):
+    # (an undo can bring back the meshes of an earlier full layer: the coarse
+    # irradiance, computed for the last full layer's rasters, would land wrong)
+    live = interactive
+    scene = _scene()
+    (name,) = [n for n in _layers() if n.endswith(" 0")]
+    me = bpy.data.objects[name].data
+    me.vertices[0].co.x += 0.25  # no longer the raster the coarse layer is computed on
+    scene.frame_set(2)
+    f = live.LAST_FIGURES
+    assert f.get("rebuilt") is True  # built anew, not written into the wrong mesh

@@ -20,7 +20,6 @@ from core.caustic_layer.rasters import (
     fixed_layer,
     fixed_rasters,
 )
-from core.caustic_layer.receiver_index import build_index
 from core.lens import ball_optics as eo
 from reference.meshes import rectangle
 
