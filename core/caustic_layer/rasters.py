@@ -432,8 +432,8 @@ def build_layer(
             blur_shares,
             (subcells_per_texel, max_subdivision, max_subcells, flux_subcells_per_texel),
         )
-        lost += g_lost
-        unseen += g_unseen
+        lost += float(g_lost.sum())
+        unseen += float(g_unseen.sum())
         n_sub += g_sub
         flux_in += acc.reshape(n_slots, side * side).sum(axis=1)
         flux_out += out_acc
@@ -494,12 +494,11 @@ def build_layer(
 def _accumulate_beams(members_g, ids, slot_of, fr, blur_shares, splat):
     """The landed beams ``members_g`` (beam indices ``ids``, one light colour) added to
     the rasters ``fr`` (``slot_of``: each beam's raster per patch): (texel flux of
-    every raster's block, flux beyond each raster, flux lost, flux landed out of view,
-    sub-cells); ``splat``: (sub-cells per texel, the most per side, the most in all,
+    every raster's block, flux beyond each raster, flux lost and flux landed out of
+    view per beam, sub-cells); ``splat``: (sub-cells per texel, the most per side, the most in all,
     sub-cells per texel by flux) for `_splat_cells`."""
     subcells_per_texel, max_subdivision, max_subcells, flux_subcells_per_texel = splat
     n_slots, side = len(fr["res"]), fr["side"]
-    lost = unseen = 0.0
     n_sub = 0
     base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
     point = np.concatenate([lb.point for lb in members_g])
@@ -532,8 +531,13 @@ def _accumulate_beams(members_g, ids, slot_of, fr, blur_shares, splat):
     cm = corners[mixed].reshape(-1)
     sm = cs[mixed].reshape(-1)
     landed_g = np.concatenate([lb.patch for lb in members_g])[cm] >= 0
-    lost += float(share[(sm < 0) & ~landed_g].sum())
-    unseen += float(share[(sm < 0) & landed_g].sum())  # on a receiver, out of view
+    # per member (a beam's cells are contiguous: its member from the cell's index)
+    cell_member = np.repeat(np.arange(len(members_g)), [lb.beam.cell_flux.size for lb in members_g])
+    member = np.repeat(cell_member[mixed], 4)
+    miss = sm < 0
+    lost = np.bincount(member[miss & ~landed_g], share[miss & ~landed_g], len(members_g))
+    # on a receiver, out of view
+    unseen = np.bincount(member[miss & landed_g], share[miss & landed_g], len(members_g))
     on = sm >= 0
     _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr)
     # cells on one patch: m × m bilinear sub-cells
@@ -1006,7 +1010,7 @@ class BeamFlux:
     """One beam's flux in fixed rasters (`beam_fluxes`): the texels it reaches (flat
     indices into the rasters' blocks of `FixedRasters.side`²), their flux (W,
     uncoloured), the flux landed beyond each raster, lost (missed every receiver) and
-    landed out of view, its colour and its sub-cells."""
+    landed out of view, its colour and its sub-cells (its cells' share of its batch's)."""
 
     texels: np.ndarray
     flux: np.ndarray
@@ -1076,16 +1080,52 @@ def beam_fluxes(
     if not beams:
         return []
     landed = land_beams(beams, index, own_objects)
-    n = len(rasters.patches) * rasters.side**2
     splat = (subcells_per_texel, min(int(max_subdivision), 8), 8_000_000, 0.0)
     out = []
-    for i, lb in zip(ids, landed, strict=True):
-        acc, out_acc, lost, unseen, n_sub = _accumulate_beams(
-            [lb], [i], rasters.slot_of, rasters.fr, blur_shares, splat
-        )
-        texels = np.flatnonzero(acc[:n])
+    for a in range(0, len(beams), BATCH_BEAMS):  # one splat per batch, not per beam
+        part = landed[a : a + BATCH_BEAMS]
+        out += _alone(part, ids[a : a + BATCH_BEAMS], rasters, blur_shares, splat)
+    return out
+
+
+#: Beams splatted together by `beam_fluxes`, each into its own copy of the rasters
+#: (their texels: 16 × a layer's, at most).
+BATCH_BEAMS = 16
+
+
+def _alone(landed, ids, rasters: FixedRasters, blur_shares, splat) -> list[BeamFlux]:
+    """`beam_fluxes` of one batch: the rasters repeated once per beam (beam b fills
+    copy b), all splatted in one `_accumulate_beams` call."""
+    fr, n_slots, side = rasters.fr, len(rasters.patches), rasters.side
+    b = len(landed)
+    copies = {k: np.tile(v, (b,) + (1,) * (np.ndim(v) - 1)) for k, v in fr.items() if k != "side"}
+    shift = np.repeat(np.arange(b) * n_slots, n_slots)
+    copies["outer"] = np.where(copies["outer"] >= 0, copies["outer"] + shift, -1)
+    copies["side"] = side
+    rows = rasters.slot_of[np.asarray(ids, dtype=np.int64)]
+    slot_of = np.where(rows >= 0, rows + (np.arange(b) * n_slots)[:, None], -1)
+    acc, out_acc, lost, unseen, n_sub = _accumulate_beams(
+        landed, list(range(b)), slot_of, copies, blur_shares, splat
+    )
+    n = n_slots * side * side
+    out = []
+    for k, lb in enumerate(landed):
+        block = acc[k * n : (k + 1) * n]
+        texels = np.flatnonzero(block)
         out.append(
-            BeamFlux(texels, acc[texels], out_acc, lost, unseen, np.asarray(lb.beam.color), n_sub)
+            BeamFlux(
+                texels,
+                block[texels],
+                out_acc[k * n_slots : (k + 1) * n_slots],
+                float(lost[k]),
+                float(unseen[k]),
+                np.asarray(lb.beam.color),
+                int(
+                    n_sub
+                    * lb.beam.cell_flux.size
+                    / max(sum(x.beam.cell_flux.size for x in landed), 1)
+                ),
+            )
         )
     return out
 

@@ -72,13 +72,11 @@ def vertex_measures(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 @dataclass
 class DrawnWeights:
-    """What `drawn_mesh` computes from a raster's geometry alone (its texel lines): per
-    drawn vertex of the grid the texel it carries, the cells' corners, and each
-    texel's measure; a raster refilled in place (live update) reuses them."""
+    """What `drawn_mesh` computes from a raster's geometry alone (its texel lines):
+    each texel's measure (of the vertices carrying it); a raster refilled in place
+    (live update) reuses it."""
 
-    carried: np.ndarray  # (n²,) texel of each grid vertex
-    cells: np.ndarray  # ((n−1)², 4) the grid cells' corners
-    measure: np.ndarray  # (res²,) the measure of the vertices carrying each texel
+    measure: np.ndarray  # (res²,)
 
 
 def drawn_geometry(patch) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, DrawnWeights]:
@@ -106,19 +104,23 @@ def drawn_geometry(patch) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, Dr
     if patch.uvs is not None:
         uv_grid = dual(patch.uvs)
         uvs = np.concatenate([uv_grid, uv_grid[cells].mean(axis=1)])
-    return verts, tris, uvs, DrawnWeights(carried, cells, measure)
+    return verts, tris, uvs, DrawnWeights(measure)
 
 
 def drawn_irradiance(patch, weights: DrawnWeights) -> np.ndarray:
     """(V, 3) the irradiance at the drawn mesh's vertices of `patch` (its texel
-    values), from its geometry's `weights` (`drawn_geometry`)."""
+    values), from its geometry's `weights` (`drawn_geometry`). The grid's vertices
+    carry the texels edge-padded (`dual_lines`), the centres their cell's mean: by
+    slices, not gathers (live update draws every coarse layer this way)."""
+    res = int(patch.resolution)
     flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
         -1, 1
     )
     m = weights.measure
-    value = flux / np.where(m > 0.0, m, 1.0)[:, None]
-    at_grid = value[weights.carried]
-    return np.concatenate([at_grid, at_grid[weights.cells].mean(axis=1)])
+    value = (flux / np.where(m > 0.0, m, 1.0)[:, None]).reshape(res, res, 3)
+    g = np.pad(value, ((1, 1), (1, 1), (0, 0)), mode="edge")  # (res + 2)² grid vertices
+    centres = 0.25 * (g[:-1, :-1] + g[:-1, 1:] + g[1:, 1:] + g[1:, :-1])
+    return np.concatenate([g.reshape(-1, 3), centres.reshape(-1, 3)])
 
 
 def drawn_mesh(patch) -> DrawnMesh:
