@@ -424,6 +424,9 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             made = layer_stage.build(scene, work)
             cycles_caustics.after_build(scene, plan, read, len(made))
             figures.update(created=len(made), rebuilt=True)
+        elif figures.pop("other_pairs", False):  # other lenses lit: Cycles' switches
+            cycles_caustics.restore(scene)
+            cycles_caustics.after_build(scene, plan, read, figures["updated"])
         _remember_layer(scene, work.layer_bake)
     else:
         existing = ownership.created_objects(scene)
@@ -507,6 +510,7 @@ def _layer_update(scene, work, figures) -> bool:
     if done is None:
         return False
     figures.update(updated=len(done), coarse=bake.coarse)
+    figures["other_pairs"] = set(bake.names) != set(last.names)
     if bake.coarse:
         figures.update(traced=last.traced, reused=last.reused)
     return True

@@ -75,8 +75,11 @@ def _equal_to_generate(state):
         assert np.array_equal(state[name][0], co) and np.array_equal(state[name][1], irr)
 
 
-def test_coarse_while_working_then_the_timer_gives_generates_layer(empty_blend, interactive):
+def test_coarse_while_working_then_the_timer_gives_generates_layer(
+    empty_blend, interactive, monkeypatch
+):
     live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 1.0)  # (a busy machine: no early refine)
     scene = _scene()
     full = _layers()
     scene.frame_set(3)
