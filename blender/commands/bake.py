@@ -76,6 +76,7 @@ from mathutils import Vector
 
 from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
+from ...core.caustic_layer.mesh_sources import members_of
 from ...core.plan.cycles_caustics import kept_on_warning, linked_caster_warning
 from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
@@ -377,7 +378,9 @@ class Baker:
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
         if self.layer:  # the glass meshes traced: their layers replace Cycles' caustics
             meshes = work.read.mesh_lenses
-            self.lens_objects.update(meshes[k].orig for _j, k in work.read.mesh_pairs)
+            self.lens_objects.update(
+                meshes[k].orig for _j, key in work.read.mesh_pairs for k in members_of(key)
+            )
         else:  # the glass meshes' layers are baked in the layer's tier only
             self.unmodelled_glass.update((m.name, MESH_NOT_BAKED) for m in work.read.mesh_lenses)
         if self.layer:
