@@ -184,8 +184,16 @@ def _engine_id(scene, engine):
     return ident
 
 
-def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 270), samples=32):
-    """Render the showcase without and with lens lights per engine; returns the paths."""
+def render_before_after(
+    out_dir,
+    engines=("eevee", "cycles"),
+    resolution=(480, 270),
+    samples=32,
+    build=None,
+    name="showcase",
+):
+    """Render the showcase (or the scene `build(scene)` makes, as OUT/<name>_…) without
+    and with lens lights per engine; returns the paths."""
     import bpy
 
     _load_extension()
@@ -196,7 +204,7 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
         bpy.ops.wm.read_factory_settings(use_empty=True)
         _load_extension()
         scene = bpy.context.scene
-        build_showcase(scene)
+        (build or build_showcase)(scene)
         scene.render.engine = _engine_id(scene, engine)
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.image_settings.file_format = "PNG"
@@ -210,7 +218,7 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
             if stage == "after":
                 bpy.ops.lens_lights.generate()
                 print(scene.lens_lights.last_report, flush=True)
-            path = out_dir / f"showcase_{stage}_{engine}.png"
+            path = out_dir / f"{name}_{stage}_{engine}.png"
             scene.render.filepath = str(path)
             t = time.perf_counter()
             bpy.ops.render.render(write_still=True)

@@ -8,8 +8,9 @@ were not there. Pieces that do not meet one another's light stay lenses of their
 grid over their common bounding sphere would spend most of its rays between them).
 
 Whether A's light reaches B is probed with a small grid of rays from the light over A's
-bounding disc, traced with their branches through A: an exit ray that meets B's bounding
-sphere, or a ray on its way to A that meets it first, joins them. Joins are transitive
+bounding disc, traced with their branches through A: a share of the light through A
+that meets B's triangles on its way out, or a ray on its way to A that meets them
+first, joins them. Joins are transitive
 (a chain of three pieces is one group)."""
 
 from __future__ import annotations
@@ -22,8 +23,12 @@ from ..lens.mesh import MeshLens
 
 #: Rays per side of the probe grid over a piece's bounding disc.
 PROBE = 12
-#: Branches lighter than this share of a probe ray do not join pieces.
+#: Branches lighter than this share of a probe ray are not followed.
 PROBE_MIN_WEIGHT = 0.01
+#: A piece joins another when at least this share of the light through that other
+#: reaches it (less: an internal reflection's stray light, drawn as if the piece
+#: were not there, costs less than a grid over both).
+PROBE_SHARE = 0.02
 
 
 def _sphere_t(points, dirs, center, radius):
@@ -60,24 +65,33 @@ def probe_rays(position, center, radius, n: int = PROBE):
     return np.broadcast_to(p, d.shape).copy(), d
 
 
-def reaches(position, lens: MeshLens, centers, radii) -> np.ndarray:
-    """(K,) bool: which of the spheres (``centers`` (K, 3), ``radii`` (K,)) the light at
-    ``position`` reaches through ``lens`` (its transmitted branches), or meets on its way
-    to it (a sphere in front of the lens)."""
-    centers = np.asarray(centers, float).reshape(-1, 3)
-    radii = np.asarray(radii, float).reshape(-1)
-    out = np.zeros(len(radii), dtype=bool)
-    if not len(radii):
+def reaches(position, lens: MeshLens, others) -> np.ndarray:
+    """(K,) bool: which of the `MeshLens` es ``others`` the light at ``position`` reaches
+    through ``lens`` with at least `PROBE_SHARE` of what goes through it (its
+    transmitted branches, on their way out), or meets first on its way to it (a piece in
+    front of the lens)."""
+    out = np.zeros(len(others), dtype=bool)
+    if not len(others):
         return out
     o, d = probe_rays(position, lens.center, lens.radius)
-    to_lens = float(np.linalg.norm(lens.center - np.asarray(position, float)))
+    t_lens, _ = lens.intersect(o, d)
+    aimed = np.isfinite(t_lens) & (t_lens >= 0.0)
     br = lens.trace_branches(o, d, max_depth=6, min_weight=PROBE_MIN_WEIGHT)
     through = (br.crossings >= 2) & (br.weight >= PROBE_MIN_WEIGHT)
-    pts, dirs = br.points[through], br.directions[through]
-    for k in range(len(radii)):
-        before = _sphere_t(o, d, centers[k], radii[k]) < to_lens
-        after = _sphere_t(pts, dirs, centers[k], radii[k]) < np.inf
-        out[k] = bool(before.any() or after.any())
+    pts, dirs, w = br.points[through], br.directions[through], br.weight[through]
+    total = float(w.sum())
+    for k, other in enumerate(others):
+        # the bounding sphere first (cheap), then the other's own triangles
+        near = _sphere_t(o[aimed], d[aimed], other.center, other.radius) < t_lens[aimed]
+        if near.any():
+            t, _ = other.intersect(o[aimed][near], d[aimed][near])
+            if (np.isfinite(t) & (t < t_lens[aimed][near])).any():
+                out[k] = True
+                continue
+        toward = _sphere_t(pts, dirs, other.center, other.radius) < np.inf
+        if total > 0.0 and w[toward].sum() >= PROBE_SHARE * total:
+            t, _ = other.intersect(pts[toward], dirs[toward])
+            out[k] = bool(w[toward][np.isfinite(t)].sum() >= PROBE_SHARE * total)
     return out
 
 
@@ -95,11 +109,9 @@ def glass_groups(positions, lenses) -> list[list[int]]:
         return i
 
     if k > 1:
-        centers = np.array([m.center for m in lenses], dtype=float)
-        radii = np.array([m.radius for m in lenses], dtype=float)
         for a in range(k):
             others = [b for b in range(k) if b != a]
-            hit = reaches(positions[a], lenses[a], centers[others], radii[others])
+            hit = reaches(positions[a], lenses[a], [lenses[b] for b in others])
             for b in np.asarray(others)[hit].tolist():
                 parent[root(b)] = root(a)
     groups: dict[int, list[int]] = {}

@@ -114,9 +114,9 @@ def test_light_through_a_magnifier_then_a_pebble_lands_like_the_reference():
 def test_pieces_in_one_anothers_light_join_and_pieces_side_by_side_do_not():
     lens, pebble = _pieces()
     # the pebble below the lens: the lens' light reaches it
-    assert reaches(LIGHT, lens, [pebble.center], [pebble.radius]).tolist() == [True]
+    assert reaches(LIGHT, lens, [pebble]).tolist() == [True]
     # seen from the pebble, the lens stands between it and the light
-    assert reaches(LIGHT, pebble, [lens.center], [lens.radius]).tolist() == [True]
+    assert reaches(LIGHT, pebble, [lens]).tolist() == [True]
     assert glass_groups([LIGHT, LIGHT], [lens, pebble]) == [[0, 1]]
     # two cubes 3 apart under a light straight above the middle: neither's light
     # (refracted down) reaches the other
