@@ -28,10 +28,10 @@ from core.scene.mesh_lenses import MeshLensRead
 from core.scene.primaries import PointPrimary, tier_primaries
 from reference import glass_tracer as gt
 from reference.emitters import PointLight as RefPoint
-from reference.glass_meshes import biconvex_mesh, corner_normals, ellipsoid_mesh
+from reference.glass_meshes import biconvex_mesh, corner_normals, ellipsoid_mesh, rod_mesh
 from reference.meshes import rectangle
 from reference.scene import ReceiverPlane
-from reference.shapes import Biconvex, Ellipsoid
+from reference.shapes import Biconvex, Ellipsoid, Rod
 
 LIGHT = np.array([0.3, 0.2, 8.0])
 LENS = Biconvex(
@@ -127,6 +127,12 @@ def test_pieces_in_one_anothers_light_join_and_pieces_side_by_side_do_not():
     # ... but a light low on the side sends one's light into the other
     low = np.array([-9.0, 0.0, 1.2])
     assert glass_groups([low, low], [a, b]) == [[0, 1]]
+    # a long rod beside the cube: its bounding sphere (radius 3) holds the cube's
+    # beam, its triangles do not meet it
+    rv, rf, rn = rod_mesh(Rod(center=(0.0, 1.5, 0.3), axis=(1.0, 0.0, 0.0), radius=0.3, length=6.0))
+    rod = _lens(rv, rf, corner_normals(rf, rn))
+    assert np.linalg.norm(rod.center - a.center) < rod.radius
+    assert glass_groups([top, top], [a, rod]) == [[0], [1]]
 
 
 def test_a_joined_mesh_keeps_each_pieces_index_and_normals():
