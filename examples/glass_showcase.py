@@ -15,15 +15,20 @@ on (its defaults), EEVEE with none. Generate traces every glass mesh onto the ta
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from showcase import ENGINES, _glass, _look_at, _material, _uv_sphere, render_before_after  # noqa: E402
+from showcase import (  # noqa: E402
+    _glass,
+    _material,
+    _uv_sphere,
+    add_camera,
+    set_world,
+)
+from showcase import main as showcase_main  # noqa: E402
 
-ROOT = Path(__file__).resolve().parent.parent
 
 SUN_AZIMUTH, SUN_ELEVATION = 35.0, 50.0  # degrees
 #: The magnifier: radius of its two faces, thickness, diameter, and where on the table
@@ -142,20 +147,8 @@ def build_glass_showcase(scene):
     sun_ob.rotation_euler = (-sun).to_track_quat("-Z", "Y").to_euler()
     made["Sun"] = sun_ob
 
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens = 50.0
-    cam = bpy.data.objects.new("Camera", cam_data)
-    coll.objects.link(cam)
-    cam.location = (0.0, -0.36, 0.30)
-    _look_at(cam, (0.0, 0.0, 0.0))
-    scene.camera = cam
-    made["camera"] = cam
-
-    world = bpy.data.worlds.new("Sky")
-    bg = world.node_tree.nodes.get("Background") if world.node_tree else None
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.05, 0.06, 0.08, 1.0)
-    scene.world = world
+    made["camera"] = add_camera(scene, (0.0, -0.36, 0.30), (0.0, 0.0, 0.0))
+    set_world(scene, "Sky", (0.05, 0.06, 0.08))
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = 480, 270, 100
     scene.eevee.use_raytracing = True  # glass that refracts in EEVEE
@@ -163,24 +156,7 @@ def build_glass_showcase(scene):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--out", default=str(ROOT / "docs"), help="output folder (default: docs/)")
-    parser.add_argument("--engines", default="eevee,cycles", help="comma-separated: eevee, cycles")
-    parser.add_argument("--resolution", default="480x270", help="WxH (default 480x270)")
-    parser.add_argument("--samples", type=int, default=64, help="samples per pixel (default 64)")
-    args = parser.parse_args(argv)
-    engines = [e.strip().lower() for e in args.engines.split(",") if e.strip()]
-    if any(e not in ENGINES for e in engines):
-        parser.error(f"engines: choose from {', '.join(ENGINES)}")
-    w, h = (int(v) for v in args.resolution.lower().split("x"))
-    paths = render_before_after(
-        args.out, engines, (w, h), args.samples, build=build_glass_showcase, name="glass"
-    )
-    for path in paths:
-        print(path)
-    return 0
+    return showcase_main(argv, build_glass_showcase, "glass", samples=64, doc=__doc__)
 
 
 if __name__ == "__main__":
