@@ -29,7 +29,6 @@ from showcase import (  # noqa: E402
 )
 from showcase import main as showcase_main  # noqa: E402
 
-
 SUN_AZIMUTH, SUN_ELEVATION = 35.0, 50.0  # degrees
 #: The magnifier: radius of its two faces, thickness, diameter, and where on the table
 #: its focal spot falls.
