@@ -563,20 +563,30 @@ class Baker:
         self.timings["layer re-landing"] = time.perf_counter() - t
         infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
         collection = lights.lights_collection(scene)
-        objects, keyed, images = baked_layers.build(scene, segments, res, infos, collection)
+        objects, keyed, images, copies = baked_layers.build(
+            scene,
+            segments,
+            res,
+            infos,
+            collection,
+            reflections=scene.render.engine in layer_stage.EEVEE_ENGINES,
+        )
         frames = np.asarray(self.frames)
         path = 'nodes["{}"].outputs[0].default_value'
-        for seg, ob, (mat, slices, scales, colours) in zip(segments, objects, keyed, strict=True):
+        for seg, ob, (mat, slices, scales, colours), copy in zip(
+            segments, objects, keyed, copies, strict=True
+        ):
             at = frames[seg.frames]
-            nt = mat.node_tree
-            key_column(nt, path.format(baked_layers.SLICE_NODE), -1, at, slices, "CONSTANT")
-            key_column(nt, path.format(baked_layers.SCALE_NODE), -1, at, scales, "CONSTANT")
-            for c in range(3):
-                col = [x[c] for x in colours]
-                key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
             present = np.zeros(len(frames), dtype=bool)
             present[seg.frames] = True
-            key_visibility(ob, light_tracks.visibility_keys(frames, present))
+            for o, m in [(ob, mat)] + ([copy] if copy is not None else []):
+                nt = m.node_tree
+                key_column(nt, path.format(baked_layers.SLICE_NODE), -1, at, slices, "CONSTANT")
+                key_column(nt, path.format(baked_layers.SCALE_NODE), -1, at, scales, "CONSTANT")
+                for c in range(3):
+                    col = [x[c] for x in colours]
+                    key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
+                key_visibility(o, light_tracks.visibility_keys(frames, present))
         return dict(
             objects=len(objects) + spots,
             images=images,
