@@ -28,6 +28,7 @@ from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.mesh_sources import (
     MESH_KIND,
     budget_cuts,
+    members_of,
     mesh_facets,
     mesh_min_rays,
     mesh_sheet_sources,
@@ -217,19 +218,25 @@ def mesh_sources_of(read, timings=None, max_pairs=None) -> list:
     return sources
 
 
+def glass_name(read, key) -> str:
+    """The name of a source's glass: a mesh lens's, or the pieces traced together
+    ("Magnifier + Pebble")."""
+    return " + ".join(read.mesh_lenses[k].name for k in members_of(key))
+
+
 def mesh_keys(read) -> list:
     """The bake's keys of the mesh lenses' sources (`light_keys.keys_of`: light and
     lens names, kind "mesh"), after the planned lights' in a frame's layer sources."""
     return keys_of(
-        (read.light_sources[j], read.mesh_lenses[k].name, MESH_KIND, "CAUSTIC_LAYER")
-        for j, k in read.mesh_pairs
+        (read.light_sources[j], glass_name(read, key), MESH_KIND, "CAUSTIC_LAYER")
+        for j, key in read.mesh_pairs
     )
 
 
 def mesh_names(read) -> list:
     """(light, glass mesh) names of the mesh lenses' sources, in their order."""
     pairs = getattr(read, "mesh_pairs", [])
-    return [(read.light_sources[j], read.mesh_lenses[k].name) for j, k in pairs]
+    return [(read.light_sources[j], glass_name(read, key)) for j, key in pairs]
 
 
 def build_mesh_layers(scene, work, progress=None) -> list:
@@ -259,13 +266,18 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     read = work.read
     if not read.mesh_lenses:
         return ""
-    traced = sorted({k for _light, k in read.mesh_pairs})
+    traced = sorted({k for _light, key in read.mesh_pairs for k in members_of(key)})
     lit = [(read.mesh_lenses[k].name, read.mesh_lenses[k].n_triangles) for k in traced]
     unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
     if lit and not (layers_made and work.layer_bake is not None):
         names = ", ".join(n for n, _t in lit)
         return f"no caustic layer for the glass of {names}: nothing receives its caustic"
     text = mesh_lenses_text(lit, unlit)
+    together = sorted(
+        {glass_name(read, key) for _j, key in read.mesh_pairs if len(members_of(key)) > 1}
+    )
+    if together:
+        text += "; traced together (light through one reaches the other): " + ", ".join(together)
     if read.mesh_beyond:
         text += (
             f"; {read.mesh_beyond} dimmer light × glass mesh pair"
@@ -274,9 +286,9 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     bake = work.layer_bake
     first = len(bake.budgets) - len(read.mesh_pairs)
     names, wanted, got = [], [], []
-    for j, (_light, k) in enumerate(read.mesh_pairs):
-        m, src = read.mesh_lenses[k], work.layer_sources[first + j]
-        names.append(m.name)
+    for j, (_light, key) in enumerate(read.mesh_pairs):
+        src = work.layer_sources[first + j]
+        names.append(glass_name(read, key))
         wanted.append(work.layer_floors[first + j])
         got.append(bake.budgets[first + j].n_rays * src.n_source)
     cuts = budget_cuts(names, wanted, got)
