@@ -21,11 +21,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from showcase import (  # noqa: E402
-    _glass,
-    _material,
-    _uv_sphere,
     add_camera,
+    glass_material,
+    plain_material,
     set_world,
+    uv_sphere,
 )
 from showcase import main as showcase_main  # noqa: E402
 
@@ -100,8 +100,8 @@ def build_glass_showcase(scene):
     s = 0.6
     table = bpy.data.meshes.new("Table")
     table.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
-    add("Table", table).data.materials.append(_material("Wood", (0.42, 0.27, 0.15), 0.55)[0])
-    glass = _glass("Glass", (1.0, 1.0, 1.0))
+    add("Table", table).data.materials.append(plain_material("Wood", (0.42, 0.27, 0.15), 0.55)[0])
+    glass = glass_material("Glass", (1.0, 1.0, 1.0))
 
     sun = Vector(_sun_dir())
     lens = add("Magnifier", bpy.data.meshes.new("Magnifier"))
@@ -126,12 +126,12 @@ def build_glass_showcase(scene):
     made["Rod"] = rod
 
     pebble = add("Pebble", bpy.data.meshes.new("Pebble"))
-    _uv_sphere(pebble.data, 1.0, 64, 32)
+    uv_sphere(pebble.data, 1.0, 64, 32)
     pebble.scale = (0.03, 0.025, 0.012)
     pebble.location = (0.10, 0.10, 0.0121)
 
     marble = add("Marble", bpy.data.meshes.new("Marble"))
-    _uv_sphere(marble.data, 0.02, 48, 24)
+    uv_sphere(marble.data, 0.02, 48, 24)
     marble.location = (-0.14, 0.10, 0.02)
 
     for ob in (lens, cube, rod, pebble, marble):

@@ -39,7 +39,7 @@ LIGHTS = (
 )
 
 
-def _material(name, color, roughness=0.5):
+def plain_material(name, color, roughness=0.5):
     import bpy
 
     mat = bpy.data.materials.new(name)
@@ -51,8 +51,8 @@ def _material(name, color, roughness=0.5):
     return mat, bsdf
 
 
-def _glass(name, tint):
-    mat, bsdf = _material(name, tint, roughness=0.0)
+def glass_material(name, tint):
+    mat, bsdf = plain_material(name, tint, roughness=0.0)
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["IOR"].default_value = 1.5
     # EEVEE: refract through the scene (ray traced), the marble's thickness a sphere.
@@ -77,7 +77,7 @@ def build_showcase(scene):
     mesh.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
     table = bpy.data.objects.new("Table", mesh)
     coll.objects.link(table)
-    wood, bsdf = _material("Wood", (0.42, 0.27, 0.15), roughness=0.55)
+    wood, bsdf = plain_material("Wood", (0.42, 0.27, 0.15), roughness=0.55)
     table.data.materials.append(wood)
     made["table"] = table
 
@@ -85,9 +85,9 @@ def build_showcase(scene):
         m = bpy.data.meshes.new(name)
         ob = bpy.data.objects.new(name, m)
         coll.objects.link(ob)
-        _uv_sphere(m, radius, 48, 24)
+        uv_sphere(m, radius, 48, 24)
         ob.location = (x, y, radius)  # resting on the table
-        ob.data.materials.append(_glass(f"Glass {name.split()[-1]}", tint))
+        ob.data.materials.append(glass_material(f"Glass {name.split()[-1]}", tint))
         made[name] = ob
 
     for name, azimuth, elevation, dist, power, color in LIGHTS:
@@ -145,7 +145,7 @@ def set_world(scene, name, color):
     scene.world = world
 
 
-def _uv_sphere(mesh, radius, segments, rings):
+def uv_sphere(mesh, radius, segments, rings):
     import bmesh
 
     bm = bmesh.new()
