@@ -43,7 +43,7 @@ MESH_KIND = "mesh"
 RAYS_PER_TRIANGLE = 4
 #: A glass mesh's node rays per texel of its caustic, as a share of a sphere's
 #: (`plan.RAYS_PER_TEXEL`): its cells on an edge of the beam are refined by sub-grids
-#: (`mesh_beam`) and its source samples' grids staggered, so a coarser node grid
+#: (`mesh_beam`), so a coarser node grid
 #: draws it as well. real_glass bench, L1 at 1 / 0.5 / 0.25 of a sphere's rays (replayed
 #: bakes): ice cube 0.077 / 0.094 / 0.110, rod 0.063 / 0.067 / 0.099, pebble 0.088 /
 #: 0.090 / 0.097, magnifier — / 0.031 / 0.032, wine glass — / 0.082 / 0.094, for

@@ -107,3 +107,35 @@ def test_allocate_takes_rays_per_texel_per_source():
     )
     assert b[0].n_radial == round(math.sqrt(16_384 / 4.0))
     assert b[1].n_radial == round(math.sqrt(4_096 / 4.0))
+
+
+def test_what_an_oblate_pebble_sends_upward_misses_every_receiver():
+    """Issue 25's unexplained loss ("18 % of the pebble's flux missed every
+    receiver"): an oblate glass pebble (semi-axes 0.5, 0.5, 0.25, 1 m over the floor)
+    under a point light 3 m above it sends light that totally reflects inside its flat
+    rim back up through its top. The layer's lost share is the glass tracer's escaped
+    share of what went through the glass (0.174 and 0.179: physics, not a fault; the
+    test pins the explanation, it is not a fix)."""
+    from reference.glass_meshes import ellipsoid_mesh
+    from reference.shapes import Ellipsoid
+
+    c, axes = (0.0, 0.0, 1.0), (0.5, 0.5, 0.25)
+    v, t, nrm = ellipsoid_mesh(c, axes, None, 24, 48)
+    ctr = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    r = float(np.linalg.norm(v - ctr, axis=1).max()) * (1 + 1e-9)
+    rec = Lens(ctr, r, N, kind="mesh", params=(v, t, nrm[t]))
+    pos = np.array([0.0, 0.0, 4.0])
+    floor = build_index(rectangle([0, 0, 0], [0, 0, 1], 8.0, 8.0))
+    layer = build_layer([trace_beam(PointLight(pos, 1000.0), rec, 24, 96)], floor, 32)
+    lost = layer.flux_lost / layer.flux_emitted
+    ref = trace_glass(
+        RefPointLight(tuple(pos), 1000.0),
+        [Glass(Ellipsoid(c, axes), N)],
+        [Receiver(ReceiverPlane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), None, (-4, 4, -4, 4))],
+        200_000,
+        seed=5,
+        rr_weight=0.0,
+    ).tally
+    escaped = ref["escaped"] / (ref["landed"] + ref["escaped"])
+    assert 0.15 < escaped < 0.21
+    assert abs(lost - escaped) < 0.02, (lost, escaped)
