@@ -272,16 +272,16 @@ def trace_mesh_beam(
 ) -> MeshBeam:
     """The :class:`MeshBeam` of one (light, mesh) pair. ``bt``: the pair's samples (a
     `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
-    centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the shadow's centre);
-    ``refine_rays``: sub-grid rays at most (None: `REFINE_SUB` per side in every cell
-    to refine, within `REFINE_MAX_SHARE` and `REFINE_FLOOR`); ``strong``: a path
-    appearing at some corners of a cell with this weight makes the cell refined
-    (weaker ones are splatted where they are)."""
+    centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record
+    (the shadow's centre); ``refine_rays``: sub-grid rays at most (None:
+    `REFINE_SUB` per side in every cell to refine, within `REFINE_MAX_SHARE` and
+    `REFINE_FLOOR`); ``strong``: a path appearing at some corners of a cell with
+    this weight makes the cell refined (weaker ones are splatted where they are)."""
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
     dp = float(2.0 * np.pi / na)
     # every sample on the given grid (staggering the samples' grids by fractions of a
-    # cell was tried: real_glass ice cube L1 0.114 → 0.110, within the truth's noise)
+    # cell was tried: the real_glass ice cube at L1 0.110 staggered, 0.114 not: noise)
     iota_k = np.broadcast_to(np.asarray(iota, dtype=float), (k, nr + 1))
     phi_k = np.broadcast_to(np.asarray(phi, dtype=float), (k, na))
     di_k = np.diff(iota_k, axis=1)  # (K, Nr): each sample's ring widths
