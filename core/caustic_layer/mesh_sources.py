@@ -43,11 +43,12 @@ MESH_KIND = "mesh"
 RAYS_PER_TRIANGLE = 4
 #: A glass mesh's node rays per texel of its caustic, as a share of a sphere's
 #: (`plan.RAYS_PER_TEXEL`): its cells on an edge of the beam are refined by sub-grids
-#: (`mesh_beam`), so a coarser node grid
-#: draws it as well. real_glass bench, L1 at 1 / 0.5 / 0.25 of a sphere's rays (replayed
-#: bakes): ice cube 0.077 / 0.094 / 0.110, rod 0.063 / 0.067 / 0.099, pebble 0.088 /
-#: 0.090 / 0.097, magnifier — / 0.031 / 0.032, wine glass — / 0.082 / 0.094, for
-#: about a third of the rays, sub-cells and time at 0.25 (reports/real_glass.md).
+#: (`mesh_beam`), so a coarser node grid draws it about as well. The real_glass bench's
+#: bakes replayed, L1 at a sphere's rays (before, with the flat refinement floor) and
+#: at this share: pebble 0.089 / 0.096, magnifier 0.029 / 0.035, rod 0.062 / 0.094,
+#: ice cube 0.099 / 0.114, wine glass 0.090 / 0.095, for 40–60 % of the rays and
+#: 35–45 % of the layer's sub-cells and CPU (the wine glass 85 %: its trace dominates;
+#: reports/real_glass.md).
 MESH_TEXEL_SHARE = 0.25
 
 
