@@ -46,9 +46,9 @@ RAYS_PER_TRIANGLE = 4
 #: (`mesh_beam`), so a coarser node grid draws it about as well. The real_glass bench's
 #: bakes replayed, L1 at a sphere's rays (before, with the flat refinement floor) and
 #: at this share: pebble 0.089 / 0.096, magnifier 0.029 / 0.035, rod 0.062 / 0.094,
-#: ice cube 0.099 / 0.114, wine glass 0.090 / 0.095, for 40–60 % of the rays and
-#: 35–45 % of the layer's sub-cells and CPU (the wine glass 85 %: its trace dominates;
-#: reports/real_glass.md).
+#: ice cube 0.099 / 0.114, wine glass 0.090 / 0.095, for 40–64 % of the rays and
+#: 30–46 % of the layer's sub-cells and CPU (the wine glass's CPU 85 %: its trace
+#: dominates; reports/real_glass.md).
 MESH_TEXEL_SHARE = 0.25
 
 
