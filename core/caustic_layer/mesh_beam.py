@@ -45,11 +45,11 @@ MIN_WEIGHT = 5e-3
 #: on an edge of the beam (a cube's edge, a rod's cap, the rim of what reaches a face)
 #: is drawn from its sub-cells, so every such cell is refined, the budget in proportion
 #: to how many there are (a flat 32 768-ray floor cut 6 889 of the real_glass ice
-#: cube's 10 529 edge cells into their corners' points, and spent 32 768 rays on a
-#: dozen edge cells alike). The sub-cells still on the edge land as points: at 2 × 2 a
-#: gap between them shows as a dark line along the ice cube's bright face (L1 0.114);
-#: 5 × 5 closes it (0.080) for 2.4× the rays and sub-cells (a pebble's smooth rim
-#: gains nothing from it; refining the edge's sub-cells again, 3 levels, likewise).
+#: cube's 10 529 edge cells into their corners' points). The sub-cells still on the
+#: edge land as points: at 2 × 2 a gap between them shows as a dark line along the ice
+#: cube's bright face (L1 0.114); 5 × 5 closes it (0.080) for 2.4× the rays and 3.7×
+#: the layer's sub-cells; 3 × 3 gave the pebble nothing for twice its CPU, and
+#: refining the edge's sub-cells again (3 levels) cost the pebble 2.6× the rays.
 REFINE_SUB = 2
 #: ... at most this many times the node rays, or `REFINE_FLOOR` rays if more (then
 #: the brightest cells first, at least 2 × 2 sub-cells each): a grid so coarse that
