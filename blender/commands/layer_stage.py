@@ -27,6 +27,7 @@ import numpy as np
 from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.mesh_sources import (
     MESH_KIND,
+    MESH_TEXEL_SHARE,
     budget_cuts,
     members_of,
     mesh_facets,
@@ -143,7 +144,11 @@ def prepare(depsgraph, work, options: dict, live=None):
         view=view,
         max_texels=FACE_BUDGET,
         texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
-        rays_per_texel=RAYS_PER_TEXEL if view is not None else None,
+        # a glass mesh's beam needs fewer node rays (`mesh_sources.MESH_TEXEL_SHARE`)
+        rays_per_texel=[RAYS_PER_TEXEL] * (len(sources) - len(meshes))
+        + [RAYS_PER_TEXEL * MESH_TEXEL_SHARE] * len(meshes)
+        if view is not None
+        else None,
     )
     work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
     work.timings["bake"] = time.perf_counter() - t

@@ -47,6 +47,15 @@ MESH_KIND = "mesh"
 #: Node rays a glass mesh's beam gets at least per facet (a flat facet's caustic
 #: needs rays of its own; the ray budget's caps still apply and the report says so).
 RAYS_PER_TRIANGLE = 4
+#: A glass mesh's node rays per texel of its caustic, as a share of a sphere's
+#: (`plan.RAYS_PER_TEXEL`): its cells on an edge of the beam are refined by sub-grids
+#: (`mesh_beam`), so a coarser node grid draws it about as well. The real_glass bench's
+#: bakes replayed, L1 at a sphere's rays (before, with the flat refinement floor) and
+#: at this share: pebble 0.089 / 0.096, magnifier 0.029 / 0.035, rod 0.062 / 0.094,
+#: ice cube 0.099 / 0.114, wine glass 0.090 / 0.095, for 40–64 % of the rays and
+#: 30–46 % of the layer's sub-cells and CPU (the wine glass's CPU 85 %: its trace
+#: dominates; reports/real_glass.md).
+MESH_TEXEL_SHARE = 0.25
 
 
 def mesh_facets(lens: Lens) -> int:
