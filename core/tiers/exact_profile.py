@@ -69,6 +69,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
+from .profile_fan import FAN, fan_table
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -300,7 +301,7 @@ def exact_profile(
     return prof
 
 
-@functools.lru_cache(maxsize=128)
+@functools.lru_cache(maxsize=256)
 def cached_profile(
     D_over_R: float,
     n: float,
@@ -308,11 +309,58 @@ def cached_profile(
     receiver: float | None = None,
     slope: bool = False,
 ) -> BeamProfile:
-    """:func:`exact_profile`, remembered: a scene re-evaluated with unchanged
-    lenses and lights (frame changes, re-runs) pays once.  Do not modify the
-    returned table."""
+    """The tier's table (Generate, live update and the bake read this one): the
+    exact beam binned straight from the ray fan (`profile_fan.fan_table`, a few
+    tens of milliseconds), in :func:`exact_profile`'s geometry and layout, within
+    1 % of its flux per row (`profile_fan`); without the 1-D ``angular`` profile.
+    Remembered: a scene re-evaluated with unchanged lenses and lights (frame
+    changes, re-runs) pays once. Do not modify the returned table."""
     M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
-    return exact_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
+    prof = fan_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
+    # the flux the light's energy is made of (`make_profile_light`, planned already)
+    prof.flux = _beam_summary(D_over_R, n)[0]
+    return prof
+
+
+def fan_profile(
+    D_over_R: float,
+    n: float,
+    absorption: float = 0.0,
+    *,
+    n_fan: int = FAN,
+    K: int = PROFILE_ANGLES,
+    M: int = PROFILE_DISTANCES,
+    near: bool = False,
+    receiver: float | None = None,
+    slope: bool = False,
+) -> BeamProfile:
+    """:func:`exact_profile`'s table (same geometry, rows, columns, slopes and
+    filled texels inside the lens) from `profile_fan.fan_table`; ``angular`` None."""
+    gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
+    u_edges = np.arange(K + 1) / K
+    g_edges = gmax * u_edges * u_edges
+    if receiver is not None:
+        apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
+    else:
+        apex, h_min, h_max = table_geometry(0.0 if near else None)
+    prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)))
+    with_slope = apex < 1.0 and slope
+    table, mean_slope, flux = fan_table(
+        float(D_over_R),
+        n,
+        absorption,
+        apex,
+        prof.distances,
+        g_edges,
+        n_fan=n_fan,
+        slope=with_slope,
+    )
+    table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
+    prof.table, prof.flux = table, flux
+    if with_slope:
+        prof.slope = mean_slope
+        _fill_inside_lens(prof, g_edges)
+    return prof
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -396,7 +444,6 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
 def _profile_dict(
     prof: BeamProfile, t_ref: float, R: float, center, axis, key, receivers=()
 ) -> dict:
-    ang = prof.angular / t_ref
     out = {
         # (height, width), row 0 = v at the bottom
         "pixels": (prof.table / t_ref).astype(np.float32),
@@ -407,12 +454,15 @@ def _profile_dict(
         "h_max": prof.h_max * R,  # world units
         "strength_scale": 1.0,
         "angles_deg": prof.angles_deg.tolist(),
-        "angular_relative": ang.tolist(),  # 1-D profile / (energy/4π), about angular_apex
-        "angular_apex_location": tuple(float(v) for v in center + prof.angular_apex * R * axis),
         # Lights with equal keys have equal pixels (one image may serve them all);
         # None for a table passed in.
         "key": key,
     }
+    if prof.angular is not None:  # the exact table's 1-D profile / (energy/4π)
+        out["angular_relative"] = (prof.angular / t_ref).tolist()
+        out["angular_apex_location"] = tuple(
+            float(v) for v in center + prof.angular_apex * R * axis
+        )
     if prof.slope is not None:
         # the image's green channel: intensity × mean slope, which the texture's
         # linear interpolation blends as it blends the intensity (`_slope_table`)
