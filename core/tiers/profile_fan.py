@@ -60,7 +60,9 @@ def fan_table(
         b_over_c = fan.b / c
         tan_exit = fan.sin_theta_exit / c
     z_exit = -np.cos(fan.exit_polar)
-    good = (c > 0.0) & np.isfinite(b_over_c) & (w > 0.0)
+    # the axial ray (no flux of its own) bounds the first piece: kept, unlike
+    # `ExactBeam`, which drops that piece (at 1200 rays the caustic's first texels)
+    good = (c > 0.0) & np.isfinite(b_over_c) & np.isfinite(w)
     h = np.asarray(distances, dtype=float)
     Z = apex + h
     M, K = h.size, gamma_edges.size - 1
