@@ -85,6 +85,6 @@ def test_cached_profile_is_the_fast_table_with_the_planned_flux():
     prof = xp.cached_profile(4.69, 1.5)
     fast = xp.fan_profile(4.69, 1.5)
     np.testing.assert_array_equal(prof.table, fast.table)
-    # the light's energy is made of the beam's flux (8000 rays): the same number
-    assert prof.flux == ExactBeam(1.0, 4.69, 1.0, 1.5, n_fan=8000).lens_flux
+    # the light's energy is made of the beam's flux (`SUMMARY_FAN` rays): the same number
+    assert prof.flux == ExactBeam(1.0, 4.69, 1.0, 1.5, n_fan=xp.SUMMARY_FAN).lens_flux
     assert prof.flux == pytest.approx(fast.flux, rel=1e-5)
