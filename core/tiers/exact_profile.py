@@ -69,7 +69,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, fan_table
+from .profile_fan import FAN, FAN_FAR, fan_table
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -327,7 +327,7 @@ def fan_profile(
     n: float,
     absorption: float = 0.0,
     *,
-    n_fan: int = FAN,
+    n_fan: int | None = None,
     K: int = PROFILE_ANGLES,
     M: int = PROFILE_DISTANCES,
     near: bool = False,
@@ -335,7 +335,9 @@ def fan_profile(
     slope: bool = False,
 ) -> BeamProfile:
     """:func:`exact_profile`'s table (same geometry, rows, columns, slopes and
-    filled texels inside the lens) from `profile_fan.fan_table`; ``angular`` None."""
+    filled texels inside the lens) from `profile_fan.fan_table` (`n_fan` rays: by
+    default ``FAN`` for the near field, ``FAN_FAR`` for the far table, whose rows
+    all lie behind the lens); ``angular`` None."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
@@ -345,6 +347,8 @@ def fan_profile(
         apex, h_min, h_max = table_geometry(0.0 if near else None)
     prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)))
     with_slope = apex < 1.0 and slope
+    if n_fan is None:
+        n_fan = FAN if apex < 1.0 else FAN_FAR
     table, mean_slope, flux = fan_table(
         float(D_over_R),
         n,
