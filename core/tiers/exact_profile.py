@@ -335,9 +335,9 @@ def fan_profile(
     slope: bool = False,
 ) -> BeamProfile:
     """:func:`exact_profile`'s table (same geometry, rows, columns, slopes and
-    filled texels inside the lens) from `profile_fan.fan_table` (`n_fan` rays: by
-    default ``FAN`` for the near field, ``FAN_FAR`` for the far table, whose rows
-    all lie behind the lens); ``angular`` None."""
+    filled texels inside the lens) from `profile_fan.fan_table` (`n_fan` rays for
+    every row; by default ``FAN`` for the rows nearer than ``FAR_ROWS`` R to the
+    lens centre, ``FAN_FAR`` beyond); ``angular`` None."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
@@ -347,18 +347,30 @@ def fan_profile(
         apex, h_min, h_max = table_geometry(0.0 if near else None)
     prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)))
     with_slope = apex < 1.0 and slope
-    if n_fan is None:
-        n_fan = FAN if apex < 1.0 else FAN_FAR
-    table, mean_slope, flux = fan_table(
-        float(D_over_R),
-        n,
-        absorption,
-        apex,
-        prof.distances,
-        g_edges,
-        n_fan=n_fan,
-        slope=with_slope,
-    )
+    h = prof.distances
+    # the near field's rows through and right past the lens need the denser fan;
+    # from 1 R behind it on, and the far table's rows (all behind the lens), the
+    # sparser one is as good (`profile_fan.FAN_FAR`)
+    dense = (apex + h < FAR_ROWS) & (apex < 1.0)
+    if n_fan is not None:
+        dense[:] = True
+    parts = [
+        fan_table(
+            float(D_over_R),
+            n,
+            absorption,
+            apex,
+            h[rows],
+            g_edges,
+            n_fan=fan,
+            slope=with_slope,
+        )
+        for rows, fan in ((dense, n_fan or FAN), (~dense, FAN_FAR))
+        if rows.any()
+    ]
+    table = np.concatenate([p[0] for p in parts])
+    mean_slope = np.concatenate([p[1] for p in parts]) if with_slope else None
+    flux = parts[0][2]
     table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
     prof.table, prof.flux = table, flux
     if with_slope:
@@ -437,6 +449,9 @@ class ProfileLight(BlenderLight):
 #: 20 000-ray fan's over D/R 1.1–1000, n 1.33–1.9 (6e-4 at worst), in a fifth of
 #: 8000 rays' time (planned per new D/R: every frame a light moves).
 SUMMARY_FAN = 2000
+#: Rows of the fan table (`fan_profile`) this far (R) from the lens centre and more
+#: take the far table's fan.
+FAR_ROWS = 2.0
 
 
 @functools.lru_cache(maxsize=1024)
