@@ -200,12 +200,16 @@ def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
     resting lens (a dark disc of about 4° at the back pole)."""
     h = prof.distances[:, None]
     inside = (prof.apex + h) ** 2 + (h * np.tan(g_edges[:-1])) ** 2 < 1.0
-    for i in np.flatnonzero(inside.any(axis=0)):
-        first = int(np.flatnonzero(inside[:, i]).max()) + 1
-        if first < prof.table.shape[0]:
-            prof.table[:first, i] = prof.table[first, i]
-            if prof.slope is not None:
-                prof.slope[:first, i] = prof.slope[first, i]
+    M = prof.table.shape[0]
+    # per column: the first row past its last texel inside (every column at once)
+    last = M - 1 - np.argmax(inside[::-1], axis=0)
+    first = np.where(inside.any(axis=0), last + 1, 0)
+    fill = (np.arange(M)[:, None] < first[None, :]) & (first[None, :] < M)
+    cols = np.flatnonzero(fill.any(axis=0))
+    src = first[cols]
+    for arr in (prof.table, prof.slope):
+        if arr is not None and cols.size:
+            arr[:, cols] = np.where(fill[:, cols], arr[src, cols][None, :], arr[:, cols])
 
 
 def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
