@@ -9,7 +9,7 @@ the whole ``frame_set`` with and without live update (Blender's own evaluation).
 
     ./lens-lights bench live_update [--counts 10 100 1000] [--frames 6]
         [--tiers FITTED EXACT_PROFILE CAUSTIC_LAYER] [--layer-max 10] [--profile-max 10]
-        [--unrelated 20] [--drags 20]
+        [--unrelated 20] [--drags 20] [--resting 1 10] [--render-px 32]
 
 Targets (issue 15): ≤ 20 ms per frame for 10 lenses × 2 lights, ≤ 200 ms for 1000
 lenses. Each count runs with the default maximum of 64 lens lights and, when there
@@ -17,6 +17,10 @@ are more sources, with every source lit (max_lights = 2 N). The Caustic layer (r
 only up to ``--layer-max`` lenses, the Exact profile (a new profile table for every
 new D/R, i.e. for every light whose distance to its lens changed) up to
 ``--profile-max``.
+
+Resting marbles (issue 27, ``--resting``: lens counts): the Exact profile in Cycles
+with the marbles on the floor (the near field), per frame change and per drag of the
+other lamp, and the state after them against a fresh Generate (`run_resting`).
 
 Unrelated edits (issue 28): with ``--unrelated`` lenses (20 by default), a cube no
 light path touches is dragged with live update off and on; the difference is what

@@ -12,7 +12,9 @@ plane perpendicular to the axis the exact irradiance (to the table's
 resolution), including the converging part and the focus. Beyond the table's
 last distance the intensity tends to the beam's far-field profile, which is
 exact for a far receiver whatever the apex. The table is computed per source
-from the exact trace (about 0.25 s; remembered per ``(D/R, n)``).
+from the exact ray fan (`profile_fan`, every row at once: about 20 ms, 50 ms for
+the near field's; remembered per geometry, `cached_profile`); :func:`exact_profile`,
+row by row from `beam_error.ExactBeam` (0.3–0.9 s), is its reference.
 
 The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
 has a row on the receiver's plane (right past the lens the beam changes by tens
@@ -426,8 +428,8 @@ class ProfileLight(BlenderLight):
     """A :class:`.base.BlenderLight` plus the EXACT_PROFILE table (world
     units) for the light node tree (`blender/build/lights.build_profile_nodes`).
 
-    ``profile`` (the table, ``pixels`` and all) is made on first use (about 0.25 s
-    per new ``(D/R, n)``, then remembered), so that planning many candidate lights
+    ``profile`` (the table, ``pixels`` and all) is made on first use (20–50 ms per
+    new geometry, then remembered), so that planning many candidate lights
     (energy, brightness, ordering) costs only the exact trace (milliseconds);
     ``profile_info`` (its sizes and distances) is known at once."""
 
