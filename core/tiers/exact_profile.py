@@ -307,7 +307,9 @@ def exact_profile(
     return prof
 
 
-@functools.lru_cache(maxsize=256)
+#: (a near table with its slopes is 2 MB: a light dragged for a while leaves one per
+#: step, the oldest forgotten)
+@functools.lru_cache(maxsize=64)
 def cached_profile(
     D_over_R: float,
     n: float,
