@@ -9,7 +9,7 @@ the whole ``frame_set`` with and without live update (Blender's own evaluation).
 
     ./lens-lights bench live_update [--counts 10 100 1000] [--frames 6]
         [--tiers FITTED EXACT_PROFILE CAUSTIC_LAYER] [--layer-max 10] [--profile-max 10]
-        [--unrelated 20] [--drags 20]
+        [--unrelated 20] [--drags 20] [--resting 1 10] [--render-px 32]
 
 Targets (issue 15): ≤ 20 ms per frame for 10 lenses × 2 lights, ≤ 200 ms for 1000
 lenses. Each count runs with the default maximum of 64 lens lights and, when there
@@ -26,6 +26,10 @@ it): per frame change and per light drag (Lamp B moved by a depsgraph update, no
 change), the coarse state's L1 against the full layer of that frame, the refine's
 time, and whether the state after it equals a fresh Generate (the layer meshes'
 positions and irradiance, array for array).
+
+Resting marbles (issue 27, ``--resting``: lens counts): the Exact profile in Cycles
+with the marbles on the floor (the near field), per frame change and per drag of the
+other lamp, and the state after them against a fresh Generate (`run_resting`).
 
 Unrelated edits (issue 28): with ``--unrelated`` lenses (20 by default), a cube no
 light path touches is dragged with live update off and on; the difference is what
@@ -48,6 +52,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT))
 
 import bpy
+import numpy as np
 from dev_extension import load_extension
 
 REPORTS = ROOT / "reports"
@@ -66,7 +71,9 @@ def glass_material():
     return mat
 
 
-def build_scene(n, frames):
+def build_scene(n, frames, resting=False):
+    """`resting`: the spheres lie on the floor (their centre R above it: the Exact
+    profile's near field, its table's rows on the floor and tilted as the lamp moves)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     side = int(math.ceil(math.sqrt(n)))
@@ -81,8 +88,9 @@ def build_scene(n, frames):
         ob = bpy.data.objects.new(f"Bead.{k:05d}", bead.data)
         scene.collection.objects.link(ob)
         beads.append(ob)
+    height = RADIUS if resting else 1.0
     for k, ob in enumerate(beads):
-        ob.location = (SPACING * (k % side) - half, SPACING * (k // side) - half, 1.0)
+        ob.location = (SPACING * (k % side) - half, SPACING * (k // side) - half, height)
     lamps = []
     for name, loc in (
         ("Lamp A", (0.3 * side, 0.2 * side, 12.0)),
@@ -386,6 +394,152 @@ def run_unrelated(n, tier, drags):
     return dict(n=n, tier=tier, off=off, on=on, ran=ran, into=into, seen=seen)
 
 
+def _profile_state():
+    """Each Exact profile lens light's numbers (by its source light and lens): its
+    transform and light values, its tree's Value nodes, its table's pixels."""
+    from lens_lights.blender.build import lights as bl
+
+    out = {}
+    for ob in bpy.data.objects:
+        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
+            continue
+        d = ob.data
+        nt = d.node_tree
+        nums = [*ob.location, *ob.rotation_quaternion, d.energy, *d.color, d.spot_size]
+        nums += [d.shadow_soft_size, d.cutoff_distance]
+        values = {
+            n.name: n.outputs[0].default_value for n in nt.nodes if n.bl_idname == "ShaderNodeValue"
+        }
+        tex = nt.nodes.get(bl.PROFILE_TEX_NODE)
+        px = np.zeros(0)
+        if tex is not None and tex.image is not None:
+            px = np.empty(len(tex.image.pixels), dtype=np.float32)
+            tex.image.pixels.foreach_get(px)
+        key = (ob.lens_lights.source_light, ob.lens_lights.source_lens)
+        out[key] = (np.array(nums, float), values, px)
+    return out
+
+
+def _state_difference(a, b):
+    """(same lights?, largest relative difference of the numbers, of the Value nodes,
+    of the pixels (over each table's largest texel))."""
+    if a.keys() != b.keys():
+        return False, math.inf, math.inf, math.inf
+    nums = vals = pix = 0.0
+    for k in a:
+        (na, va, pa), (nb, vb, pb) = a[k], b[k]
+        nums = max(nums, float(np.max(np.abs(na - nb) / np.maximum(np.abs(nb), 1e-6))))
+        if va.keys() != vb.keys() or pa.shape != pb.shape:
+            return False, nums, math.inf, math.inf
+        for n in va:
+            vals = max(vals, abs(va[n] - vb[n]) / max(abs(vb[n]), 1e-6))
+        if pb.size:
+            pix = max(pix, float(np.max(np.abs(pa - pb)) / max(float(np.max(np.abs(pb))), 1e-30)))
+    return True, nums, vals, pix
+
+
+def _tiny_render(path, px):
+    """A `px` × `px` Cycles render (16 samples, fixed seed, no denoising): its RGB."""
+    sc = bpy.context.scene
+    sc.render.resolution_x = sc.render.resolution_y = px
+    sc.render.resolution_percentage = 100
+    sc.cycles.samples = 16
+    sc.cycles.seed = 0
+    sc.cycles.use_denoising = False
+    sc.cycles.device = "CPU"
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    rgb = np.array(img.pixels[:], dtype=float).reshape(px, px, 4)[..., :3]
+    bpy.data.images.remove(img)
+    return rgb
+
+
+def run_resting(n, frames, drags, render_px):
+    """Issue 27: `n` marbles resting on the floor, Cycles, the Exact profile; live update
+    on, the lamp keyed to move: per frame change (`frame_set`) and per drag of the
+    other lamp (a transform update without a frame change, `view_layer.update()`), the
+    update's time; then the state after the last frame against a fresh Generate on
+    that frame (the lights' numbers, their trees' Value nodes, their tables' pixels,
+    and a tiny Cycles render of each)."""
+    import tempfile
+
+    from lens_lights.blender.commands import live_update
+    from lens_lights.blender.commands.generate import generate
+    from lens_lights.core.tiers import exact_profile
+
+    exact_profile.cached_profile.cache_clear()  # from cold caches
+    build_scene(n, frames, resting=True)
+    scene = bpy.context.scene
+    set_engine("CYCLES")
+    settings = scene.lens_lights
+    settings.energy_model = "EXACT_PROFILE"
+    scene.frame_set(1)
+    t = time.perf_counter()
+    settings.live_update = True
+    first = time.perf_counter() - t
+    lights0 = {ob.as_pointer() for ob in bpy.data.objects if ob.lens_lights.is_lens_light}
+    images0 = {i.as_pointer() for i in bpy.data.images}
+    frame_t, frame_wall, drag_t, frame_cpu, drag_cpu = [], [], [], [], []
+    for k in range(2, frames + 2):
+        t, c = time.perf_counter(), time.process_time()
+        scene.frame_set(k)
+        frame_wall.append(time.perf_counter() - t)
+        frame_cpu.append(time.process_time() - c)
+        f = live_update.LAST_FIGURES
+        if "error" in f:
+            raise RuntimeError(f["error"])
+        frame_t.append(f["seconds"])
+    lamp = bpy.data.objects["Lamp B"]
+    for _ in range(drags):
+        before = live_update.LAST_FIGURES
+        lamp.location.x += 0.05
+        lamp.location.y += 0.03
+        c = time.process_time()
+        bpy.context.view_layer.update()
+        drag_cpu.append(time.process_time() - c)
+        f = live_update.LAST_FIGURES
+        if f is before:
+            raise RuntimeError("a drag of the lamp was not followed")
+        if "error" in f:
+            raise RuntimeError(f["error"])
+        drag_t.append(f["seconds"])
+    lights1 = {ob.as_pointer() for ob in bpy.data.objects if ob.lens_lights.is_lens_light}
+    images1 = {i.as_pointer() for i in bpy.data.images}
+    live = _profile_state()
+    tmp = Path(tempfile.mkdtemp(prefix="lens-lights-bench-"))
+    render_live = _tiny_render(tmp / "live.exr", render_px)
+    t = time.perf_counter()
+    generate(bpy.context)  # on the same frame, lamp B where the drags left it
+    gen_seconds = time.perf_counter() - t
+    fresh = _profile_state()
+    render_fresh = _tiny_render(tmp / "fresh.exr", render_px)
+    same, nums, vals, pix = _state_difference(live, fresh)
+    l1 = float(np.abs(render_live - render_fresh).mean() / max(render_fresh.mean(), 1e-30))
+    med = statistics.median
+    return dict(
+        n=n,
+        lights=len(live),
+        first=first,
+        frame=med(frame_t),
+        frame_max=max(frame_t),
+        frame_wall=med(frame_wall),
+        frame_cpu=med(frame_cpu),
+        drag_cpu=med(drag_cpu),
+        drag=med(drag_t),
+        drag_max=max(drag_t),
+        kept=lights0 <= lights1,
+        new_images=len(images1 - images0),
+        generate=gen_seconds,
+        same=same,
+        nums=nums,
+        vals=vals,
+        pix=pix,
+        l1=l1,
+    )
+
+
 def ms(x):
     return f"{1000 * x:.1f}"
 
@@ -442,7 +596,7 @@ def layer_section(rows, args) -> list[str]:
     return lines
 
 
-def write_report(rows, args, unrelated=(), layer_rows=()):
+def write_report(rows, args, unrelated=(), layer_rows=(), resting=()):
     lines = [
         "# Live update: cost per frame",
         "",
@@ -453,6 +607,7 @@ def write_report(rows, args, unrelated=(), layer_rows=()):
             + [f"--profile-max {args.profile_max}"]
             + [f"--layer-counts {' '.join(map(str, args.layer_counts))}"]
             + [f"--unrelated {' '.join(map(str, args.unrelated))}", f"--drags {args.drags}"]
+            + [f"--resting {' '.join(map(str, args.resting))}", f"--render-px {args.render_px}"]
             + ([f"--report {args.report}"] if args.report != "live_update" else [])
         )
         + "`",
@@ -535,6 +690,49 @@ def write_report(rows, args, unrelated=(), layer_rows=()):
                 f"{ms(r['on'] - r['off'])} | {'yes' if r['ran'] else 'none'} | "
                 f"{'yes' if r['seen'] else 'NO'} ({ms(r['into'])}) |"
             )
+    if resting:
+        lines += [
+            "",
+            "## The Exact profile while working (issue 27)",
+            "",
+            "N glass marbles resting on the floor (their tables in the near field, the "
+            "floor tilted against each lens' axis as the lamp moves), Cycles, the Exact "
+            f"profile tier; live update on. **frame**: live update's time per frame change "
+            f"(median over {args.frames} frames of `frame_set`, the keyed lamp moving; max; "
+            "**CPU**: the process's CPU time per `frame_set`, less sensitive to the other "
+            "work on the machine than the wall time); "
+            f"**drag**: per transform update without a frame change (the other lamp moved, "
+            f"`view_layer.update()`, median over {args.drags}; max); **first**: turning live "
+            "update on; **kept**: the same light objects after all of it; **new images**: "
+            "images made by the frames and drags (the tables are written into each light's "
+            "own image in place). Then Generate on the last state: **Δ numbers** the largest "
+            "relative difference of the lights' values (transform, power, colour, cone, "
+            "radius), **Δ nodes** of their trees' Value nodes (distances, tilts), **Δ pixels** "
+            "of their tables (over each table's largest texel), **render L1** the relative "
+            f"L1 difference of a {args.render_px} × {args.render_px} Cycles render (16 "
+            "samples, same seed) of the live state and of Generate's.",
+            "",
+            "Target (issue 27): frame ≤ 100 ms for 10 marbles, ≤ 30 ms for one; the state "
+            "equal to a fresh Generate's.",
+            "",
+            "| lenses | lens lights | frame ms (max) | CPU ms | drag ms (max) | CPU ms "
+            "| first ms | kept | new images | Generate ms | Δ numbers | Δ nodes | Δ pixels "
+            "| render L1 |",
+            "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: "
+            "| ---: | ---: | ---: |",
+        ]
+        for r in resting:
+            lines.append(
+                f"| {r['n']} | {r['lights']} | {ms(r['frame'])} ({ms(r['frame_max'])}) | "
+                f"{ms(r['frame_cpu'])} | {ms(r['drag'])} ({ms(r['drag_max'])}) | "
+                f"{ms(r['drag_cpu'])} | {ms(r['first'])} | "
+                f"{'yes' if r['kept'] else 'no'} | {r['new_images']} | {ms(r['generate'])} | "
+                + (
+                    f"{r['nums']:.1e} | {r['vals']:.1e} | {r['pix']:.1e} | {r['l1']:.1e} |"
+                    if r["same"]
+                    else "other lights | | | |"
+                )
+            )
     report = REPORTS / f"{args.report}.md"
     report.write_text("\n".join(lines) + "\n")
     print(f"wrote {report.relative_to(ROOT)}")
@@ -542,7 +740,7 @@ def write_report(rows, args, unrelated=(), layer_rows=()):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--counts", type=int, nargs="+", default=[10, 100, 1000])
+    ap.add_argument("--counts", type=int, nargs="*", default=[10, 100, 1000])
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--tiers", nargs="+", default=["FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER"])
     ap.add_argument("--layer-max", type=int, default=100)
@@ -552,6 +750,8 @@ def main(argv=None):
     ap.add_argument(
         "--layer-counts", type=int, nargs="*", default=[1, 10, 100], help="issue 27's layer rows"
     )
+    ap.add_argument("--resting", type=int, nargs="*", default=[1, 10], help="lens counts")
+    ap.add_argument("--render-px", type=int, default=32)
     ap.add_argument("--report", default="live_update", help="report name in reports/")
     args = ap.parse_args(argv)
     load_extension().register()
@@ -593,7 +793,17 @@ def main(argv=None):
                 f"ms, updates run: {r['ran']}, into the beam followed: {r['seen']}",
                 flush=True,
             )
-    write_report(rows, args, unrelated, layer_rows)
+    resting = []
+    for n in args.resting:
+        r = run_resting(n, args.frames, args.drags, args.render_px)
+        resting.append(r)
+        print(
+            f"resting, {n} lenses EXACT_PROFILE: {r['lights']} lights, frame {ms(r['frame'])} ms, "
+            f"drag {ms(r['drag'])} ms; against Generate: numbers {r['nums']:.1e}, nodes "
+            f"{r['vals']:.1e}, pixels {r['pix']:.1e}, render L1 {r['l1']:.1e}",
+            flush=True,
+        )
+    write_report(rows, args, unrelated, layer_rows, resting)
 
 
 if __name__ == "__main__":

@@ -150,49 +150,77 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     """The float image of an EXACT_PROFILE table (`ProfileLight.profile`), reusing
     a marked image with the same key and size (from `image_cache`, then from
     `bpy.data`); a table without a key gets an image of its own."""
-    import numpy as np
-
     key = profile.get("key")
     H, K = int(profile["height"]), int(profile["width"])
     if key is not None:
-        if image_cache is not None and key in image_cache:
-            return image_cache[key]
-        for img in bpy.data.images:
-            if (
-                _is_profile_image(img)
-                and img.get(PROFILE_KEY) == key
-                and tuple(img.size) == (K, H)
-                and (img.packed_file is not None or img.has_data)
-            ):
-                if image_cache is not None:
-                    image_cache[key] = img
-                return img
+        found = _keyed_image(key, K, H, image_cache)
+        if found is not None:
+            return found
     img = bpy.data.images.new(
         PROFILE_PREFIX + (key or "table"), width=K, height=H, float_buffer=True, alpha=False
     )
     img[COLLECTION_MARK] = PROFILE_MARK
-    if key is not None:
-        img[PROFILE_KEY] = key
     # Traps: the colour space first (changing it
     # later regenerates the generated image and loses the pixels), and full float
     # precision (the table spans about 20 decades, up to ~1e7).
     img.colorspace_settings.name = "Non-Color"
     img.use_half_precision = False
-    rgba = np.ones((H, K, 4), dtype=np.float32)
-    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
-    if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
-        rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
-    img.pixels.foreach_set(rgba.ravel())
-    img.update()
+    write_profile_pixels(img, profile)
     img.pack()  # kept in the .blend (as OpenEXR)
     if image_cache is not None and key is not None:
         image_cache[key] = img
     return img
 
 
+def _keyed_image(key, K: int, H: int, image_cache: dict | None):
+    """A marked profile image holding the table `key` at size K × H, or None."""
+    if image_cache is not None and key in image_cache:
+        return image_cache[key]
+    for img in bpy.data.images:
+        if (
+            _is_profile_image(img)
+            and img.get(PROFILE_KEY) == key
+            and tuple(img.size) == (K, H)
+            and (img.packed_file is not None or img.has_data)
+        ):
+            if image_cache is not None:
+                image_cache[key] = img
+            return img
+    return None
+
+
+def write_profile_pixels(img, profile: dict) -> None:
+    """`profile`'s table into `img` (its size): red and blue the intensity, green the
+    near field's intensity × mean slope (else the intensity), and its key. Not
+    packed: a live update's rewrite is packed when the file is saved
+    (`pack_dirty_profile_images`)."""
+    H, K = int(profile["height"]), int(profile["width"])
+    rgba = np.ones((H, K, 4), dtype=np.float32)
+    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
+        rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    if profile.get("key") is not None:
+        img[PROFILE_KEY] = profile["key"]
+
+
+def pack_dirty_profile_images() -> int:
+    """Pack the profile images live update rewrote in place since they were packed
+    (before the .blend is saved: the packed copy is what the file keeps)."""
+    dirty = [img for img in bpy.data.images if _is_profile_image(img) and img.is_dirty]
+    for img in dirty:
+        img.pack()
+    return len(dirty)
+
+
 #: A baked profile light's keyed Value nodes (`blender/commands/bake.py`): the slice
-#: coordinate and the table's first distance.
+#: coordinate and the table's first distance (also Generate's tree: live update
+#: writes it, with the log of the distances' range, in place).
 SLICE_NODE, H_MIN_NODE = "Lens bake slice", "Lens bake h_min"
+LOG_RANGE_NODE = "Lens table log range"
+#: The Image Texture node of a (not baked) profile tree: its image is the table.
+PROFILE_TEX_NODE = "Lens profile table"
 #: The tilt correction's Value nodes (`_tilted`), Generate's and the bake's: plane k's
 #: normal in the light's frame ("nx", "ny", "nz") and its offset from the apex
 #: ("offset", world units), and the tolerance within which a shading point is on a
@@ -269,8 +297,9 @@ def build_profile_nodes(data, profile: dict, image, slices=None):
     h = math_node("MULTIPLY", lp.outputs["Ray Length"], cosg)
     h_min, h_max = float(profile["h_min"]), float(profile["h_max"])
     log_range = math.log(h_max / h_min)
-    if slices is not None:
-        h_min = value_node(nt, H_MIN_NODE, h_min)
+    h_min = value_node(nt, H_MIN_NODE, h_min)  # live update's and the bake's to write
+    if slices is None:
+        log_range = value_node(nt, LOG_RANGE_NODE, log_range)
     ratio = math_node("DIVIDE", math_node("MAXIMUM", h, h_min), h_min)
     v = math_node("DIVIDE", math_node("LOGARITHM", ratio, math.e), log_range)
 
@@ -289,6 +318,7 @@ def build_profile_nodes(data, profile: dict, image, slices=None):
         nt.links.new(u, comb.inputs["X"])
         nt.links.new(v, comb.inputs["Y"])
         rgb = lookup(comb.outputs[0])
+        rgb.inputs[0].links[0].from_node.name = PROFILE_TEX_NODE
         texel, slope = rgb.outputs[0], rgb.outputs[1]
     else:
         count = int(slices.count)
@@ -415,20 +445,107 @@ def _put(owner, attr, value):
         setattr(owner, attr, value)
 
 
-#: Custom properties of a profile light's data: what its node tree was built from,
-#: and whether it ends with a shadow mask.
+#: Custom properties of a profile light's data: what its node tree was built from
+#: (its shape: sizes, planes), the values in it (table key, distances, tilts), and
+#: whether it ends with a shadow mask (then what the mask was drawn from).
 PROFILE_SIGNATURE = "lens_lights_profile_signature"
+PROFILE_VALUES = "lens_lights_profile_values"
 MASKED = "lens_lights_masked"
+MASK_SIGNATURE = "lens_lights_mask_signature"
+
+
+def _profile_signatures(profile: dict) -> tuple[str, str]:
+    """(shape, values) of a profile's node tree: a tree of the same shape takes new
+    values in place (`_update_profile_in_place`)."""
+    shape = repr(
+        [profile.get(k) for k in ("height", "width", "gamma_max_deg", "strength_scale")]
+        + [len(profile.get("receivers") or ()), profile.get("key") is None]
+    )
+    values = repr(
+        [profile.get(k) for k in ("key", "h_min", "h_max")]
+        # the tilt correction's planes, in the light's frame
+        + [profile.get(k) for k in ("axis", "receivers", "plane_tolerance")]
+    )
+    return shape, values
+
+
+def _mask_signature(planned, arrays) -> str:
+    """What a shadow mask is drawn from (`mask_nodes.shadow_mask`): the light and its
+    lens, where the light sits, and the blockers of its shadow list."""
+    src, bl = planned.source, planned.light
+    k = np.asarray(src.shadow_list, dtype=np.int64)
+    parts = [
+        np.asarray(src.lens_center, float),
+        np.asarray(src.axis, float),
+        np.array([src.distance, src.lens_radius, src.ior, src.unblocked_fraction], float),
+        np.asarray(bl.location, float),
+        np.asarray(bl.direction, float),
+        np.array([getattr(bl, "receiver_distance", None) or -1.0], float),
+        k.astype(float),
+        arrays.center[k].ravel(),
+        arrays.radius[k],
+        arrays.ior[k],
+        arrays.kt[k],
+    ]
+    return np.concatenate([np.ravel(x) for x in parts]).astype(np.float64).tobytes().hex()
+
+
+def _update_profile_in_place(data, profile: dict, image_cache) -> bool:
+    """Write a profile's values into the light's existing tree of the same shape (the
+    distances and tilts into its Value nodes, the table into its image: a shared
+    one with that key, else its own image rewritten where nothing else uses it);
+    False where the tree lacks a node (an older file's: rebuild)."""
+    nt = data.node_tree
+    tex = nt.nodes.get(PROFILE_TEX_NODE) if nt is not None else None
+    h_min, log_range = (
+        nt.nodes.get(n) if nt is not None else None for n in (H_MIN_NODE, LOG_RANGE_NODE)
+    )
+    tilts = tilt_values(profile)
+    if (
+        tex is None
+        or h_min is None
+        or log_range is None
+        or any(nt.nodes.get(n) is None for n in tilts)
+    ):
+        return False
+    h0, h1 = float(profile["h_min"]), float(profile["h_max"])
+    h_min.outputs[0].default_value = h0
+    log_range.outputs[0].default_value = math.log(h1 / h0)
+    for name, value in tilts.items():
+        nt.nodes[name].outputs[0].default_value = value
+    key = profile["key"]
+    H, K = int(profile["height"]), int(profile["width"])
+    img = _keyed_image(key, K, H, image_cache)
+    if img is None:
+        old = tex.image
+        if (
+            old is not None
+            and _is_profile_image(old)
+            and old.users == 1
+            and tuple(old.size) == (K, H)
+        ):
+            write_profile_pixels(old, profile)  # ours alone: rewritten, not remade
+            old.name = PROFILE_PREFIX + key
+            img = old
+            if image_cache is not None:
+                image_cache[key] = img
+        else:
+            img = profile_image(profile, image_cache)
+    if tex.image != img:
+        tex.image = img
+    return True
 
 
 def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
     """Put a `PlannedLight`'s values on the lens light `ob` (new, or kept by live
     update): transform, energy, colour, cone, blend, radius, distance, the origin
-    notes, and for EXACT_PROFILE its node tree (rebuilt only when the profile
-    differs from the one it was built from), ending with the shadow mask of a
-    source with a shadow list (`mask_nodes.add_shadow_mask`; `arrays`: phase 1's
-    `SceneArrays`; the mask depends on the blockers' places, so such a tree is
-    rebuilt on every call). Writes only what changed; True if the tree was rebuilt."""
+    notes, and for EXACT_PROFILE its node tree: built when new or of another shape
+    (table size, tilted planes), else its values written in place (distances, tilts,
+    the table's pixels: `_update_profile_in_place`); a source with a shadow list
+    ends with a shadow mask (`mask_nodes.add_shadow_mask`; `arrays`: phase 1's
+    `SceneArrays`), its tree rebuilt only when what the mask is drawn from changed
+    (the light, its lens, the blockers). Writes only what changed; True if the tree
+    was built or rewritten."""
     bl = planned.light
     data = ob.data
     _put(data, "energy", bl.energy_w)
@@ -438,25 +555,10 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
     _put(data, "shadow_soft_size", bl.radius)
     _put(data, "use_custom_distance", True)
     _put(data, "cutoff_distance", bl.cutoff_distance)
+    changed = False
     profile = getattr(bl, "profile", None)
     if profile is not None:
-        signature = repr(
-            [profile.get(k) for k in ("key", "height", "width", "gamma_max_deg", "h_min")]
-            + [profile.get(k) for k in ("h_max", "strength_scale")]
-            # the tilt correction's planes, in the light's frame (rebuilt as they move)
-            + [profile.get(k) for k in ("axis", "receivers", "plane_tolerance")]
-        )
-        masked = arrays is not None and len(planned.source.shadow_list) > 0
-        rebuilt = (
-            masked
-            or profile.get("key") is None
-            or data.get(PROFILE_SIGNATURE) != signature
-            or data.get(MASKED, False)
-        )
-        if rebuilt:
-            build_profile_nodes(data, profile, profile_image(profile, image_cache))
-            data[PROFILE_SIGNATURE] = signature
-            data[MASKED] = bool(masked and mask_nodes.add_shadow_mask(ob, planned, arrays))
+        changed = _apply_profile(data, ob, planned, profile, image_cache, arrays)
     _put(ob, "location", bl.location)
     _put(ob, "rotation_mode", "QUATERNION")
     _put(ob, "rotation_quaternion", Vector(bl.direction).to_track_quat("-Z", "Y"))
@@ -466,7 +568,34 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
     _put(meta, "unblocked_fraction", float(planned.source.unblocked_fraction))
     _put(meta, "relative_brightness", bl.relative_brightness)
     _put(meta, "note", bl.note)
-    return profile is not None and rebuilt
+    return changed
+
+
+def _apply_profile(data, ob, planned, profile, image_cache, arrays) -> bool:
+    """The profile part of `apply_light`: True if the tree was built or rewritten."""
+    shape, values = _profile_signatures(profile)
+    masked = arrays is not None and len(planned.source.shadow_list) > 0
+    mask_sig = _mask_signature(planned, arrays) if masked else ""
+    same_shape = (
+        data.get(PROFILE_SIGNATURE) == shape
+        and profile.get("key") is not None
+        and data.get(MASK_SIGNATURE, "") == mask_sig
+    )
+    if same_shape and data.get(PROFILE_VALUES) == values:
+        return False  # the same tree, the same numbers
+    if (
+        same_shape
+        and not data.get(MASKED, False)
+        and _update_profile_in_place(data, profile, image_cache)
+    ):
+        data[PROFILE_VALUES] = values
+        return True
+    build_profile_nodes(data, profile, profile_image(profile, image_cache))
+    data[PROFILE_SIGNATURE] = shape
+    data[PROFILE_VALUES] = values
+    data[MASKED] = bool(masked and mask_nodes.add_shadow_mask(ob, planned, arrays))
+    data[MASK_SIGNATURE] = mask_sig
+    return True
 
 
 def build(scene, plan, lens_objects, progress=None, arrays=None):

@@ -35,7 +35,10 @@ one the user duplicated, renamed or moved is theirs, left alone:
 `ownership.keep_users`): each light is matched to its planned source by a stable key
 (`core.animation.light_keys`: primary light, lens, kind, tier), updated with only the values
 that changed (`lights.apply_light`: transform, power, colour, cone, blend,
-radius; an Exact profile's node tree and image only when its profile changed), new
+radius; an Exact profile's table written into its tree's Value nodes and its own
+image in place, `image.pixels.foreach_set`, the tree rebuilt only when its shape
+changes or the blockers of its shadow mask move; the rewritten images are packed
+when the file is saved, ``save_pre``), new
 keys get new lights, vanished keys' lights are removed. So the objects stay the
 same from frame to frame (selection, undo). When the read's inputs (lights, spheres,
 primaries, the other geometry's transforms and boxes, camera, settings) are those of
@@ -634,6 +637,12 @@ def on_render_end(scene, *args):
 
 
 @bpy.app.handlers.persistent
+def on_save(*args):
+    # the Exact profile's images live update rewrote in place: packed as they are now
+    lights.pack_dirty_profile_images()
+
+
+@bpy.app.handlers.persistent
 def on_load(*args):
     global _RENDERING
     _LAST_INPUTS.clear()  # another file: other objects
@@ -660,6 +669,7 @@ _HANDLERS = (
     ("render_complete", on_render_end),
     ("render_cancel", on_render_end),
     ("load_post", on_load),
+    ("save_pre", on_save),
 )
 
 

@@ -184,26 +184,28 @@ def side_planes(origins, directions, hits, radius: float, known=()) -> list:
     hits = np.asarray(hits, dtype=float)
     out = [(np.asarray(n, dtype=float), np.asarray(p, dtype=float)) for n, p in known]
     found = []
-    for o, d, h in zip(
-        np.asarray(origins, float), np.asarray(directions, float), hits, strict=True
-    ):
-        if not np.all(np.isfinite(h)) or np.any(h > SIDE_REACH * radius):
-            continue
-        pts = o + h[:, None] * d
-        nrm = np.cross(pts[1] - pts[0], pts[2] - pts[0])
-        length = float(np.linalg.norm(nrm))
-        if length == 0.0:
-            continue
-        nrm = nrm / length
-        if abs(float(nrm @ (pts[3] - pts[0]))) > 1e-3 * radius:
-            continue
+    if hits.size == 0:
+        return found
+    # every bundle at once (a light's 24 bundles per planned source, every update);
+    # only the planes that pass are compared one by one
+    o = np.asarray(origins, dtype=float)
+    d = np.asarray(directions, dtype=float)
+    with np.errstate(invalid="ignore"):
+        reach = np.all(np.isfinite(hits), axis=1) & np.all(hits <= SIDE_REACH * radius, axis=1)
+    pts = o + np.where(np.isfinite(hits), hits, 0.0)[:, :, None] * d[:, None, :]
+    nrm = np.cross(pts[:, 1] - pts[:, 0], pts[:, 2] - pts[:, 0])
+    length = np.linalg.norm(nrm, axis=1)
+    nrm = nrm / np.where(length > 0.0, length, 1.0)[:, None]
+    flat = np.abs(np.einsum("ij,ij->i", nrm, pts[:, 3] - pts[:, 0])) <= 1e-3 * radius
+    for k in np.flatnonzero(reach & (length > 0.0) & flat):
+        n_k, p_k = nrm[k], pts[k, 0]
         if any(
-            abs(abs(float(nrm @ n)) - 1.0) < 1e-3 and abs(float(nrm @ (pts[0] - p))) < 1e-3 * radius
+            abs(abs(float(n_k @ n)) - 1.0) < 1e-3 and abs(float(n_k @ (p_k - p))) < 1e-3 * radius
             for n, p in out
         ):
             continue
-        out.append((nrm, pts[0]))
-        found.append((tuple(nrm), tuple(pts[0])))
+        out.append((n_k, p_k))
+        found.append((tuple(float(v) for v in n_k), tuple(float(v) for v in p_k)))
     return found
 
 

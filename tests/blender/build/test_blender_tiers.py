@@ -151,8 +151,10 @@ def test_exact_profile_light_node_tree_and_image(empty_blend, tmp_path):
     assert img.name.startswith("Lens profile ") and img.get("lens_lights_profile_key") == p["key"]
     px = np.array(img.pixels[:], dtype=np.float32).reshape(p["height"], p["width"], 4)
     assert np.array_equal(px[..., 0], p["pixels"]) and float(p["pixels"].max()) > 1e3
-    # what the node tree divides by: h_min, ln(h_max/h_min), γ_max
+    # what the node tree divides by: h_min, ln(h_max/h_min) (Value nodes, which live
+    # update writes in place), γ_max
     consts = {round(n.inputs[1].default_value, 6) for n in nt.nodes if n.type == "MATH"}
+    consts |= {round(n.outputs[0].default_value, 6) for n in nt.nodes if n.type == "VALUE"}
     assert {
         round(p["h_min"], 6),
         round(math.log(p["h_max"] / p["h_min"]), 6),

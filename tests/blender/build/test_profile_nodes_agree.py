@@ -244,11 +244,11 @@ def test_live_update_keeps_the_shadow_mask_of_a_non_full_source(empty_blend):
     first = lens_light()
     assert not first.lens_lights.full and len(masks(first)) == 1
     lamp.location = (0.0, 0.0, 4.8)  # another D/R: the tree is rebuilt
-    sig = first.data.get("lens_lights_profile_signature")
+    sig = first.data.get("lens_lights_profile_values")  # the table's key, distances
     live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
     ob = lens_light()
     assert ob == first  # updated in place
-    assert ob.data.get("lens_lights_profile_signature") != sig
+    assert ob.data.get("lens_lights_profile_values") != sig
     assert not ob.lens_lights.full and len(masks(ob)) == 1
     # the previous mask removed once unused
     assert all(i.users > 0 for i in bpy.data.images if i.name.startswith("Lens mask "))
