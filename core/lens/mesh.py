@@ -26,6 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
 from .base import BranchRays, ExitRays, Lens
@@ -183,6 +184,20 @@ class MeshLens(Lens):
                 return False
         return True
 
+    @cached_property
+    def _surface_walk(self):
+        """The BVH with the edge neighbours (`core.shared.surface_walk`): a convex
+        mesh's waves mostly walk from a neighbour's hit instead of traversing."""
+        return build_walk(self.bvh)
+
+    def _cast(self, seg):
+        """The nearest hit of each segment (a convex mesh: its one hit on the side the
+        segment is on, found by walking where it can)."""
+        if not self.convex:
+            return bvh_intersect(self.bvh, seg.origin, seg.direction)
+        side = np.where(seg.inside, -1, 1)
+        return intersect_convex(self._surface_walk, seg.origin, seg.direction, side)
+
     # ------------------------------------------------------------------ the groups
 
     @cached_property
@@ -232,8 +247,7 @@ class MeshLens(Lens):
             if len(seg.ray) == 0:
                 break
             # a convex mesh: one way in (a face toward the ray), one way out
-            side = np.where(seg.inside, -1, 1) if self.convex else None
-            h = bvh_intersect(self.bvh, seg.origin, seg.direction, facing=side)
+            h = self._cast(seg)
             miss = h.triangle < 0
             done.append(seg.take(miss & ~seg.inside))
             lost = miss & seg.inside  # a crack: nothing to leave by

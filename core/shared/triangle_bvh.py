@@ -297,7 +297,7 @@ def _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, ray, node, near, side,
         slot = np.repeat(nd, ls) * ls + np.tile(np.arange(ls), len(nd))
         live = bvh.tri_index[slot] >= 0
         r, slot = r[live], slot[live]
-        t, u, v, ok, det = _hit_slots(bvh, o[r], d[r], dn[r], slot)
+        t, u, v, ok, det = hit_slots(bvh, o[r], d[r], dn[r], slot)
         ok &= (t > t_min[r]) & (t <= best[r]) & (det * side[r] >= 0.0)
         r, slot, t, u, v = r[ok], slot[ok], t[ok], u[ok], v[ok]
         if len(r) == 0:
@@ -313,7 +313,7 @@ def _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, ray, node, near, side,
         done[r] = side[r] != 0
 
 
-def _hit_slots(bvh, o, d, dn, slot):
+def hit_slots(bvh, o, d, dn, slot):
     """Möller–Trumbore against the slots' triangles with their normals precomputed
     (one cross product per pair): ``det = −d·n``, ``u = e2·(s×d)/det``,
     ``v = −e1·(s×d)/det``, ``t = s·n/det`` with ``s = o − v0``; the same tolerances
