@@ -39,11 +39,16 @@ MIN_SAMPLES = 2048
 class SurfaceWalk:
     """A BVH and its mesh's edge neighbours: ``across`` (T, 3) the triangle across the
     edge opposite each corner (−1: an open or non-manifold edge), ``slot`` (T,) each
-    triangle's slot in the BVH."""
+    triangle's slot in the BVH; and where walks start: the ellipsoid inscribed in the
+    bounding box (``center``, ``half`` axes) and a cube map (6, M, M) of a triangle
+    (−1: none) in each direction from the centre of that ellipsoid."""
 
     bvh: TriangleBvh
     across: np.ndarray
     slot: np.ndarray
+    center: np.ndarray
+    half: np.ndarray
+    cube: np.ndarray
 
 
 def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
@@ -66,7 +71,60 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     slot = np.empty(t, dtype=np.int64)
     live = bvh.tri_index >= 0
     slot[bvh.tri_index[live]] = np.nonzero(live)[0]
-    return SurfaceWalk(bvh=bvh, across=across.reshape(t, 3), slot=slot)
+    v = bvh.vertices[tris.reshape(-1)] if t else np.zeros((1, 3))
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    center, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-300)
+    m = int(np.clip(np.sqrt(t / 12.0), 1, 64))
+    cube = np.full((6, m, m), -1, dtype=np.int64)
+    if t:
+        cen = bvh.vertices[tris].mean(axis=1)
+        cube[_texel((cen - center) / half, m)] = np.arange(t)
+        cube = _fill(cube)
+    return SurfaceWalk(
+        bvh=bvh, across=across.reshape(t, 3), slot=slot, center=center, half=half, cube=cube
+    )
+
+
+def _texel(q, m):
+    """Cube-map texel (face, row, column) of the directions q (N, 3)."""
+    a = np.abs(q)
+    major = np.argmax(a, axis=1)
+    n = np.arange(len(q))
+    big = np.maximum(a[n, major], 1e-300)
+    face = 2 * major + (q[n, major] < 0)
+    i = np.clip(((q[n, (major + 1) % 3] / big + 1.0) * 0.5 * m).astype(np.int64), 0, m - 1)
+    j = np.clip(((q[n, (major + 2) % 3] / big + 1.0) * 0.5 * m).astype(np.int64), 0, m - 1)
+    return face, i, j
+
+
+def _fill(cube):
+    """Empty texels take a neighbour's triangle (within a face), a few rounds."""
+    for _ in range(4):
+        empty = cube < 0
+        if not empty.any():
+            break
+        for ax in (1, 2):
+            for sh in (1, -1):
+                nb = np.roll(cube, sh, axis=ax)
+                take = (cube < 0) & (nb >= 0)
+                cube = np.where(take, nb, cube)
+    return cube
+
+
+def starts(walk: SurfaceWalk, o, d, side):
+    """A triangle near each ray's hit: where its line meets the inscribed ellipsoid
+    (entering for side +1, leaving for −1; its closest approach where it misses), in
+    the cube map."""
+    p = (o - walk.center) / walk.half
+    q = d / walk.half
+    a = np.einsum("ij,ij->i", q, q)
+    b = np.einsum("ij,ij->i", p, q)
+    c = np.einsum("ij,ij->i", p, p) - 1.0
+    disc = b * b - a * c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    t = (-b + np.where(side < 0, root, -root)) / np.maximum(a, 1e-300)
+    x = p + t[:, None] * q
+    return walk.cube[_texel(x, walk.cube.shape[1])]
 
 
 def intersect_convex(
@@ -82,22 +140,10 @@ def intersect_convex(
     tri, tt, uu, vv = no_hits(n)
     if n == 0:
         return Hits(tri, tt, uu, vv, o.copy())
-    samp = np.arange(0, n, stride)
-    if len(samp) > MIN_SAMPLES:  # the samples themselves from sparser samples
-        hs = intersect_convex(walk, o[samp], d[samp], side[samp], t_min[samp], t_max[samp], stride)
-    else:
-        hs = intersect(walk.bvh, o[samp], d[samp], t_min[samp], t_max[samp], facing=side[samp])
-    tri[samp], tt[samp], uu[samp], vv[samp] = hs.triangle, hs.t, hs.u, hs.v
-    # each other ray starts where its sample hit (else the next sample)
-    rest = np.ones(n, dtype=bool)
-    rest[samp] = False
-    ray = np.nonzero(rest)[0]
-    k = ray // stride
-    start = hs.triangle[k]
-    nxt = hs.triangle[np.minimum(k + 1, len(samp) - 1)]
-    start = np.where(start >= 0, start, nxt)
-    cast = [ray[start < 0]]  # both samples missed: the BVH decides
-    ray, cur = ray[start >= 0], start[start >= 0]
+    start = starts(walk, o, d, side)
+    cast = [np.nonzero(start < 0)[0]]
+    ray = np.nonzero(start >= 0)[0]
+    cur = start[ray]
     dn = np.linalg.norm(d, axis=1)
     prev = np.full(len(ray), -1, dtype=np.int64)
     for _ in range(STEPS):
