@@ -92,12 +92,13 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
     rows = []
     for label, seg, rings in CASES:
         for engine in ENGINES:
-            walls, parts, rays = [], [], None
+            walls, cpus, parts, rays = [], [], [], None
             for _ in range(repeat):
                 tris = scene(seg, rings, engine)
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 gen.generate(bpy.context)
                 walls.append(time.perf_counter() - t)
+                cpus.append(time.process_time() - c)
                 fig = gen.LAST_FIGURES
                 parts.append(dict(fig.get("timings", {})))
                 lb = getattr(bpy.context.scene.lens_lights, "last_report", "")
@@ -111,6 +112,7 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
                     engine=engine,
                     wall=statistics.median(walls),
                     walls=walls,
+                    cpu=statistics.median(cpus),
                     parts=med,
                     report=rays,
                 )
@@ -127,15 +129,15 @@ SHOWN = ["read", "phase1", "mesh sources", "receivers", "bake", "build"]
 
 
 def table(rows) -> list[str]:
-    out = ["| triangles | engine | Generate (median) | " + " | ".join(SHOWN) + " | runs |"]
-    out.append("|---:|---|---:|" + "---:|" * len(SHOWN) + "---|")
+    out = ["| triangles | engine | Generate (median) | CPU | " + " | ".join(SHOWN) + " | runs |"]
+    out.append("|---:|---|---:|---:|" + "---:|" * len(SHOWN) + "---|")
     for r in rows:
         p = r["parts"]
         cells = [f"{p[k]:.3f}" if k in p else "–" for k in SHOWN]
         eng = "EEVEE" if "EEVEE" in r["engine"] else "Cycles"
         runs = ", ".join(f"{w:.2f}" for w in r["walls"])
         out.append(
-            f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | "
+            f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | {r.get('cpu', float('nan')):.3f} | "
             + " | ".join(cells)
             + f" | {runs} |"
         )
@@ -176,13 +178,15 @@ def main(argv=None) -> int:
         subprocess.run(cmd + ["--repeat", str(args.repeat)], check=True)
         results[name] = (json.loads(out.read_text()), load0, uptime())
     lines = [
-        "# Generate on a glass pebble: wall time",
+        "# Generate on a glass pebble: wall and CPU time",
         "",
         f"`./lens-lights bench glass_generate_speed --repeat {args.repeat}"
         + (" --before <main at the start>`" if args.before else "`")
         + ": the scene of the bench's docstring (pebble r 0.5 × (1, 1, 0.5), one point"
         " light of radius 0, floor, 1920 × 1080 camera), Generate run"
-        f" {args.repeat} times per case; median wall time and the median of each step, s.",
+        f" {args.repeat} times per case; median wall time, median CPU time of the process"
+        " (all its threads: on a shared machine the wall time waits for the cores), and"
+        " the median of each step, s.",
         "",
     ]
     for name, (rows, l0, l1) in results.items():
