@@ -74,8 +74,12 @@ class _Segments:
     def weight(self) -> np.ndarray:
         return self.ws + self.wp
 
-    def take(self, mask) -> _Segments:
-        return _Segments(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+    def take(self, rows) -> _Segments:
+        """The rows of a mask or an index array (np.take by index: faster than a
+        boolean mask on the (n, 3) fields)."""
+        rows = np.asarray(rows)
+        idx = np.flatnonzero(rows) if rows.dtype == bool else rows
+        return _Segments(*(np.take(getattr(self, f), idx, axis=0) for f in _FIELDS))
 
     @staticmethod
     def join(parts) -> _Segments:
@@ -253,12 +257,11 @@ class MeshLens(Lens):
             lost = miss & seg.inside  # a crack: nothing to leave by
             np.add.at(dropped, seg.ray[lost], seg.weight[lost])
             leaked[seg.ray[lost]] = True
-            seg, h_tri = seg.take(~miss), h.triangle[~miss]
-            t, u, v, p = h.t[~miss], h.u[~miss], h.v[~miss], h.point[~miss]
-            over = seg.crossings >= max_depth
+            over = ~miss & (seg.crossings >= max_depth)
             np.add.at(dropped, seg.ray[over], seg.weight[over])
-            keep = ~over
-            seg, h_tri, t, u, v, p = seg.take(keep), h_tri[keep], t[keep], u[keep], v[keep], p[keep]
+            keep = np.flatnonzero(~miss & ~over)
+            seg, h_tri = seg.take(keep), h.triangle[keep]
+            t, u, v, p = h.t[keep], h.u[keep], h.v[keep], h.point[keep]
             if len(seg.ray) == 0:
                 seg = seg.take(np.zeros(0, dtype=bool))
                 break
@@ -266,14 +269,14 @@ class MeshLens(Lens):
             # one path (`trace`): the reflected part is followed only where it is total
             kids = [kid_t, kid_r] if split else [kid_t, kid_r.take(tir)]
             nxt = _Segments.join(kids)
-            if self.convex:  # what leaves a convex glass never meets it again
-                gone = ~nxt.inside
-                done.append(nxt.take(gone & (nxt.weight >= min_weight) & (nxt.weight > 0.0)))
-                nxt = nxt.take(~gone | (nxt.weight < min_weight) | (nxt.weight <= 0.0))
             small = nxt.weight < min_weight
             small |= nxt.weight <= 0.0
             np.add.at(dropped, nxt.ray[small], nxt.weight[small])
-            seg = nxt.take(~small)
+            if self.convex:  # what leaves a convex glass never meets it again
+                done.append(nxt.take(~nxt.inside & ~small))
+                seg = nxt.take(nxt.inside & ~small)
+            else:
+                seg = nxt.take(~small)
         np.add.at(dropped, seg.ray, seg.weight)  # still live after the last wave
         out = _Segments.join(done)
         return _assemble(out, o, d, shape, absorbed, dropped, leaked)
@@ -346,6 +349,9 @@ class MeshLens(Lens):
         kid_t = child(rf.directions, ws * ts, wp * tp, sig_t, ~exiting)
         kid_r = child(_unit(refl), ws * (1.0 - ts), wp * (1.0 - tp), sig_r, exiting)
         return kid_t, kid_r, rf.tir
+
+
+_FIELDS = tuple(_Segments.__dataclass_fields__)
 
 
 def _components(ea, eb, n: int) -> np.ndarray:
