@@ -1,21 +1,21 @@
-"""One-sided hits on a closed convex mesh found by walking its surface from a neighbour's
-hit, the BVH (`core.shared.triangle_bvh`) only for a sparse subset of the rays and for
-the rays whose walk does not arrive.
+"""One-sided hits on a closed convex mesh found by walking its surface, the BVH
+(`core.shared.triangle_bvh`) only for the rays whose walk does not arrive.
 
 On a closed convex mesh a ray has at most one way in (a face turned toward it) and one
 way out (a face it leaves by), so a triangle on the asked side that the ray meets
 within its bounds (the BVH's own Möller–Trumbore test, `triangle_bvh.hit_slots`, the
-same tolerances) is *the* hit: accepting it needs no search for a nearer one. Rays come
-in coherent bundles (a light's ray grid, the waves of `core.lens.mesh`), so a ray's
-neighbour in the array hits near it: every ``stride``-th ray is cast against the BVH,
-the others start at the triangle their sample hit and step across the edge their line
-passes beyond (the most negative barycentric of the line's point on the triangle's
-plane), a few steps at most. A ray whose walk leaves the mesh, turns to the wrong side,
-cycles or runs out of steps, and a ray whose samples both missed, is cast against the
-BVH: the walk only ever skips a traversal, never decides a miss. The hits therefore
-equal the BVH's (with one side asked, the BVH also stops at its first hit found); where
-a ray passes exactly through an edge or a vertex (both triangles within the tolerance)
-either triangle may be the one reported, as in the BVH.
+same arithmetic and tolerances) is *the* hit: accepting it needs no search for a
+nearer one. A walk starts near the hit: where the ray's line meets the ellipsoid
+inscribed in the mesh's bounding box, looked up in a cube map of the triangles around
+its centre (exact for an ellipsoid pebble, a few triangles off for a lens, a rod or a
+cube); from there it steps across the edge the line passes beyond (the most negative
+barycentric of the line's point on the triangle's plane), a few steps at most. The
+same ellipsoid grown to hold every vertex holds the mesh: a line that misses it surely
+misses. A ray whose walk leaves the mesh, turns to the wrong side, cycles or runs out
+of steps is cast against the BVH: the walk only ever skips a traversal. The hits
+therefore equal the BVH's (with one side asked, the BVH also stops at its first hit
+found); where a ray passes exactly through an edge or a vertex (both triangles within
+the tolerance) either triangle may be the one reported, as in the BVH.
 """
 
 from __future__ import annotations
@@ -26,13 +26,8 @@ import numpy as np
 
 from .triangle_bvh import Hits, TriangleBvh, hit_slots, intersect, no_hits, ray_arrays
 
-#: Every this many rays one is cast against the BVH: the others' walks start there.
-STRIDE = 8
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
-#: Samples below which they are cast against the BVH (above: found by a walk themselves,
-#: from every ``stride``-th of them).
-MIN_SAMPLES = 2048
 
 
 @dataclass(frozen=True)
@@ -41,7 +36,9 @@ class SurfaceWalk:
     edge opposite each corner (−1: an open or non-manifold edge), ``slot`` (T,) each
     triangle's slot in the BVH; and where walks start: the ellipsoid inscribed in the
     bounding box (``center``, ``half`` axes) and a cube map (6, M, M) of a triangle
-    (−1: none) in each direction from the centre of that ellipsoid."""
+    (−1: none) in each direction from the centre of that ellipsoid. That ellipsoid
+    grown ``reach`` times holds every vertex, so the whole mesh (convex, or not: each
+    triangle is in the hull of its corners): a line that misses it misses the mesh."""
 
     bvh: TriangleBvh
     across: np.ndarray
@@ -49,6 +46,7 @@ class SurfaceWalk:
     center: np.ndarray
     half: np.ndarray
     cube: np.ndarray
+    reach: float
 
 
 def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
@@ -74,6 +72,8 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     v = bvh.vertices[tris.reshape(-1)] if t else np.zeros((1, 3))
     lo, hi = v.min(axis=0), v.max(axis=0)
     center, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-300)
+    # a hair more than the farthest vertex: rounding never makes a hit a miss
+    reach = float(np.linalg.norm((v - center) / half, axis=1).max()) * (1.0 + 1e-7) + 1e-12
     m = int(np.clip(np.sqrt(t / 12.0), 1, 64))
     cube = np.full((6, m, m), -1, dtype=np.int64)
     if t:
@@ -81,7 +81,13 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
         cube[_texel((cen - center) / half, m)] = np.arange(t)
         cube = _fill(cube)
     return SurfaceWalk(
-        bvh=bvh, across=across.reshape(t, 3), slot=slot, center=center, half=half, cube=cube
+        bvh=bvh,
+        across=across.reshape(t, 3),
+        slot=slot,
+        center=center,
+        half=half,
+        cube=cube,
+        reach=reach,
     )
 
 
@@ -111,25 +117,28 @@ def _fill(cube):
     return cube
 
 
-def starts(walk: SurfaceWalk, o, d, side):
-    """A triangle near each ray's hit: where its line meets the inscribed ellipsoid
-    (entering for side +1, leaving for −1; its closest approach where it misses), in
-    the cube map."""
+def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
+    """Where each ray's walk starts: the triangle in the cube map where its line meets
+    the inscribed ellipsoid (entering for side +1, leaving for −1; its closest approach
+    where it misses). And which rays surely miss: their line misses the grown
+    ellipsoid, or meets it only outside (t_min, t_max]."""
     p = (o - walk.center) / walk.half
     q = d / walk.half
     a = np.einsum("ij,ij->i", q, q)
     b = np.einsum("ij,ij->i", p, q)
-    c = np.einsum("ij,ij->i", p, p) - 1.0
-    disc = b * b - a * c
-    root = np.sqrt(np.maximum(disc, 0.0))
-    t = (-b + np.where(side < 0, root, -root)) / np.maximum(a, 1e-300)
-    x = p + t[:, None] * q
-    return walk.cube[_texel(x, walk.cube.shape[1])]
+    pp = np.einsum("ij,ij->i", p, p)
+    ia = 1.0 / np.maximum(a, 1e-300)
+    root = np.sqrt(np.maximum(b * b - a * (pp - 1.0), 0.0))
+    t = (-b + np.where(side < 0, root, -root)) * ia
+    start = walk.cube[_texel(p + t[:, None] * q, walk.cube.shape[1])]
+    disc = b * b - a * (pp - walk.reach**2)
+    wide = np.sqrt(np.maximum(disc, 0.0))
+    with np.errstate(invalid="ignore"):
+        miss = (disc < 0.0) | ((-b + wide) * ia <= t_min) | ((-b - wide) * ia > t_max)
+    return start, miss & (a > 0.0)
 
 
-def intersect_convex(
-    walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf, stride=STRIDE
-) -> Hits:
+def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
     """As ``triangle_bvh.intersect(walk.bvh, origins, dirs, t_min, t_max, facing=facing)``
     on a closed convex mesh, ``facing`` (per ray or scalar) ±1 for every ray."""
     o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
@@ -140,9 +149,9 @@ def intersect_convex(
     tri, tt, uu, vv = no_hits(n)
     if n == 0:
         return Hits(tri, tt, uu, vv, o.copy())
-    start = starts(walk, o, d, side)
-    cast = [np.nonzero(start < 0)[0]]
-    ray = np.nonzero(start >= 0)[0]
+    start, miss = aim(walk, o, d, side, t_min, t_max)
+    cast = [np.nonzero((start < 0) & ~miss)[0]]
+    ray = np.nonzero((start >= 0) & ~miss)[0]
     cur = start[ray]
     dn = np.linalg.norm(d, axis=1)
     prev = np.full(len(ray), -1, dtype=np.int64)
