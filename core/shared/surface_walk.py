@@ -24,10 +24,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .triangle_bvh import Hits, TriangleBvh, hit_slots, intersect, no_hits, ray_arrays
+from . import parallel
+from .triangle_bvh import (
+    THREAD_ROWS,
+    Hits,
+    TriangleBvh,
+    hit_slots,
+    intersect,
+    no_hits,
+    ray_arrays,
+)
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
+#: The cube map's side at most (texels per face side; about 3 texels a triangle).
+MAP_SIDE = 64
 
 
 @dataclass(frozen=True)
@@ -74,10 +85,11 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     center, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-300)
     # a hair more than the farthest vertex: rounding never makes a hit a miss
     reach = float(np.linalg.norm((v - center) / half, axis=1).max()) * (1.0 + 1e-7) + 1e-12
-    m = int(np.clip(np.sqrt(t / 12.0), 1, 64))
-    cube = np.full((6, m, m), -1, dtype=np.int64)
+    m = int(np.clip(np.sqrt(t / 2.0), 1, MAP_SIDE))
+    cube = np.zeros((6, m, m), dtype=np.int64)
     if t:
         cen = bvh.vertices[tris].mean(axis=1)
+        cube = np.full((6, m, m), -1, dtype=np.int64)
         cube[_texel((cen - center) / half, m)] = np.arange(t)
         cube = _fill(cube)
     return SurfaceWalk(
@@ -104,24 +116,25 @@ def _texel(q, m):
 
 
 def _fill(cube):
-    """Empty texels take a neighbour's triangle (within a face), a few rounds."""
-    for _ in range(4):
-        empty = cube < 0
-        if not empty.any():
+    """Empty texels take a neighbour's triangle (within a face); a face with none at
+    all, triangle 0 (a start far off: the walk or the BVH still finds the hit)."""
+    for _ in range(2 * cube.shape[1]):
+        if not (cube < 0).any():
             break
         for ax in (1, 2):
             for sh in (1, -1):
                 nb = np.roll(cube, sh, axis=ax)
                 take = (cube < 0) & (nb >= 0)
                 cube = np.where(take, nb, cube)
-    return cube
+    return np.maximum(cube, 0)
 
 
 def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     """Where each ray's walk starts: the triangle in the cube map where its line meets
     the inscribed ellipsoid (entering for side +1, leaving for −1; its closest approach
-    where it misses). And which rays surely miss: their line misses the grown
-    ellipsoid, or meets it only outside (t_min, t_max]."""
+    where it misses), and a second guess where it meets the bounding box (a box-like
+    mesh). And which rays surely miss: their line misses the grown ellipsoid, or meets
+    it only outside (t_min, t_max]."""
     p = (o - walk.center) / walk.half
     q = d / walk.half
     a = np.einsum("ij,ij->i", q, q)
@@ -130,29 +143,28 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     ia = 1.0 / np.maximum(a, 1e-300)
     root = np.sqrt(np.maximum(b * b - a * (pp - 1.0), 0.0))
     t = (-b + np.where(side < 0, root, -root)) * ia
-    start = walk.cube[_texel(p + t[:, None] * q, walk.cube.shape[1])]
+    m = walk.cube.shape[1]
+    start = walk.cube[_texel(p + t[:, None] * q, m)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-1.0 - p) / q, (1.0 - p) / q
+        near = np.nanmax(np.minimum(t1, t2), axis=1)
+        far = np.nanmin(np.maximum(t1, t2), axis=1)
+    t_box = np.where(side < 0, far, near)
+    t_box = np.where(np.isfinite(t_box), t_box, t)
+    second = walk.cube[_texel(p + t_box[:, None] * q, m)]
     disc = b * b - a * (pp - walk.reach**2)
     wide = np.sqrt(np.maximum(disc, 0.0))
     with np.errstate(invalid="ignore"):
         miss = (disc < 0.0) | ((-b + wide) * ia <= t_min) | ((-b - wide) * ia > t_max)
-    return start, miss & (a > 0.0)
+    return start, second, miss & (a > 0.0)
 
 
-def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
-    """As ``triangle_bvh.intersect(walk.bvh, origins, dirs, t_min, t_max, facing=facing)``
-    on a closed convex mesh, ``facing`` (per ray or scalar) ±1 for every ray."""
-    o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
-    n = len(o)
-    side = np.broadcast_to(np.asarray(facing, dtype=np.int8), (n,))
-    if np.any(side == 0):
-        raise ValueError("intersect_convex needs a side for every ray")
-    tri, tt, uu, vv = no_hits(n)
-    if n == 0:
-        return Hits(tri, tt, uu, vv, o.copy())
-    start, miss = aim(walk, o, d, side, t_min, t_max)
-    cast = [np.nonzero((start < 0) & ~miss)[0]]
-    ray = np.nonzero((start >= 0) & ~miss)[0]
-    cur = start[ray]
+def _walk_from(walk, o, d, side, t_min, t_max, start):
+    """(triangle, t, u, v) of the rays' walks from the triangles ``start``; triangle
+    −1 where a walk did not arrive."""
+    tri, tt, uu, vv = no_hits(len(o))
+    ray = np.arange(len(o))
+    cur = start
     dn = np.linalg.norm(d, axis=1)
     prev = np.full(len(ray), -1, dtype=np.int64)
     for _ in range(STEPS):
@@ -169,14 +181,36 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
         # no way on: parallel plane, inside but rejected, an open edge, back and forth
         stuck = (det == 0.0) | (bary[np.arange(len(cur)), corner] >= -1e-12)
         stuck |= (step < 0) | (step == prev)
-        lost = ~good & stuck
-        cast.append(ray[lost])
         go = ~good & ~stuck
         ray, prev, cur = ray[go], cur[go], step[go]
-    cast.append(ray)
-    c = np.concatenate(cast)
-    if len(c):
-        hb = intersect(walk.bvh, o[c], d[c], t_min[c], t_max[c], facing=side[c])
-        tri[c], tt[c], uu[c], vv[c] = hb.triangle, hb.t, hb.u, hb.v
+    return tri, tt, uu, vv
+
+
+def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
+    """As ``triangle_bvh.intersect(walk.bvh, origins, dirs, t_min, t_max, facing=facing)``
+    on a closed convex mesh, ``facing`` (per ray or scalar) ±1 for every ray."""
+    o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
+    n = len(o)
+    side = np.broadcast_to(np.asarray(facing, dtype=np.int8), (n,))
+    if np.any(side == 0):
+        raise ValueError("intersect_convex needs a side for every ray")
+    tri, tt, uu, vv = no_hits(n)
+
+    def run(block: slice):  # a block of rays in one thread: each ray's hit is its own
+        o_, d_, s_, lo, hi = o[block], d[block], side[block], t_min[block], t_max[block]
+        start, second, miss = aim(walk, o_, d_, s_, lo, hi)
+        ray = np.nonzero(~miss)[0]
+        out = (tri[block], tt[block], uu[block], vv[block])  # views: written in place
+        for guess in (start, second):  # rays whose first walk did not arrive: the second
+            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess[ray])
+            for col, val in zip(out, found, strict=True):
+                col[ray] = val
+            ray = ray[out[0][ray] < 0]
+        if len(ray):  # neither walk arrived: the BVH decides
+            hb = intersect(walk.bvh, o_[ray], d_[ray], lo[ray], hi[ray], facing=s_[ray])
+            for col, val in zip(out, (hb.triangle, hb.t, hb.u, hb.v), strict=True):
+                col[ray] = val
+
+    parallel.map_slices(run, n, min_rows=THREAD_ROWS)
     point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
     return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)
