@@ -24,9 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import parallel
+from . import parallel, triangle_bvh
 from .triangle_bvh import (
-    THREAD_ROWS,
     Hits,
     TriangleBvh,
     hit_slots,
@@ -211,6 +210,7 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
             for col, val in zip(out, (hb.triangle, hb.t, hb.u, hb.v), strict=True):
                 col[ray] = val
 
-    parallel.map_slices(run, n, min_rows=THREAD_ROWS)
+    # the BVH's knob: below it, one thread
+    parallel.map_slices(run, n, min_rows=triangle_bvh.THREAD_ROWS)
     point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
     return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)

@@ -153,3 +153,21 @@ def test_edge_neighbours_and_open_edges():
         got = intersect_convex(walk, o, d, side)
         k, _ = _brute(verts, open_tris, o, d, side)
         np.testing.assert_array_equal(got.triangle, k)
+
+
+def test_blocks_in_threads_give_the_same_hits(monkeypatch):
+    from core.shared import parallel, triangle_bvh
+
+    verts, tris, _ = MESHES["lens"]()
+    walk = build_walk(build_bvh(verts, tris))
+    rng = np.random.default_rng(6)
+    for o, d, side in _scatter(verts, rng, 3000):
+        one = intersect_convex(walk, o, d, side)
+        monkeypatch.setattr(triangle_bvh, "THREAD_ROWS", 500)
+        monkeypatch.setattr(parallel, "cores", lambda: 4)
+        split = intersect_convex(walk, o, d, side)
+        monkeypatch.undo()
+        np.testing.assert_array_equal(split.triangle, one.triangle)
+        np.testing.assert_array_equal(split.t, one.t)
+        np.testing.assert_array_equal(split.u, one.u)
+        assert (one.triangle >= 0).sum() > 1000
