@@ -189,7 +189,7 @@ class MeshLens(Lens):
         return True
 
     @cached_property
-    def _surface_walk(self):
+    def walker(self):
         """The BVH with the edge neighbours (`core.shared.surface_walk`): a convex
         mesh's waves mostly walk from a neighbour's hit instead of traversing."""
         return build_walk(self.bvh)
@@ -200,7 +200,7 @@ class MeshLens(Lens):
         if not self.convex:
             return bvh_intersect(self.bvh, seg.origin, seg.direction)
         side = np.where(seg.inside, -1, 1)
-        return intersect_convex(self._surface_walk, seg.origin, seg.direction, side)
+        return intersect_convex(self.walker, seg.origin, seg.direction, side)
 
     # ------------------------------------------------------------------ the groups
 
