@@ -146,8 +146,8 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     start = walk.cube[_texel(p + t[:, None] * q, m)]
     with np.errstate(divide="ignore", invalid="ignore"):
         t1, t2 = (-1.0 - p) / q, (1.0 - p) / q
-        near = np.nanmax(np.minimum(t1, t2), axis=1)
-        far = np.nanmin(np.maximum(t1, t2), axis=1)
+        near = np.fmax.reduce(np.minimum(t1, t2), axis=1)
+        far = np.fmin.reduce(np.maximum(t1, t2), axis=1)
     t_box = np.where(side < 0, far, near)
     t_box = np.where(np.isfinite(t_box), t_box, t)
     second = walk.cube[_texel(p + t_box[:, None] * q, m)]
