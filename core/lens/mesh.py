@@ -2,20 +2,22 @@
 and unpolarised Fresnel at every crossing with the normals Blender shades with, total
 internal reflection, partial internal reflections up to a budget, Beer absorption inside.
 
-The rays move in waves: every live path segment of every ray is cast against the BVH at
-once, and each hit makes the next wave's segments (the transmitted and, when branches are
-followed, the reflected part). Which side of the surface a hit is on comes from the
-triangle's geometric normal (outward by the winding): crossing from outside is an entry,
-from inside an exit, so a crack or a re-entry (a concave mesh, the light leaving and
-meeting the glass again) needs no bookkeeping. The optics use the shading normal (the
-corner normals interpolated with the hit's barycentrics, renormalised, turned to the
-geometric normal's side). A shading normal can disagree with the surface: where the ray
-would meet it from behind, or where the refracted or reflected ray it gives would cross
-back to the wrong side of the triangle, that crossing uses the geometric normal instead
-(continuous at the places where both agree, and no ray is stuck or leaks). Each new
-segment starts a hair (``eps``, 1e-7 of the radius) off the surface on the side it
-travels to (along its own line, which stays exact), so it cannot hit the triangle it
-left.
+The rays move in waves: every live path segment of every ray is cast at once (a convex
+mesh's: its one hit on the side the segment is on, found by walking the surface from a
+guess, `core.shared.surface_walk`, the BVH only where a walk does not arrive; any other
+mesh's: the nearest hit, from the BVH), and each hit makes the next wave's segments (the
+transmitted and, when branches are followed, the reflected part). Which side of the
+surface a hit is on comes from the triangle's geometric normal (outward by the winding):
+crossing from outside is an entry, from inside an exit, so a crack or a re-entry (a
+concave mesh, the light leaving and meeting the glass again) needs no bookkeeping. The
+optics use the shading normal (the corner normals interpolated with the hit's
+barycentrics, renormalised, turned to the geometric normal's side). A shading normal can
+disagree with the surface: where the ray would meet it from behind, or where the
+refracted or reflected ray it gives would cross back to the wrong side of the triangle,
+that crossing uses the geometric normal instead (continuous at the places where both
+agree, and no ray is stuck or leaks). Each new segment starts a hair (``eps``, 1e-7 of
+the radius) off the surface on the side it travels to (along its own line, which stays
+exact), so it cannot hit the triangle it left.
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ pair's box is slab-tested at once and the survivors expand into their two childr
 the leaves the pairs become (ray, triangle) Möller–Trumbore tests and the nearest hit
 beyond ``t_min`` wins. Rays are processed in chunks to bound memory, blocks of them in
 threads (`core.shared.parallel`: numpy's loops let go of the GIL). Used by the caustic
-layer's receivers and by the glass meshes of `core.lens.mesh`.
+layer's receivers and by the glass meshes of `core.lens.mesh` (a convex one's waves walk
+its surface first, `core.shared.surface_walk`, with this module's triangle test).
 """
 
 from __future__ import annotations
