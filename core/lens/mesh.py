@@ -192,8 +192,9 @@ class MeshLens(Lens):
 
     @cached_property
     def walker(self):
-        """The BVH with the edge neighbours (`core.shared.surface_walk`): a convex
-        mesh's waves mostly walk from a neighbour's hit instead of traversing."""
+        """The BVH with the edge neighbours and a cube map of guesses
+        (`core.shared.surface_walk`): a convex mesh's waves walk its surface to their
+        hits instead of traversing the BVH."""
         return build_walk(self.bvh)
 
     def _cast(self, seg):
