@@ -136,12 +136,12 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     it only outside (t_min, t_max]."""
     p = (o - walk.center) / walk.half
     q = d / walk.half
-    a = np.einsum("ij,ij->i", q, q)
-    b = np.einsum("ij,ij->i", p, q)
-    pp = np.einsum("ij,ij->i", p, p)
-    ia = 1.0 / np.maximum(a, 1e-300)
-    root = np.sqrt(np.maximum(b * b - a * (pp - 1.0), 0.0))
-    t = (-b + np.where(side < 0, root, -root)) * ia
+    ia = 1.0 / np.maximum(np.einsum("ij,ij->i", q, q), 1e-300)
+    # the line's closest approach to the centre (stable however far the origin is)
+    tc = -np.einsum("ij,ij->i", p, q) * ia
+    h2 = np.einsum("ij,ij->i", p + tc[:, None] * q, p + tc[:, None] * q)
+    half_chord = np.sqrt(np.maximum(1.0 - h2, 0.0) * ia)
+    t = tc + np.where(side < 0, half_chord, -half_chord)
     m = walk.cube.shape[1]
     start = walk.cube[_texel(p + t[:, None] * q, m)]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -151,11 +151,9 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     t_box = np.where(side < 0, far, near)
     t_box = np.where(np.isfinite(t_box), t_box, t)
     second = walk.cube[_texel(p + t_box[:, None] * q, m)]
-    disc = b * b - a * (pp - walk.reach**2)
-    wide = np.sqrt(np.maximum(disc, 0.0))
-    with np.errstate(invalid="ignore"):
-        miss = (disc < 0.0) | ((-b + wide) * ia <= t_min) | ((-b - wide) * ia > t_max)
-    return start, second, miss & (a > 0.0)
+    wide = np.sqrt(np.maximum(walk.reach**2 - h2, 0.0) * ia)
+    miss = (h2 > walk.reach**2) | (tc + wide <= t_min) | (tc - wide > t_max)
+    return start, second, miss & np.any(d != 0.0, axis=1)
 
 
 def _walk_from(walk, o, d, side, t_min, t_max, start):

@@ -171,3 +171,20 @@ def test_blocks_in_threads_give_the_same_hits(monkeypatch):
         np.testing.assert_array_equal(split.t, one.t)
         np.testing.assert_array_equal(split.u, one.u)
         assert (one.triangle >= 0).sum() > 1000
+
+
+def test_a_far_light_grazing_the_silhouette_is_not_taken_for_a_miss():
+    """A 1 cm pebble lit from 1 km: rays aimed at its rim, just inside and just
+    outside; the sure-miss test (the grown ellipsoid) must not drop a grazing hit."""
+    verts, tris, _ = ellipsoid_mesh((0.0, 0.0, 0.0), (0.01, 0.007, 0.005), None, 12, 24)
+    walk = build_walk(build_bvh(verts, tris))
+    light = np.array([1000.0, 300.0, 200.0])
+    rng = np.random.default_rng(12)
+    # points on the rim seen from the light: vertices, a hair in or out from the centre
+    rim = verts[rng.choice(len(verts), 300)] * rng.uniform(0.999, 1.001, (300, 1))
+    d = rim - light
+    o = np.broadcast_to(light, d.shape)
+    got = intersect_convex(walk, o, d, 1)
+    k, t = _brute(verts, tris, o, d, np.ones(300))
+    np.testing.assert_array_equal(got.triangle, k)
+    assert 30 < (k >= 0).sum() < 290
