@@ -88,16 +88,33 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
 
     load(tree)
     from lens_lights.blender.commands import generate as gen
+    from lens_lights.core.lens.mesh import MeshLens
+
+    # the CPU time (all threads) inside the glass mesh's tracer, summed per Generate
+    traced = [0.0]
+    plain = MeshLens.trace_branches
+
+    def timed(self, *args, **kwargs):
+        c = time.process_time()
+        try:
+            return plain(self, *args, **kwargs)
+        finally:
+            traced[0] += time.process_time() - c
+
+    MeshLens.trace_branches = timed
 
     rows = []
     for label, seg, rings in CASES:
         for engine in ENGINES:
-            walls, parts, rays = [], [], None
+            walls, cpus, traces, parts, rays = [], [], [], [], None
             for _ in range(repeat):
                 tris = scene(seg, rings, engine)
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
+                traced[0] = 0.0
                 gen.generate(bpy.context)
+                traces.append(traced[0])
                 walls.append(time.perf_counter() - t)
+                cpus.append(time.process_time() - c)
                 fig = gen.LAST_FIGURES
                 parts.append(dict(fig.get("timings", {})))
                 lb = getattr(bpy.context.scene.lens_lights, "last_report", "")
@@ -111,6 +128,8 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
                     engine=engine,
                     wall=statistics.median(walls),
                     walls=walls,
+                    cpu=statistics.median(cpus),
+                    trace_cpu=statistics.median(traces),
                     parts=med,
                     report=rays,
                 )
@@ -127,15 +146,19 @@ SHOWN = ["read", "phase1", "mesh sources", "receivers", "bake", "build"]
 
 
 def table(rows) -> list[str]:
-    out = ["| triangles | engine | Generate (median) | " + " | ".join(SHOWN) + " | runs |"]
-    out.append("|---:|---|---:|" + "---:|" * len(SHOWN) + "---|")
+    out = [
+        "| triangles | engine | Generate (median) | CPU | trace CPU | "
+        + " | ".join(SHOWN)
+        + " | runs |"
+    ]
+    out.append("|---:|---|---:|---:|---:|" + "---:|" * len(SHOWN) + "---|")
     for r in rows:
         p = r["parts"]
         cells = [f"{p[k]:.3f}" if k in p else "–" for k in SHOWN]
         eng = "EEVEE" if "EEVEE" in r["engine"] else "Cycles"
         runs = ", ".join(f"{w:.2f}" for w in r["walls"])
         out.append(
-            f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | "
+            f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | {r['cpu']:.3f} | {r['trace_cpu']:.3f} | "
             + " | ".join(cells)
             + f" | {runs} |"
         )
@@ -176,13 +199,17 @@ def main(argv=None) -> int:
         subprocess.run(cmd + ["--repeat", str(args.repeat)], check=True)
         results[name] = (json.loads(out.read_text()), load0, uptime())
     lines = [
-        "# Generate on a glass pebble: wall time",
+        "# Generate on a glass pebble: wall and CPU time",
         "",
         f"`./lens-lights bench glass_generate_speed --repeat {args.repeat}"
         + (" --before <main at the start>`" if args.before else "`")
         + ": the scene of the bench's docstring (pebble r 0.5 × (1, 1, 0.5), one point"
         " light of radius 0, floor, 1920 × 1080 camera), Generate run"
-        f" {args.repeat} times per case; median wall time and the median of each step, s.",
+        f" {args.repeat} times per case; median wall time, median CPU time of the process"
+        " (all its threads: on a shared machine the wall time waits for the cores), the"
+        " CPU time inside the glass mesh's tracer (`MeshLens.trace_branches`: the coarse"
+        " and the final trace, node rays and refinements), and the median of each step"
+        " (wall), s.",
         "",
     ]
     for name, (rows, l0, l1) in results.items():

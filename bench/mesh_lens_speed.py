@@ -11,7 +11,9 @@ the start is in the report):
   cells' sub-grids, analytic flux;
 * ``land`` — `build_layer` on the floor (the landing and the rasters);
 * ``rays`` — rays traced (nodes + sub-grids), cells refined, cells cut by the budget;
-* ``one wave`` — a single cast of the 16 640 node rays against the BVH.
+* ``one wave`` — a single cast of the 16 640 node rays against the BVH;
+* ``walked`` — the same rays' one-sided hits on the convex glass by surface walks
+  (`core.shared.surface_walk`, what the waves use on a convex mesh).
 
 And what the refinement buys: the off-axis ice cube's layer (48 × 192 cells, 40² texels)
 against 400 000 Monte-Carlo rays through the same glass binned on its texels (L1 of the
@@ -42,7 +44,7 @@ from core.caustic_layer.emitters import Lens, PointLight  # noqa: E402
 from core.caustic_layer.rasters import build_layer  # noqa: E402
 from core.caustic_layer.receiver_index import build_index  # noqa: E402
 from core.lens.mesh import MeshLens  # noqa: E402
-from core.shared import triangle_bvh  # noqa: E402
+from core.shared import surface_walk, triangle_bvh  # noqa: E402
 from reference.meshes import rectangle, uv_sphere  # noqa: E402
 
 REPORT = ROOT / "reports" / "mesh_lens_speed.md"
@@ -110,6 +112,10 @@ def case(name, mesh, floor, light, repeat):
     d /= np.linalg.norm(d, axis=1)[:, None]
     o = np.broadcast_to(light.position, d.shape)
     wave, _ = best(lambda: triangle_bvh.intersect(lens.bvh, o, d), repeat)
+    walked = float("nan")
+    if lens.convex:
+        walk = lens.walker
+        walked, _ = best(lambda: surface_walk.intersect_convex(walk, o, d, 1), repeat)
     return {
         "name": name,
         "tris": len(t),
@@ -119,6 +125,7 @@ def case(name, mesh, floor, light, repeat):
         "total": build + tr + land,
         "cpu": CPU[(name, len(t))],
         "wave": wave,
+        "walked": walked,
         "rays": beam.traced_rays,
         "refined": beam.refined_cells,
         "cut": beam.cut_cells,
@@ -200,13 +207,13 @@ def main(argv=None):
         + "rays), best of the repeats, seconds. Load average at the start: "
         + f"{load[0]:.2f} on {os.cpu_count()} cores (a shared machine: figures vary).",
         "",
-        "| object | triangles | build | trace | trace CPU | land | total | one wave | rays traced | cells refined | cut | parts | flux W | landed W |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| object | triangles | build | trace | trace CPU | land | total | one wave | walked | rays traced | cells refined | cut | parts | flux W | landed W |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
             f"| {r['name']} | {r['tris']} | {r['build']:.3f} | {r['trace']:.3f} | {r['cpu']:.3f} | {r['land']:.3f} | "
-            f"**{r['total']:.3f}** | {r['wave']:.3f} | {r['rays']} | {r['refined']} | {r['cut']} | "
+            f"**{r['total']:.3f}** | {r['wave']:.3f} | {r['walked']:.3f} | {r['rays']} | {r['refined']} | {r['cut']} | "
             f"{r['parts']} | {r['flux']:.3f} | {r['landed']:.3f} |"
         )
     lines += [

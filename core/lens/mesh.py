@@ -2,20 +2,22 @@
 and unpolarised Fresnel at every crossing with the normals Blender shades with, total
 internal reflection, partial internal reflections up to a budget, Beer absorption inside.
 
-The rays move in waves: every live path segment of every ray is cast against the BVH at
-once, and each hit makes the next wave's segments (the transmitted and, when branches are
-followed, the reflected part). Which side of the surface a hit is on comes from the
-triangle's geometric normal (outward by the winding): crossing from outside is an entry,
-from inside an exit, so a crack or a re-entry (a concave mesh, the light leaving and
-meeting the glass again) needs no bookkeeping. The optics use the shading normal (the
-corner normals interpolated with the hit's barycentrics, renormalised, turned to the
-geometric normal's side). A shading normal can disagree with the surface: where the ray
-would meet it from behind, or where the refracted or reflected ray it gives would cross
-back to the wrong side of the triangle, that crossing uses the geometric normal instead
-(continuous at the places where both agree, and no ray is stuck or leaks). Each new
-segment starts a hair (``eps``, 1e-7 of the radius) off the surface on the side it
-travels to (along its own line, which stays exact), so it cannot hit the triangle it
-left.
+The rays move in waves: every live path segment of every ray is cast at once (a convex
+mesh's: its one hit on the side the segment is on, found by walking the surface from a
+guess, `core.shared.surface_walk`, the BVH only where a walk does not arrive; any other
+mesh's: the nearest hit, from the BVH), and each hit makes the next wave's segments (the
+transmitted and, when branches are followed, the reflected part). Which side of the
+surface a hit is on comes from the triangle's geometric normal (outward by the winding):
+crossing from outside is an entry, from inside an exit, so a crack or a re-entry (a
+concave mesh, the light leaving and meeting the glass again) needs no bookkeeping. The
+optics use the shading normal (the corner normals interpolated with the hit's
+barycentrics, renormalised, turned to the geometric normal's side). A shading normal can
+disagree with the surface: where the ray would meet it from behind, or where the
+refracted or reflected ray it gives would cross back to the wrong side of the triangle,
+that crossing uses the geometric normal instead (continuous at the places where both
+agree, and no ray is stuck or leaks). Each new segment starts a hair (``eps``, 1e-7 of
+the radius) off the surface on the side it travels to (along its own line, which stays
+exact), so it cannot hit the triangle it left.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
 from .base import BranchRays, ExitRays, Lens
@@ -73,8 +76,12 @@ class _Segments:
     def weight(self) -> np.ndarray:
         return self.ws + self.wp
 
-    def take(self, mask) -> _Segments:
-        return _Segments(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))
+    def take(self, rows) -> _Segments:
+        """The rows of a mask or an index array (np.take by index: faster than a
+        boolean mask on the (n, 3) fields)."""
+        rows = np.asarray(rows)
+        idx = np.flatnonzero(rows) if rows.dtype == bool else rows
+        return _Segments(*(np.take(getattr(self, f), idx, axis=0) for f in _FIELDS))
 
     @staticmethod
     def join(parts) -> _Segments:
@@ -198,6 +205,21 @@ class MeshLens(Lens):
                 return False
         return True
 
+    @cached_property
+    def walker(self):
+        """The BVH with the edge neighbours and a cube map of guesses
+        (`core.shared.surface_walk`): a convex mesh's waves walk its surface to their
+        hits instead of traversing the BVH."""
+        return build_walk(self.bvh)
+
+    def _cast(self, seg):
+        """The nearest hit of each segment (a convex mesh: its one hit on the side the
+        segment is on, found by walking where it can)."""
+        if not self.convex:
+            return bvh_intersect(self.bvh, seg.origin, seg.direction)
+        side = np.where(seg.inside, -1, 1)
+        return intersect_convex(self.walker, seg.origin, seg.direction, side)
+
     # ------------------------------------------------------------------ the groups
 
     @cached_property
@@ -247,19 +269,17 @@ class MeshLens(Lens):
             if len(seg.ray) == 0:
                 break
             # a convex mesh: one way in (a face toward the ray), one way out
-            side = np.where(seg.inside, -1, 1) if self.convex else None
-            h = bvh_intersect(self.bvh, seg.origin, seg.direction, facing=side)
+            h = self._cast(seg)
             miss = h.triangle < 0
             done.append(seg.take(miss & ~seg.inside))
             lost = miss & seg.inside  # a crack: nothing to leave by
             np.add.at(dropped, seg.ray[lost], seg.weight[lost])
             leaked[seg.ray[lost]] = True
-            seg, h_tri = seg.take(~miss), h.triangle[~miss]
-            t, u, v, p = h.t[~miss], h.u[~miss], h.v[~miss], h.point[~miss]
-            over = seg.crossings >= max_depth
+            over = ~miss & (seg.crossings >= max_depth)
             np.add.at(dropped, seg.ray[over], seg.weight[over])
-            keep = ~over
-            seg, h_tri, t, u, v, p = seg.take(keep), h_tri[keep], t[keep], u[keep], v[keep], p[keep]
+            keep = np.flatnonzero(~miss & ~over)
+            seg, h_tri = seg.take(keep), h.triangle[keep]
+            t, u, v, p = h.t[keep], h.u[keep], h.v[keep], h.point[keep]
             if len(seg.ray) == 0:
                 seg = seg.take(np.zeros(0, dtype=bool))
                 break
@@ -267,14 +287,14 @@ class MeshLens(Lens):
             # one path (`trace`): the reflected part is followed only where it is total
             kids = [kid_t, kid_r] if split else [kid_t, kid_r.take(tir)]
             nxt = _Segments.join(kids)
-            if self.convex:  # what leaves a convex glass never meets it again
-                gone = ~nxt.inside
-                done.append(nxt.take(gone & (nxt.weight >= min_weight) & (nxt.weight > 0.0)))
-                nxt = nxt.take(~gone | (nxt.weight < min_weight) | (nxt.weight <= 0.0))
             small = nxt.weight < min_weight
             small |= nxt.weight <= 0.0
             np.add.at(dropped, nxt.ray[small], nxt.weight[small])
-            seg = nxt.take(~small)
+            if self.convex:  # what leaves a convex glass never meets it again
+                done.append(nxt.take(~nxt.inside & ~small))
+                seg = nxt.take(nxt.inside & ~small)
+            else:
+                seg = nxt.take(~small)
         np.add.at(dropped, seg.ray, seg.weight)  # still live after the last wave
         out = _Segments.join(done)
         return _assemble(out, o, d, shape, absorbed, dropped, leaked)
@@ -359,6 +379,9 @@ def _per_triangle(values, default: float, n: int) -> np.ndarray:
     if len(out) != n:
         raise ValueError(f"{len(out)} per-triangle values for {n} triangles")
     return out
+
+
+_FIELDS = tuple(_Segments.__dataclass_fields__)
 
 
 def _components(ea, eb, n: int) -> np.ndarray:

@@ -9,7 +9,8 @@ pair's box is slab-tested at once and the survivors expand into their two childr
 the leaves the pairs become (ray, triangle) Möller–Trumbore tests and the nearest hit
 beyond ``t_min`` wins. Rays are processed in chunks to bound memory, blocks of them in
 threads (`core.shared.parallel`: numpy's loops let go of the GIL). Used by the caustic
-layer's receivers and by the glass meshes of `core.lens.mesh`.
+layer's receivers and by the glass meshes of `core.lens.mesh` (a convex one's waves walk
+its surface first, `core.shared.surface_walk`, with this module's triangle test).
 """
 
 from __future__ import annotations
@@ -297,7 +298,7 @@ def _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, ray, node, near, side,
         slot = np.repeat(nd, ls) * ls + np.tile(np.arange(ls), len(nd))
         live = bvh.tri_index[slot] >= 0
         r, slot = r[live], slot[live]
-        t, u, v, ok, det = _hit_slots(bvh, o[r], d[r], dn[r], slot)
+        t, u, v, ok, det = hit_slots(bvh, o[r], d[r], dn[r], slot)
         ok &= (t > t_min[r]) & (t <= best[r]) & (det * side[r] >= 0.0)
         r, slot, t, u, v = r[ok], slot[ok], t[ok], u[ok], v[ok]
         if len(r) == 0:
@@ -313,7 +314,7 @@ def _test_leaves(bvh, o, d, dn, t_min, best, tri, uu, vv, ray, node, near, side,
         done[r] = side[r] != 0
 
 
-def _hit_slots(bvh, o, d, dn, slot):
+def hit_slots(bvh, o, d, dn, slot):
     """Möller–Trumbore against the slots' triangles with their normals precomputed
     (one cross product per pair): ``det = −d·n``, ``u = e2·(s×d)/det``,
     ``v = −e1·(s×d)/det``, ``t = s·n/det`` with ``s = o − v0``; the same tolerances

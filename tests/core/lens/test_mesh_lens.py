@@ -301,3 +301,34 @@ def test_a_real_fold_outward_is_not_convex():
     c = np.array([3.0, -2.0, 1.0])
     v[k] = c + (v[k] - c) * (1.0 - 1e-3 * 8)
     assert not _mesh(v, t).convex
+
+
+def test_walking_a_convex_mesh_gives_the_branches_of_the_bvh(monkeypatch):
+    """A convex mesh's waves are mostly walked on its surface (`core.shared.surface_walk`):
+    every branch the same as with every segment cast against the BVH alone."""
+    import core.lens.mesh as mesh_module
+    from core.shared.triangle_bvh import intersect
+
+    v, t, nrm = sphere(1.0, 24, 48)
+    v, nrm = v * [1.0, 0.7, 0.45], nrm / [1.0, 0.7, 0.45]
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    lens = _mesh(v, t, nrm, absorption=0.2)
+    assert lens.convex
+    rng = np.random.default_rng(8)
+    light = np.array([0.4, 0.3, 3.0])
+    d = rng.uniform(-1, 1, (6000, 3)) * [1.0, 0.7, 0.45] - light
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    d = d[np.lexsort((d[:, 1], np.round(d[:, 0], 2)))]  # roughly coherent, as a grid
+    o = np.broadcast_to(light, d.shape)
+    walked = lens.trace_branches(o, d, max_depth=8, min_weight=1e-3)
+    monkeypatch.setattr(
+        mesh_module,
+        "intersect_convex",
+        lambda walk, o, d, side: intersect(walk.bvh, o, d, facing=side),
+    )
+    cast = lens.trace_branches(o, d, max_depth=8, min_weight=1e-3)
+    assert walked.weight.shape == cast.weight.shape and walked.weight.shape[0] > 3
+    for f in ("points", "directions", "weight", "path", "absorbed", "dropped"):
+        np.testing.assert_allclose(getattr(walked, f), getattr(cast, f), rtol=0, atol=1e-12)
+    for f in ("crossings", "signature", "exit_face", "hit", "leaked"):
+        np.testing.assert_array_equal(getattr(walked, f), getattr(cast, f))

@@ -1,0 +1,214 @@
+"""One-sided hits on a closed convex mesh found by walking its surface, the BVH
+(`core.shared.triangle_bvh`) only for the rays whose walk does not arrive.
+
+On a closed convex mesh a ray has at most one way in (a face turned toward it) and one
+way out (a face it leaves by), so a triangle on the asked side that the ray meets
+within its bounds (the BVH's own Möller–Trumbore test, `triangle_bvh.hit_slots`, the
+same arithmetic and tolerances) is *the* hit: accepting it needs no search for a
+nearer one. A walk starts near the hit: where the ray's line meets the ellipsoid
+inscribed in the mesh's bounding box, looked up in a cube map of the triangles around
+its centre (exact for an ellipsoid pebble, a few triangles off for a lens, a rod or a
+cube); from there it steps across the edge the line passes beyond (the most negative
+barycentric of the line's point on the triangle's plane), a few steps at most. The
+same ellipsoid grown to hold every vertex holds the mesh: a line that misses it surely
+misses. A ray whose walk leaves the mesh, turns to the wrong side, cycles or runs out
+of steps is cast against the BVH: the walk only ever skips a traversal. The hits
+therefore equal the BVH's (with one side asked, the BVH also stops at its first hit
+found); where a ray passes exactly through an edge or a vertex (both triangles within
+the tolerance) either triangle may be the one reported, as in the BVH.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import parallel, triangle_bvh
+from .triangle_bvh import (
+    Hits,
+    TriangleBvh,
+    hit_slots,
+    intersect,
+    no_hits,
+    ray_arrays,
+)
+
+#: Steps a walk may take before its ray is handed to the BVH.
+STEPS = 12
+#: The cube map's side at most (texels per face side; about 3 texels a triangle).
+MAP_SIDE = 64
+
+
+@dataclass(frozen=True)
+class SurfaceWalk:
+    """A BVH and its mesh's edge neighbours: ``across`` (T, 3) the triangle across the
+    edge opposite each corner (−1: an open or non-manifold edge), ``slot`` (T,) each
+    triangle's slot in the BVH; and where walks start: the ellipsoid inscribed in the
+    bounding box (``center``, ``half`` axes) and a cube map (6, M, M) of a triangle
+    (−1: none) in each direction from the centre of that ellipsoid. That ellipsoid
+    grown ``reach`` times holds every vertex, so the whole mesh (convex, or not: each
+    triangle is in the hull of its corners): a line that misses it misses the mesh."""
+
+    bvh: TriangleBvh
+    across: np.ndarray
+    slot: np.ndarray
+    center: np.ndarray
+    half: np.ndarray
+    cube: np.ndarray
+    reach: float
+
+
+def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
+    tris = bvh.triangles
+    t = len(tris)
+    # the edge opposite corner k runs from corner k+1 to k+2
+    a = tris[:, [1, 2, 0]].reshape(-1)
+    b = tris[:, [2, 0, 1]].reshape(-1)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    order = np.lexsort((hi, lo))
+    lo, hi = lo[order], hi[order]
+    same = (lo[1:] == lo[:-1]) & (hi[1:] == hi[:-1])
+    # an edge of exactly two faces: a pair not part of a longer run
+    before = np.concatenate([[False], same[:-1]]) if len(same) else same
+    after = np.concatenate([same[1:], [False]]) if len(same) else same
+    pair = np.nonzero(same & ~before & ~after)[0]
+    across = np.full(3 * t, -1, dtype=np.int64)
+    ea, eb = order[pair], order[pair + 1]
+    across[ea], across[eb] = eb // 3, ea // 3
+    slot = np.empty(t, dtype=np.int64)
+    live = bvh.tri_index >= 0
+    slot[bvh.tri_index[live]] = np.nonzero(live)[0]
+    v = bvh.vertices[tris.reshape(-1)] if t else np.zeros((1, 3))
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    center, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-300)
+    # a hair more than the farthest vertex: rounding never makes a hit a miss
+    reach = float(np.linalg.norm((v - center) / half, axis=1).max()) * (1.0 + 1e-7) + 1e-12
+    m = int(np.clip(np.sqrt(t / 2.0), 1, MAP_SIDE))
+    cube = np.zeros((6, m, m), dtype=np.int64)
+    if t:
+        cen = bvh.vertices[tris].mean(axis=1)
+        cube = np.full((6, m, m), -1, dtype=np.int64)
+        cube[_texel((cen - center) / half, m)] = np.arange(t)
+        cube = _fill(cube)
+    return SurfaceWalk(
+        bvh=bvh,
+        across=across.reshape(t, 3),
+        slot=slot,
+        center=center,
+        half=half,
+        cube=cube,
+        reach=reach,
+    )
+
+
+def _texel(q, m):
+    """Cube-map texel (face, row, column) of the directions q (N, 3)."""
+    a = np.abs(q)
+    major = np.argmax(a, axis=1)
+    n = np.arange(len(q))
+    big = np.maximum(a[n, major], 1e-300)
+    face = 2 * major + (q[n, major] < 0)
+    i = np.clip(((q[n, (major + 1) % 3] / big + 1.0) * 0.5 * m).astype(np.int64), 0, m - 1)
+    j = np.clip(((q[n, (major + 2) % 3] / big + 1.0) * 0.5 * m).astype(np.int64), 0, m - 1)
+    return face, i, j
+
+
+def _fill(cube):
+    """Empty texels take a neighbour's triangle (within a face); a face with none at
+    all, triangle 0 (a start far off: the walk or the BVH still finds the hit)."""
+    for _ in range(2 * cube.shape[1]):
+        if not (cube < 0).any():
+            break
+        for ax in (1, 2):
+            for sh in (1, -1):
+                nb = np.roll(cube, sh, axis=ax)
+                take = (cube < 0) & (nb >= 0)
+                cube = np.where(take, nb, cube)
+    return np.maximum(cube, 0)
+
+
+def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
+    """Where each ray's walk starts: the triangle in the cube map where its line meets
+    the inscribed ellipsoid (entering for side +1, leaving for −1; its closest approach
+    where it misses), and a second guess where it meets the bounding box (a box-like
+    mesh). And which rays surely miss: their line misses the grown ellipsoid, or meets
+    it only outside (t_min, t_max]."""
+    p = (o - walk.center) / walk.half
+    q = d / walk.half
+    ia = 1.0 / np.maximum(np.einsum("ij,ij->i", q, q), 1e-300)
+    # the line's closest approach to the centre (stable however far the origin is)
+    tc = -np.einsum("ij,ij->i", p, q) * ia
+    h2 = np.einsum("ij,ij->i", p + tc[:, None] * q, p + tc[:, None] * q)
+    half_chord = np.sqrt(np.maximum(1.0 - h2, 0.0) * ia)
+    t = tc + np.where(side < 0, half_chord, -half_chord)
+    m = walk.cube.shape[1]
+    start = walk.cube[_texel(p + t[:, None] * q, m)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-1.0 - p) / q, (1.0 - p) / q
+        near = np.fmax.reduce(np.minimum(t1, t2), axis=1)
+        far = np.fmin.reduce(np.maximum(t1, t2), axis=1)
+    t_box = np.where(side < 0, far, near)
+    t_box = np.where(np.isfinite(t_box), t_box, t)
+    second = walk.cube[_texel(p + t_box[:, None] * q, m)]
+    wide = np.sqrt(np.maximum(walk.reach**2 - h2, 0.0) * ia)
+    miss = (h2 > walk.reach**2) | (tc + wide <= t_min) | (tc - wide > t_max)
+    return start, second, miss & np.any(d != 0.0, axis=1)
+
+
+def _walk_from(walk, o, d, side, t_min, t_max, start):
+    """(triangle, t, u, v) of the rays' walks from the triangles ``start``; triangle
+    −1 where a walk did not arrive."""
+    tri, tt, uu, vv = no_hits(len(o))
+    ray = np.arange(len(o))
+    cur = start
+    dn = np.linalg.norm(d, axis=1)
+    prev = np.full(len(ray), -1, dtype=np.int64)
+    for _ in range(STEPS):
+        if len(ray) == 0:
+            break
+        t, u, v, ok, det = hit_slots(walk.bvh, o[ray], d[ray], dn[ray], walk.slot[cur])
+        good = ok & (t > t_min[ray]) & (t <= t_max[ray]) & (det * side[ray] >= 0.0)
+        r = ray[good]
+        tri[r], tt[r], uu[r], vv[r] = cur[good], t[good], u[good], v[good]
+        # beyond which edge the line meets the plane: the most negative barycentric
+        bary = np.stack([1.0 - u - v, u, v], axis=1)
+        corner = np.argmin(bary, axis=1)
+        step = walk.across[cur, corner]
+        # no way on: parallel plane, inside but rejected, an open edge, back and forth
+        stuck = (det == 0.0) | (bary[np.arange(len(cur)), corner] >= -1e-12)
+        stuck |= (step < 0) | (step == prev)
+        go = ~good & ~stuck
+        ray, prev, cur = ray[go], cur[go], step[go]
+    return tri, tt, uu, vv
+
+
+def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
+    """As ``triangle_bvh.intersect(walk.bvh, origins, dirs, t_min, t_max, facing=facing)``
+    on a closed convex mesh, ``facing`` (per ray or scalar) ±1 for every ray."""
+    o, d, t_min, t_max = ray_arrays(origins, dirs, t_min, t_max)
+    n = len(o)
+    side = np.broadcast_to(np.asarray(facing, dtype=np.int8), (n,))
+    if np.any(side == 0):
+        raise ValueError("intersect_convex needs a side for every ray")
+    tri, tt, uu, vv = no_hits(n)
+
+    def run(block: slice):  # a block of rays in one thread: each ray's hit is its own
+        o_, d_, s_, lo, hi = o[block], d[block], side[block], t_min[block], t_max[block]
+        start, second, miss = aim(walk, o_, d_, s_, lo, hi)
+        ray = np.nonzero(~miss)[0]
+        out = (tri[block], tt[block], uu[block], vv[block])  # views: written in place
+        for guess in (start, second):  # rays whose first walk did not arrive: the second
+            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess[ray])
+            for col, val in zip(out, found, strict=True):
+                col[ray] = val
+            ray = ray[out[0][ray] < 0]
+        if len(ray):  # neither walk arrived: the BVH decides
+            hb = intersect(walk.bvh, o_[ray], d_[ray], lo[ray], hi[ray], facing=s_[ray])
+            for col, val in zip(out, (hb.triangle, hb.t, hb.u, hb.v), strict=True):
+                col[ray] = val
+
+    # the BVH's knob: below it, one thread
+    parallel.map_slices(run, n, min_rows=triangle_bvh.THREAD_ROWS)
+    point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
+    return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)
