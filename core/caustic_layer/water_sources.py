@@ -1,0 +1,132 @@
+"""The water surfaces' (light, water) pairs and their layer, in one call (issue 26).
+
+Every light above a water surface (`core.scene.water.WaterRead`) lights the receivers
+under it through the surface: each pair is a `water_beam.WaterSource` (the light as
+`emitters` data, exactly its type — a sun stays parallel — with its colour times the
+water's tint of one crossing and its power times the transmission weight), and all
+pairs' beams land in one `rasters.build_layer` on the receivers (the water surfaces
+themselves not among them). Phase 1's obstruction is not run for water: what stands
+between a light and the water (a diving board) does not shadow the net yet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..lens.water import WaterSurface
+from ..scene.primaries import AreaPrimary, PointPrimary, SpotPrimary, SunPrimary
+from .emitters import AreaLight, PointLight, SpotLight, SunLight
+from .pipeline import SheetBake
+from .rasters import build_layer
+from .ray_budget import RayBudget
+from .receiver_bvh import ReceiverMesh
+from .receiver_index import ReceiverIndex, build_index
+from .water_beam import WaterSource, grid_shape, trace_water_beams
+
+#: Node rays per (light, water) pair: a 512² grid (a 10 m pool: a ray per 2 cm).
+WATER_RAYS = 512 * 512
+#: Bilinear sub-cells per texel side when a cell lands (the layer's default is 2): a
+#: net's small folded quads deposited as points alias below ~4 per texel.
+WATER_SUBCELLS_PER_TEXEL = 4.0
+
+
+def emitter_of(primary, tint=(1.0, 1.0, 1.0), weight: float = 1.0):
+    """The `emitters` light of a `core.scene.primaries` light, its power (or a sun's
+    strength) × ``weight`` and colour × ``tint``; None for a type it does not know."""
+    color = tuple(float(c) * float(t) for c, t in zip(primary.color, tint, strict=True))
+    w = float(weight)
+    if isinstance(primary, SunPrimary):
+        return SunLight(np.asarray(primary.direction, float), primary.strength * w,
+                        float(primary.angle), color)  # fmt: skip
+    if isinstance(primary, SpotPrimary):
+        return SpotLight(
+            np.asarray(primary.position, float), np.asarray(primary.direction, float),
+            primary.power_w * w, float(primary.spot_size), float(primary.blend),
+            float(primary.radius), color,
+        )  # fmt: skip
+    if isinstance(primary, PointPrimary):
+        return PointLight(np.asarray(primary.position, float), primary.power_w * w,
+                          float(primary.radius), color)  # fmt: skip
+    if isinstance(primary, AreaPrimary):
+        return AreaLight(
+            np.asarray(primary.position, float), np.asarray(primary.direction, float),
+            np.asarray(primary.axis_x, float), primary.power_w * w, float(primary.size_x),
+            float(primary.size_y), str(primary.shape), color,
+        )  # fmt: skip
+    return None
+
+
+def surface_of(water) -> WaterSurface:
+    """The `core.lens.water` surface of a `WaterRead`."""
+    return WaterSurface(
+        water.vertices, water.triangles, water.corner_normals, water.ior, water.absorption
+    )
+
+
+def _above(primary, surface: WaterSurface) -> bool:
+    """Whether the light reaches the water from above (a sun shining down on it, a
+    lamp above its highest wave)."""
+    pl = surface.plane
+    if isinstance(primary, SunPrimary):
+        return float(np.asarray(primary.direction, float) @ pl.normal) < 0.0
+    pos = np.asarray(primary.position, float)
+    return float((pos - pl.origin) @ pl.normal) > pl.top
+
+
+def water_sources(primary_lights, waters, own_objects=None, n_source: int = 1):
+    """(the `WaterSource` of every (light, water) pair whose light is above the water,
+    the pair of each as (light index, water index), the pairs left out as (light
+    index, water index, why)). ``own_objects``: per water its object id among the
+    receivers (−1: not there)."""
+    surfaces = [surface_of(w) for w in waters]
+    sources, pairs, left = [], [], []
+    for k, (w, surf) in enumerate(zip(waters, surfaces, strict=True)):
+        own = -1 if own_objects is None else int(own_objects[k])
+        for j, prim in enumerate(primary_lights):
+            if not _above(prim, surf):
+                left.append((j, k, "the light is not above the water"))
+                continue
+            e = emitter_of(prim, w.tint, w.transmission_weight)
+            if e is None:
+                left.append((j, k, "a light type the water layer does not know"))
+                continue
+            extended = getattr(prim, "radius", 0.0) > 0.0 or getattr(prim, "angle", 0.0) > 0.0
+            sources.append(WaterSource(e, surf, n_source if extended else 1, own))
+            pairs.append((j, k))
+    return sources, pairs, left
+
+
+def water_bake(
+    sources,
+    receivers: ReceiverMesh | ReceiverIndex,
+    n_rays: int = WATER_RAYS,
+    resolution: int = 256,
+    view=None,
+    max_texels: int | None = None,
+) -> SheetBake:
+    """The caustic layer of every water source on ``receivers`` (a `SheetBake`, as
+    `pipeline.bake` gives; ``budgets`` (ny, nx) per source as `RayBudget`s)."""
+    index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
+    beams, owner, budgets = [], [], []
+    for i, s in enumerate(sources):
+        shape = grid_shape(s.surface, max(int(n_rays) // max(s.n_source, 1), 4))
+        made = trace_water_beams(s, index, shape)
+        beams += made
+        owner += [i] * len(made)
+        budgets.append(RayBudget(shape[0], shape[1] + 1))
+    own = [sources[i].own_object for i in owner]
+    layer = build_layer(
+        beams,
+        index,
+        resolution=resolution,
+        own_objects=own if any(o >= 0 for o in own) else None,
+        view=view,
+        max_texels=max_texels,
+        subcells_per_texel=WATER_SUBCELLS_PER_TEXEL,
+    )
+    # a coloured absorption makes a beam per channel: the layer's sources are beams
+    for p in layer.patches:
+        p.sources = np.unique(np.asarray(owner, dtype=np.int64)[np.asarray(p.sources, int)])
+    res = max((p.resolution for p in layer.patches), default=int(resolution))
+    refinement = [(0, 0, b.n_rays * s.n_source) for b, s in zip(budgets, sources, strict=True)]
+    return SheetBake(layer, budgets, int(res), index, refinement)

@@ -1,0 +1,99 @@
+"""Issue 26 in Blender: Generate takes an open glass mesh with water's IOR as a water
+surface and lays its caustic on the floor under it (EEVEE and Cycles), reading the
+evaluated mesh (a Subdivision modifier's triangles); the report names the water and
+the receivers under it; open glass that is not water-like stays left out as before.
+
+The flux is checked against the closed form for flat water under a sun (zenith angle
+θ, strength S, water area A, floor far beyond): S·cos θ·A·T(θ)/n², T the unpolarised
+Fresnel transmittance computed here from the amplitude coefficients, 1/n² the
+brightness Cycles renders under water (SPEC §9).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scene_helpers import (  # noqa: E402
+    add_point_light,
+    caustic_layers,
+    generate,
+    glass_material,
+    set_engine,
+)
+
+N, STRENGTH, ZENITH, HALF = 1.333, 3.0, math.radians(30.0), 1.0
+
+
+def _t(theta):
+    ci = math.cos(theta)
+    st = math.sin(theta) / N
+    ct = math.sqrt(1.0 - st * st)
+    rs = (ci - N * ct) / (ci + N * ct)
+    rp = (N * ci - ct) / (N * ci + ct)
+    return 1.0 - 0.5 * (rs * rs + rp * rp)
+
+
+def pool(ior=N, subdivide=False):
+    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, 0.0))
+    bpy.context.object.name = "Floor"
+    bpy.ops.mesh.primitive_grid_add(
+        x_subdivisions=8, y_subdivisions=8, size=2.0 * HALF, location=(0.0, 0.0, 0.8)
+    )
+    water = bpy.context.object
+    water.name = "Water"
+    water.data.materials.append(glass_material("Water", ior=ior))
+    if subdivide:
+        sub = water.modifiers.new("Subdivision", "SUBSURF")
+        sub.levels = sub.render_levels = 1
+    sun = add_point_light("Sun", (0.0, 0.0, 5.0), energy=STRENGTH, kind="SUN")
+    sun.rotation_euler = (0.0, -ZENITH, 0.0)  # travels toward +x, 30° off the vertical
+    bpy.ops.object.camera_add(location=(0.0, -5.0, 6.0), rotation=(math.radians(40.0), 0.0, 0.0))
+    bpy.context.scene.camera = bpy.context.object
+    bpy.context.scene.render.resolution_x = bpy.context.scene.render.resolution_y = 64
+    return water
+
+
+def layer_flux(ob):
+    me = ob.data
+    rgba = np.empty(len(me.vertices) * 4)
+    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
+    corners = np.empty(len(me.loops), dtype=np.int32)
+    me.loops.foreach_get("vertex_index", corners)
+    area = np.empty(len(me.polygons))
+    me.polygons.foreach_get("area", area)
+    green = rgba.reshape(-1, 4)[:, 1]
+    return float((green[corners.reshape(-1, 3)].mean(axis=1) * area).sum())
+
+
+@pytest.mark.parametrize("engine", ["BLENDER_EEVEE", "CYCLES"])
+def test_flat_water_lays_its_light_on_the_floor(empty_blend, engine):
+    water = pool(subdivide=True)
+    set_engine(engine)
+    level, message, _ = generate()
+    assert level in ("INFO", "WARNING"), message
+    # the evaluated mesh: each quad subdivided once into four, two triangles each
+    tris = f"{8 * len(water.data.polygons):,}".replace(",", "\u2009")
+    assert f"water: Water ({tris} triangles) over Floor" in message
+    assert "open mesh" not in message
+    obs = caustic_layers()
+    assert obs and all("Floor" in o.lens_lights.receiver for o in obs)
+    expect = STRENGTH * math.cos(ZENITH) * (2 * HALF) ** 2 * _t(ZENITH) / N**2
+    assert sum(layer_flux(o) for o in obs) == pytest.approx(expect, rel=0.02)
+    if engine == "CYCLES":  # the water's caustic is the layer's now: Cycles' is off
+        assert not bpy.context.scene.cycles.caustics_refractive
+
+
+def test_open_glass_that_is_not_water_stays_left_out(empty_blend):
+    pool(ior=1.5)
+    set_engine("CYCLES")
+    level, message, _ = generate()
+    assert "water:" not in message
+    assert "Water (open mesh" in message
+    assert not caustic_layers()
