@@ -12,9 +12,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from ...core.caustic_layer.plan import FACE_BUDGET, VIEW_MAX_RESOLUTION, figures_of
+from ...core.caustic_layer.plan import FACE_BUDGET, VIEW_MAX_RESOLUTION, figures_of, sheet_camera
+from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
-from ...core.caustic_layer.water_sources import water_bake, water_sources
+from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
 from ...core.scene.water import water_text
 from ..build import layers as layer_builder
 from ..read.receivers import read_receivers
@@ -62,9 +63,19 @@ def prepare(depsgraph, work):
     has_camera = cam is not None and cam.type == "CAMERA"
     ortho = cam.data.ortho_scale if has_camera and cam.data.type == "ORTHO" else None
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
+    # about two rays per pixel's length on the water, as the camera sees it
+    centers = [s.surface.center for s in sources]
+    cam_est = sheet_camera(read.camera, read.width, ortho, centers)
+    rays = [
+        rays_for(s.surface, pixel_size(cam_est.position, c, cam_est.fov, cam_est.width_px))
+        if has_camera
+        else WATER_RAYS
+        for s, c in zip(sources, centers, strict=True)
+    ]
     stage.bake = water_bake(
         sources,
         stage.receivers.mesh,
+        n_rays=rays,
         resolution=VIEW_MAX_RESOLUTION,
         view=view,
         max_texels=FACE_BUDGET,

@@ -11,6 +11,8 @@ between a light and the water (a diving board) does not shadow the net yet.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..lens.water import WaterSurface
@@ -23,8 +25,12 @@ from .receiver_bvh import ReceiverMesh
 from .receiver_index import ReceiverIndex, build_index
 from .water_beam import WaterSource, grid_shape, trace_water_beams
 
-#: Node rays per (light, water) pair: a 512² grid (a 10 m pool: a ray per 2 cm).
+#: Node rays per (light, water) pair without a camera: a 512² grid.
 WATER_RAYS = 512 * 512
+#: With a camera: rays this many per pixel's length on the water (2: 4 rays per
+#: pixel²), within these bounds per pair.
+RAYS_PER_PIXEL_SIDE = 2.0
+MIN_WATER_RAYS, MAX_WATER_RAYS = 128 * 128, 1024 * 1024
 #: Bilinear sub-cells per texel side when a cell lands (the layer's default is 2): a
 #: net's small folded quads deposited as points alias below ~4 per texel.
 WATER_SUBCELLS_PER_TEXEL = 4.0
@@ -63,6 +69,18 @@ def surface_of(water) -> WaterSurface:
     )
 
 
+def rays_for(surface: WaterSurface, pixel: float) -> int:
+    """Node rays for a water surface seen with pixels of ``pixel`` length there:
+    `RAYS_PER_PIXEL_SIDE` per pixel along each side of its extent, within
+    `MIN_WATER_RAYS` … `MAX_WATER_RAYS`."""
+    pl = surface.plane
+    area = (pl.u_range[1] - pl.u_range[0]) * (pl.v_range[1] - pl.v_range[0])
+    if not (pixel > 0.0 and math.isfinite(pixel)):
+        return WATER_RAYS
+    n = area * (RAYS_PER_PIXEL_SIDE / pixel) ** 2
+    return int(min(max(n, MIN_WATER_RAYS), MAX_WATER_RAYS))
+
+
 def _above(primary, surface: WaterSurface) -> bool:
     """Whether the light reaches the water from above (a sun shining down on it, a
     lamp above its highest wave)."""
@@ -99,17 +117,19 @@ def water_sources(primary_lights, waters, own_objects=None, n_source: int = 1):
 def water_bake(
     sources,
     receivers: ReceiverMesh | ReceiverIndex,
-    n_rays: int = WATER_RAYS,
+    n_rays: int | list[int] = WATER_RAYS,
     resolution: int = 256,
     view=None,
     max_texels: int | None = None,
 ) -> SheetBake:
     """The caustic layer of every water source on ``receivers`` (a `SheetBake`, as
-    `pipeline.bake` gives; ``budgets`` (ny, nx) per source as `RayBudget`s)."""
+    `pipeline.bake` gives; ``budgets`` (ny, nx) per source as `RayBudget`s);
+    ``n_rays``: node rays per source (one number for all, or one each)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     beams, owner, budgets = [], [], []
+    rays = [n_rays] * len(sources) if np.ndim(n_rays) == 0 else list(n_rays)
     for i, s in enumerate(sources):
-        shape = grid_shape(s.surface, max(int(n_rays) // max(s.n_source, 1), 4))
+        shape = grid_shape(s.surface, max(int(rays[i]) // max(s.n_source, 1), 4))
         made = trace_water_beams(s, index, shape)
         beams += made
         owner += [i] * len(made)

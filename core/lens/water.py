@@ -8,7 +8,9 @@ corner normals interpolated, as `mesh` does) and the unpolarised Fresnel transmi
 (the mean of the s and p parts). What happens further down (the depth travelled, its
 Beer absorption, the landing) is the caustic layer's (`caustic_layer.water_beam`).
 
-The surface's rest plane (its least-squares plane, normal up toward +Z) parametrises
+The first hits are found through a grid over the rest plane (`slab_grid`), the
+triangle BVH taking the rays that graze the sheet. The surface's rest plane (its
+least-squares plane, normal up toward +Z) parametrises
 the rays: a ray is named by where it crosses that plane, so a regular grid over the
 plane is a regular grid of rays however the waves move.
 """
@@ -23,6 +25,8 @@ from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
 from .base import ExitRays, Lens
 from .refraction import fresnel_from_cosines, refract
+from .slab_grid import build_slab_grid
+from .slab_grid import intersect as slab_intersect
 
 #: The index Blender users give water (Blender's own IOR preset for water).
 WATER_IOR = 1.333
@@ -97,7 +101,8 @@ class WaterSurface(Lens):
     """An open triangle mesh with water (index ``ior``) below it: ``vertices`` (V, 3)
     world coordinates, ``triangles`` (T, 3), ``corner_normals`` (T, 3, 3) as Blender
     shades (None: flat); ``absorption``: Beer per unit length in the water, RGB (a
-    scalar for grey). The BVH and the rest plane are built once, here."""
+    scalar for grey). The BVH, the rest plane and the grid over it (`slab_grid`: the
+    first hits of a sheet, the BVH for grazing rays) are built once, here."""
 
     def __init__(self, vertices, triangles, corner_normals=None, ior=WATER_IOR, absorption=0.0):
         self.vertices = np.asarray(vertices, dtype=float).reshape(-1, 3)
@@ -117,6 +122,7 @@ class WaterSurface(Lens):
         self.radius = float(np.linalg.norm(self.vertices - self.center, axis=1).max(initial=0.0))
         self.eps = 1e-7 * max(self.radius, 1e-9)
         self.bvh = build_bvh(self.vertices, self.triangles)
+        self.grid = build_slab_grid(self.vertices, self.triangles, self.plane)
 
     # ------------------------------------------------------------------ the Lens interface
 
@@ -150,7 +156,7 @@ class WaterSurface(Lens):
         """The first crossing of each ray (N, 3) from the air into the water."""
         o, d = _flat(origins, directions)
         d = _unit(d)
-        h = bvh_intersect(self.bvh, o, d)
+        h = slab_intersect(self.grid, self.bvh, o, d)
         hit = h.triangle >= 0
         tri = np.maximum(h.triangle, 0)
         ng = self.face_normals[tri]
