@@ -64,9 +64,12 @@ class RestPlane:
         return self.origin + u[..., None] * self.axis_u + v[..., None] * self.axis_v
 
 
-def rest_plane(vertices) -> RestPlane:
+def rest_plane(vertices, triangles=None) -> RestPlane:
     """The least-squares plane of ``vertices`` (V, 3) (its normal: the smallest
-    principal axis, turned toward +Z) and the vertices' extent in it."""
+    principal axis, turned toward +Z) and the vertices' extent in it. The in-plane
+    axes follow the mesh's edges (``triangles`` given: the length-weighted mean of
+    their directions modulo 90°, so a grid's rows and columns; else the principal
+    axes), so a rectangle's ray grid is not turned across its corners."""
     v = np.asarray(vertices, dtype=float).reshape(-1, 3)
     c = v.mean(axis=0)
     _, _, vt = np.linalg.svd(v - c, full_matrices=False)
@@ -76,6 +79,17 @@ def rest_plane(vertices) -> RestPlane:
     au = vt[0] - (vt[0] @ n) * n
     au /= np.linalg.norm(au)
     av = np.cross(n, au)
+    if triangles is not None and len(triangles):
+        t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        e = (v[t[:, [1, 2, 0]]] - v[t]).reshape(-1, 3)
+        x, y = e @ au, e @ av
+        w = np.hypot(x, y)
+        a4 = 4.0 * np.arctan2(y, x)
+        turn = 0.25 * np.arctan2((w * np.sin(a4)).sum(), (w * np.cos(a4)).sum())
+        au, av = (
+            np.cos(turn) * au + np.sin(turn) * av,
+            np.cross(n, np.cos(turn) * au + np.sin(turn) * av),
+        )
     rel = v - c
     pu, pv, h = rel @ au, rel @ av, rel @ n
     return RestPlane(
@@ -117,7 +131,7 @@ class WaterSurface(Lens):
         else:
             cn = _unit(np.asarray(corner_normals, dtype=float).reshape(-1, 3, 3))
         self.corner_normals = cn
-        self.plane = rest_plane(self.vertices)
+        self.plane = rest_plane(self.vertices, self.triangles)
         self.center = self.vertices.mean(axis=0)
         self.radius = float(np.linalg.norm(self.vertices - self.center, axis=1).max(initial=0.0))
         self.eps = 1e-7 * max(self.radius, 1e-9)

@@ -86,3 +86,21 @@ def test_rest_plane_of_a_tilted_wavy_sheet():
     assert pl.v_range[1] - pl.v_range[0] == pytest.approx(1.0, rel=0.02)
     assert 0.005 < pl.top < 0.02 and -0.02 < pl.bottom < -0.005
     np.testing.assert_allclose(np.cross(pl.axis_u, pl.axis_v), pl.normal, atol=1e-12)
+
+
+def test_rest_plane_axes_follow_a_square_grid():
+    """A square grid turned 20° about z: its principal axes are undetermined (a square),
+    the rest plane's axes follow its rows and columns and its extent is the square's."""
+    xs = np.linspace(-1.0, 1.0, 11)
+    gx, gy = np.meshgrid(xs, xs)
+    p = np.stack([gx, gy, np.zeros_like(gx)], -1).reshape(-1, 3)
+    a = math.radians(20.0)
+    p = p @ np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]]).T
+    i, j = np.meshgrid(np.arange(10), np.arange(10), indexing="ij")
+    q = (i * 11 + j).reshape(-1)
+    t = np.concatenate([np.stack([q, q + 1, q + 12], 1), np.stack([q, q + 12, q + 11], 1)])
+    pl = rest_plane(p, t)
+    row = np.array([math.cos(a), math.sin(a), 0.0])
+    assert min(abs(pl.axis_u @ row), abs(pl.axis_v @ row)) < 1e-9
+    assert (pl.u_range[1] - pl.u_range[0]) == pytest.approx(2.0, rel=1e-9)
+    assert (pl.v_range[1] - pl.v_range[0]) == pytest.approx(2.0, rel=1e-9)
