@@ -1,13 +1,13 @@
 """Water (issue 26): the caustic net of a sine-wave surface, Cycles and EEVEE Generate
 against the height-field reference.
 
-    ./lens-lights bench water [--px 96] [--rays 4e6] [--grid 200] [--depth 0.7]
+    ./lens-lights bench water [--px 96] [--rays 4e6] [--grid 200] [--depths 0.5,0.7,1.0]
                               [--no-eevee] [--no-cycles] [--cycles-samples 64]
 
 Scene (metres): a 1 × 1 m water surface z = Σ a_k sin(k_k·(x, y) + φ_k) (three waves:
 6/5/3 mm high, 30/22/17 cm long, in three directions) meshed as a ``--grid`` ×
 ``--grid`` plane (Principled BSDF, transmission 1, roughness 0, IOR 1.333, smooth),
-its rest plane ``--depth`` above a white Lambertian floor (albedo 0.8), a sun 60°
+its rest plane ``--depths`` above a white Lambertian floor (one row each) (albedo 0.8), a sun 60°
 above the horizon (strength 3, angle 0); an orthographic camera straight down over
 the lit floor, the water hidden from the camera (so the camera sees the floor as it
 lies in the water: the layer's E/n², Cycles' own convention, SPEC §9), linear EXR,
@@ -15,6 +15,9 @@ no world.
 
 Truth: `reference.water_tracer.trace_floor` — the analytic height field (exact
 normals), Snell and unpolarised Fresnel, binned on the camera's pixels, divided by n².
+
+A second reference with another seed, measured against the first, shows the
+reference's own noise in the metric (about √2 × one reference's).
 
 Columns: Cycles Generate, EEVEE Generate (tier AUTO, Replace Cycles' Caustics): the
 render with Generate's layer minus the render without it, as irradiance (pixel × π /
@@ -173,7 +176,7 @@ def generated(engine, px, samples, depth, grid, fr, tmp):
     return img - base, dt, t_gen, message
 
 
-def truth(px, n_rays, depth, fr):
+def truth(px, n_rays, depth, fr, seed=11):
     cx, cy, view = fr
     ex = cx + (np.arange(px + 1) / px - 0.5) * view
     ey = cy + (np.arange(px + 1) / px - 0.5) * view
@@ -181,25 +184,31 @@ def truth(px, n_rays, depth, fr):
                         WAVES.bounds)  # fmt: skip
     t = trace_floor(
         shifted, 0.0, ex, ey, ior=IOR, sun_direction=sun_direction(), sun_strength=STRENGTH,
-        n_rays=n_rays, seed=11,
+        n_rays=n_rays, seed=seed,
     )  # fmt: skip
     return t.irradiance
 
 
-def strip(maps, titles, path):
+def strip(rows, titles, path):
+    """One row of maps per depth (label, maps), the reference's scale in each."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(maps), figsize=(2.6 * len(maps), 2.8), squeeze=False)
-    vmax = float(maps[0].max())
-    for ax, m, title in zip(axes[0], maps, titles, strict=True):
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.set_title(title, fontsize=8)
-        if m is not None:
-            ax.imshow(m, origin="lower", cmap="inferno", vmin=0.0, vmax=vmax)
+    n, k = len(rows), len(titles)
+    fig, axes = plt.subplots(n, k, figsize=(2.6 * k, 2.7 * n), squeeze=False)
+    for r, (label, maps) in enumerate(rows):
+        vmax = float(maps[0].max())
+        for c, (m, title) in enumerate(zip(maps, titles, strict=True)):
+            ax = axes[r, c]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(title, fontsize=8)
+            if m is not None:
+                ax.imshow(m, origin="lower", cmap="inferno", vmin=0.0, vmax=vmax)
+        axes[r, 0].set_ylabel(label, fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -211,7 +220,7 @@ def main():
     )
     ap.add_argument("--px", type=int, default=96)
     ap.add_argument("--view", type=float, default=0.6, help="camera's square (m)")
-    ap.add_argument("--depth", type=float, default=0.7, help="floor below the rest plane (m)")
+    ap.add_argument("--depths", default="0.5,0.7,1.0", help="floor below the rest plane (m)")
     ap.add_argument("--grid", type=int, default=200, help="water mesh quads per side")
     ap.add_argument("--rays", type=float, default=4e6, help="reference rays")
     ap.add_argument("--cycles-samples", type=int, default=64)
@@ -223,69 +232,84 @@ def main():
     import bpy
 
     load_extension()
-    fr = frame(args.depth, args.view)
-    t0 = time.perf_counter()
-    E = truth(args.px, int(args.rays), args.depth, fr)
-    t_truth = time.perf_counter() - t0
-    print(f"truth {t_truth:.1f} s, mean {E.mean():.4f} W/m², peak {E.max():.3f}", flush=True)
     runs = [] if args.no_cycles else [("CYCLES", "Cycles Generate", args.cycles_samples)]
     if not args.no_eevee:
         runs.append((eevee_id(), "EEVEE Generate", args.eevee_samples))
-    rows, maps, titles, messages = [], [E], ["reference"], []
+    titles = ["reference"] + [label for _e, label, _s in runs]
+    table, pictures, messages, t_truths = [], [], [], []
+    t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        for engine, label, samples in runs:
-            img, dt, t_gen, message = generated(
-                engine, args.px, samples, args.depth, args.grid, fr, tmp
-            )
-            messages.append((label, message))
-            if img is None:
-                rows.append(dict(run=label, gen=t_gen, l1=None))
-                print(f"{label}: nothing made ({message})", flush=True)
-                maps.append(None)
-                titles.append(label)
-                continue
-            m = metrics(img, E)
-            rows.append(dict(run=label, seconds=dt, gen=t_gen, **m))
-            maps.append(img)
-            titles.append(label)
+        for depth in (float(x) for x in args.depths.split(",")):
+            fr = frame(depth, args.view)
+            t1 = time.perf_counter()
+            E = truth(args.px, int(args.rays), depth, fr)
+            t_truths.append(time.perf_counter() - t1)
+            m = metrics(truth(args.px, int(args.rays), depth, fr, seed=12), E)
+            table.append(dict(depth=depth, run="reference, another seed", **m))
             print(
-                f"{label}: L1 {m['l1']:.3f} flux {m['flux']:.3f} peak {m['peak']:.2f} "
-                f"(Generate {t_gen:.2f} s, render {dt:.1f} s)",
+                f"depth {depth:g}: reference {t_truths[-1]:.1f} s, mean {E.mean():.4f} W/m², "
+                f"peak {E.max():.3f}; another seed: L1 {m['l1']:.3f} flux {m['flux']:.3f}",
                 flush=True,
             )
+            maps = [E]
+            for engine, label, samples in runs:
+                img, dt, t_gen, message = generated(
+                    engine, args.px, samples, depth, args.grid, fr, tmp
+                )
+                messages.append((f"{depth:g} m, {label}", message))
+                maps.append(img)
+                if img is None:
+                    table.append(dict(depth=depth, run=label, gen=t_gen, l1=None))
+                    print(f"  {label}: nothing made ({message})", flush=True)
+                    continue
+                m = metrics(img, E)
+                table.append(dict(depth=depth, run=label, seconds=dt, gen=t_gen, **m))
+                print(
+                    f"  {label}: L1 {m['l1']:.3f} flux {m['flux']:.3f} peak {m['peak']:.2f} "
+                    f"(Generate {t_gen:.2f} s, render {dt:.1f} s)",
+                    flush=True,
+                )
+            pictures.append((f"floor {depth:g} m down", maps))
     total = time.perf_counter() - t0
     REPORTS.mkdir(exist_ok=True)
-    strip(maps, titles, REPORTS / f"{args.report}.png")
+    strip(pictures, titles, REPORTS / f"{args.report}.png")
     cmd = "./lens-lights bench water" + "".join(f" {a}" for a in sys.argv[1:])
     lines = [
         "# Water: a sine-wave pool's caustic net in Cycles and EEVEE vs the reference (issue 26)",
         "",
         f"`{cmd}` — Blender {bpy.app.version_string}, {args.px}×{args.px} px over "
-        f"{args.view:g} m of floor, water {args.grid}×{args.grid} quads "
-        f"({2 * args.grid**2} triangles) {args.depth:g} m above it, sun {ELEVATION:g}° high; "
-        f"reference {args.rays:.3g} rays ({t_truth:.0f} s); {total / 60:.1f} min in all on "
-        "2 shared cores.",
+        f"{args.view:g} m of floor, water 1 × 1 m as {args.grid}×{args.grid} quads "
+        f"({2 * args.grid**2} triangles), sun {ELEVATION:g}° high (strength {STRENGTH:g}); "
+        f"reference {args.rays:.3g} rays per depth (about {np.mean(t_truths):.0f} s each); "
+        f"{total / 60:.1f} min in all on 2 shared cores (other jobs running beside).",
         "",
         "Reference: `reference/water_tracer.py` (analytic height field, exact normals, Snell, "
         "unpolarised Fresnel), binned on the camera's pixels, over n² (the brightness "
         "Cycles renders under water, SPEC §9). Generate rows: the render with the layer "
         "minus the render without, as irradiance. L1 over the region (reference > 1 % of "
         "its peak or the render > 5 % of it); flux: render / reference there; peak: "
-        f"brightest pixel / the reference's. Targets: L1 ≤ {L1_TARGET}, flux ±{FLUX_TARGET:.0%}.",
+        "brightest pixel / the reference's. 'Reference, another seed': a second reference "
+        "against the first (the metric's noise floor from the reference alone). Targets: "
+        f"L1 ≤ {L1_TARGET}, flux ±{FLUX_TARGET:.0%}.",
         "",
-        "| run | L1 | flux | peak | Generate s | render s | target met |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | :---: |",
+        "| floor depth | run | L1 | flux | peak | Generate s | render s | target met |",
+        "| ---: | --- | ---: | ---: | ---: | ---: | ---: | :---: |",
     ]
-    for r in rows:
-        if r.get("l1") is None:
-            lines.append(f"| {r['run']} | — | — | — | {r['gen']:.2f} | — | nothing made |")
-            continue
-        met = "yes" if r["l1"] <= L1_TARGET and abs(r["flux"] - 1) <= FLUX_TARGET else "no"
-        lines.append(
-            f"| {r['run']} | {r['l1']:.3f} | {r['flux']:.3f} | {r['peak']:.2f} | "
-            f"{r['gen']:.2f} | {r['seconds']:.1f} | {met} |"
-        )
-    lines += ["", f"![reference | Cycles Generate | EEVEE Generate]({args.report}.png)", ""]
+    for r in table:
+        head = f"| {r['depth']:g} m | {r['run']} |"
+        if r["run"].startswith("reference"):
+            lines.append(
+                f"{head} {r['l1']:.3f} | {r['flux']:.3f} | {r['peak']:.2f} | — | — | (noise) |"
+            )
+        elif r.get("l1") is None:
+            lines.append(f"{head} — | — | — | {r['gen']:.2f} | — | nothing made |")
+        else:
+            met = "yes" if r["l1"] <= L1_TARGET and abs(r["flux"] - 1) <= FLUX_TARGET else "no"
+            lines.append(
+                f"{head} {r['l1']:.3f} | {r['flux']:.3f} | {r['peak']:.2f} | "
+                f"{r['gen']:.2f} | {r['seconds']:.1f} | {met} |"
+            )
+    lines += ["", f"![{' | '.join(titles)}]({args.report}.png)", ""]
     lines += ["## Generate's reports", ""] + [f"- {label}: {msg}" for label, msg in messages]
     lines.append("")
     (REPORTS / f"{args.report}.md").write_text("\n".join(lines))
