@@ -12,7 +12,13 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from ...core.caustic_layer.plan import FACE_BUDGET, VIEW_MAX_RESOLUTION, figures_of, sheet_camera
+from ...core.caustic_layer.plan import (
+    FACE_BUDGET,
+    SOURCE_SAMPLES,
+    VIEW_MAX_RESOLUTION,
+    figures_of,
+    sheet_camera,
+)
 from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
 from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
@@ -56,7 +62,10 @@ def prepare(depsgraph, work):
     if not len(stage.receivers.mesh.triangles):
         return work
     t = time.perf_counter()
-    sources, stage.pairs, _left = water_sources(read.primary_lights, waters)
+    # an extended light (a radius, a sun's angle): its samples' images blur the net
+    sources, stage.pairs, _left = water_sources(
+        read.primary_lights, waters, n_source=SOURCE_SAMPLES
+    )
     if not sources:
         return work
     cam = depsgraph.scene.camera

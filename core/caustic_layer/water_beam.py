@@ -95,8 +95,12 @@ def trace_water_beams(
     surf = source.surface
     pl = surf.plane
     ny, nx = int(shape[0]), int(shape[1])
-    u = np.linspace(pl.u_range[0], pl.u_range[1], nx + 1)
-    v = np.linspace(pl.v_range[0], pl.v_range[1], ny + 1)
+    # the outer nodes a hair inside the rim, so that they meet the water (a node
+    # missing it would take half its cells' flux away along the edge)
+    eu = 1e-7 * (pl.u_range[1] - pl.u_range[0])
+    ev = 1e-7 * (pl.v_range[1] - pl.v_range[0])
+    u = np.linspace(pl.u_range[0] + eu, pl.u_range[1] - eu, nx + 1)
+    v = np.linspace(pl.v_range[0] + ev, pl.v_range[1] - ev, ny + 1)
     cell_area = (u[1] - u[0]) * (v[1] - v[0])
     plane_pts = pl.point(u[None, :], v[:, None])  # (ny+1, nx+1, 3)
     sm = source_samples(source.emitter, _lens_record(surf), source.n_source)

@@ -23,6 +23,7 @@ from core.caustic_layer.water_sources import (
 from core.lens.glass import MaterialOptics
 from core.scene.primaries import AreaPrimary, PointPrimary, SpotPrimary, SunPrimary
 from core.scene.water import water_read, water_reason, water_text
+from reference.water_tracer import layer_on_bins
 
 N = 1.333
 
@@ -114,3 +115,24 @@ def test_report_words():
     assert water_text([("Pool", 20000, ["Floor", "Wall"])], ["Pond"]) == (
         "water: Pool (20\u2009000 triangles) over Floor, Wall; no light above the water of Pond"
     )
+
+
+def test_a_sun_with_an_angle_blurs_the_edge_of_the_waters_light():
+    """A sun overhead with a 10° disc over a 1 m square of flat water, floor 1 m down:
+    the light's edge under the water's edge (x = 0.5) is blurred over ±D·tan θ_w,
+    sin θ_w = sin 5°/n (6.5 cm): half the interior at the edge (the disc's samples
+    are symmetric), all of it 8 cm inside, none 8 cm outside."""
+    sun = SunPrimary((0.0, 0.0, -1.0), 2.0, math.radians(10.0))
+    sources, _, _ = water_sources([sun], [_water(half=0.5, n=8)], n_source=16)
+    assert sources[0].n_source == 16
+    bake = water_bake(sources, _floor(-1.0, half=3.0), n_rays=16 * 100 * 100, resolution=256)
+    (patch,) = bake.layer.patches
+
+    def mean_at(x, w=0.01):  # the layer's mean over x ± w, |y| < 0.2
+        return float(layer_on_bins(patch, [x - w, x + w], [-0.2, 0.2])[0, 0])
+
+    inner = mean_at(0.0, 0.1)
+    assert inner == pytest.approx(2.0 * _t(0.0) / N**2, rel=0.02)
+    assert mean_at(0.5) == pytest.approx(0.5 * inner, rel=0.1)
+    assert mean_at(0.42) == pytest.approx(inner, rel=0.03)
+    assert mean_at(0.58) < 0.02 * inner
