@@ -13,6 +13,7 @@ from core.caustic_layer.rasters import build_layer
 from core.caustic_layer.receiver_bvh import ReceiverMesh
 from core.caustic_layer.receiver_index import build_index
 from core.caustic_layer.water_beam import WaterSource, grid_shape, trace_water_beams
+from core.caustic_layer.water_sources import WATER_SUBCELLS_PER_TEXEL as SUB
 from core.lens.water import WaterSurface
 from reference.layer_metrics import radial_flux, relative_l1
 from reference.water_tracer import SineWaves, height_field_mesh, layer_on_bins, trace_floor
@@ -63,7 +64,7 @@ def test_flat_water_under_the_sun_is_fresnel_beer_over_n_squared():
     idx = _floor(-0.8)
     beams = trace_water_beams(WaterSource(sun, water), idx, (64, 64))
     assert len(beams) == 3  # a coloured absorption: one beam per channel
-    layer = build_layer(beams, idx, resolution=64, warp=False)
+    layer = build_layer(beams, idx, resolution=64, warp=False, subcells_per_texel=SUB)
     (patch,) = layer.patches
     ct = math.sqrt(1.0 - (math.sin(zen) / N) ** 2)
     shift = 0.8 * math.sin(zen) / N / ct  # where the middle of the water lands
@@ -91,7 +92,7 @@ def test_point_light_over_flat_water_flux_within_radii():
     water = _flat_water(half=1.0)
     idx = _floor(-depth)
     (beam,) = trace_water_beams(WaterSource(lamp, water), idx, (96, 96))
-    layer = build_layer([beam], idx, resolution=128, warp=False)
+    layer = build_layer([beam], idx, resolution=256, warp=False, subcells_per_texel=SUB)
     (patch,) = layer.patches
     intensity = power / (4.0 * math.pi)
     radii = [0.1, 0.3, 0.6, 1.0]
@@ -131,7 +132,7 @@ def test_sine_waves_under_the_sun_match_the_reference():
     water = WaterSurface(v, t, cn, ior=N)
     idx = _floor(-0.7)
     (beam,) = trace_water_beams(WaterSource(SunLight(d, 1.0), water), idx, (240, 240))
-    layer = build_layer([beam], idx, resolution=200, warp=False)
+    layer = build_layer([beam], idx, resolution=200, warp=False, subcells_per_texel=SUB)
     (patch,) = layer.patches
     e = layer_on_bins(patch, ex, ey)
     area = np.diff(ey)[:, None] * np.diff(ex)[None, :]
