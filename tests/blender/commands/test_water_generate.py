@@ -98,3 +98,37 @@ def test_open_glass_that_is_not_water_stays_left_out(empty_blend):
     assert "water:" not in message
     assert "Water (open mesh" in message
     assert not caustic_layers()
+
+
+def channel_flux(ob):
+    """(R, G, B) of the irradiance drawn, integrated over the layer mesh."""
+    me = ob.data
+    rgba = np.empty(len(me.vertices) * 4)
+    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
+    corners = np.empty(len(me.loops), dtype=np.int32)
+    me.loops.foreach_get("vertex_index", corners)
+    area = np.empty(len(me.polygons))
+    me.polygons.foreach_get("area", area)
+    rgb = rgba.reshape(-1, 4)[:, :3]
+    return (rgb[corners.reshape(-1, 3)].mean(axis=1) * area[:, None]).sum(axis=0)
+
+
+def test_volume_absorption_tints_the_light_by_depth(empty_blend):
+    """Volume Absorption (colour (0.5, 0.8, 1), density 1: σ = (0.5, 0.2, 0) per metre)
+    under a sun overhead, floor 0.8 m below the water: R/B = exp(−0.4), G/B = exp(−0.16)."""
+    water = pool()
+    mat = water.data.materials[0]
+    nt = mat.node_tree
+    vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    vol.inputs["Color"].default_value = (0.5, 0.8, 1.0, 1.0)
+    vol.inputs["Density"].default_value = 1.0
+    nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    bpy.data.objects["Sun"].rotation_euler = (0.0, 0.0, 0.0)  # straight down
+    set_engine("BLENDER_EEVEE")
+    level, message, _ = generate()
+    assert level == "INFO", message
+    r, g, b = sum(channel_flux(o) for o in caustic_layers())
+    assert r / b == pytest.approx(math.exp(-0.4), rel=0.01)
+    assert g / b == pytest.approx(math.exp(-0.16), rel=0.01)
+    expect = STRENGTH * (2 * HALF) ** 2 * _t(0.0) / N**2  # the blue channel: no absorption
+    assert b == pytest.approx(expect, rel=0.02)
