@@ -132,3 +132,48 @@ def test_volume_absorption_tints_the_light_by_depth(empty_blend):
     assert g / b == pytest.approx(math.exp(-0.16), rel=0.01)
     expect = STRENGTH * (2 * HALF) ** 2 * _t(0.0) / N**2  # the blue channel: no absorption
     assert b == pytest.approx(expect, rel=0.02)
+
+
+def test_an_ocean_modifier_pool(empty_blend):
+    """A plane with an Ocean modifier (its own grid, waves and choppiness) over a floor:
+    read as it renders, named with its receivers, and all the light into it lands:
+    S·cos θ·A·T(θ)/n² within 3 % (A: the evaluated surface's area seen from above, its
+    triangles' projected areas summed here; the waves' slopes move T a little)."""
+    bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0.0, 0.0, 0.0))
+    bpy.context.object.name = "Floor"
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.0, 0.8))
+    sea = bpy.context.object
+    sea.name = "Sea"
+    sea.data.materials.append(glass_material("Water", ior=N))
+    ocean = sea.modifiers.new("Ocean", "OCEAN")
+    ocean.geometry_mode = "GENERATE"
+    ocean.resolution = ocean.viewport_resolution = 4  # the render reads the first
+    ocean.spatial_size = 2
+    ocean.size = 1.0
+    ocean.wave_scale = 0.05
+    ocean.choppiness = 0.5
+    sun = add_point_light("Sun", (0.0, 0.0, 5.0), energy=STRENGTH, kind="SUN")
+    sun.rotation_euler = (0.0, -ZENITH, 0.0)
+    bpy.ops.object.camera_add(location=(0.0, -5.0, 6.0), rotation=(math.radians(40.0), 0.0, 0.0))
+    bpy.context.scene.camera = bpy.context.object
+    bpy.context.scene.render.resolution_x = bpy.context.scene.render.resolution_y = 64
+    set_engine("BLENDER_EEVEE")
+    dg = bpy.context.evaluated_depsgraph_get()
+    me = sea.evaluated_get(dg).data
+    co = np.empty(len(me.vertices) * 3)
+    me.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    me.calc_loop_triangles()
+    n_tris = len(me.loop_triangles)
+    tri = np.empty(n_tris * 3, dtype=np.int64)
+    me.loop_triangles.foreach_get("vertices", tri)
+    c = co[tri.reshape(-1, 3)]
+    e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    area = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2.0)
+    assert np.ptp(co[:, 2]) > 0.005  # there are waves
+    level, message, _ = generate()
+    assert level == "INFO", message
+    tris = f"{n_tris:,}".replace(",", "\u2009")
+    assert f"water: Sea ({tris} triangles) over Floor" in message
+    expect = STRENGTH * math.cos(ZENITH) * area * _t(ZENITH) / N**2
+    assert sum(layer_flux(o) for o in caustic_layers()) == pytest.approx(expect, rel=0.03)

@@ -142,3 +142,28 @@ def test_sine_waves_under_the_sun_match_the_reference():
     assert beam.total_flux == pytest.approx(ref.flux, rel=0.01)
     # a net, not a flat sheet: the reference's contrast is there in the layer
     assert e.max() / e.mean() > 1.5 and ref.irradiance.max() / ref.irradiance.mean() > 1.5
+
+
+def test_a_round_pond_keeps_the_light_at_its_rim():
+    """A flat round pond (a 64-gon, radius 0.5) under a sun 30° off the zenith: every
+    ray that meets it lands, S·cos θ·A·T(θ)/n² with A the polygon's area, though its
+    rim cuts the ray grid's cells (their sub-rays carry it: without them about 3 % of
+    a 40 × 40 grid's flux is lost or misplaced along the rim)."""
+    n_seg, r = 64, 0.5
+    ang = 2 * np.pi * np.arange(n_seg) / n_seg
+    v = np.concatenate(
+        [[[0.0, 0.0, 0.0]], np.stack([r * np.cos(ang), r * np.sin(ang), 0 * ang], 1)]
+    )
+    t = np.array([[0, 1 + i, 1 + (i + 1) % n_seg] for i in range(n_seg)])
+    pond = WaterSurface(v, t, ior=N)
+    zen = math.radians(30.0)
+    sun = SunLight(np.array([math.sin(zen), 0.0, -math.cos(zen)]), 1.0)
+    idx = _floor(-0.5)
+    area = 0.5 * n_seg * r * r * math.sin(2 * math.pi / n_seg)
+    expect = math.cos(zen) * area * _t(zen) / N**2
+    (beam,) = trace_water_beams(WaterSource(sun, pond), idx, (40, 40))
+    assert beam.parts and beam.total_flux == pytest.approx(expect, rel=2e-3)
+    layer = build_layer([beam], idx, resolution=64, subcells_per_texel=SUB)
+    assert layer.flux_in_rasters + layer.flux_outside == pytest.approx(expect, rel=2e-3)
+    (bare,) = trace_water_beams(WaterSource(sun, pond), idx, (40, 40), rim=0)
+    assert abs(bare.total_flux / expect - 1.0) > 0.01  # what the rim's sub-rays mend
