@@ -2,6 +2,11 @@
 
     ./lens-lights bench real_glass [--only pebble,rod] [--px 48] [--pt-samples 1024]
                                    [--no-pt] [--no-generate] [--no-eevee] [--rays 1e6]
+                                   [--truth-cache DIR]
+
+``--truth-cache DIR``: keep each truth (case, pixels, rays, with or without the outer
+reflection, seed) in DIR as .npy and reuse it: a second run of the same cases then
+costs only Generate and the renders (the magnifier's truth is minutes).
 
 Cases (metres; n = 1.5, Principled BSDF transmission 1, roughness 0, white; a white
 Lambertian table (albedo 0.8) at z = 0; an orthographic camera straight down over
@@ -334,9 +339,27 @@ def generated(case, frame, engine, px, samples, tmp):
 # --------------------------------------------------------------------------- truth
 
 
+#: Where `truth` keeps its results (``--truth-cache``; None: nowhere).
+TRUTH_CACHE: Path | None = None
+
+
 def truth(case, geometry, frame, px, n_rays, outer, seed=7):
     """Irradiance of the light through the glass on the pixel grid of ``frame``
-    (rows y bottom → top, columns x), W/m²; and the trace."""
+    (rows y bottom → top, columns x), W/m²; and the trace (None when read from
+    `TRUTH_CACHE`)."""
+    key = None
+    if TRUTH_CACHE is not None:
+        key = TRUTH_CACHE / f"{case.name}_{px}_{n_rays}_{int(outer)}_{seed}_{frame[2]:.6f}.npy"
+        if key.exists():
+            return np.load(key), None
+    E, res = _truth(case, geometry, frame, px, n_rays, outer, seed)
+    if key is not None:
+        key.parent.mkdir(parents=True, exist_ok=True)
+        np.save(key, E)
+    return E, res
+
+
+def _truth(case, geometry, frame, px, n_rays, outer, seed):
     v, f, cn = geometry
     cx, cy, view = frame
     xe = cx + (np.arange(px + 1) / px - 0.5) * view
@@ -483,7 +506,10 @@ def main():
     ap.add_argument("--no-cycles", action="store_true", help="no Cycles Generate run")
     ap.add_argument("--no-eevee", action="store_true")
     ap.add_argument("--report", default="real_glass", help="report name in reports/")
+    ap.add_argument("--truth-cache", default="", help="keep and reuse the truths in this folder")
     args = ap.parse_args()
+    global TRUTH_CACHE
+    TRUTH_CACHE = Path(args.truth_cache) if args.truth_cache else None
     import bpy
 
     load_extension()
@@ -498,10 +524,14 @@ def main():
             E, res = truth(case, geometry, frame, args.px, int(args.rays), False)
             t_truth = time.perf_counter() - t0
             base = dict(scene=case.name, label=case.label, view=frame[2])
+            traced = (
+                f"{res.n_rays} rays, balance {res.balance() / res.tally['into_glass']:.1e}"
+                if res is not None
+                else "cached"
+            )
             print(
                 f"{case.name}: {len(geometry[1])} triangles, truth {t_truth:.1f} s "
-                f"({res.n_rays} rays, balance {res.balance() / res.tally['into_glass']:.1e}), "
-                f"view {1000 * frame[2]:.1f} mm",
+                f"({traced}), view {1000 * frame[2]:.1f} mm",
                 flush=True,
             )
             maps = [E, None, None, None]

@@ -39,7 +39,7 @@ LIGHTS = (
 )
 
 
-def _material(name, color, roughness=0.5):
+def plain_material(name, color, roughness=0.5):
     import bpy
 
     mat = bpy.data.materials.new(name)
@@ -51,8 +51,8 @@ def _material(name, color, roughness=0.5):
     return mat, bsdf
 
 
-def _glass(name, tint):
-    mat, bsdf = _material(name, tint, roughness=0.0)
+def glass_material(name, tint):
+    mat, bsdf = plain_material(name, tint, roughness=0.0)
     bsdf.inputs["Transmission Weight"].default_value = 1.0
     bsdf.inputs["IOR"].default_value = 1.5
     # EEVEE: refract through the scene (ray traced), the marble's thickness a sphere.
@@ -77,7 +77,7 @@ def build_showcase(scene):
     mesh.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
     table = bpy.data.objects.new("Table", mesh)
     coll.objects.link(table)
-    wood, bsdf = _material("Wood", (0.42, 0.27, 0.15), roughness=0.55)
+    wood, bsdf = plain_material("Wood", (0.42, 0.27, 0.15), roughness=0.55)
     table.data.materials.append(wood)
     made["table"] = table
 
@@ -85,9 +85,9 @@ def build_showcase(scene):
         m = bpy.data.meshes.new(name)
         ob = bpy.data.objects.new(name, m)
         coll.objects.link(ob)
-        _uv_sphere(m, radius, 48, 24)
+        uv_sphere(m, radius, 48, 24)
         ob.location = (x, y, radius)  # resting on the table
-        ob.data.materials.append(_glass(f"Glass {name.split()[-1]}", tint))
+        ob.data.materials.append(glass_material(f"Glass {name.split()[-1]}", tint))
         made[name] = ob
 
     for name, azimuth, elevation, dist, power, color in LIGHTS:
@@ -105,23 +105,8 @@ def build_showcase(scene):
         )
         made[name] = ob
 
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens = 50.0
-    cam = bpy.data.objects.new("Camera", cam_data)
-    coll.objects.link(cam)
-    cam.location = (0.05, -0.62, 0.48)
-    _look_at(cam, (0.0, -0.02, 0.02))
-    scene.camera = cam
-    made["camera"] = cam
-
-    world = bpy.data.worlds.new("Dim room")
-    bg = world.node_tree.nodes.get("Background") if world.node_tree else None
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.02, 0.022, 0.025, 1.0)
-        bg.inputs["Strength"].default_value = 1.0
-    else:
-        world.color = (0.02, 0.022, 0.025)
-    scene.world = world
+    made["camera"] = add_camera(scene, (0.05, -0.62, 0.48), (0.0, -0.02, 0.02))
+    set_world(scene, "Dim room", (0.02, 0.022, 0.025))
 
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = 480, 270, 100
@@ -132,7 +117,35 @@ def build_showcase(scene):
     return made
 
 
-def _uv_sphere(mesh, radius, segments, rings):
+def add_camera(scene, location, target, lens_mm=50.0):
+    """A camera at `location` looking at `target`, the scene's camera."""
+    import bpy
+
+    data = bpy.data.cameras.new("Camera")
+    data.lens = lens_mm
+    cam = bpy.data.objects.new("Camera", data)
+    scene.collection.objects.link(cam)
+    cam.location = location
+    _look_at(cam, target)
+    scene.camera = cam
+    return cam
+
+
+def set_world(scene, name, color):
+    """A plain world of `color` for `scene`."""
+    import bpy
+
+    world = bpy.data.worlds.new(name)
+    bg = world.node_tree.nodes.get("Background") if world.node_tree else None
+    if bg is not None:
+        bg.inputs["Color"].default_value = (*color, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
+    else:
+        world.color = color
+    scene.world = world
+
+
+def uv_sphere(mesh, radius, segments, rings):
     import bmesh
 
     bm = bmesh.new()
@@ -184,8 +197,16 @@ def _engine_id(scene, engine):
     return ident
 
 
-def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 270), samples=32):
-    """Render the showcase without and with lens lights per engine; returns the paths."""
+def render_before_after(
+    out_dir,
+    engines=("eevee", "cycles"),
+    resolution=(480, 270),
+    samples=32,
+    build=None,
+    name="showcase",
+):
+    """Render the showcase (or the scene `build(scene)` makes, as OUT/<name>_…) without
+    and with lens lights per engine; returns the paths."""
     import bpy
 
     _load_extension()
@@ -196,7 +217,7 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
         bpy.ops.wm.read_factory_settings(use_empty=True)
         _load_extension()
         scene = bpy.context.scene
-        build_showcase(scene)
+        (build or build_showcase)(scene)
         scene.render.engine = _engine_id(scene, engine)
         scene.render.resolution_x, scene.render.resolution_y = resolution
         scene.render.image_settings.file_format = "PNG"
@@ -210,7 +231,7 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
             if stage == "after":
                 bpy.ops.lens_lights.generate()
                 print(scene.lens_lights.last_report, flush=True)
-            path = out_dir / f"showcase_{stage}_{engine}.png"
+            path = out_dir / f"{name}_{stage}_{engine}.png"
             scene.render.filepath = str(path)
             t = time.perf_counter()
             bpy.ops.render.render(write_still=True)
@@ -219,22 +240,26 @@ def render_before_after(out_dir, engines=("eevee", "cycles"), resolution=(480, 2
     return paths
 
 
-def main(argv=None) -> int:
+def main(argv=None, build=None, name="showcase", samples=32, doc=__doc__) -> int:
+    """The command line: render the scene `build` makes (the showcase's by default)
+    without and with lens lights, as OUT/<name>_<stage>_<engine>.png."""
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=doc, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--out", default=str(ROOT / "docs"), help="output folder (default: docs/)")
     parser.add_argument(
         "--engines", default="eevee,cycles", help="comma-separated: eevee, cycles (default: both)"
     )
     parser.add_argument("--resolution", default="480x270", help="WxH (default 480x270)")
-    parser.add_argument("--samples", type=int, default=32, help="samples per pixel (default 32)")
+    parser.add_argument(
+        "--samples", type=int, default=samples, help=f"samples per pixel (default {samples})"
+    )
     args = parser.parse_args(argv)
     engines = [e.strip().lower() for e in args.engines.split(",") if e.strip()]
     if any(e not in ENGINES for e in engines):
         parser.error(f"engines: choose from {', '.join(ENGINES)}")
     w, h = (int(v) for v in args.resolution.lower().split("x"))
-    for path in render_before_after(args.out, engines, (w, h), args.samples):
+    for path in render_before_after(args.out, engines, (w, h), args.samples, build, name):
         print(path)
     return 0
 

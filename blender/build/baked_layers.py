@@ -11,6 +11,8 @@ over its frames, and per bake one atlas image of every frame's irradiance.
   when every slice is one colour times a scalar), each normalised to its maximum,
   Non-Color; marked (`marks.COLLECTION_MARK` = "bake") and removed by Clear
   once unused. It renders in a Blender without the extension.
+* **Reflection copy** (EEVEE): Generate's copy of the layer for mirrors and probes
+  (`layers.create_reflection`), its material reading the same atlas, keyed alike.
 * **Material.** Generate's layer material for that receiver (`layers.
   layer_material`: irradiance × the receiver's colour or texture / π, added to a
   transparent BSDF), its irradiance read from the image instead of the face
@@ -127,12 +129,16 @@ def _image_reader(nt, image, cols: int, rows: int, seg):
     return mix(low, high, fv)
 
 
-def baked_material(info, image, cols: int, rows: int, seg):
-    """Generate's layer material for receiver `info`, reading the atlas."""
-    mat = layers.layer_material(info, {})
+def baked_material(info, image, cols: int, rows: int, seg, reflection=False):
+    """Generate's layer material for receiver `info` (or, with `reflection`, its
+    EEVEE reflection copy's: `layers.reflection_material`), reading the atlas."""
+    if reflection:
+        mat = layers.reflection_material(info, {})
+    else:
+        mat = layers.layer_material(info, {})
     nt = mat.node_tree
     attr = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeAttribute")
-    target = attr.outputs["Color"].links[0].to_socket
+    targets = [link.to_socket for out in attr.outputs for link in out.links]
     nt.nodes.remove(attr)
     texel = _image_reader(nt, image, cols, rows, seg)
     colour = nt.nodes.new("ShaderNodeRGB")
@@ -147,7 +153,8 @@ def baked_material(info, image, cols: int, rows: int, seg):
     scaled.operation = "SCALE"
     nt.links.new(tinted.outputs[0], scaled.inputs[0])
     nt.links.new(scale.outputs[0], scaled.inputs["Scale"])
-    nt.links.new(scaled.outputs[0], target)
+    for target in targets:  # (the reflection copy's "lit" test reads it as a float)
+        nt.links.new(scaled.outputs[0], target)
     return mat
 
 
@@ -172,11 +179,14 @@ def baked_layer(scene, seg, info, collection, material, k: int):
     return ob
 
 
-def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int]:
+def build(
+    scene, segments, res: int, infos, collection, reflections=False
+) -> tuple[list, list, int, list]:
     """Every segment's object, material and the atlas images. `infos[i]`: the
     segment's receiver (`blender.read.receivers.ReceiverInfo`). Returns (objects, per
     segment (material, slice index per frame, scale per frame, colour per frame),
-    image count)."""
+    image count, per segment its EEVEE reflection copy (object, material) with
+    `reflections`, else None: keyed like the layer)."""
     # the texels an image drawn bilinearly between texel centres needs for each texel's flux
     all_slices = [image_texels(sl, s.axes, s.layer.resolution) for s in segments for sl in s.slices]
     images, scales, colours, _mono = layer_segments.split_colour(all_slices)
@@ -189,7 +199,7 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
             count = 0
         groups[-1].append(i)
         count += len(s.slices)
-    objects, keyed, made_images, start = [], [], 0, 0
+    objects, keyed, made_images, start, copies = [], [], 0, 0, []
     for g in groups:
         n = sum(len(segments[i].slices) for i in g)
         if not n:
@@ -204,12 +214,24 @@ def build(scene, segments, res: int, infos, collection) -> tuple[list, list, int
             mat = baked_material(info, image, cols, rows, s)
             ob = baked_layer(scene, s, info, collection, mat, len(objects))
             objects.append(ob)
+            copies.append(
+                _reflection(scene, ob, info, collection, image, cols, rows, s)
+                if reflections
+                else None
+            )
             m = len(s.slices)
             sl = slice(start + k, start + k + m)
             keyed.append((mat, list(range(k, k + m)), scales[sl], colours[sl]))
             k += m
         start += n
-    return objects, keyed, made_images
+    return objects, keyed, made_images, copies
+
+
+def _reflection(scene, ob, info, collection, image, cols, rows, seg):
+    """(the layer object `ob`'s reflection copy, its material reading the atlas)."""
+    mat = baked_material(info, image, cols, rows, seg, reflection=True)
+    key = ("reflected", info.name, info.image.name if info.image is not None else None)
+    return layers.create_reflection(scene, ob, info, collection, {key: mat}), mat
 
 
 def remove_unused_bake_images() -> int:

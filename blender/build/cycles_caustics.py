@@ -5,6 +5,7 @@ and Undo restores them with the rest of the scene."""
 
 from __future__ import annotations
 
+from ...core.caustic_layer.mesh_sources import members_of
 from ...core.phase1.skip_reasons import Reason
 from ...core.plan.cycles_caustics import (
     LENS_SETTINGS,
@@ -102,7 +103,11 @@ def after_build(scene, plan, read, made: int, layers: bool = False) -> tuple[str
         lenses = {read.sphere_objects[p.source.lens] for p in plan.lights}
         if layers:  # the glass meshes traced as lenses: their layers replace Cycles'
             meshes = getattr(read, "mesh_lenses", [])
-            lenses |= {meshes[k].orig for _light, k in getattr(read, "mesh_pairs", [])}
+            lenses |= {
+                meshes[k].orig
+                for _light, key in getattr(read, "mesh_pairs", [])
+                for k in members_of(key)
+            }
         lenses = sorted(lenses, key=_name)
         glass = [name for name, _why in getattr(read, "unmodelled_glass", [])]
         # A lens sunk into another surface has no lens light: only Cycles' caustic.

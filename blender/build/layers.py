@@ -50,7 +50,7 @@ from .marks import (
     MATERIAL_PREFIX,
     REFLECTION_MARK,
 )
-from .ownership import register
+from .ownership import created_objects, register
 
 #: The point attribute holding the irradiance (W per unit², RGB), interpolated per triangle.
 IRRADIANCE = "lens_irradiance"
@@ -226,6 +226,15 @@ def layer_mesh(name, drawn, shapes: dict | None = None):
         return me
     me = bpy.data.meshes.new(name)
     me[COLLECTION_MARK] = LAYER_MARK
+    _fill(me, drawn, faces)
+    if shapes is not None:
+        shapes[key] = (me, faces)
+    return me
+
+
+def _fill(me, drawn, faces):
+    """`me` (empty) given the faces, UVs, positions and irradiance of `drawn`."""
+    n_f, corners = faces.shape
     me.vertices.add(len(drawn.vertices))
     me.loops.add(corners * n_f)
     me.loops.foreach_set("vertex_index", faces.ravel())
@@ -239,9 +248,38 @@ def layer_mesh(name, drawn, shapes: dict | None = None):
             "color", _rgba(drawn).ravel()
         )
     me.update()
-    if shapes is not None:
-        shapes[key] = (me, faces)
-    return me
+
+
+def refill_mesh(me, drawn):
+    """`me` (a layer's mesh) made to draw `drawn` in place: the same datablock (the
+    objects using it, their selection and undo keep it). Same topology (a raster of
+    the same resolution): only its positions, UVs and irradiance are written;
+    otherwise its geometry is replaced."""
+    faces = np.asarray(drawn.triangles, dtype=np.int32)
+    same = len(me.vertices) == len(drawn.vertices) and len(me.polygons) == len(faces)
+    if same and (drawn.uvs is None) == (UV_NAME not in me.uv_layers):
+        _set_positions_uvs(me, drawn, faces)
+        write_irradiance(me, drawn.irradiance)
+        return
+    me.clear_geometry()
+    for layer in list(me.uv_layers):
+        me.uv_layers.remove(layer)
+    if me.attributes.get(IRRADIANCE) is not None:
+        me.attributes.remove(me.attributes[IRRADIANCE])
+    _fill(me, drawn, faces)
+
+
+def write_irradiance(me, irradiance) -> bool:
+    """The irradiance point attribute of `me` set to ``irradiance`` (V, 3) in place;
+    False when the mesh has not that many vertices (another raster)."""
+    attr = me.attributes.get(IRRADIANCE)
+    if attr is None or len(attr.data) != len(irradiance):
+        return False
+    rgba = np.ones((len(irradiance), 4), dtype=np.float32)
+    rgba[:, :3] = irradiance
+    attr.data.foreach_set("color", rgba.ravel())
+    me.update()  # (tags it for the viewport and the render)
+    return True
 
 
 def _set_positions_uvs(me, drawn, faces):
@@ -278,6 +316,29 @@ def _visibility(ob):
     ob.visible_volume_scatter = False
 
 
+def layer_name(info, k) -> str:
+    """The name of the layer object of patch `k` of a bake, on receiver `info`."""
+    return f"{LAYER_PREFIX}{info.name} {k}"
+
+
+def _describe(ob, patch, beams):
+    """The panel's words on layer object `ob` drawing `patch` (`beams`: the (light,
+    lens) names of its sources)."""
+    meta = ob.lens_lights
+    lights = ", ".join(dict.fromkeys(light for light, _lens in beams))
+    lenses = ", ".join(dict.fromkeys(lens for _light, lens in beams))
+    if meta.source_light != lights:
+        meta.source_light = lights
+    if meta.source_lens != lenses:
+        meta.source_lens = lenses
+    meta.relative_brightness = float(patch.flux)  # the flux it draws, W
+    note = f"{patch.resolution}² texels" + (
+        " (coarse: out of the camera's view, for reflections)" if patch.coarse else ""
+    )
+    if meta.note != note:
+        meta.note = note
+
+
 def create_layer(
     scene, patch, info, collection, materials, k, shapes=None, drawn=None, lights=(), lenses=()
 ):
@@ -285,7 +346,7 @@ def create_layer(
     (`drawn`: its mesh, by default `smooth.drawn_mesh(patch)`); ``shapes``: see
     `layer_mesh`; `lights`, `lenses`: the names of the lights and lenses whose caustic
     it draws (the panel says them)."""
-    name = f"{LAYER_PREFIX}{info.name} {k}"
+    name = layer_name(info, k)
     drawn = drawn_mesh(patch) if drawn is None else drawn
     ob = bpy.data.objects.new(name, layer_mesh(name, drawn, shapes))
     ob.data.materials.append(layer_material(info, materials))
@@ -295,12 +356,7 @@ def create_layer(
     meta.is_lens_light = True
     meta.energy_model = "CAUSTIC_LAYER"
     meta.receiver = info.name  # the object it lies on
-    meta.source_light = ", ".join(dict.fromkeys(lights))
-    meta.source_lens = ", ".join(dict.fromkeys(lenses))
-    meta.relative_brightness = float(patch.flux)  # the flux it draws, W
-    meta.note = f"{patch.resolution}² texels" + (
-        " (coarse: out of the camera's view, for reflections)" if patch.coarse else ""
-    )
+    _describe(ob, patch, list(zip(lights, lenses, strict=True)))
     register(scene, ob)
     return ob
 
@@ -372,6 +428,64 @@ def build(
             ob.lens_lights.receiver = ", ".join(sorted(fallback_objects))
             lights.append(ob)
     return layers, lights, sorted(fallback_objects)
+
+
+def _existing_layers(scene, patches, receivers, reflections) -> list | None:
+    """The extension's layer object of each of `patches` (by `layer_name`), when the
+    scene's objects are exactly those (and their reflection copies if
+    ``reflections``: no fallback spot, none missing or extra); else None."""
+    objects = created_objects(scene)
+    existing = {ob.name: ob for ob in objects if ob.type == "MESH"}
+    if len(existing) != len(objects):  # a light: a fallback spot, or another tier's
+        return None
+    out = []
+    for k, patch in enumerate(patches):
+        info = receivers.objects[patch.object_id]
+        ob = existing.get(layer_name(info, k))
+        if info.fallback or ob is None or ob.data is None:
+            return None
+        out.append(ob)
+    expected = {ob.name for ob in out}
+    if reflections:
+        expected |= {ob.name + REFLECTED_SUFFIX for ob in out}
+    return out if set(existing) == expected else None
+
+
+def refill(scene, bake, receivers, names, reflections, drawn=None, anchors=None) -> list | None:
+    """The layers of `bake` written into the scene's layer objects in place (the same
+    objects and meshes: `refill_mesh`), when they are the layers of the same patches
+    on the same receivers (`_existing_layers`); None otherwise (nothing written: build
+    anew). ``names``: (light, lens) per source; ``drawn``: per patch its irradiance at
+    the drawn mesh's vertices (a coarse layer in the full one's rasters: positions and
+    UVs are left as they are; ``anchors``: per patch the first and last vertex its
+    mesh must have, else it is another raster's: an undo brought it back), else the
+    drawn meshes are made here. ``reflections``: the layers have their EEVEE
+    reflection copies (`build`)."""
+    patches = bake.layer.patches
+    objects = _existing_layers(scene, patches, receivers, reflections)
+    if objects is None:
+        return None
+    if drawn is not None and not all(
+        _holds(ob.data, v, a) for ob, v, a in zip(objects, drawn, anchors, strict=True)
+    ):
+        return None
+    for k, (ob, patch) in enumerate(zip(objects, patches, strict=True)):
+        if drawn is not None:
+            write_irradiance(ob.data, drawn[k])
+        else:
+            refill_mesh(ob.data, drawn_mesh(patch))
+        beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
+        _describe(ob, patch, beams)
+    return objects
+
+
+def _holds(me, values, anchors) -> bool:
+    """Is `me` the mesh `values` (per vertex) and ``anchors`` (its first and last
+    vertex, float32 as stored) were computed for?"""
+    if len(me.vertices) != len(values) or not len(values):
+        return False
+    got = np.array([me.vertices[0].co, me.vertices[-1].co], dtype=np.float32)
+    return bool(np.array_equal(got, np.asarray(anchors, dtype=np.float32)))
 
 
 def made_counts(objects) -> dict:

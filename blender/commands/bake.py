@@ -76,6 +76,7 @@ from mathutils import Vector
 
 from ...core.animation import frame_tables, layer_segments, light_tracks
 from ...core.animation.light_keys import keys_of
+from ...core.caustic_layer.mesh_sources import members_of
 from ...core.plan.cycles_caustics import kept_on_warning, linked_caster_warning
 from ...core.report.message import error_text, linking_groups_note
 from ...core.tiers import EXACT_PROFILE, builds_layer
@@ -377,7 +378,9 @@ class Baker:
         self.unmodelled_glass.update(getattr(work.read, "unmodelled_glass", []))
         if self.layer:  # the glass meshes traced: their layers replace Cycles' caustics
             meshes = work.read.mesh_lenses
-            self.lens_objects.update(meshes[k].orig for _j, k in work.read.mesh_pairs)
+            self.lens_objects.update(
+                meshes[k].orig for _j, key in work.read.mesh_pairs for k in members_of(key)
+            )
         else:  # the glass meshes' layers are baked in the layer's tier only
             self.unmodelled_glass.update((m.name, MESH_NOT_BAKED) for m in work.read.mesh_lenses)
         if self.layer:
@@ -560,20 +563,30 @@ class Baker:
         self.timings["layer re-landing"] = time.perf_counter() - t
         infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
         collection = lights.lights_collection(scene)
-        objects, keyed, images = baked_layers.build(scene, segments, res, infos, collection)
+        objects, keyed, images, copies = baked_layers.build(
+            scene,
+            segments,
+            res,
+            infos,
+            collection,
+            reflections=scene.render.engine in layer_stage.EEVEE_ENGINES,
+        )
         frames = np.asarray(self.frames)
         path = 'nodes["{}"].outputs[0].default_value'
-        for seg, ob, (mat, slices, scales, colours) in zip(segments, objects, keyed, strict=True):
+        for seg, ob, (mat, slices, scales, colours), copy in zip(
+            segments, objects, keyed, copies, strict=True
+        ):
             at = frames[seg.frames]
-            nt = mat.node_tree
-            key_column(nt, path.format(baked_layers.SLICE_NODE), -1, at, slices, "CONSTANT")
-            key_column(nt, path.format(baked_layers.SCALE_NODE), -1, at, scales, "CONSTANT")
-            for c in range(3):
-                col = [x[c] for x in colours]
-                key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
             present = np.zeros(len(frames), dtype=bool)
             present[seg.frames] = True
-            key_visibility(ob, light_tracks.visibility_keys(frames, present))
+            for o, m in [(ob, mat)] + ([copy] if copy is not None else []):
+                nt = m.node_tree
+                key_column(nt, path.format(baked_layers.SLICE_NODE), -1, at, slices, "CONSTANT")
+                key_column(nt, path.format(baked_layers.SCALE_NODE), -1, at, scales, "CONSTANT")
+                for c in range(3):
+                    col = [x[c] for x in colours]
+                    key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
+                key_visibility(o, light_tracks.visibility_keys(frames, present))
         return dict(
             objects=len(objects) + spots,
             images=images,

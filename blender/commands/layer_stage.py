@@ -19,17 +19,22 @@ reported as glass it cannot model, and Cycles keeps its own caustics for them.
 
 from __future__ import annotations
 
+import hashlib
 import time
+
+import numpy as np
 
 from ...core.animation.light_keys import keys_of
 from ...core.caustic_layer.mesh_sources import (
     MESH_KIND,
+    MESH_TEXEL_SHARE,
     budget_cuts,
+    members_of,
     mesh_facets,
     mesh_min_rays,
     mesh_sheet_sources,
 )
-from ...core.caustic_layer.pipeline import bake
+from ...core.caustic_layer.pipeline import SheetBake, bake
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
     MAX_RAYS_PER_SOURCE,
@@ -60,9 +65,12 @@ from ..read.receivers import read_receivers
 EEVEE_ENGINES = frozenset(k for k, v in ENGINE_NAMES.items() if v == "EEVEE")
 
 
-def prepare(depsgraph, work, options: dict):
+def prepare(depsgraph, work, options: dict, live=None):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
-    ``layer_bake`` (None: no layer tier or nothing to bake)."""
+    ``layer_bake`` (None: no layer tier or nothing to bake). ``live``
+    (`core.caustic_layer.live.LiveLayer`, live update while the user drags): the
+    coarse layer in the last full bake's rasters when it can stand for it
+    (``layer_bake.coarse``), else the full bake."""
     work.receivers = work.layer_bake = None
     read = work.read
     spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
@@ -109,6 +117,19 @@ def prepare(depsgraph, work, options: dict):
     # the rasters follow what the camera sees (without one: the budget's one resolution)
     view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
     work.layer_sources = sources  # the bake lands them again (core/animation/layer_segments.py)
+    names = [(p.light_name, p.lens_name) for p in work.plan.lights] if spheres else []
+    names += mesh_names(read)
+    receivers = receivers_key(work.receivers)
+    if live is not None:
+        layer = live.coarse(sources, names, receivers)
+        if layer is not None:
+            full = live.bake
+            work.layer_bake = SheetBake(
+                layer, full.budgets, full.resolution, full.index, coarse=True
+            )
+            work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
+            work.timings["coarse layer"] = time.perf_counter() - t
+            return work
     work.layer_bake = bake(
         sources,
         work.receivers.mesh,
@@ -123,11 +144,41 @@ def prepare(depsgraph, work, options: dict):
         view=view,
         max_texels=FACE_BUDGET,
         texel_fraction=VIEW_TEXEL_FRACTION if view is not None else 0.5,
-        rays_per_texel=RAYS_PER_TEXEL if view is not None else None,
+        # a glass mesh's beam needs fewer node rays (`mesh_sources.MESH_TEXEL_SHARE`)
+        rays_per_texel=[RAYS_PER_TEXEL] * (len(sources) - len(meshes))
+        + [RAYS_PER_TEXEL * MESH_TEXEL_SHARE] * len(meshes)
+        if view is not None
+        else None,
     )
+    work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
     work.timings["bake"] = time.perf_counter() - t
     work.timings.update({f"bake {k}": v for k, v in work.layer_bake.layer.timings.items()})
     return work
+
+
+def receivers_key(receivers) -> bytes:
+    """A digest of what the layer lands on and how it is drawn there: the receivers'
+    triangles (and UVs, object ids) and each receiver's name, colour, image and
+    fallback. Equal keys: a layer's rasters and materials still fit."""
+    h = hashlib.blake2b(digest_size=16)
+    mesh = receivers.mesh
+    for arr in (mesh.vertices, mesh.triangles, mesh.uvs, mesh.object_ids):
+        h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
+    for info in receivers.objects:
+        image = info.image.name if info.image is not None else ""
+        h.update(
+            repr(
+                (
+                    info.name,
+                    tuple(info.color),
+                    image,
+                    info.interpolation,
+                    info.extension,
+                    info.fallback,
+                )
+            ).encode()
+        )
+    return h.digest()
 
 
 def _leave_out_linked(work):
@@ -172,19 +223,25 @@ def mesh_sources_of(read, timings=None, max_pairs=None) -> list:
     return sources
 
 
+def glass_name(read, key) -> str:
+    """The name of a source's glass: a mesh lens's, or the pieces traced together
+    ("Magnifier + Pebble")."""
+    return " + ".join(read.mesh_lenses[k].name for k in members_of(key))
+
+
 def mesh_keys(read) -> list:
     """The bake's keys of the mesh lenses' sources (`light_keys.keys_of`: light and
     lens names, kind "mesh"), after the planned lights' in a frame's layer sources."""
     return keys_of(
-        (read.light_sources[j], read.mesh_lenses[k].name, MESH_KIND, "CAUSTIC_LAYER")
-        for j, k in read.mesh_pairs
+        (read.light_sources[j], glass_name(read, key), MESH_KIND, "CAUSTIC_LAYER")
+        for j, key in read.mesh_pairs
     )
 
 
 def mesh_names(read) -> list:
     """(light, glass mesh) names of the mesh lenses' sources, in their order."""
     pairs = getattr(read, "mesh_pairs", [])
-    return [(read.light_sources[j], read.mesh_lenses[k].name) for j, k in pairs]
+    return [(read.light_sources[j], glass_name(read, key)) for j, key in pairs]
 
 
 def build_mesh_layers(scene, work, progress=None) -> list:
@@ -214,13 +271,18 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     read = work.read
     if not read.mesh_lenses:
         return ""
-    traced = sorted({k for _light, k in read.mesh_pairs})
+    traced = sorted({k for _light, key in read.mesh_pairs for k in members_of(key)})
     lit = [(read.mesh_lenses[k].name, read.mesh_lenses[k].n_triangles) for k in traced]
     unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
     if lit and not (layers_made and work.layer_bake is not None):
         names = ", ".join(n for n, _t in lit)
         return f"no caustic layer for the glass of {names}: nothing receives its caustic"
     text = mesh_lenses_text(lit, unlit)
+    together = sorted(
+        {glass_name(read, key) for _j, key in read.mesh_pairs if len(members_of(key)) > 1}
+    )
+    if together:
+        text += "; traced together (light through one reaches the other): " + ", ".join(together)
     if read.mesh_beyond:
         text += (
             f"; {read.mesh_beyond} dimmer light × glass mesh pair"
@@ -229,9 +291,9 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     bake = work.layer_bake
     first = len(bake.budgets) - len(read.mesh_pairs)
     names, wanted, got = [], [], []
-    for j, (_light, k) in enumerate(read.mesh_pairs):
-        m, src = read.mesh_lenses[k], work.layer_sources[first + j]
-        names.append(m.name)
+    for j, (_light, key) in enumerate(read.mesh_pairs):
+        src = work.layer_sources[first + j]
+        names.append(glass_name(read, key))
         wanted.append(work.layer_floors[first + j])
         got.append(bake.budgets[first + j].n_rays * src.n_source)
     cuts = budget_cuts(names, wanted, got)

@@ -39,10 +39,23 @@ radius; an Exact profile's node tree and image only when its profile changed), n
 keys get new lights, vanished keys' lights are removed. So the objects stay the
 same from frame to frame (selection, undo). When the read's inputs (lights, spheres,
 primaries, the other geometry's transforms and boxes, camera, settings) are those of
-the last update, nothing is planned (a camera-only animation costs the read). The
-Caustic layer tier (EEVEE's AUTO) is rebuilt whole on every update (its meshes depend
-on the traced beam): correct but slow. Cycles' own caustics are re-replaced when the
-set of lights changes.
+the last update, nothing is planned (a camera-only animation costs the read).
+Cycles' own caustics are re-replaced when the set of lights changes.
+
+**The Caustic layer** (EEVEE's AUTO; issue 27). A full layer (Generate's bake) is
+written into the scene's layer objects in place when they are the layers of the same
+patches on the same receivers (`layers.refill`: positions, UVs, irradiance set whole;
+a raster of another resolution replaces its mesh's geometry, the mesh stays), else
+rebuilt. In Blender's window (`INTERACTIVE`; not in background, where no timer runs)
+an update shows the *coarse* layer instead (`core.caustic_layer.live.LiveLayer`:
+each pair's beam on a coarse grid, remembered by its inputs so only the pairs whose
+light or lens changed are traced, splatted alone into the last full layer's rasters;
+only the meshes' irradiance is written), and `refine`, a `bpy.app.timers` timer,
+makes the full one `BURST_SECONDS` after the last update (a drag's or a playback's
+burst is over), as Blender's viewport refines. A render never sees a coarse layer:
+render_init refines at once, and an update with the render's depsgraph (or during a
+render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
+mesh's beam need the full layer at once.
 
 **The switch.** Turning ``live_update`` on brings the lights up to date at once
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
@@ -66,12 +79,14 @@ import bpy
 import numpy as np
 
 from ...core.animation.light_keys import keys_of, match
+from ...core.caustic_layer.live import LiveLayer
 from ...core.plan import watch
 from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
 from ...core.tiers import builds_layer
 from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
 from ..build import cleanup, cycles_caustics, lights, ownership
+from ..build import layers as layer_builder
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
@@ -88,6 +103,18 @@ _LAST_INPUTS: dict = {}
 _WATCHED = ("Object", "Light", "Mesh", "Material", "Camera", "Collection")
 #: Per scene: where the last update's light goes (`_Watch`).
 _WATCHES: dict = {}
+#: Caustic layer: per scene its last full layer (`core.caustic_layer.live.LiveLayer`),
+#: when its last update ended (perf_counter), and the scenes showing a coarse one.
+_LAYERS: dict = {}
+_LAST_RUN: dict = {}
+_PENDING: set = set()
+#: The full layer follows this long (s) after the last update of a burst.
+BURST_SECONDS = 0.3
+#: Coarse layers while the user works: None, in Blender's window (not in background,
+#: where no timer runs and no one drags: every update is full); the bench and the
+#: tests set it to take the window's path.
+INTERACTIVE: bool | None = None
+_RENDERING = 0
 #: Objects that can be anywhere they make geometry: always watched.
 _INSTANCING_MODIFIERS = ("NODES", "PARTICLE_SYSTEM")
 #: Beyond this many objects × capsules (or objects), no filter: every edit counts.
@@ -340,28 +367,33 @@ def _signature(read, options, scene) -> str:
     return h.hexdigest()
 
 
-def _unchanged(scene, signature) -> bool:
+def _unchanged(scene, signature, coarse_ok=False) -> bool:
     last = _LAST_INPUTS.get(scene.as_pointer())
-    if last is None or last[0] != signature:
-        return False
+    if last is None or last[0] != signature or (last[2] and not coarse_ok):
+        return False  # changed, or a coarse layer where the full one is due
     items = scene.lens_lights.created_objects
     return len(items) == last[1] and all(item.object is not None for item in items)
 
 
-def update(scene, depsgraph, force=False) -> dict:
+def update(scene, depsgraph, force=False, coarse=False) -> dict:
     """Bring `scene`'s lens lights to what `depsgraph` shows (see the module's
     docstring); returns the figures. Nothing is planned when the inputs are those
-    of the last update (unless `force`). Raises on failure (the handlers catch)."""
+    of the last update (unless `force`). ``coarse``: a Caustic layer may be the
+    coarse one (`_layer_update`). Raises on failure (the handlers catch)."""
     t0 = time.perf_counter()
     options = pipeline.options_from(scene.lens_lights)
     timings: dict = {}
     seen: dict = {}
+    layered = builds_layer(options["energy_model"])
+    live = _LAYERS.get(scene.as_pointer()) if coarse and layered else None
 
     def unchanged(read) -> bool:
         seen.update(signature=_signature(read, options, scene), how=read.how)
-        return not force and _unchanged(scene, seen["signature"])
+        return not force and _unchanged(scene, seen["signature"], coarse)
 
-    work = pipeline.plan_scene(depsgraph, scene, options, timings=timings, unless=unchanged)
+    work = pipeline.plan_scene(
+        depsgraph, scene, options, timings=timings, unless=unchanged, layer_live=live
+    )
     if work is None:  # the inputs of the last update: nothing planned
         t1 = time.perf_counter()
         return dict(
@@ -373,21 +405,29 @@ def update(scene, depsgraph, force=False) -> dict:
             timings=timings,
         )
     signature = seen["signature"]
-    # Before the build: the handler's depsgraph still holds what it evaluated.
+    is_coarse = work.layer_bake is not None and work.layer_bake.coarse
+    # Before the build: the handler's depsgraph still holds what it evaluated. (A
+    # coarse layer keeps the last full one's watch: the full one follows.)
     t_watch = time.perf_counter()
-    _WATCHES[scene.as_pointer()] = _watch_of(scene, depsgraph, work)
+    if not is_coarse:
+        _WATCHES[scene.as_pointer()] = _watch_of(scene, depsgraph, work)
     work.timings["watch"] = time.perf_counter() - t_watch
     t_plan = time.perf_counter()
     plan, read = work.plan, work.read
     figures = dict(planned=len(plan.lights), updated=0, created=0, removed=0)
     # the user's copies, renamed and moved lens lights: theirs, never updated or removed
     figures["kept"] = len(ownership.keep_users(scene))
-    if builds_layer(options["energy_model"]):
-        cleanup.clear(scene)  # the layer's meshes: rebuilt whole
-        cycles_caustics.restore(scene)
-        made = layer_stage.build(scene, work)
-        cycles_caustics.after_build(scene, plan, read, len(made))
-        figures.update(created=len(made), rebuilt=True)
+    if layered:
+        if not _layer_update(scene, work, figures):  # not in place: rebuilt whole
+            cleanup.clear(scene)
+            cycles_caustics.restore(scene)
+            made = layer_stage.build(scene, work)
+            cycles_caustics.after_build(scene, plan, read, len(made))
+            figures.update(created=len(made), rebuilt=True)
+        elif figures.pop("other_pairs", False):  # other lenses lit: Cycles' switches
+            cycles_caustics.restore(scene)
+            cycles_caustics.after_build(scene, plan, read, figures["updated"])
+        _remember_layer(scene, work.layer_bake)
     else:
         existing = ownership.created_objects(scene)
         old_keys = keys_of([_existing_key(ob) for ob in existing])
@@ -435,28 +475,114 @@ def update(scene, depsgraph, force=False) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
-    _LAST_INPUTS[scene.as_pointer()] = (signature, len(scene.lens_lights.created_objects))
+    _LAST_INPUTS[scene.as_pointer()] = (
+        signature,
+        len(scene.lens_lights.created_objects),
+        is_coarse,
+    )
     t1 = time.perf_counter()
     figures.update(
         plan_seconds=t_plan - t0, apply_seconds=t1 - t_plan, seconds=t1 - t0, how=read.how
     )
     figures["timings"] = dict(work.timings)
+    if layered and work.layer_bake is not None:
+        figures["layer"] = work.layer_bake.layer  # (the bench compares it)
     return figures
 
 
-def _run(scene, depsgraph, why, force=False):
+def _layer_update(scene, work, figures) -> bool:
+    """The Caustic layer written into the scene's layer objects in place (`layers.refill`:
+    the same objects and meshes, only positions, UVs and irradiance written; a coarse
+    layer, its irradiance only) when they are the layers of the same patches on the
+    same receivers; False: nothing written (build anew)."""
+    bake = work.layer_bake
+    last = _LAYERS.get(scene.as_pointer())
+    if bake is None or last is None or last.bake.receivers_key != bake.receivers_key:
+        return False
+    reflections = scene.render.engine in layer_stage.EEVEE_ENGINES
+    drawn = last.drawn(bake.layer) if bake.coarse else None
+    anchors = last.anchors() if bake.coarse else None
+    t = time.perf_counter()
+    done = layer_builder.refill(
+        scene, bake, work.receivers, bake.names, reflections, drawn, anchors
+    )
+    work.timings["layer write"] = time.perf_counter() - t
+    if done is None:
+        return False
+    figures.update(updated=len(done), coarse=bake.coarse)
+    figures["other_pairs"] = set(bake.names) != set(last.names)
+    if bake.coarse:
+        figures.update(traced=last.traced, reused=last.reused)
+    return True
+
+
+def _remember_layer(scene, bake):
+    """After a layer update: a full layer is the next coarse ones' rasters (its
+    `LiveLayer`), a coarse one waits for the full one (`refine`, a timer)."""
+    ptr = scene.as_pointer()
+    if bake is not None and bake.coarse:
+        _PENDING.add(ptr)
+        if not bpy.app.timers.is_registered(refine):
+            bpy.app.timers.register(refine, first_interval=BURST_SECONDS)
+        return
+    _PENDING.discard(ptr)
+    if bake is None or bake.names is None:
+        _LAYERS.pop(ptr, None)
+    else:
+        _LAYERS[ptr] = LiveLayer(bake, bake.names, bake.receivers_key)
+
+
+def _coarse_allowed(depsgraph) -> bool:
+    """May this update show a coarse layer? Never for a render (its depsgraph, or
+    while one runs: every frame renders the full layer), and only in Blender's
+    window (`INTERACTIVE`)."""
+    if _RENDERING or getattr(depsgraph, "mode", "VIEWPORT") == "RENDER":
+        return False
+    return (not bpy.app.background) if INTERACTIVE is None else INTERACTIVE
+
+
+def refine(scene=None, wait=True) -> float | None:
+    """The full layer for the scenes showing a coarse one (all, or `scene`), each once
+    its burst is over (``wait``: `BURST_SECONDS` after its last update; False: now).
+    The timer's function: returns the seconds until it runs again, None when done."""
+    now = time.perf_counter()
+    again = 0.0
+    for ptr in list(_PENDING):
+        if scene is not None and ptr != scene.as_pointer():
+            continue
+        quiet = now - _LAST_RUN.get(ptr, 0.0)
+        if wait and quiet < BURST_SECONDS:
+            again = max(again, BURST_SECONDS - quiet)
+            continue
+        target = next((s for s in bpy.data.scenes if s.as_pointer() == ptr), None)
+        context_scene = getattr(bpy.context, "scene", None)
+        if target is None or not _on(target):
+            _PENDING.discard(ptr)
+            continue
+        if context_scene is None or context_scene.as_pointer() != ptr:
+            again = max(again, BURST_SECONDS)  # not the window's scene now: later
+            continue
+        _PENDING.discard(ptr)
+        _run(target, bpy.context.evaluated_depsgraph_get(), "refined", coarse=False)
+    return again or None
+
+
+def _run(scene, depsgraph, why, force=False, coarse=None):
     global _BUSY, LAST_FIGURES
     if _BUSY:
         return
     _BUSY = True
     try:
-        figures = update(scene, depsgraph, force)
+        if coarse is None:
+            coarse = _coarse_allowed(depsgraph)
+        figures = update(scene, depsgraph, force, coarse)
         figures["why"] = why
         LAST_FIGURES = figures
     except Exception:  # a handler must never raise into Blender
         traceback.print_exc()
         LAST_FIGURES = dict(why=why, error=traceback.format_exc(limit=1))
     finally:
+        _LAST_RUN[scene.as_pointer()] = time.perf_counter()
         _BUSY = False
 
 
@@ -493,18 +619,28 @@ def on_depsgraph_update(scene, depsgraph=None):
 
 @bpy.app.handlers.persistent
 def on_render_start(scene, *args):
+    global _RENDERING
     render_probe.note_render(True)
+    _RENDERING += 1
+    if scene.as_pointer() in _PENDING and _on(scene):  # never a coarse layer rendered
+        refine(scene, wait=False)
 
 
 @bpy.app.handlers.persistent
 def on_render_end(scene, *args):
+    global _RENDERING
     render_probe.note_render(False)
+    _RENDERING = max(0, _RENDERING - 1)
 
 
 @bpy.app.handlers.persistent
 def on_load(*args):
+    global _RENDERING
     _LAST_INPUTS.clear()  # another file: other objects
     _WATCHES.clear()
+    _LAYERS.clear()
+    _PENDING.clear()
+    _RENDERING = 0
     render_probe.note_render(None)
 
 
@@ -514,7 +650,7 @@ def live_update_changed(settings, context):
     if not _on(scene):
         return  # off, or a bake exists: left alone
     if context is not None and context.view_layer is not None:
-        _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True)
+        _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True, coarse=False)
 
 
 _HANDLERS = (
@@ -535,3 +671,5 @@ def register():
 def unregister():
     set_live_update_hook(None)
     handlers.remove(_HANDLERS)
+    if bpy.app.timers.is_registered(refine):
+        bpy.app.timers.unregister(refine)

@@ -43,7 +43,9 @@ def options_from(settings) -> dict:
     )
 
 
-def plan_scene(depsgraph, scene, options: dict, *, timings: dict | None = None, unless=None):
+def plan_scene(
+    depsgraph, scene, options: dict, *, timings: dict | None = None, unless=None, layer_live=None
+):
     """Plan `scene` as `depsgraph` shows it; changes nothing. Read it
     (`read.scene.read_depsgraph`: the rays that keep a beam's spot clear of the geometry
     behind its lens are cast against the geometry read from the same depsgraph), run
@@ -55,7 +57,8 @@ def plan_scene(depsgraph, scene, options: dict, *, timings: dict | None = None, 
     (`timings`, filled in place when given).
 
     `unless(read)`, when given, is asked right after the read: True stops there (the
-    read's occluders released) and None is returned."""
+    read's occluders released) and None is returned. ``layer_live``: live update's
+    coarse layer state (`layer_stage.prepare`)."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
     read = read_depsgraph(depsgraph, scene)
@@ -67,4 +70,4 @@ def plan_scene(depsgraph, scene, options: dict, *, timings: dict | None = None, 
     result = compute_phase1_primaries(read.arrays, read.primary_lights)
     timings["phase1"] = time.perf_counter() - t
     work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
-    return layer_stage.prepare(depsgraph, work, options)
+    return layer_stage.prepare(depsgraph, work, options, layer_live)

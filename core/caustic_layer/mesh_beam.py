@@ -2,17 +2,18 @@
 and splats, so that no cell whose corners took different paths is drawn stretched.
 
 The node rays are the (ι, φ) grid of `beam_trace` over the mesh's bounding sphere,
-traced with every branch (`Lens.trace_branches`: internal reflections up to a budget).
-A branch belongs to the beam when it went into the glass (two crossings or more; what
-the outside reflects and what misses the glass is not the caustic). Each node's branches
-are sorted by their path signature (the events and smooth face groups on the way), so
-that slot b of neighbouring nodes that took the same paths is the same path. A cell is
+traced with every branch (`Lens.trace_branches`: internal reflections up to a budget). A
+branch belongs to the beam when it went into the glass (two crossings or more; what the
+outside reflects and what misses the glass is not the caustic). Each node's branches are
+sorted by their path signature (the events and smooth face groups on the way), so that
+slot b of neighbouring nodes that took the same paths is the same path. A cell is
 *coherent* when its four corners carry the same set of paths: then slot b is one smooth
-piece of sheet b over it, drawn by the layer as a quad (bilinear sub-cells). A cell whose
-corners differ (a cube's edge, a rod's cap, the rim of what reaches a face) is refined:
-an m × m sub-grid of rays is traced in it, its coherent sub-cells drawn as quads and the
-rest landed as splats (each sub-corner's branches as points carrying their share).
-Cells beyond the refinement budget are splatted at their own corners (``cut_cells``).
+piece of sheet b over it, drawn by the layer as a quad (bilinear sub-cells). A cell
+whose corners differ (a cube's edge, a rod's cap, the rim of what reaches a face) is
+refined: an m × m sub-grid of rays is traced in it, its coherent sub-cells drawn as
+quads and the rest landed as splats (each sub-corner's branches as points carrying their
+share). Every such cell is refined (the budget in proportion to their number); cells
+beyond its cap are splatted at their own corners (``cut_cells``).
 
 Flux: the emitter's density without the glass, g = I·A·dΩ/d(ι, φ) (or S·dA/d(ι, φ)),
 is integrated over each cell by Gauss–Legendre points (no tracing: it is analytic), as
@@ -40,16 +41,24 @@ _NONE = np.iinfo(np.uint64).max
 #: below which a branch is dropped (a second partial internal reflection, ~0.2 %).
 MAX_DEPTH = 8
 MIN_WEIGHT = 5e-3
-#: The refinement's rays by default: the node rays over this. Grazing rays at a
-#: silhouette bounce long inside, so a sub-grid ray costs about two node rays:
-#: a quarter cost 0.2 s of CPU at 20 000 triangles (reports/mesh_lens_speed.md).
-REFINE_SHARE = 4
-#: ... but at least this many: a small node grid (a cube's 12 triangles, an extended
-#: light's 16 samples of a few hundred rays each) has most of its cells on an edge of
-#: the beam, and cells cut from the refinement land as points (speckles): the
-#: real_glass bench's ice cube at 0.55 L1 with 1 440 refinement rays, 0.13 with all
-#: 2 103 edge cells refined (reports/real_glass.md).
-REFINE_MIN_RAYS = 32_768
+#: The refinement's sub-grid per side in each cell it refines (9 rays a cell): a cell
+#: on an edge of the beam (a cube's edge, a rod's cap, the rim of what reaches a face)
+#: is drawn from its sub-cells, so every such cell is refined, the budget in proportion
+#: to how many there are (a flat 32 768-ray floor cut 6 889 of the real_glass ice
+#: cube's 10 529 edge cells into their corners' points). The sub-cells still on the
+#: edge land as points: at 2 × 2 a gap between them shows as a dark line along the ice
+#: cube's bright face (L1 0.114); 5 × 5 closes it (0.080) for 2.4× the rays and 3.7×
+#: the layer's sub-cells; 3 × 3 gave the pebble nothing for twice its CPU, and
+#: refining the edge's sub-cells again (3 levels) cost the pebble 2.6× the rays.
+REFINE_SUB = 2
+#: ... at most this many times the node rays, or `REFINE_FLOOR` rays if more (then
+#: the brightest cells first, at least 2 × 2 sub-cells each): a grid so coarse that
+#: most of its cells straddle an edge is better served by more node rays
+#: (`ray_budget`). Few cells share `REFINE_FLOOR` rays, up to 6 × 6 sub-cells each:
+#: a few thousand rays cost milliseconds, and a cube under a point light (one image,
+#: whose jags no other sample averages) needs its edges sharp.
+REFINE_MAX_SHARE = 4.0
+REFINE_FLOOR = 8192
 #: A path of this weight that some corners of a cell have and others not: an edge in
 #: the beam, the cell is refined (a first internal reflection, ~4 %, counts).
 STRONG = 0.02
@@ -266,25 +275,31 @@ def trace_mesh_beam(
 ) -> MeshBeam:
     """The :class:`MeshBeam` of one (light, mesh) pair. ``bt``: the pair's samples (a
     `beam_trace` batch); ``iota`` (Nr+1,), ``phi`` (Na,): the node grid (φ_j the
-    centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record (the
-    shadow's centre); ``refine_rays``: sub-grid rays at most (None: the node rays
-    over `REFINE_SHARE`, at least `REFINE_MIN_RAYS`); ``strong``: a path appearing at
-    some corners of a cell with this weight makes the cell refined (weaker ones are
-    splatted where they are)."""
+    centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record
+    (the shadow's centre); ``refine_rays``: sub-grid rays at most (None:
+    `REFINE_SUB` per side in every cell to refine, within `REFINE_MAX_SHARE` and
+    `REFINE_FLOOR`); ``strong``: a path appearing at some corners of a cell with
+    this weight makes the cell refined (weaker ones are splatted where they are)."""
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
-    di, dp = float(iota[1] - iota[0]), float(2.0 * np.pi / na)
+    dp = float(2.0 * np.pi / na)
+    # every sample on the given grid (staggering the samples' grids by fractions of a
+    # cell was tried: the real_glass ice cube at L1 0.110 staggered, 0.114 not: noise)
+    iota_k = np.broadcast_to(np.asarray(iota, dtype=float), (k, nr + 1))
+    phi_k = np.broadcast_to(np.asarray(phi, dtype=float), (k, na))
+    di_k = np.diff(iota_k, axis=1)  # (K, Nr): each sample's ring widths
     rows = np.broadcast_to(np.arange(k)[:, None, None], (k, nr + 1, na))
-    ii = np.broadcast_to(np.asarray(iota)[None, :, None], rows.shape)
-    pp = np.broadcast_to(np.asarray(phi)[None, None, :], rows.shape)
+    ii = np.broadcast_to(iota_k[:, :, None], rows.shape)
+    pp = np.broadcast_to(phi_k[:, None, :], rows.shape)
     origins, dirs, g = rays_at(bt, rows, ii, pp, frames, emitter, parallel)
     br = optics.trace_branches(origins, dirs, max_depth, min_weight)
     keep = (br.crossings >= 2) & (br.weight > 0.0)  # through the glass: the caustic
     w = np.where(keep, br.weight, 0.0)
     ci0 = np.broadcast_to(np.arange(k)[:, None, None], (k, nr, na))
-    c_i0 = np.broadcast_to(np.asarray(iota)[None, :-1, None], ci0.shape)
-    c_p0 = np.broadcast_to(np.asarray(phi)[None, None, :], ci0.shape)
-    cg = corner_integrals(bt, ci0, c_i0, di, c_p0, dp, frames, emitter, parallel)
+    c_i0 = np.broadcast_to(iota_k[:, :-1, None], ci0.shape)
+    c_di = np.broadcast_to(di_k[:, :, None], ci0.shape)
+    c_p0 = np.broadcast_to(phi_k[:, None, :], ci0.shape)
+    cg = corner_integrals(bt, ci0, c_i0, c_di, c_p0, dp, frames, emitter, parallel)
     # the blockers' shadow: each cell × the mean of its corners' passing share
     per_cell, per_node = shadow.apply(
         np.ones((k, nr, na)), np.ones((k, nr + 1, na)), origins, dirs, lens, blockers, parallel
@@ -296,12 +311,14 @@ def trace_mesh_beam(
     out = MeshBeam(n_rays=int(origins.size // 3))
     lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
     mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
+    n_mixed = max(len(mixed), 1)
+    cap = max(int(REFINE_MAX_SHARE * out.n_rays), REFINE_FLOOR)
     budget = (
-        max(out.n_rays // REFINE_SHARE, REFINE_MIN_RAYS)
+        min(max(n_mixed * (REFINE_SUB + 1) ** 2, REFINE_FLOOR), cap)
         if refine_rays is None
         else int(refine_rays)
     )
-    m = int(np.clip(np.sqrt(budget / max(len(mixed), 1)) - 1.0, 2, 6))
+    m = int(np.clip(np.sqrt(budget / n_mixed) - 1.0, 2, 6))
     n_fit = budget // ((m + 1) ** 2)
     if len(mixed) > n_fit:  # the brightest cells refined; the rest drawn as they are
         mixed = np.sort(mixed[np.argsort(-lit[mixed], kind="stable")][:n_fit])
@@ -328,7 +345,7 @@ def trace_mesh_beam(
     splats = [splat]
     if len(mixed):
         sub, sub_splat, n_sub = _refine(
-            bt, optics, mixed, (k, nr, na), iota, phi, di, dp, m, frames, emitter, parallel,
+            bt, optics, mixed, (k, nr, na), iota_k, phi_k, di_k, dp, m, frames, emitter, parallel,
             per_cell, max_depth, min_weight,
         )  # fmt: skip
         out.parts.append(sub)
@@ -374,24 +391,27 @@ def _refine(
     max_depth, min_weight,
 ):  # fmt: skip
     """Trace an m × m sub-grid in each of ``cells`` (flat indices of the (K, Nr, Na)
-    grid): quads of its coherent sub-cells, splats for the rest."""
+    grid; ``iota`` (K, Nr+1), ``di`` (K, Nr), ``phi`` (K, Na): each sample's grid):
+    quads of its coherent sub-cells, splats for the rest."""
     kc, ic, jc = np.unravel_index(cells, shape)
     c = len(cells)
     a = np.arange(m + 1) / m
     rows = np.broadcast_to(kc[:, None, None], (c, m + 1, m + 1))
-    si = np.asarray(iota)[ic][:, None, None] + di * a[None, :, None]
-    sp = np.asarray(phi)[jc][:, None, None] + dp * a[None, None, :]
+    i_c, di_c, p_c = iota[kc, ic], di[kc, ic], phi[kc, jc]
+    si = i_c[:, None, None] + di_c[:, None, None] * a[None, :, None]
+    sp = p_c[:, None, None] + dp * a[None, None, :]
     si, sp = np.broadcast_arrays(si, sp)
     origins, dirs, g = rays_at(bt, rows, si, sp, frames, emitter, parallel)
     br = optics.trace_branches(origins, dirs, max_depth, min_weight)
     keep = (br.crossings >= 2) & (br.weight > 0.0)
     w = np.where(keep, br.weight, 0.0)
     sub_rows = np.broadcast_to(kc[:, None, None], (c, m, m))
-    i0 = np.asarray(iota)[ic][:, None, None] + di * a[None, :-1, None]
-    p0 = np.asarray(phi)[jc][:, None, None] + dp * a[None, None, :-1]
+    i0 = i_c[:, None, None] + di_c[:, None, None] * a[None, :-1, None]
+    p0 = p_c[:, None, None] + dp * a[None, None, :-1]
     i0, p0 = np.broadcast_arrays(i0, p0)
+    sub_di = np.broadcast_to(di_c[:, None, None] / m, i0.shape)
     cg = corner_integrals(
-        bt, sub_rows, i0, di / m, p0, dp / m, frames, emitter, parallel, (_GL2_X, _GL2_W)
+        bt, sub_rows, i0, sub_di, p0, dp / m, frames, emitter, parallel, (_GL2_X, _GL2_W)
     )
     cg = (cg * per_cell.reshape(-1)[cells][:, None, None, None]).reshape(-1, 4)
     g = g * per_cell.reshape(-1)[cells][:, None, None]

@@ -62,6 +62,11 @@ class SheetBake:
     # per source, for a glass mesh (`mesh_beam`): (cells refined, cells the refinement
     # budget cut, rays traced); (0, 0, 0) for a ball
     refinement: list[tuple[int, int, int]] | None = None
+    # live update's coarse layer (`live.LiveLayer`): the full bake's rasters refilled
+    # by coarse beams; the full one follows
+    coarse: bool = False
+    names: list | None = None  # per source (light, lens) names (the layer stage's)
+    receivers_key: bytes = b""  # what it landed on (`layer_stage.receivers_key`)
 
 
 def bake(

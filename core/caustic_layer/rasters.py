@@ -423,72 +423,18 @@ def build_layer(
     colors = np.array([lb.beam.color for lb in landed]).reshape(-1, 3)
     uniq, group = np.unique(colors, axis=0, return_inverse=True)
     for gi, color in enumerate(uniq):  # loop over colours, usually one or two
-        members_g = [landed[i] for i in np.nonzero(group.reshape(-1) == gi)[0]]
         ids = [i for i in np.nonzero(group.reshape(-1) == gi)[0]]
-        base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
-        point = np.concatenate([lb.point for lb in members_g])
-        slot = np.concatenate(
-            [
-                np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
-                for i, lb in zip(ids, members_g, strict=True)
-            ]
+        acc, out_acc, g_lost, g_unseen, g_sub = _accumulate_beams(
+            [landed[i] for i in ids],
+            ids,
+            slot_of,
+            fr,
+            blur_shares,
+            (subcells_per_texel, max_subdivision, max_subcells, flux_subcells_per_texel),
         )
-        corners = np.concatenate(
-            [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
-        )
-        cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
-        # the samples' shares matter only to blur an extended source's images
-        blurred = blur_shares and any(
-            lb.beam.rotations is not None and np.any(lb.beam.rotations) for lb in members_g
-        )
-        if blurred:
-            rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
-        dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
-        acc = np.zeros(n_slots * side * side)
-        out_acc = np.zeros(n_slots)
-        cs = slot[corners]
-        same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
-        # cells across receivers (or missing): each corner its density-weighted share
-        mixed = ~same & (cflux > 0.0)
-        dsum = dens[mixed].sum(axis=1, keepdims=True)
-        share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
-        share = (share * cflux[mixed, None]).reshape(-1)
-        cm = corners[mixed].reshape(-1)
-        sm = cs[mixed].reshape(-1)
-        landed_g = np.concatenate([lb.patch for lb in members_g])[cm] >= 0
-        lost += float(share[(sm < 0) & ~landed_g].sum())
-        unseen += float(share[(sm < 0) & landed_g].sum())  # on a receiver, out of view
-        on = sm >= 0
-        _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr)
-        # cells on one patch: m × m bilinear sub-cells
-        cidx = np.nonzero(same)[0]
-        if len(cidx):
-            jitter = shares = None
-            if blurred and np.any(rot[cidx]):
-                direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
-                jitter = _share_offsets(
-                    point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
-                )
-                shares = (disc[cidx], share_cells[cidx], share_grid[cidx])
-            # each node in its raster's plane coordinates once, then per cell corner
-            ns = np.maximum(slot, 0)
-            node_x = np.einsum("ij,ij->i", point, fr["au"][ns])
-            node_y = np.einsum("ij,ij->i", point, fr["av"][ns])
-            n_sub += _splat_cells(
-                acc,
-                out_acc,
-                (node_x[corners[cidx]], node_y[corners[cidx]]),
-                cs[cidx, 0],
-                dens[cidx],
-                cflux[cidx],
-                fr,
-                subcells_per_texel,
-                max_subdivision,
-                max_subcells,
-                flux_subcells_per_texel,
-                jitter=jitter,
-                shares=shares,
-            )
+        lost += float(g_lost.sum())
+        unseen += float(g_unseen.sum())
+        n_sub += g_sub
         flux_in += acc.reshape(n_slots, side * side).sum(axis=1)
         flux_out += out_acc
         rgb += acc[:, None] * color
@@ -543,6 +489,87 @@ def build_layer(
         n_subcells=n_sub,
         timings={"land": t1 - t0, "splat": t2 - t1, "mesh": t3 - t2, "total": t3 - t0},
     )
+
+
+def _accumulate_beams(members_g, ids, slot_of, fr, blur_shares, splat):
+    """The landed beams ``members_g`` (beam indices ``ids``, one light colour) added to
+    the rasters ``fr`` (``slot_of``: each beam's raster per patch): (texel flux of
+    every raster's block, flux beyond each raster, flux lost and flux landed out of
+    view per beam, sub-cells); ``splat``: (sub-cells per texel, the most per side, the most in all,
+    sub-cells per texel by flux) for `_splat_cells`."""
+    subcells_per_texel, max_subdivision, max_subcells, flux_subcells_per_texel = splat
+    n_slots, side = len(fr["res"]), fr["side"]
+    n_sub = 0
+    base = np.cumsum([0] + [len(lb.patch) for lb in members_g])
+    point = np.concatenate([lb.point for lb in members_g])
+    slot = np.concatenate(
+        [
+            np.where(lb.patch >= 0, slot_of[i][np.maximum(lb.patch, 0)], -1)
+            for i, lb in zip(ids, members_g, strict=True)
+        ]
+    )
+    corners = np.concatenate(
+        [cell_corners(lb.beam.shape) + base[k] for k, lb in enumerate(members_g)]
+    )
+    cflux = np.concatenate([lb.beam.cell_flux.reshape(-1) for lb in members_g])
+    # the samples' shares matter only to blur an extended source's images
+    blurred = blur_shares and any(
+        lb.beam.rotations is not None and np.any(lb.beam.rotations) for lb in members_g
+    )
+    if blurred:
+        rot, ctr, disc, share_cells, share_grid = _cell_shares(members_g)
+    dens = np.concatenate([lb.beam.node_density.reshape(-1) for lb in members_g])[corners]
+    acc = np.zeros(n_slots * side * side)
+    out_acc = np.zeros(n_slots)
+    cs = slot[corners]
+    same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
+    # cells across receivers (or missing): each corner its density-weighted share
+    mixed = ~same & (cflux > 0.0)
+    dsum = dens[mixed].sum(axis=1, keepdims=True)
+    share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
+    share = (share * cflux[mixed, None]).reshape(-1)
+    cm = corners[mixed].reshape(-1)
+    sm = cs[mixed].reshape(-1)
+    landed_g = np.concatenate([lb.patch for lb in members_g])[cm] >= 0
+    # per member (a beam's cells are contiguous: its member from the cell's index)
+    cell_member = np.repeat(np.arange(len(members_g)), [lb.beam.cell_flux.size for lb in members_g])
+    member = np.repeat(cell_member[mixed], 4)
+    miss = sm < 0
+    lost = np.bincount(member[miss & ~landed_g], share[miss & ~landed_g], len(members_g))
+    # on a receiver, out of view
+    unseen = np.bincount(member[miss & landed_g], share[miss & landed_g], len(members_g))
+    on = sm >= 0
+    _deposit(acc, out_acc, point[cm[on]], sm[on], share[on], fr)
+    # cells on one patch: m × m bilinear sub-cells
+    cidx = np.nonzero(same)[0]
+    if len(cidx):
+        jitter = shares = None
+        if blurred and np.any(rot[cidx]):
+            direction = np.concatenate([lb.dirs for lb in members_g])[corners[cidx]]
+            jitter = _share_offsets(
+                point[corners[cidx]], direction, rot[cidx], ctr[cidx], cs[cidx, 0], fr
+            )
+            shares = (disc[cidx], share_cells[cidx], share_grid[cidx])
+        # each node in its raster's plane coordinates once, then per cell corner
+        ns = np.maximum(slot, 0)
+        node_x = np.einsum("ij,ij->i", point, fr["au"][ns])
+        node_y = np.einsum("ij,ij->i", point, fr["av"][ns])
+        n_sub += _splat_cells(
+            acc,
+            out_acc,
+            (node_x[corners[cidx]], node_y[corners[cidx]]),
+            cs[cidx, 0],
+            dens[cidx],
+            cflux[cidx],
+            fr,
+            subcells_per_texel,
+            max_subdivision,
+            max_subcells,
+            flux_subcells_per_texel,
+            jitter=jitter,
+            shares=shares,
+        )
+    return acc, out_acc, lost, unseen, n_sub
 
 
 @functools.lru_cache(maxsize=8)
@@ -976,3 +1003,185 @@ def _vertex_uvs(index: ReceiverIndex, uv_fit, p, verts, n_out):
     bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], axis=1)
     out = np.einsum("nk,nkj->nj", bary, uv[tv])
     return np.where(inside[:, None], out, fit), inside
+
+
+@dataclass
+class BeamFlux:
+    """One beam's flux in fixed rasters (`beam_fluxes`): the texels it reaches (flat
+    indices into the rasters' blocks of `FixedRasters.side`²), their flux (W,
+    uncoloured), the flux landed beyond each raster, lost (missed every receiver) and
+    landed out of view, its colour and its sub-cells (its cells' share of its batch's)."""
+
+    texels: np.ndarray
+    flux: np.ndarray
+    outside: np.ndarray
+    lost: float
+    unseen: float
+    color: np.ndarray
+    subcells: int
+
+
+@dataclass
+class FixedRasters:
+    """A layer's rasters kept as they are (texel lines, planes, resolutions): what
+    `beam_fluxes` fills. ``slot_of`` (beams, patches): each beam's raster per patch."""
+
+    patches: list[PatchLayer]
+    slot_of: np.ndarray
+    fr: dict
+    side: int
+
+
+def fixed_rasters(patches: list[PatchLayer], n_beams: int, n_patches: int) -> FixedRasters:
+    """The rasters of ``patches`` (a `CausticLayer`'s, its beams numbered as their
+    ``sources``), to fill again with other landings of those beams."""
+    slot_of = np.full((n_beams, n_patches), -1, dtype=np.int64)
+    outer = np.full(len(patches), -1, dtype=np.int64)
+    for k, pl in enumerate(patches):  # the fine raster first, as `build_layer` makes them
+        if not pl.coarse:
+            slot_of[np.asarray(pl.sources, dtype=np.int64), pl.patch] = k
+    for k, pl in enumerate(patches):  # a coarse one takes what lands beyond the fine one
+        if not pl.coarse:
+            continue
+        beams = np.asarray(pl.sources, dtype=np.int64)
+        first = slot_of[beams[0], pl.patch] if len(beams) else -1
+        if first >= 0:
+            outer[first] = k
+        else:
+            slot_of[beams, pl.patch] = k
+    fr = {
+        "au": np.array([pl.axis_u for pl in patches], dtype=float).reshape(-1, 3),
+        "av": np.array([pl.axis_v for pl in patches], dtype=float).reshape(-1, 3),
+        "res": np.array([pl.resolution for pl in patches], dtype=np.int64),
+        "outer": outer,
+    }
+    for k, key in enumerate(("u", "v")):
+        for j, name in enumerate(AXIS_FIELDS):
+            fr[key + name] = np.array([float(pl.axes[k][j]) for pl in patches])
+    fr["side"] = side = int(fr["res"].max(initial=1))
+    return FixedRasters(list(patches), slot_of, fr, side)
+
+
+def beam_fluxes(
+    beams: list[BeamGrid],
+    ids: list[int],
+    index: ReceiverIndex,
+    rasters: FixedRasters,
+    own_objects=None,
+    subcells_per_texel: float = 2.0,
+    max_subdivision: int = 4,
+    blur_shares: bool = True,
+) -> list[BeamFlux]:
+    """Each of ``beams`` (the rasters' beams ``ids``) landed on ``index`` (one cast for
+    all) and splatted, alone, into the fixed ``rasters``: its flux per texel, to be
+    summed with other beams' (`fixed_layer`). At most ``max_subdivision`` sub-cells per
+    side of a cell (at most 8: no flux budget shared between beams, so a beam's
+    texels do not depend on the others')."""
+    if not beams:
+        return []
+    landed = land_beams(beams, index, own_objects)
+    splat = (subcells_per_texel, min(int(max_subdivision), 8), 8_000_000, 0.0)
+    out = []
+    for a in range(0, len(beams), BATCH_BEAMS):  # one splat per batch, not per beam
+        part = landed[a : a + BATCH_BEAMS]
+        out += _alone(part, ids[a : a + BATCH_BEAMS], rasters, blur_shares, splat)
+    return out
+
+
+#: Beams splatted together by `beam_fluxes`, each into its own copy of the rasters
+#: (their texels: 16 × a layer's, at most).
+BATCH_BEAMS = 16
+
+
+def _alone(landed, ids, rasters: FixedRasters, blur_shares, splat) -> list[BeamFlux]:
+    """`beam_fluxes` of one batch: the rasters repeated once per beam (beam b fills
+    copy b), all splatted in one `_accumulate_beams` call."""
+    fr, n_slots, side = rasters.fr, len(rasters.patches), rasters.side
+    b = len(landed)
+    copies = {k: np.tile(v, (b,) + (1,) * (np.ndim(v) - 1)) for k, v in fr.items() if k != "side"}
+    shift = np.repeat(np.arange(b) * n_slots, n_slots)
+    copies["outer"] = np.where(copies["outer"] >= 0, copies["outer"] + shift, -1)
+    copies["side"] = side
+    rows = rasters.slot_of[np.asarray(ids, dtype=np.int64)]
+    slot_of = np.where(rows >= 0, rows + (np.arange(b) * n_slots)[:, None], -1)
+    acc, out_acc, lost, unseen, n_sub = _accumulate_beams(
+        landed, list(range(b)), slot_of, copies, blur_shares, splat
+    )
+    n = n_slots * side * side
+    out = []
+    for k, lb in enumerate(landed):
+        block = acc[k * n : (k + 1) * n]
+        texels = np.flatnonzero(block)
+        out.append(
+            BeamFlux(
+                texels,
+                block[texels],
+                out_acc[k * n_slots : (k + 1) * n_slots],
+                float(lost[k]),
+                float(unseen[k]),
+                np.asarray(lb.beam.color),
+                int(
+                    n_sub
+                    * lb.beam.cell_flux.size
+                    / max(sum(x.beam.cell_flux.size for x in landed), 1)
+                ),
+            )
+        )
+    return out
+
+
+def blur_flux(flux: np.ndarray, passes: int) -> np.ndarray:
+    """``flux`` (r, r, ...) spread by ``passes`` binomial [1 2 1]/4 passes along each
+    axis; what would leave the raster stays in its border texel (flux kept)."""
+    for axis in (0, 1):
+        for _ in range(passes):
+            f = np.moveaxis(flux, axis, 0)
+            out = 0.5 * f
+            out[1:] += 0.25 * f[:-1]
+            out[:-1] += 0.25 * f[1:]
+            out[0] += 0.25 * f[0]
+            out[-1] += 0.25 * f[-1]
+            flux = np.moveaxis(out, 0, axis)
+    return flux
+
+
+def fixed_layer(
+    rasters: FixedRasters, fluxes: list[BeamFlux], emitted: float, blur: int = 0
+) -> CausticLayer:
+    """The layer of ``rasters`` holding the sum of ``fluxes`` (coloured), the geometry of
+    its patches unchanged (``emitted``: the beams' flux leaving the lenses); ``blur``:
+    binomial passes over each raster's texel flux (`blur_flux`: a coarse splat's
+    sampling noise smoothed, the flux kept)."""
+    n_slots, side = len(rasters.patches), rasters.side
+    size = n_slots * side * side
+    texels = np.concatenate([f.texels for f in fluxes] + [np.zeros(0, dtype=np.int64)])
+    flux = np.concatenate([f.flux for f in fluxes] + [np.zeros(0)])
+    color = np.concatenate(
+        [np.broadcast_to(f.color, (len(f.texels), 3)) for f in fluxes] + [np.zeros((0, 3))]
+    )
+    rgb = np.stack([np.bincount(texels, flux * color[:, c], minlength=size) for c in range(3)], 1)
+    plain = np.bincount(texels, flux, minlength=size).reshape(n_slots, side * side).sum(axis=1)
+    outside = np.sum([f.outside for f in fluxes], axis=0) if fluxes else np.zeros(n_slots)
+    rgb = rgb.reshape(n_slots, side, side, 3)
+    patches = []
+    for k, pl in enumerate(rasters.patches):
+        r = pl.resolution
+        area = pl.texel_areas()[..., None]
+        patches.append(
+            dataclasses.replace(
+                pl,
+                irradiance=blur_flux(rgb[k, :r, :r], blur) / area,
+                flux=float(plain[k]),
+                flux_outside=float(outside[k]),
+            )
+        )
+    return CausticLayer(
+        patches=patches,
+        flux_emitted=float(emitted),
+        flux_in_rasters=float(plain.sum()),
+        flux_outside=float(np.sum(outside)) + sum(f.unseen for f in fluxes),
+        flux_lost=sum(f.lost for f in fluxes),
+        n_rays=0,
+        n_cells=0,
+        n_subcells=sum(f.subcells for f in fluxes),
+    )

@@ -71,19 +71,29 @@ def allocate(
     """Budgets for many sources: :func:`ray_budget` each (``samples``: per source, the
     samples of an extended emitter sharing it; ``texels``: per source, the texels its
     caustic covers; ``min_rays`` one number or one per source: a glass mesh's grows
-    with its triangles), then scaled down together if the sum of all samples' rays
-    exceeds ``total_rays``."""
+    with its triangles; ``rays_per_texel`` one number or one per source: a glass
+    mesh's are fewer, `mesh_sources.MESH_TEXEL_SHARE`), then scaled down together if
+    the sum of all samples' rays exceeds ``total_rays``."""
     fluxes = np.asarray(fluxes, dtype=float)
     top = fluxes.max() if len(fluxes) and fluxes.max() > 0 else 1.0
     ks = [1] * len(fluxes) if samples is None else [max(int(k), 1) for k in samples]
     ts = [None] * len(fluxes) if texels is None else list(texels)
     mins = kwargs.pop("min_rays", None)
     mins = [mins] * len(fluxes) if mins is None or np.isscalar(mins) else list(mins)
+    rpt = kwargs.pop("rays_per_texel", 1.0)
+    rpt = [rpt] * len(fluxes) if np.isscalar(rpt) else list(rpt)
     out = [
         ray_budget(
-            f / top, e, p, samples=k, texels=t, **kwargs, **({} if m is None else {"min_rays": m})
+            f / top,
+            e,
+            p,
+            samples=k,
+            texels=t,
+            rays_per_texel=r,
+            **kwargs,
+            **({} if m is None else {"min_rays": m}),
         )
-        for f, e, p, k, t, m in zip(fluxes, extents, pixels, ks, ts, mins, strict=True)
+        for f, e, p, k, t, m, r in zip(fluxes, extents, pixels, ks, ts, mins, rpt, strict=True)
     ]
     total = sum(b.n_rays * k for b, k in zip(out, ks, strict=True))
     if total > total_rays:

@@ -70,8 +70,18 @@ def vertex_measures(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return np.bincount(triangles.reshape(-1), np.repeat(area / 3.0, 3), minlength=len(vertices))
 
 
-def drawn_mesh(patch) -> DrawnMesh:
-    """The drawn mesh of `patch` (`rasters.PatchLayer`): see the module's text."""
+@dataclass
+class DrawnWeights:
+    """What `drawn_mesh` computes from a raster's geometry alone (its texel lines):
+    each texel's measure (of the vertices carrying it); a raster refilled in place
+    (live update) reuses it."""
+
+    measure: np.ndarray  # (res²,)
+
+
+def drawn_geometry(patch) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, DrawnWeights]:
+    """The drawn mesh's vertices, triangles, UVs (or None) and weights (`DrawnWeights`)
+    of `patch` (`rasters.PatchLayer`): see the module's text."""
     res = int(patch.resolution)
     lo, hi, texel = dual_lines(res)
     n = res + 2
@@ -90,16 +100,33 @@ def drawn_mesh(patch) -> DrawnMesh:
     d = vertex_measures(verts, tris)
     d_grid = d[: n * n] + np.bincount(cells.reshape(-1), np.repeat(0.25 * d[n * n :], 4), n * n)
     measure = np.bincount(carried, d_grid, minlength=res * res)
-    flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
-        -1, 1
-    )
-    value = flux / np.where(measure > 0.0, measure, 1.0)[:, None]
-    at_grid = value[carried]
     uvs = None
     if patch.uvs is not None:
         uv_grid = dual(patch.uvs)
         uvs = np.concatenate([uv_grid, uv_grid[cells].mean(axis=1)])
-    return DrawnMesh(verts, tris, uvs, np.concatenate([at_grid, at_grid[cells].mean(axis=1)]))
+    return verts, tris, uvs, DrawnWeights(measure)
+
+
+def drawn_irradiance(patch, weights: DrawnWeights) -> np.ndarray:
+    """(V, 3) the irradiance at the drawn mesh's vertices of `patch` (its texel
+    values), from its geometry's `weights` (`drawn_geometry`). The grid's vertices
+    carry the texels edge-padded (`dual_lines`), the centres their cell's mean: by
+    slices, not gathers (live update draws every coarse layer this way)."""
+    res = int(patch.resolution)
+    flux = np.asarray(patch.irradiance, dtype=float).reshape(-1, 3) * patch.texel_areas().reshape(
+        -1, 1
+    )
+    m = weights.measure
+    value = (flux / np.where(m > 0.0, m, 1.0)[:, None]).reshape(res, res, 3)
+    g = np.pad(value, ((1, 1), (1, 1), (0, 0)), mode="edge")  # (res + 2)² grid vertices
+    centres = 0.25 * (g[:-1, :-1] + g[:-1, 1:] + g[1:, 1:] + g[1:, :-1])
+    return np.concatenate([g.reshape(-1, 3), centres.reshape(-1, 3)])
+
+
+def drawn_mesh(patch) -> DrawnMesh:
+    """The drawn mesh of `patch` (`rasters.PatchLayer`): see the module's text."""
+    verts, tris, uvs, weights = drawn_geometry(patch)
+    return DrawnMesh(verts, tris, uvs, drawn_irradiance(patch, weights))
 
 
 def tent_measures(axis, res: int) -> np.ndarray:

@@ -94,12 +94,24 @@ class MeshLens(Lens):
     ``absorption``: Beer per unit length (as the ball's); ``vertices`` (V, 3) world
     coordinates; ``triangles`` (T, 3) vertex indices; ``corner_normals`` (T, 3, 3): the
     shading normal at each triangle corner as Blender shades (None: flat, the face
-    normals). The BVH is built once, here."""
+    normals). Several pieces of glass traced together (light through one, then the
+    other: `core.caustic_layer.glass_groups`) may differ in index and absorption:
+    ``triangle_ior`` / ``triangle_absorption`` (T,) per triangle (None: ``ior`` /
+    ``absorption`` everywhere). The BVH is built once, here."""
 
     point_image: ClassVar[bool] = False
 
     def __init__(
-        self, center, radius, ior, absorption, vertices, triangles, corner_normals=None
+        self,
+        center,
+        radius,
+        ior,
+        absorption,
+        vertices,
+        triangles,
+        corner_normals=None,
+        triangle_ior=None,
+        triangle_absorption=None,
     ) -> None:
         self.center = np.asarray(center, dtype=float).reshape(3)
         self.ior = float(ior)
@@ -119,6 +131,9 @@ class MeshLens(Lens):
         self.corner_normals = cn
         scale = max(self.radius, float(np.abs(self.vertices).max(initial=0.0)) * 1e-2)
         self.eps = 1e-7 * scale
+        t = len(self.triangles)
+        self.triangle_ior = _per_triangle(triangle_ior, self.ior, t)
+        self.triangle_absorption = _per_triangle(triangle_absorption, self.absorption, t)
         self.bvh = build_bvh(self.vertices, self.triangles)
 
     # ------------------------------------------------------------------ the interface
@@ -272,7 +287,8 @@ class MeshLens(Lens):
         ng = self.face_normals[tri]
         exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
         inside = np.where(exiting, np.linalg.norm(p - seg.at, axis=1), 0.0)  # from the surface
-        att = np.exp(-self.absorption * inside)
+        # a piece's light leaves it where it entered it (pieces never overlap)
+        att = np.exp(-self.triangle_absorption[tri] * inside)
         np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
         path = seg.path + inside
         cn = self.corner_normals[tri]
@@ -282,7 +298,8 @@ class MeshLens(Lens):
         sgn = np.where(exiting, -1.0, 1.0)[:, None]
         facing = sgn * ng  # geometric normal toward the incoming side
         nsf = sgn * ns
-        eta = np.where(exiting, self.ior, 1.0 / self.ior)
+        ior = self.triangle_ior[tri]
+        eta = np.where(exiting, ior, 1.0 / ior)
         d = seg.direction
         use_geo = _dot(d, nsf) >= 0.0  # the shading normal meets the ray from behind
         nrm = np.where(use_geo[:, None], facing, nsf)
@@ -293,8 +310,8 @@ class MeshLens(Lens):
             nrm = np.where(wrong[:, None], facing, nrm)
             rf = refract(d, nrm, eta)
             refl = d - 2.0 * _dot(d, nrm)[:, None] * nrm
-        n1 = np.where(exiting, self.ior, 1.0)
-        n2 = np.where(exiting, 1.0, self.ior)
+        n1 = np.where(exiting, ior, 1.0)
+        n2 = np.where(exiting, 1.0, ior)
         ts, tp = fresnel_from_cosines(rf.cos_i, rf.cos_t, n1, n2)
         ts, tp = np.where(rf.tir, 0.0, ts), np.where(rf.tir, 0.0, tp)
         # The s and p powers carried into this crossing's plane of incidence: both s
@@ -332,6 +349,16 @@ class MeshLens(Lens):
         kid_t = child(rf.directions, ws * ts, wp * tp, sig_t, ~exiting)
         kid_r = child(_unit(refl), ws * (1.0 - ts), wp * (1.0 - tp), sig_r, exiting)
         return kid_t, kid_r, rf.tir
+
+
+def _per_triangle(values, default: float, n: int) -> np.ndarray:
+    """(n,) floats: ``values`` per triangle, or ``default`` for all when None."""
+    if values is None:
+        return np.full(n, float(default))
+    out = np.asarray(values, dtype=float).reshape(-1)
+    if len(out) != n:
+        raise ValueError(f"{len(out)} per-triangle values for {n} triangles")
+    return out
 
 
 def _components(ea, eb, n: int) -> np.ndarray:

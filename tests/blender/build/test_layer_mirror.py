@@ -6,7 +6,7 @@ which sees the same table directly, mirrored, with a layer generated for it (the
 direct view's layer, checked against the exact optics in test_blender_render.py).
 The caustic's excess radiance summed over C1's frame must match C2's: on main the
 mirror showed the shadow without the caustic (0 %). The same scene in the bench:
-reports/layer_mirror.md (0.93)."""
+reports/layer_mirror.md (0.93). A bake of the layer shows in the mirror as Generate's."""
 
 import math
 
@@ -109,3 +109,14 @@ def test_a_mirror_shows_the_caustic_the_camera_does_not_see(extension, tmp_path)
     peak_seen = np.unravel_index(np.argmax(seen), seen.shape)
     peak_direct = np.unravel_index(np.argmax(direct), direct.shape)
     assert np.hypot(*np.subtract(peak_seen, peak_direct)) <= 3.0
+    # a bake's layer has its reflection copy too, keyed as the layer: the mirror shows
+    # the baked caustic as it shows Generate's (before: none, 0 %)
+    mirror.hide_render = probe.hide_render = False
+    sc.camera = c1
+    sc.frame_start = sc.frame_end = 1
+    assert bpy.ops.lens_lights.bake() == {"FINISHED"}
+    copies = [o for o in sc.objects if o.get("lens_lights_reflection")]
+    assert copies and all(not o.visible_camera for o in copies)
+    assert all(o.material_slots[0].material.node_tree.animation_data for o in copies)
+    baked = _render(sc, tmp_path / "c1_baked.exr") - c1_without
+    assert baked.sum() == pytest.approx(seen.sum(), rel=0.1)

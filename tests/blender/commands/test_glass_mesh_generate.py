@@ -239,3 +239,20 @@ def test_live_update_rebuilds_the_rods_layer_beside_the_lens_lights(empty_blend)
     assert [o.type for o in lens_lights()].count("LIGHT") == 1
     # the rod subtends more from 2 above its axis than from 3: its layer's flux grows
     assert drawn_flux() > 1.2 * flux_before
+
+
+def test_glass_in_another_glasss_light_is_traced_with_it(empty_blend):
+    """A glass cube held above the rod, in the lamp's light: the light through the cube
+    reaches the rod, so both are traced as one lens (one layer source for the lamp),
+    and the report names them together."""
+    rod_scene()
+    bpy.ops.mesh.primitive_cube_add(size=0.6, location=(0.0, 0.0, 2.4))
+    cube = bpy.context.object
+    cube.name = "Cube"
+    cube.data.materials.append(glass_material(ior=1.5))
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    assert level == "INFO", message
+    assert "(light through one reaches the other): Rod + Cube" in message
+    names = {o.lens_lights.source_lens for o in fine_layers()}
+    assert names == {"Rod + Cube"}

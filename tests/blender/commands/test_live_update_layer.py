@@ -1,0 +1,147 @@
+"""Live update's Caustic layer (issue 27, bpy module): in Blender's window a coarse
+layer while frames follow each other, written into the same objects and meshes, and
+the full one once they stop (the timer's `refine`) or before a render, equal to a
+fresh Generate; in background every update is the full layer, also in place."""
+
+import time
+
+import bpy
+import numpy as np
+import pytest
+from blender_scene_helpers import basic_scene, generate, set_engine
+
+pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
+
+
+def _live():
+    from lens_lights.blender.commands import live_update
+
+    return live_update
+
+
+@pytest.fixture
+def interactive():
+    live = _live()
+    live.INTERACTIVE = True  # as in Blender's window
+    yield live
+    live.INTERACTIVE = None
+    if bpy.app.timers.is_registered(live.refine):
+        bpy.app.timers.unregister(live.refine)
+
+
+def _scene():
+    _, lamp = basic_scene()
+    for frame, loc in {1: (0.0, 0.0, 4.5), 5: (0.8, 0.4, 4.3)}.items():
+        lamp.location = loc
+        lamp.keyframe_insert("location", frame=frame)
+    scene = bpy.context.scene
+    set_engine("BLENDER_EEVEE")
+    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    scene.frame_start, scene.frame_end = 1, 5
+    scene.frame_set(1)
+    scene.lens_lights.live_update = True  # the full layer, at once
+    return scene
+
+
+def _layers():
+    """Layer meshes (not the reflection copies): name → (positions, irradiance,
+    object and mesh pointers)."""
+    out = {}
+    for ob in bpy.data.objects:
+        if ob.type != "MESH" or not ob.lens_lights.is_lens_light:
+            continue
+        if ob.get("lens_lights_reflection"):
+            continue
+        me = ob.data
+        co = np.zeros(3 * len(me.vertices), np.float32)
+        me.vertices.foreach_get("co", co)
+        irr = np.zeros(4 * len(me.vertices), np.float32)
+        me.attributes["lens_irradiance"].data.foreach_get("color", irr)
+        out[ob.name] = (co, irr, ob.as_pointer(), me.as_pointer())
+    return out
+
+
+def _pointers(state):
+    return {k: v[2:] for k, v in state.items()}
+
+
+def _equal_to_generate(state):
+    bpy.context.scene.lens_lights.live_update = False
+    level, _message, _ = generate()
+    assert level == "INFO"
+    fresh = _layers()
+    assert sorted(state) == sorted(fresh)
+    for name, (co, irr, *_p) in fresh.items():
+        assert np.array_equal(state[name][0], co) and np.array_equal(state[name][1], irr)
+
+
+def test_coarse_while_working_then_the_timer_gives_generates_layer(
+    empty_blend, interactive, monkeypatch
+):
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 1.0)  # (a busy machine: no early refine)
+    scene = _scene()
+    full = _layers()
+    scene.frame_set(3)
+    f = live.LAST_FIGURES
+    assert f["coarse"] is True and "error" not in f
+    assert f["traced"] == 1  # one pair, traced on the coarse grid
+    assert bpy.app.timers.is_registered(live.refine)
+    coarse = _layers()
+    assert _pointers(coarse) == _pointers(full)  # the same objects and meshes
+    for name, (co, irr, *_p) in coarse.items():  # the full layer's rasters: irradiance only
+        assert np.array_equal(co, full[name][0]) and not np.array_equal(irr, full[name][1])
+    scene.frame_set(3)  # the same inputs: nothing planned, nothing traced
+    assert live.LAST_FIGURES.get("skipped") is True
+    # the burst is not over: the timer comes back later, the layer stays coarse
+    wait = live.refine()
+    assert wait is not None and 0.0 < wait <= live.BURST_SECONDS
+    assert live.LAST_FIGURES.get("skipped") is True
+    time.sleep(live.BURST_SECONDS)
+    assert live.refine() is None  # done: the timer stops
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and not f.get("coarse") and not f.get("rebuilt")
+    refined = _layers()
+    assert _pointers(refined) == _pointers(full)
+    _equal_to_generate(refined)
+
+
+def test_a_render_never_starts_on_a_coarse_layer(empty_blend, interactive):
+    live = interactive
+    scene = _scene()
+    scene.frame_set(4)
+    assert live.LAST_FIGURES["coarse"] is True
+    live.on_render_start(scene)  # render_init: the full layer before the first frame
+    try:
+        f = live.LAST_FIGURES
+        assert f["why"] == "refined" and not f.get("coarse")
+        scene.frame_set(4)  # frame_change_post of the render's frame: never coarse
+        assert not live.LAST_FIGURES.get("coarse")
+    finally:
+        live.on_render_end(scene)
+    _equal_to_generate(_layers())
+
+
+def test_in_background_every_frame_gets_the_full_layer_in_place(empty_blend):
+    live = _live()
+    scene = _scene()
+    first = _layers()
+    scene.frame_set(5)
+    f = live.LAST_FIGURES
+    assert not f.get("coarse") and not f.get("rebuilt") and f["updated"] == len(first)
+    state = _layers()
+    assert _pointers(state) == _pointers(first)  # no new objects or meshes
+    _equal_to_generate(state)
+
+
+def test_a_mesh_of_other_rasters_is_rebuilt_not_written(empty_blend, interactive):
+    # (an undo can bring back the meshes of an earlier full layer: the coarse
+    # irradiance, computed for the last full layer's rasters, would land wrong)
+    live = interactive
+    scene = _scene()
+    (name,) = [n for n in _layers() if n.endswith(" 0")]
+    me = bpy.data.objects[name].data
+    me.vertices[0].co.x += 0.25  # no longer the raster the coarse layer is computed on
+    scene.frame_set(2)
+    f = live.LAST_FIGURES
+    assert f.get("rebuilt") is True  # built anew, not written into the wrong mesh
