@@ -48,7 +48,7 @@ from ...core.tiers import builds_layer
 from ..build import cleanup, cycles_caustics, layers, lights, ownership
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
 from ..ui.scene_state import has_lens_lights
-from . import layer_stage, pipeline
+from . import layer_stage, pipeline, water_stage
 
 #: The figures of the last run of `generate` (with "timings": seconds per step).
 LAST_FIGURES: dict = {}
@@ -101,7 +101,10 @@ def generate(context):
         try:
             options = pipeline.options_from(settings)
             t = time.perf_counter()
-            work, how = as_rendered(context, lambda dg: pipeline.plan_scene(dg, scene, options))
+            work, how = as_rendered(
+                context,
+                lambda dg: water_stage.prepare(dg, pipeline.plan_scene(dg, scene, options)),
+            )
             work.read.how = how
             work.timings["probe_total"] = time.perf_counter() - t
         except Exception as exc:  # reported, never raised
@@ -144,6 +147,7 @@ def generate(context):
                 work.timings["linking"] = time.perf_counter() - tl
                 # the glass meshes' caustic layers beside the spheres' lens lights
                 made += layer_stage.build_mesh_layers(scene, work)
+            made += water_stage.build(scene, work)  # the water's layers, in every tier
             counted = layers.made_counts(made)
             caustics_note, caustics_warn = cycles_caustics.after_build(
                 scene, plan, work.read, len(made), layers=counted["layers"] > 0
@@ -175,6 +179,9 @@ def generate(context):
     meshes = layer_stage.mesh_lenses_note(work, counted["layers"])
     if meshes:
         message = f"{message}; {meshes}"
+    water = water_stage.note(work)
+    if water:
+        message = f"{message}; {water}"
     if work.layer_figures is not None:
         message = f"{message}; {work.layer_figures.text()}"
         figures["layer"] = vars(work.layer_figures)

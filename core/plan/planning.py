@@ -493,6 +493,7 @@ class Work:
     layer_sources: list | None = None
     layer_figures: object = None  # caustic_layer.plan.LayerFigures
     layer_floors: list | None = None  # per layer source, its ray budget's floor
+    water: object = None  # blender.commands.water_stage.WaterStage (issue 26, Generate)
 
 
 def _primary_columns(read, table) -> Primaries:

@@ -152,6 +152,8 @@ def report_message(
     lights = len(read.light_sources)
     # the glass meshes traced as lenses count beside the spheres
     lenses = int(np.count_nonzero(read.lens_candidates)) + len(getattr(read, "mesh_lenses", []))
+    # and the water surfaces (issue 26: `work.water`, set by Generate's water stage)
+    lenses += len(getattr(getattr(work, "water", None), "waters", None) or [])
     skipped, first, counts = skip_report(work)
     # Flux without a light: every source's estimated flux minus the built lights'.
     rows = {id(src): t for t, src in enumerate(sel.sources)}

@@ -16,6 +16,7 @@ def test_work_declares_the_layer_fields_and_takes_no_other():
         "layer_sources",
         "layer_figures",
         "layer_floors",
+        "water",  # blender/commands/water_stage.py's WaterStage (issue 26)
     ]
     assert all(getattr(work, n) is None for n in names[5:]) and work.timings == {}
     work.layer_figures = "figures"  # declared: set by blender/commands/layer_stage.py

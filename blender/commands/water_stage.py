@@ -1,0 +1,137 @@
+"""Water's part of Generate (issue 26): after the plan (`pipeline.plan_scene`), the
+open glass meshes that are water (`read.water`) are taken out of the glass left out,
+the receivers read without them, every (light, water) pair traced through its
+surface and landed under it in one layer (`core.caustic_layer.water_sources`), and
+built with the other layers (`build.layers`) in Generate's undo step, in every tier
+and both engines. Bake and Live update do not follow water yet (it stays open glass
+left out there).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from ...core.caustic_layer.plan import (
+    FACE_BUDGET,
+    SOURCE_SAMPLES,
+    VIEW_MAX_RESOLUTION,
+    figures_of,
+    sheet_camera,
+)
+from ...core.caustic_layer.ray_budget import pixel_size
+from ...core.caustic_layer.view import view_of
+from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
+from ...core.scene.water import water_text
+from ..build import layers as layer_builder
+from ..read.receivers import read_receivers
+from ..read.water import read_water, take_water
+from .layer_stage import EEVEE_ENGINES
+
+
+@dataclass
+class WaterStage:
+    """What the stage read and baked: the water surfaces, the pairs ((light, water)
+    indices per source), the receivers under water and the layer's bake (None:
+    nothing to bake), the figures for the report."""
+
+    waters: list = field(default_factory=list)
+    pairs: list = field(default_factory=list)
+    receivers: object = None
+    bake: object = None
+    figures: object = None
+
+
+def prepare(depsgraph, work):
+    """Read and bake the water of ``work``'s scene (changes nothing); returns `work`
+    with ``work.water`` set."""
+    stage = work.water = WaterStage()
+    read = work.read
+    t = time.perf_counter()
+    waters, _not_water = read_water(depsgraph, read)  # not water: left out as before
+    if not waters:
+        return work
+    take_water(read, waters)
+    stage.waters = waters
+    lenses = [
+        ob for ob, lens in zip(read.sphere_objects, read.lens_candidates, strict=False) if lens
+    ]
+    lenses += [m.orig for m in getattr(read, "mesh_lenses", [])]
+    stage.receivers = read_receivers(depsgraph, exclude=lenses + [w.orig for w in waters])
+    work.timings["water read"] = time.perf_counter() - t
+    if not len(stage.receivers.mesh.triangles):
+        return work
+    t = time.perf_counter()
+    # an extended light (a radius, a sun's angle): its samples' images blur the net
+    sources, stage.pairs, _left = water_sources(
+        read.primary_lights, waters, n_source=SOURCE_SAMPLES
+    )
+    if not sources:
+        return work
+    cam = depsgraph.scene.camera
+    has_camera = cam is not None and cam.type == "CAMERA"
+    ortho = cam.data.ortho_scale if has_camera and cam.data.type == "ORTHO" else None
+    view = view_of(read.camera, read.width, read.height, ortho) if has_camera else None
+    # about two rays per pixel's length on the water, as the camera sees it
+    centers = [s.surface.center for s in sources]
+    cam_est = sheet_camera(read.camera, read.width, ortho, centers)
+    rays = [
+        rays_for(s.surface, pixel_size(cam_est.position, c, cam_est.fov, cam_est.width_px))
+        if has_camera
+        else WATER_RAYS
+        for s, c in zip(sources, centers, strict=True)
+    ]
+    stage.bake = water_bake(
+        sources,
+        stage.receivers.mesh,
+        n_rays=rays,
+        resolution=VIEW_MAX_RESOLUTION,
+        view=view,
+        max_texels=FACE_BUDGET,
+    )
+    work.timings["water bake"] = time.perf_counter() - t
+    return work
+
+
+def build(scene, work) -> list:
+    """The water's layers (and their reflection copies in EEVEE): every object made."""
+    stage = work.water
+    if stage is None or stage.bake is None:
+        return []
+    read = work.read
+    names = [(read.light_sources[j], stage.waters[k].name) for j, k in stage.pairs]
+    made, _lights, fallback = layer_builder.build(
+        scene,
+        stage.bake,
+        stage.receivers,
+        [],
+        [],
+        None,
+        names,
+        reflections=scene.render.engine in EEVEE_ENGINES,
+    )
+    stage.figures = figures_of(stage.bake, 0, fallback)
+    return made
+
+
+def note(work) -> str:
+    """The report's words: each water surface taken, with the receivers its caustic
+    lies on, and the water no light reaches ("" when there is no water)."""
+    stage = work.water
+    if stage is None or not stage.waters:
+        return ""
+    under: dict[int, set] = {}
+    if stage.bake is not None:
+        for p in stage.bake.layer.patches:
+            name = stage.receivers.objects[p.object_id].name
+            for s in p.sources:
+                under.setdefault(stage.pairs[int(s)][1], set()).add(name)
+    lit = sorted({k for _j, k in stage.pairs})
+    taken = [
+        (stage.waters[k].name, stage.waters[k].n_triangles, sorted(under.get(k, ()))) for k in lit
+    ]
+    unlit = [w.name for k, w in enumerate(stage.waters) if k not in set(lit)]
+    text = water_text(taken, unlit)
+    if stage.figures is not None:
+        text += f" ({stage.figures.text()})"
+    return text
