@@ -24,7 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-OPEN_REASON = "open mesh: a surface, not a glass volume (water surfaces are planned)"
+from .glass import WATER_IOR_RANGE
+
+OPEN_REASON = (
+    "open mesh: a surface, not a glass volume (open glass is water only with water's "
+    f"index, {WATER_IOR_RANGE[0]:.2f}–{WATER_IOR_RANGE[1]:.2f})"
+)
 INWARD_REASON = (
     "its normals point inward (Cycles renders it as air inside glass): "
     "Mesh › Normals › Recalculate Outside"

@@ -36,6 +36,11 @@ Color = tuple[float, float, float]
 PRINCIPLED, GLASS, REFRACTION, OTHER = "PRINCIPLED", "GLASS", "REFRACTION", "OTHER"
 
 
+#: The indices taken as water (Blender's preset for water is 1.333; users type 1.33):
+#: open glass of such an index is a water surface (`core.scene.water`).
+WATER_IOR_RANGE = (1.30, 1.36)
+
+
 @dataclass(frozen=True)
 class Bsdf:
     kind: str  # PRINCIPLED | GLASS | REFRACTION | OTHER

@@ -18,10 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lens.glass import MaterialOptics
-
-#: The indices taken as water (Blender's preset for water is 1.333; users type 1.33).
-WATER_IOR_RANGE = (1.30, 1.36)
+from ..lens.glass import WATER_IOR_RANGE, MaterialOptics
 
 
 def water_reason(optics: MaterialOptics | None) -> str:
