@@ -182,7 +182,10 @@ def test_an_open_glass_sheet_keeps_cycles_caustics_and_is_named(empty_blend):
     pane.data.materials.append(glass_material(ior=1.5))
     set_engine("CYCLES")
     level, message, figures = generate()
-    assert "Pane (open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36))" in message
+    assert (
+        "Pane (open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36))"
+        in message
+    )
     assert len(fine_layers()) == 1
     # the pane's caustic is Cycles' alone: its refractive caustics stay on
     assert bpy.context.scene.cycles.caustics_refractive
