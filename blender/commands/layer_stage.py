@@ -49,6 +49,7 @@ from ...core.caustic_layer.plan import (
     raster_resolution,
     sheet_camera,
     sheet_sources,
+    undrawn_glass,
 )
 from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
@@ -260,7 +261,7 @@ def build_mesh_layers(scene, work, progress=None) -> list:
         mesh_names(work.read),
         reflections=scene.render.engine in EEVEE_ENGINES,
     )
-    work.layer_figures = figures_of(work.layer_bake, 0, fallback)
+    work.layer_figures = figures_of(work.layer_bake, 0, fallback, _undrawn(work))
     return layers
 
 
@@ -276,7 +277,12 @@ def mesh_lenses_note(work, layers_made: int) -> str:
     unlit = [m.name for k, m in enumerate(read.mesh_lenses) if k not in set(traced)]
     if lit and not (layers_made and work.layer_bake is not None):
         names = ", ".join(n for n, _t in lit)
-        return f"no caustic layer for the glass of {names}: nothing receives its caustic"
+        why = (
+            "nothing receives its caustic"
+            if work.layer_bake is None
+            else "it lands only where a layer cannot be drawn (glossy or transparent receivers)"
+        )
+        return f"no caustic layer for the glass of {names}: {why}"
     text = mesh_lenses_text(lit, unlit)
     together = sorted(
         {glass_name(read, key) for _j, key in read.mesh_pairs if len(members_of(key)) > 1}
@@ -317,5 +323,19 @@ def build(scene, work, progress=None) -> list:
         # EEVEE's reflections do not show blended surfaces: a copy for them
         reflections=scene.render.engine in EEVEE_ENGINES,
     )
-    work.layer_figures = figures_of(work.layer_bake, len(lights), fallback)
+    work.layer_figures = figures_of(work.layer_bake, len(lights), fallback, _undrawn(work))
     return layers + lights
+
+
+def _undrawn(work) -> tuple:
+    """The glass meshes whose light lands on glossy or transparent receivers
+    (`plan.undrawn_glass`): the mesh sources come last in the layer's sources."""
+    names = [lens for _light, lens in mesh_names(work.read)]
+    objects = work.receivers.objects
+
+    def receiver_of(patch):
+        info = objects[patch.object_id]
+        return info.name, info.fallback
+
+    first = len(work.layer_sources) - len(names)
+    return undrawn_glass(work.layer_bake.layer.patches, receiver_of, first, names)

@@ -144,6 +144,9 @@ class LayerFigures:
     fallback_lights: int = 0
     fallback_receivers: tuple = ()
     coarse: int = 0  # layers of a caustic out of the camera's view (drawn coarsely)
+    #: "Rod on Mirror (glossy)": a glass mesh's light on a receiver the layer cannot
+    #: draw on, where no lens light stands in for it (`undrawn_glass`)
+    undrawn: tuple = ()
 
     def text(self) -> str:
         shares = (
@@ -163,10 +166,28 @@ class LayerFigures:
                 f"; {self.coarse} of the layers coarse, where the camera does not see the "
                 "caustic (for reflections)"
             )
+        if self.undrawn:
+            out += (
+                f"; not drawn: the light through {', '.join(self.undrawn)} (a glass mesh's "
+                "caustic on a glossy or transparent receiver has no lens light to stand in)"
+            )
         return out
 
 
-def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFigures:
+def undrawn_glass(patches, receiver_of, first_mesh: int, glass_names) -> tuple:
+    """ "Rod on Mirror (glossy)" for each glass mesh (its sources from `first_mesh` on,
+    named by `glass_names`) whose light lands on a receiver the layer cannot draw on
+    (``receiver_of(patch)``: its name and "glossy", "transparent" or "")."""
+    out = set()
+    for patch in patches:
+        name, why = receiver_of(patch)
+        for s in (int(x) for x in patch.sources):
+            if why and first_mesh <= s < first_mesh + len(glass_names):
+                out.add(f"{glass_names[s - first_mesh]} on {name} ({why})")
+    return tuple(sorted(out))
+
+
+def figures_of(bake, fallback_lights: int = 0, fallback_receivers=(), undrawn=()) -> LayerFigures:
     layer = bake.layer
     return LayerFigures(
         layers=len(layer.patches),
@@ -179,4 +200,5 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=()) -> LayerFi
         fallback_lights=fallback_lights,
         fallback_receivers=tuple(fallback_receivers),
         coarse=sum(1 for p in layer.patches if p.coarse),
+        undrawn=tuple(undrawn),
     )

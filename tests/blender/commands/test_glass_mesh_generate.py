@@ -259,3 +259,21 @@ def test_glass_in_another_glasss_light_is_traced_with_it(empty_blend):
     assert "(light through one reaches the other): Rod + Cube" in message
     names = {o.lens_lights.source_lens for o in fine_layers()}
     assert names == {"Rod + Cube"}
+
+
+def test_the_rods_light_on_a_metal_floor_is_named_as_not_drawn(empty_blend):
+    """A metal floor takes no layer (it shows no diffuse caustic), and no lens light can
+    stand in for a glass mesh's caustic there (the spheres get Fitted spots): the
+    report says the rod's light there is not drawn (before: nothing was said)."""
+    rod_scene()
+    floor = bpy.data.objects["Plane"]
+    metal = bpy.data.materials.new("Metal")
+    if bpy.app.version < (5, 0, 0):
+        metal.use_nodes = True
+    metal.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 1.0
+    floor.data.materials.append(metal)
+    set_engine("BLENDER_EEVEE")
+    level, message, figures = generate()
+    assert "not drawn: the light through Rod on Plane (glossy)" in message, message
+    assert "no caustic layer for the glass of Rod: it lands only where a layer" in message
+    assert not fine_layers(), message
