@@ -107,14 +107,16 @@ def test_glass_that_is_no_sphere_is_named_by_its_shape(empty_blend, auto_builds_
     # issue 25: closed glass is a mesh lens of its own; open glass is named
     assert sorted(m.name for m in read.mesh_lenses) == ["Cube", "Cylinder", "Egg", "Stretched"]
     assert reasons == {
-        "Tube": "open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36)",
+        "Tube": "open mesh: a surface, not a glass volume "
+        "(open glass is water only with water's index, 1.30–1.36)",
     }
     assert dict(read.unmodelled_glass) == reasons
     level, message, figures = generate()
     assert figures["created"] == 1 and figures["left_out"] == 1
     assert (
         "left out 1 object (Lens Lights models solid glass spheres and closed glass meshes): "
-        "Tube (open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36))"
+        "Tube (open mesh: a surface, not a glass volume "
+        "(open glass is water only with water's index, 1.30–1.36))"
     ) in message
     # no floor here: nothing receives the meshes' caustics, and the report says so
     assert "no caustic layer for the glass of Cylinder, Cube, Egg, Stretched" in message

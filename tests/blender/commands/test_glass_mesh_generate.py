@@ -183,8 +183,8 @@ def test_an_open_glass_sheet_keeps_cycles_caustics_and_is_named(empty_blend):
     set_engine("CYCLES")
     level, message, figures = generate()
     assert (
-        "Pane (open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36))"
-        in message
+        "Pane (open mesh: a surface, not a glass volume "
+        "(open glass is water only with water's index, 1.30–1.36))" in message
     )
     assert len(fine_layers()) == 1
     # the pane's caustic is Cycles' alone: its refractive caustics stay on

@@ -117,7 +117,8 @@ def test_an_open_glass_plane_is_left_out_with_its_reason(empty_blend):
     assert read.left_out_lenses == [
         (
             "Pane",
-            "open mesh: a surface, not a glass volume (open glass is water only with water's index, 1.30–1.36)",
+            "open mesh: a surface, not a glass volume "
+            "(open glass is water only with water's index, 1.30–1.36)",
         )
     ]
     assert read.unmodelled_glass[0][0] == "Pane"
