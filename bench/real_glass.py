@@ -72,8 +72,10 @@ sys.path.insert(0, str(ROOT / "bench"))
 from measuring_scene import (  # noqa: E402
     add_diffuse_floor,
     add_top_camera,
+    measured_render_settings,
     new_material,
     new_measuring_scene,
+    render_irradiance,
 )
 from real_scenes import ALBEDO, add_light, eevee_id, emitter, load_extension, metrics  # noqa: E402
 
@@ -264,42 +266,21 @@ def build(case, frame, engine, px, samples):
     add_light(case)
     top = float(np.max(case.mesh[0][:, 2]))
     add_top_camera(cx, cy, top + 0.5, view, clip_end=10.0)
+    measured_render_settings(sc, engine, samples)
     if engine == "CYCLES":
         c = sc.cycles
-        c.samples = samples
-        c.use_denoising = False
-        c.use_adaptive_sampling = False
-        c.pixel_filter_type = "BOX"
-        c.filter_width = 1.0
-        c.seed = 1
         c.caustics_refractive = False
         c.caustics_reflective = False
         c.max_bounces, c.transmission_bounces, c.glossy_bounces = 24, 16, 16
         c.diffuse_bounces = 1
         c.blur_glossy = 0.0  # "Filter Glossy": no roughening of the glass
         c.sample_clamp_direct = c.sample_clamp_indirect = 0.0  # no clamp (default 10)
-    else:
-        e = sc.eevee
-        e.taa_render_samples = samples
-        for attr, value in (("use_raytracing", False), ("use_shadows", True)):
-            if hasattr(e, attr):
-                setattr(e, attr, value)
-        if hasattr(sc.render, "filter_size"):
-            sc.render.filter_size = 1.0
     return sc
 
 
 def render(sc, path):
-    import bpy
-
-    sc.render.filepath = str(path)
-    t0 = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    dt = time.perf_counter() - t0
-    img = bpy.data.images.load(str(path))
-    pix = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return pix[..., :3].mean(axis=2) * math.pi / ALBEDO, dt  # irradiance, W/m²
+    """(irradiance on the floor per pixel, W/m², the render's seconds)."""
+    return render_irradiance(sc, path, ALBEDO)
 
 
 def cycles_path_traced(case, frame, px, samples, tmp):

@@ -45,7 +45,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from measuring_scene import build_measuring_scene  # noqa: E402
+from measuring_scene import (  # noqa: E402
+    build_measuring_scene,
+    measured_render_settings,
+    render_irradiance,
+)
 
 import reference as ref  # noqa: E402
 
@@ -337,37 +341,16 @@ def build(case, frame, engine, px, samples):
     )
     sc = built.scene
     add_light(case)
+    measured_render_settings(sc, engine, samples)
     if engine == "CYCLES":
         c = sc.cycles
-        c.samples = samples
-        c.use_denoising = False
-        c.use_adaptive_sampling = False
-        c.pixel_filter_type = "BOX"
-        c.filter_width = 1.0
-        c.seed = 1
         c.caustics_refractive = False  # the baseline: no caustic at all
-    else:
-        e = sc.eevee
-        e.taa_render_samples = samples
-        for attr, value in (("use_raytracing", False), ("use_shadows", True)):
-            if hasattr(e, attr):
-                setattr(e, attr, value)
-        if hasattr(sc.render, "filter_size"):
-            sc.render.filter_size = 1.0
     return sc
 
 
 def render(sc, path):
-    import bpy
-
-    sc.render.filepath = str(path)
-    t0 = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    dt = time.perf_counter() - t0
-    img = bpy.data.images.load(str(path))
-    pix = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return pix[..., :3].mean(axis=2) * math.pi / ALBEDO, dt  # irradiance, W/m²
+    """(irradiance on the floor per pixel, W/m², the render's seconds)."""
+    return render_irradiance(sc, path, ALBEDO)
 
 
 def generate(replace=True):

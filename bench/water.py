@@ -43,7 +43,13 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT / "bench"))
 
-from measuring_scene import add_diffuse_floor, add_top_camera, new_measuring_scene  # noqa: E402
+from measuring_scene import (  # noqa: E402
+    add_diffuse_floor,
+    add_top_camera,
+    measured_render_settings,
+    new_measuring_scene,
+    render_irradiance,
+)
 from real_scenes import ALBEDO, eevee_id, load_extension, metrics  # noqa: E402
 
 from reference.water_tracer import SineWaves, height_field_mesh, trace_floor  # noqa: E402
@@ -120,38 +126,17 @@ def build(engine, px, samples, depth, grid, fr):
     sun.rotation_mode = "QUATERNION"
     sun.rotation_quaternion = Vector(tuple(sun_direction())).to_track_quat("-Z", "Y")
     add_top_camera(fr[0], fr[1], depth + 0.5, fr[2], clip_end=10.0)
+    measured_render_settings(sc, engine, samples)
     if engine == "CYCLES":
         c = sc.cycles
-        c.samples = samples
-        c.use_denoising = False
-        c.use_adaptive_sampling = False
-        c.pixel_filter_type = "BOX"
-        c.filter_width = 1.0
-        c.seed = 1
         c.diffuse_bounces = 1
         c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
-    else:
-        e = sc.eevee
-        e.taa_render_samples = samples
-        for attr, value in (("use_raytracing", False), ("use_shadows", True)):
-            if hasattr(e, attr):
-                setattr(e, attr, value)
-        if hasattr(sc.render, "filter_size"):
-            sc.render.filter_size = 1.0
     return sc
 
 
 def render(sc, path):
-    import bpy
-
-    sc.render.filepath = str(path)
-    t0 = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    dt = time.perf_counter() - t0
-    img = bpy.data.images.load(str(path))
-    pix = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return pix[..., :3].mean(axis=2) * math.pi / ALBEDO, dt
+    """(irradiance on the floor per pixel, W/m², the render's seconds)."""
+    return render_irradiance(sc, path, ALBEDO)
 
 
 def generated(engine, px, samples, depth, grid, fr, tmp):

@@ -193,6 +193,38 @@ def direct_light_only(sc, samples: int) -> None:
     c.seed = 1
 
 
+def measured_render_settings(sc, engine: str, samples: int) -> None:
+    """The benches' plain render settings: `samples`, no denoiser or adaptive sampling,
+    a one-pixel box filter and a fixed seed in Cycles; in EEVEE no ray tracing,
+    shadows on, a one-pixel filter (what a pixel-by-pixel comparison needs)."""
+    if engine == "CYCLES":
+        c = sc.cycles
+        c.samples = samples
+        c.use_denoising = False
+        c.use_adaptive_sampling = False
+        c.pixel_filter_type = "BOX"
+        c.filter_width = 1.0
+        c.seed = 1
+        return
+    sc.eevee.taa_render_samples = samples
+    for attr, value in (("use_raytracing", False), ("use_shadows", True)):
+        if hasattr(sc.eevee, attr):
+            setattr(sc.eevee, attr, value)
+    if hasattr(sc.render, "filter_size"):
+        sc.render.filter_size = 1.0
+
+
+def render_irradiance(sc, path, albedo: float):
+    """(the irradiance a white-ish Lambertian floor of `albedo` shows per pixel,
+    ``π · grey / albedo`` (W/m², rows from the bottom), the render's seconds)."""
+    import math
+    import time
+
+    t0 = time.perf_counter()
+    grey = render_grey(sc, path)
+    return grey * math.pi / albedo, time.perf_counter() - t0
+
+
 def render_grey(sc, path):
     """Renders `sc` to `path` and returns the mean of the RGB channels per pixel
     (rows from the bottom, as Blender's images store them)."""
