@@ -7,6 +7,7 @@ import math
 from types import SimpleNamespace
 
 import bpy
+import numpy as np
 from measuring_scene import new_material  # (scripts/): Blender 4.x needs use_nodes
 
 
@@ -71,6 +72,26 @@ def caustic_layers():
     """The caustic layers among `lens_lights()`: their meshes, without the copies made
     for EEVEE's reflections (`blender/build/layers.py`)."""
     return [o for o in lens_lights() if o.type == "MESH" and not o.get("lens_lights_reflection")]
+
+
+def layer_triangle_flux(ob):
+    """(T, 3): per triangle of a caustic layer mesh, the R, G, B of the irradiance the
+    renderer draws integrated over it: its area × the mean of its corners' values
+    (the attribute is linear over each triangle)."""
+    me = ob.data
+    rgba = np.empty(len(me.vertices) * 4)
+    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
+    corners = np.empty(len(me.loops), dtype=np.int32)
+    me.loops.foreach_get("vertex_index", corners)
+    area = np.empty(len(me.polygons))
+    me.polygons.foreach_get("area", area)
+    rgb = rgba.reshape(-1, 4)[:, :3]
+    return rgb[corners.reshape(-1, 3)].mean(axis=1) * area[:, None]
+
+
+def layer_flux(ob) -> float:
+    """What a caustic layer mesh draws, integrated over it (green: a white light)."""
+    return float(layer_triangle_flux(ob)[:, 1].sum())
 
 
 def generate():
@@ -278,7 +299,6 @@ def _struct(s, depth):
 
 
 def _mesh_digest(mesh):
-    import numpy as np
 
     v = np.empty(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", v)

@@ -14,6 +14,7 @@ from blender_scene_helpers import (
     basic_scene,
     caustic_layers,
     generate,
+    layer_flux,
     lens_lights,
     set_engine,
     snapshot,
@@ -33,21 +34,6 @@ FLUX_TOL = 0.02
 
 def layers():
     return caustic_layers()
-
-
-def layer_flux(ob):
-    """The integral of the irradiance the renderer draws over a layer mesh: per
-    triangle its area × the mean of its corners' values (linear over it; green
-    channel: a white light)."""
-    me = ob.data
-    rgba = np.empty(len(me.vertices) * 4)
-    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
-    corners = np.empty(len(me.loops), dtype=np.int32)
-    me.loops.foreach_get("vertex_index", corners)
-    area = np.empty(len(me.polygons))
-    me.polygons.foreach_get("area", area)
-    green = rgba.reshape(-1, 4)[:, 1]
-    return float((green[corners.reshape(-1, 3)].mean(axis=1) * area).sum())
 
 
 def test_auto_in_eevee_builds_layers_not_lights(empty_blend):

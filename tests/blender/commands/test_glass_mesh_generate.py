@@ -29,6 +29,7 @@ from blender_scene_helpers import (  # noqa: E402
     add_sphere,
     generate,
     glass_material,
+    layer_flux,
     lens_lights,
     set_engine,
 )
@@ -98,20 +99,6 @@ def fine_layers():
 def drawn_flux():
     """What every layer draws, in view and out of it."""
     return sum(layer_flux(o) for o in layers())
-
-
-def layer_flux(ob):
-    """The irradiance the renderer draws, integrated over a layer mesh (per triangle
-    its area × the mean of its corners; green: a white light)."""
-    me = ob.data
-    rgba = np.empty(len(me.vertices) * 4)
-    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
-    corners = np.empty(len(me.loops), dtype=np.int32)
-    me.loops.foreach_get("vertex_index", corners)
-    area = np.empty(len(me.polygons))
-    me.polygons.foreach_get("area", area)
-    green = rgba.reshape(-1, 4)[:, 1]
-    return float((green[corners.reshape(-1, 3)].mean(axis=1) * area).sum())
 
 
 @pytest.mark.parametrize("engine", ["BLENDER_EEVEE", "CYCLES"])

@@ -25,6 +25,8 @@ from blender_scene_helpers import (  # noqa: E402
     caustic_layers,
     generate,
     glass_material,
+    layer_flux,
+    layer_triangle_flux,
     set_engine,
 )
 
@@ -60,18 +62,6 @@ def pool(ior=N, subdivide=False):
     return water
 
 
-def layer_flux(ob):
-    me = ob.data
-    rgba = np.empty(len(me.vertices) * 4)
-    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
-    corners = np.empty(len(me.loops), dtype=np.int32)
-    me.loops.foreach_get("vertex_index", corners)
-    area = np.empty(len(me.polygons))
-    me.polygons.foreach_get("area", area)
-    green = rgba.reshape(-1, 4)[:, 1]
-    return float((green[corners.reshape(-1, 3)].mean(axis=1) * area).sum())
-
-
 @pytest.mark.parametrize("engine", ["BLENDER_EEVEE", "CYCLES"])
 def test_flat_water_lays_its_light_on_the_floor(empty_blend, engine):
     water = pool(subdivide=True)
@@ -102,15 +92,7 @@ def test_open_glass_that_is_not_water_stays_left_out(empty_blend):
 
 def channel_flux(ob):
     """(R, G, B) of the irradiance drawn, integrated over the layer mesh."""
-    me = ob.data
-    rgba = np.empty(len(me.vertices) * 4)
-    me.attributes["lens_irradiance"].data.foreach_get("color", rgba)
-    corners = np.empty(len(me.loops), dtype=np.int32)
-    me.loops.foreach_get("vertex_index", corners)
-    area = np.empty(len(me.polygons))
-    me.polygons.foreach_get("area", area)
-    rgb = rgba.reshape(-1, 4)[:, :3]
-    return (rgb[corners.reshape(-1, 3)].mean(axis=1) * area[:, None]).sum(axis=0)
+    return layer_triangle_flux(ob).sum(axis=0)
 
 
 def test_volume_absorption_tints_the_light_by_depth(empty_blend):
