@@ -299,7 +299,6 @@ def _struct(s, depth):
 
 
 def _mesh_digest(mesh):
-
     v = np.empty(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", v)
     return hashlib.sha1(np.round(v, 7).tobytes()).hexdigest()
