@@ -74,3 +74,10 @@ def fresnel_t(cos_i, n1, n2):
     rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
     rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
     return 1.0 - rs * rs, 1.0 - rp * rp
+
+
+def unpolarised_t(theta, n1, n2):
+    """Unpolarised power transmittance at incidence `theta` from n1 into n2, the mean
+    of `fresnel_t`'s s and p parts."""
+    ts, tp = fresnel_t(math.cos(theta), n1, n2)
+    return 0.5 * (ts + tp)

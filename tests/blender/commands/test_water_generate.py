@@ -29,17 +29,13 @@ from blender_scene_helpers import (  # noqa: E402
     layer_triangle_flux,
     set_engine,
 )
+from glass_meshes import unpolarised_t  # noqa: E402
 
 N, STRENGTH, ZENITH, HALF = 1.333, 3.0, math.radians(30.0), 1.0
 
 
 def _t(theta):
-    ci = math.cos(theta)
-    st = math.sin(theta) / N
-    ct = math.sqrt(1.0 - st * st)
-    rs = (ci - N * ct) / (ci + N * ct)
-    rp = (N * ci - ct) / (N * ci + ct)
-    return 1.0 - 0.5 * (rs * rs + rp * rp)
+    return unpolarised_t(theta, 1.0, N)
 
 
 def pool(ior=N, subdivide=False):

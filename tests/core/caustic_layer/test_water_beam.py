@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from glass_meshes import unpolarised_t
 
 from core.caustic_layer.emitters import PointLight, SunLight
 from core.caustic_layer.rasters import build_layer
@@ -23,12 +24,7 @@ N = 1.333
 
 def _t(theta):
     """Unpolarised Fresnel transmittance air → water from the amplitude coefficients."""
-    ci = math.cos(theta)
-    st = math.sin(theta) / N
-    ct = math.sqrt(1.0 - st * st)
-    rs = (ci - N * ct) / (ci + N * ct)
-    rp = (N * ci - ct) / (N * ci + ct)
-    return 1.0 - 0.5 * (rs * rs + rp * rp)
+    return unpolarised_t(theta, 1.0, N)
 
 
 def _floor(z, half=4.0):

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from glass_meshes import unpolarised_t
 
 from core.caustic_layer.emitters import AreaLight, PointLight, SpotLight, SunLight
 from core.caustic_layer.receiver_bvh import ReceiverMesh
@@ -29,12 +30,7 @@ N = 1.333
 
 
 def _t(theta):
-    ci = math.cos(theta)
-    st = math.sin(theta) / N
-    ct = math.sqrt(1.0 - st * st)
-    rs = (ci - N * ct) / (ci + N * ct)
-    rp = (N * ci - ct) / (N * ci + ct)
-    return 1.0 - 0.5 * (rs * rs + rp * rp)
+    return unpolarised_t(theta, 1.0, N)
 
 
 def _water(half=1.0, n=4, z=0.0, optics=None):

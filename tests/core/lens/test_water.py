@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from glass_meshes import unpolarised_t
 
 from core.lens.water import WaterSurface, rest_plane
 
@@ -24,12 +25,7 @@ def _flat(z=0.0, size=1.0, tilt=0.0):
 
 def _unpolarised_t(theta):
     """1 − (r_s² + r_p²)/2 with the amplitude coefficients, air → water."""
-    ci = math.cos(theta)
-    st = math.sin(theta) / N
-    ct = math.sqrt(1.0 - st * st)
-    rs = (ci - N * ct) / (ci + N * ct)
-    rp = (N * ci - ct) / (N * ci + ct)
-    return 1.0 - 0.5 * (rs * rs + rp * rp)
+    return unpolarised_t(theta, 1.0, N)
 
 
 @pytest.mark.parametrize("theta_deg", [0.0, 30.0, 60.0, 80.0])
