@@ -3,8 +3,14 @@ open glass meshes that are water (`read.water`) are taken out of the glass left 
 the receivers read without them, every (light, water) pair traced through its
 surface and landed under it in one layer (`core.caustic_layer.water_sources`), and
 built with the other layers (`build.layers`) in Generate's undo step, in every tier
-and both engines. Bake and Live update do not follow water yet (it stays open glass
-left out there).
+and both engines. Its objects are marked (`marks.WATER_MARK`).
+
+Bake: each frame's stage as the layer's bake takes it (`frame_layers`: the pairs
+keyed by (light, water) names, the re-landing of the same rays on the bake's fixed
+rasters). Live update: the stage run again on every update, its layers written into
+the water's layer objects in place where the patches are the same (`refill`), else
+those alone made again (`replace`); the glass layers and lens lights are not
+touched.
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+from ...core.animation.layer_segments import FrameLayers
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
     SOURCE_SAMPLES,
@@ -24,6 +31,8 @@ from ...core.caustic_layer.view import view_of
 from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
 from ...core.scene.water import water_text
 from ..build import layers as layer_builder
+from ..build.marks import WATER_MARK
+from ..build.ownership import created_objects
 from ..read.receivers import read_receivers
 from ..read.water import read_water, take_water
 from .layer_stage import EEVEE_ENGINES
@@ -40,6 +49,8 @@ class WaterStage:
     receivers: object = None
     bake: object = None
     figures: object = None
+    sources: list = field(default_factory=list)  # `water_beam.WaterSource` per pair
+    rays: list = field(default_factory=list)  # node rays per pair (the bake's re-landing)
 
 
 def prepare(depsgraph, work):
@@ -81,6 +92,7 @@ def prepare(depsgraph, work):
         else WATER_RAYS
         for s, c in zip(sources, centers, strict=True)
     ]
+    stage.sources, stage.rays = sources, rays
     stage.bake = water_bake(
         sources,
         stage.receivers.mesh,
@@ -98,8 +110,7 @@ def build(scene, work) -> list:
     stage = work.water
     if stage is None or stage.bake is None:
         return []
-    read = work.read
-    names = [(read.light_sources[j], stage.waters[k].name) for j, k in stage.pairs]
+    names = pair_names(work)
     made, _lights, fallback = layer_builder.build(
         scene,
         stage.bake,
@@ -111,7 +122,51 @@ def build(scene, work) -> list:
         reflections=scene.render.engine in EEVEE_ENGINES,
     )
     stage.figures = figures_of(stage.bake, 0, fallback)
+    for ob in made:
+        ob[WATER_MARK] = True
     return made
+
+
+def is_water_layer(ob) -> bool:
+    """Is `ob` (the extension's) a water surface's layer or its reflection copy?"""
+    return bool(ob.get(WATER_MARK))
+
+
+def water_layers(scene) -> list:
+    """The extension's water layer objects in `scene`."""
+    return [ob for ob in created_objects(scene) if is_water_layer(ob)]
+
+
+def pair_names(work) -> list:
+    """(light, water) names per pair: the layers' words and the bake's keys."""
+    stage = work.water
+    return [(work.read.light_sources[j], stage.waters[k].name) for j, k in stage.pairs]
+
+
+def frame_layers(work):
+    """``work``'s water as one frame of a bake (`layer_segments.FrameLayers`: keys
+    ("water", light, water) per pair; its re-landing traces the same rays, Generate's,
+    onto the bake's rasters), or None when the frame has no water layer. Receivers
+    drawn by a fallback (glossy, transparent) get no layer, as in Generate."""
+    stage = work.water
+    if stage is None or stage.bake is None:
+        return None
+    infos = stage.receivers.objects
+    sources, rays, index = stage.sources, stage.rays, stage.bake.index
+
+    def reland(given, res):
+        return water_bake(
+            sources, index, n_rays=rays, resolution=res, raster_frames=given
+        ).layer.patches
+
+    return FrameLayers(
+        sources,
+        stage.bake,
+        [("water", light, water) for light, water in pair_names(work)],
+        [info.name for info in infos],
+        frozenset(k for k, info in enumerate(infos) if info.fallback),
+        reland=reland,
+    )
 
 
 def note(work) -> str:
