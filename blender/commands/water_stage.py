@@ -190,3 +190,27 @@ def note(work) -> str:
     if stage.figures is not None:
         text += f" ({stage.figures.text()})"
     return text
+
+
+def refill(scene, work, existing) -> bool:
+    """The stage's layers written into the water's layer objects `existing` (and
+    through their shared meshes their reflection copies) in place, when they are
+    the layers of the same patches on the same receivers, in order; False: nothing
+    written (`replace` them)."""
+    stage = work.water
+    if stage is None or stage.bake is None:
+        return False
+    infos = stage.receivers.objects
+    patches = [p for p in stage.bake.layer.patches if not infos[p.object_id].fallback]
+    obs = [ob for ob in existing if not layer_builder.is_reflection(ob)]
+    copies = len(existing) - len(obs)
+    reflections = scene.render.engine in EEVEE_ENGINES
+    if len(obs) != len(patches) or copies != (len(obs) if reflections else 0):
+        return False
+    for ob, p in zip(obs, patches, strict=True):
+        if ob.data is None or ob.lens_lights.receiver != infos[p.object_id].name:
+            return False
+    names = pair_names(work)
+    for ob, p in zip(obs, patches, strict=True):
+        layer_builder.refill_layer(ob, p, names)
+    return True
