@@ -344,8 +344,9 @@ class Baker:
             settings.live_update = False
         self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
         # the water's layer per frame (`water_stage.frame_layers`; None: none) and its
-        # receivers (in every tier, as Generate builds the water's layers)
-        self.water, self.water_receivers = [], []
+        # receivers (in every tier, as Generate builds the water's layers); the rasters
+        # its first frame fixes, the later frames' landed on them at once
+        self.water, self.water_receivers, self.water_fixed = [], [], None
         # what each frame was baked from (`bake_check`), and whether read as rendered
         self.prints: list = []
         self.read_as_render = True
@@ -365,7 +366,8 @@ class Baker:
         scene, options = self.scene, self.options
 
         def plan(dg):
-            return water_stage.prepare(dg, pipeline.plan_scene(dg, scene, options))
+            work = pipeline.plan_scene(dg, scene, options)
+            return water_stage.prepare(dg, work, self.water_fixed)
 
         scene.frame_set(f)
         if self.use_viewport:
@@ -376,6 +378,10 @@ class Baker:
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
+        if self.water_fixed is None:  # the first frame with water fixes the rasters
+            self.water_fixed = water_stage.fixed_rasters(work)
+            if self.water_fixed is not None:
+                water_stage.land_on(work, self.water_fixed)
         self.water.append(water_stage.frame_layers(work))
         self.water_receivers.append(work.water.receivers)
         self.prints.append(bake_check.prints_of(work.read, options))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from ...core.animation.layer_segments import FrameLayers
+from ...core.animation.layer_segments import FrameLayers, plan_segments
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
     SOURCE_SAMPLES,
@@ -26,6 +26,7 @@ from ...core.caustic_layer.plan import (
     figures_of,
     sheet_camera,
 )
+from ...core.caustic_layer.rasters import RasterFrame
 from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
 from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
@@ -35,7 +36,7 @@ from ..build.marks import WATER_MARK
 from ..build.ownership import created_objects
 from ..read.receivers import read_receivers
 from ..read.water import read_water, take_water
-from .layer_stage import EEVEE_ENGINES
+from .layer_stage import EEVEE_ENGINES, receivers_key
 
 
 @dataclass
@@ -53,9 +54,23 @@ class WaterStage:
     rays: list = field(default_factory=list)  # node rays per pair (the bake's re-landing)
 
 
-def prepare(depsgraph, work):
+@dataclass
+class FixedRasters:
+    """A bake's water rasters, fixed from its first frame with water (`fixed_rasters`):
+    the later frames land on them at once when their pairs (``keys``) and receivers
+    (``receivers``: `layer_stage.receivers_key`) are that frame's."""
+
+    keys: list
+    receivers: bytes
+    given: list  # `rasters.RasterFrame` per baked layer
+    resolution: int
+
+
+def prepare(depsgraph, work, fixed: FixedRasters | None = None):
     """Read and bake the water of ``work``'s scene (changes nothing); returns `work`
-    with ``work.water`` set."""
+    with ``work.water`` set. ``fixed`` (a bake's): its rasters filled instead of
+    rasters fitted to this frame's landings, where this frame's pairs and receivers
+    are theirs."""
     stage = work.water = WaterStage()
     read = work.read
     t = time.perf_counter()
@@ -93,6 +108,9 @@ def prepare(depsgraph, work):
         for s, c in zip(sources, centers, strict=True)
     ]
     stage.sources, stage.rays = sources, rays
+    if fixed is not None and land_on(work, fixed):
+        work.timings["water bake"] = time.perf_counter() - t
+        return work
     stage.bake = water_bake(
         sources,
         stage.receivers.mesh,
@@ -213,4 +231,38 @@ def refill(scene, work, existing) -> bool:
     names = pair_names(work)
     for ob, p in zip(obs, patches, strict=True):
         layer_builder.refill_layer(ob, p, names)
+    return True
+
+
+def fixed_rasters(work) -> FixedRasters | None:
+    """The rasters a bake fixes from ``work``'s water (this frame's layer as one
+    frame of `layer_segments`: every raster of the bake's one resolution), or None
+    without a water layer."""
+    fl = frame_layers(work)
+    if fl is None:
+        return None
+    segs, res = plan_segments([fl])
+    given = [RasterFrame(*s.members[0], *s.plane, s.axes, s.key[-1]) for s in segs]
+    return FixedRasters(fl.source_keys, receivers_key(work.water.receivers), given, res)
+
+
+def land_on(work, fixed: FixedRasters) -> bool:
+    """``work``'s water traced and landed on the ``fixed`` rasters (its bake replaced)
+    when its pairs and receivers are theirs: a bake's frames then share one topology
+    and need no second landing (`layer_segments.bake_frames` keeps a frame whose
+    rasters are the bake's). False: nothing done (the pairs or receivers differ)."""
+    stage = work.water
+    if not stage.sources or stage.receivers is None:
+        return False
+    keys = [("water", light, water) for light, water in pair_names(work)]
+    if keys != fixed.keys or receivers_key(stage.receivers) != fixed.receivers:
+        return False
+    index = stage.bake.index if stage.bake is not None else stage.receivers.mesh
+    stage.bake = water_bake(
+        stage.sources,
+        index,
+        n_rays=stage.rays,
+        resolution=fixed.resolution,
+        raster_frames=fixed.given,
+    )
     return True
