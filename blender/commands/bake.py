@@ -48,6 +48,13 @@ scene as it was:
      `layer_segments.COARSEN_LIMIT` times; each frame's rays landed again on it), the
      frames' irradiance as slices of one packed half-float image, read through
      the mesh's raster UVs with a keyed slice index (`baked_layers`).
+   * Water (in every tier, as Generate; `water_stage`): each frame's water layer
+     read and traced as Generate's; the first frame with water fixes its rasters
+     (`water_stage.fixed_rasters`) and the later frames land on them at once
+     (`water_stage.land_on`: same pairs, same receivers; else the frame keeps its own
+     and `layer_segments` makes the union), then keyed as the Caustic layer's (one
+     mesh per track, the frames' irradiance as slices of one atlas; marked
+     `marks.WATER_MARK`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
 after it (the keys drive the lights; a cancel or a failed plan puts it back); while

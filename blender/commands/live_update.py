@@ -60,6 +60,14 @@ render_init refines at once, and an update with the render's depsgraph (or durin
 render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
 mesh's beam need the full layer at once.
 
+**Water** (issue 26): every update runs the water stage (`water_stage.prepare`, as
+Generate) and writes its layers into the water's layer objects in place where the
+patches are the same (`water_stage.refill`), else makes those alone again; the lens
+lights and glass layers are matched without them. The water surfaces' evaluated
+vertices are in the inputs' signature (an Ocean's waves move every frame inside one
+bounding box) and the surfaces are watched. Always the full water layer (no coarse
+one).
+
 **The switch.** Turning ``live_update`` on brings the lights up to date at once
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.

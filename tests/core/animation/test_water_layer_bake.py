@@ -80,3 +80,14 @@ def test_moving_waves_bake_on_one_raster_each_slice_its_frames_net():
     other = layer_on_bins(dataclasses.replace(seg.layer, irradiance=seg.slices[1]), ex, ey)
     first = layer_on_bins(dataclasses.replace(seg.layer, irradiance=seg.slices[0]), ex, ey)
     assert relative_l1(first, other, area) > 0.2
+
+
+def test_the_bake_report_counts_the_water_layers_apart():
+    from core.animation.light_tracks import bake_message
+
+    fig = dict(objects=3, water_objects=2, water_images=1, energy_model="AUTO", frame_start=1,
+               frame_end=100, frames=100, seconds=60.0)  # fmt: skip
+    assert bake_message(fig) == (
+        "Baked 1 lens light and 2 water caustic layer objects over frames 1–100 (100 frames, "
+        "60.0 s); 1 water layer image"
+    )
