@@ -389,8 +389,9 @@ class Baker:
             self.water_fixed = water_stage.fixed_rasters(work)
             if self.water_fixed is not None:
                 water_stage.land_on(work, self.water_fixed)
-        self.water.append(water_stage.frame_layers(work))
+        self.water.append(water_stage.frame_layers(work, light=True))
         self.water_receivers.append(work.water.receivers)
+        work.water = None  # (the frame's surfaces and their search structures: freed)
         self.prints.append(bake_check.prints_of(work.read, options))
         self.read_as_render &= bake_check.read_as_render(work.read.how)
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)

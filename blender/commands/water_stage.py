@@ -18,6 +18,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ...core.animation.layer_segments import FrameLayers, plan_segments
 from ...core.caustic_layer.plan import (
     FACE_BUDGET,
@@ -29,7 +31,9 @@ from ...core.caustic_layer.plan import (
 from ...core.caustic_layer.rasters import RasterFrame
 from ...core.caustic_layer.ray_budget import pixel_size
 from ...core.caustic_layer.view import view_of
+from ...core.caustic_layer.water_beam import WaterSource
 from ...core.caustic_layer.water_sources import WATER_RAYS, rays_for, water_bake, water_sources
+from ...core.lens.water import WaterSurface
 from ...core.scene.water import water_text
 from ..build import layers as layer_builder
 from ..build.marks import WATER_MARK
@@ -161,20 +165,24 @@ def pair_names(work) -> list:
     return [(work.read.light_sources[j], stage.waters[k].name) for j, k in stage.pairs]
 
 
-def frame_layers(work):
+def frame_layers(work, light: bool = False):
     """``work``'s water as one frame of a bake (`layer_segments.FrameLayers`: keys
     ("water", light, water) per pair; its re-landing traces the same rays, Generate's,
     onto the bake's rasters), or None when the frame has no water layer. Receivers
-    drawn by a fallback (glossy, transparent) get no layer, as in Generate."""
+    drawn by a fallback (glossy, transparent) get no layer, as in Generate. ``light``:
+    keep only the surfaces' arrays (not their BVH and grid, rebuilt if a re-landing
+    is needed): a bake holds every frame."""
     stage = work.water
     if stage is None or stage.bake is None:
         return None
     infos = stage.receivers.objects
-    sources, rays, index = stage.sources, stage.rays, stage.bake.index
+    rays, index = stage.rays, stage.bake.index
+    sources = [_Kept.of(s) for s in stage.sources] if light else stage.sources
 
     def reland(given, res):
+        traced = [s.source() for s in sources] if light else sources
         return water_bake(
-            sources, index, n_rays=rays, resolution=res, raster_frames=given
+            traced, index, n_rays=rays, resolution=res, raster_frames=given
         ).layer.patches
 
     return FrameLayers(
@@ -185,6 +193,25 @@ def frame_layers(work):
         frozenset(k for k, info in enumerate(infos) if info.fallback),
         reland=reland,
     )
+
+
+@dataclass
+class _Kept:
+    """A `WaterSource` without its surface's search structures (the bake's frames)."""
+
+    emitter: object
+    arrays: tuple  # vertices, triangles, corner normals, ior, absorption
+    n_source: int
+    own_object: int
+
+    @classmethod
+    def of(cls, source):
+        w = source.surface
+        arrays = (w.vertices, w.triangles.astype(np.int32), w.corner_normals, w.ior, w.absorption)
+        return cls(source.emitter, arrays, source.n_source, source.own_object)
+
+    def source(self):
+        return WaterSource(self.emitter, WaterSurface(*self.arrays), self.n_source, self.own_object)
 
 
 def note(work) -> str:
