@@ -61,11 +61,13 @@ class WaterStage:
 @dataclass
 class FixedRasters:
     """A bake's water rasters, fixed from its first frame with water (`fixed_rasters`):
-    the later frames land on them at once when their pairs (``keys``) and receivers
-    (``receivers``: `layer_stage.receivers_key`) are that frame's."""
+    the later frames land on them at once when their pairs (``keys``), receivers
+    (``receivers``: `layer_stage.receivers_key`) and camera (``view``: the texels
+    follow it) are that frame's."""
 
     keys: list
     receivers: bytes
+    view: str
     given: list  # `rasters.RasterFrame` per baked layer
     resolution: int
 
@@ -270,19 +272,29 @@ def fixed_rasters(work) -> FixedRasters | None:
         return None
     segs, res = plan_segments([fl])
     given = [RasterFrame(*s.members[0], *s.plane, s.axes, s.key[-1]) for s in segs]
-    return FixedRasters(fl.source_keys, receivers_key(work.water.receivers), given, res)
+    return FixedRasters(
+        fl.source_keys, receivers_key(work.water.receivers), _view_key(work.read), given, res
+    )
+
+
+def _view_key(read) -> str:
+    """What the rasters' texels follow: the camera and the render's size."""
+    return repr((read.camera, read.width, read.height))
 
 
 def land_on(work, fixed: FixedRasters) -> bool:
     """``work``'s water traced and landed on the ``fixed`` rasters (its bake replaced)
-    when its pairs and receivers are theirs: a bake's frames then share one topology
-    and need no second landing (`layer_segments.bake_frames` keeps a frame whose
-    rasters are the bake's). False: nothing done (the pairs or receivers differ)."""
+    when its pairs, receivers and camera are theirs: a bake's frames then share one
+    topology and need no second landing (`layer_segments.bake_frames` keeps a frame
+    whose rasters are the bake's). False: nothing done (the pairs, receivers or
+    camera differ)."""
     stage = work.water
     if not stage.sources or stage.receivers is None:
         return False
     keys = [("water", light, water) for light, water in pair_names(work)]
     if keys != fixed.keys or receivers_key(stage.receivers) != fixed.receivers:
+        return False
+    if _view_key(work.read) != fixed.view:  # the camera moved: its own texels
         return False
     index = stage.bake.index if stage.bake is not None else stage.receivers.mesh
     stage.bake = water_bake(
