@@ -307,11 +307,12 @@ def bake_message(figures: dict) -> str:
     n = figures["objects"] - water
     what = "caustic layer object" if figures["energy_model"] == "CAUSTIC_LAYER" else "lens light"
     what += "s" if n != 1 else ""
+    parts = [f"{n} {what}"] if n or not water else []
     if water:
-        what += f" and {water} water caustic layer object{'s' if water != 1 else ''}"
+        parts.append(f"{water} water caustic layer object{'s' if water != 1 else ''}")
     text = (
-        f"Baked {n} {what} over frames {figures['frame_start']}–{figures['frame_end']} "
-        f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
+        f"Baked {' and '.join(parts)} over frames {figures['frame_start']}–"
+        f"{figures['frame_end']} ({figures['frames']} frames, {figures['seconds']:.1f} s)"
     )
     if figures.get("images"):
         kind = "layer" if "layer_resolution" in figures else "profile"

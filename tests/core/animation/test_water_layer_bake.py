@@ -91,3 +91,5 @@ def test_the_bake_report_counts_the_water_layers_apart():
         "Baked 1 lens light and 2 water caustic layer objects over frames 1–100 (100 frames, "
         "60.0 s); 1 water layer image"
     )
+    fig.update(objects=2, energy_model="CAUSTIC_LAYER")
+    assert bake_message(fig).startswith("Baked 2 water caustic layer objects over frames 1–100")
