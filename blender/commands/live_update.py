@@ -552,13 +552,16 @@ def _water_update(scene, work) -> str:
     was done: "refilled", "rebuilt", "removed" or ""."""
     existing = water_stage.water_layers(scene)
     if water_stage.refill(scene, work, existing):
-        return "refilled"
-    if existing:
-        _remove(scene, existing)
-    made = water_stage.build(scene, work)
-    if made:  # (the rebuilt glass layers' switches may have been put back: again)
+        done, made = "refilled", existing
+    else:
+        if existing:
+            _remove(scene, existing)
+        made = water_stage.build(scene, work)
+        done = "rebuilt" if made else ("removed" if existing else "")
+    if made:  # Cycles' own caustics off for them (again where the lights' rebuild put
+        # them back; a switch already off is left as it is)
         cycles_caustics.after_build(scene, work.plan, work.read, len(made), layers=True)
-    return "rebuilt" if made else ("removed" if existing else "")
+    return done
 
 
 def _layer_update(scene, work, figures) -> bool:

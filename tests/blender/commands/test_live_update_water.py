@@ -50,8 +50,10 @@ def test_live_update_rewrites_the_water_layer_on_every_frame(empty_blend, engine
     # the same objects and meshes, another net
     assert {k: v[2:] for k, v in state.items()} == {k: v[2:] for k, v in first.items()}
     assert any(not np.array_equal(state[k][1], first[k][1]) for k in state)
+    switch = scene.cycles.caustics_refractive  # Cycles' own caustics, as live update left it
     scene.lens_lights.live_update = False
     level, message, _ = generate()
+    assert scene.cycles.caustics_refractive == switch  # as Generate leaves it
     assert "water: Water" in message, message
     fresh = _state()
     assert sorted(fresh) == sorted(state)
