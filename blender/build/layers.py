@@ -49,6 +49,7 @@ from .marks import (
     LINK_MARK,
     MATERIAL_PREFIX,
     REFLECTION_MARK,
+    WATER_MARK,
 )
 from .ownership import created_objects, register
 
@@ -434,7 +435,8 @@ def _existing_layers(scene, patches, receivers, reflections) -> list | None:
     """The extension's layer object of each of `patches` (by `layer_name`), when the
     scene's objects are exactly those (and their reflection copies if
     ``reflections``: no fallback spot, none missing or extra); else None."""
-    objects = created_objects(scene)
+    # (the water's layers are the water stage's: `water_stage.refill`)
+    objects = [ob for ob in created_objects(scene) if not ob.get(WATER_MARK)]
     existing = {ob.name: ob for ob in objects if ob.type == "MESH"}
     if len(existing) != len(objects):  # a light: a fallback spot, or another tier's
         return None
@@ -472,11 +474,19 @@ def refill(scene, bake, receivers, names, reflections, drawn=None, anchors=None)
     for k, (ob, patch) in enumerate(zip(objects, patches, strict=True)):
         if drawn is not None:
             write_irradiance(ob.data, drawn[k])
+            beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
+            _describe(ob, patch, beams)
         else:
-            refill_mesh(ob.data, drawn_mesh(patch))
-        beams = [names[int(s)] for s in patch.sources if int(s) < len(names)]
-        _describe(ob, patch, beams)
+            refill_layer(ob, patch, names)
     return objects
+
+
+def refill_layer(ob, patch, names):
+    """Layer object `ob` made to draw `patch` in place (its mesh: `refill_mesh`; its
+    reflection copy shares it), its words updated; ``names``: (light, lens) per
+    source."""
+    refill_mesh(ob.data, drawn_mesh(patch))
+    _describe(ob, patch, [names[int(s)] for s in patch.sources if int(s) < len(names)])
 
 
 def _holds(me, values, anchors) -> bool:

@@ -35,6 +35,10 @@ BAKE_MARK = "bake"
 #: Object property of a caustic layer's reflection copy for EEVEE (`layers.create_reflection`).
 REFLECTION_MARK = "lens_lights_reflection"
 
+#: Object property of a water surface's caustic layer (and its reflection copy), Generate's
+#: or baked (`water_stage`): live update rewrites these alone on a frame change.
+WATER_MARK = "lens_lights_water"
+
 #: Custom property of a group's linking collection: its group number (0-based).
 LINK_GROUP = "lens_lights_link_group"
 

@@ -48,6 +48,13 @@ scene as it was:
      `layer_segments.COARSEN_LIMIT` times; each frame's rays landed again on it), the
      frames' irradiance as slices of one packed half-float image, read through
      the mesh's raster UVs with a keyed slice index (`baked_layers`).
+   * Water (in every tier, as Generate; `water_stage`): each frame's water layer
+     read and traced as Generate's; the first frame with water fixes its rasters
+     (`water_stage.fixed_rasters`) and the later frames land on them at once
+     (`water_stage.land_on`: same pairs, same receivers; else the frame keeps its own
+     and `layer_segments` makes the union), then keyed as the Caustic layer's (one
+     mesh per track, the frames' irradiance as slices of one atlas; marked
+     `marks.WATER_MARK`).
 
 Live update (where the extension has it) is turned off for the bake and stays off
 after it (the keys drive the lights; a cancel or a failed plan puts it back); while
@@ -88,9 +95,10 @@ from ..build.marks import (
     PROFILE_KEY,
     PROFILE_MARK,
     PROFILE_PREFIX,
+    WATER_MARK,
 )
 from ..read.render_probe import VIEWPORT_AS_RENDER, as_rendered
-from . import bake_check, layer_stage, pipeline
+from . import bake_check, layer_stage, pipeline, water_stage
 
 #: Why a glass mesh traced as a lens gets nothing from a bake outside the layer tier.
 MESH_NOT_BAKED = "a glass mesh: its caustic layer is baked in the Caustic layer tier only"
@@ -342,6 +350,10 @@ class Baker:
         if self.live_before:
             settings.live_update = False
         self.per_frame, self.works, self.firsts, self.tables = [], [], {}, {}
+        # the water's layer per frame (`water_stage.frame_layers`; None: none) and its
+        # receivers (in every tier, as Generate builds the water's layers); the rasters
+        # its first frame fixes, the later frames' landed on them at once
+        self.water, self.water_receivers, self.water_fixed = [], [], None
         # what each frame was baked from (`bake_check`), and whether read as rendered
         self.prints: list = []
         self.read_as_render = True
@@ -361,7 +373,8 @@ class Baker:
         scene, options = self.scene, self.options
 
         def plan(dg):
-            return pipeline.plan_scene(dg, scene, options)
+            work = pipeline.plan_scene(dg, scene, options)
+            return water_stage.prepare(dg, work, self.water_fixed)
 
         scene.frame_set(f)
         if self.use_viewport:
@@ -372,6 +385,13 @@ class Baker:
             if how == VIEWPORT_AS_RENDER:
                 work.read.occluders.release()
         self.per_frame.append(_frame_lights(work, self.firsts, self.tables))
+        if self.water_fixed is None:  # the first frame with water fixes the rasters
+            self.water_fixed = water_stage.fixed_rasters(work)
+            if self.water_fixed is not None:
+                water_stage.land_on(work, self.water_fixed)
+        self.water.append(water_stage.frame_layers(work, light=True))
+        self.water_receivers.append(work.water.receivers)
+        work.water = None  # (the frame's surfaces and their search structures: freed)
         self.prints.append(bake_check.prints_of(work.read, options))
         self.read_as_render &= bake_check.read_as_render(work.read.how)
         self.lens_objects.update(work.read.sphere_objects[p.source.lens] for p in work.plan.lights)
@@ -405,6 +425,8 @@ class Baker:
         cycles_caustics.restore(scene)
         try:
             figures = self._build_layers() if self.layer else self._build_lights()
+            figures.update(self._build_water())
+            figures["objects"] += figures["water_objects"]
             if scene.lens_lights.replace_cycles_caustics and figures["objects"]:
                 lenses = sorted(self.lens_objects, key=lambda o: o.name)
                 values = cycles_caustics.scene_values(scene)
@@ -562,6 +584,41 @@ class Baker:
         segments, res = layer_segments.bake_frames(inputs)
         self.timings["layer re-landing"] = time.perf_counter() - t
         infos = [self.works[s.frames[0]].receivers.objects[s.object_id] for s in segments]
+        objects, _copies, images = self._key_segments(segments, res, infos)
+        return dict(
+            objects=len(objects) + spots,
+            images=images,
+            layer_resolution=res,
+            layer_segments=[(len(s.frames), s.coarsening) for s in segments],
+        )
+
+    def _build_water(self) -> dict:
+        """The water's layers over the frames (in every tier, as Generate's): one fixed
+        topology per (receiver plane, pairs) track (`layer_segments`, each frame's
+        rays landed again on it: `water_stage.frame_layers`), keyed as the layer's."""
+        empty = layer_segments.FrameLayers([], None, [], [])
+        inputs = [empty if w is None else w for w in self.water]
+        if all(w is None for w in self.water):
+            return dict(water_objects=0)
+        t = time.perf_counter()
+        segments, res = layer_segments.bake_frames(inputs)
+        self.timings["water re-landing"] = time.perf_counter() - t
+        infos = [self.water_receivers[s.frames[0]].objects[s.object_id] for s in segments]
+        objects, copies, images = self._key_segments(segments, res, infos)
+        for ob in objects + copies:
+            ob[WATER_MARK] = True
+        return dict(
+            water_objects=len(objects),
+            water_images=images,
+            water_resolution=res,
+            water_segments=[(len(s.frames), s.coarsening) for s in segments],
+        )
+
+    def _key_segments(self, segments, res: int, infos) -> tuple[list, list, int]:
+        """The baked layers of `segments` (`baked_layers.build`), each one's slice, scale
+        and colour keyed per frame (CONSTANT) and its visibility. Returns (the layer
+        objects, their EEVEE reflection copies, the atlas images made)."""
+        scene = self.scene
         collection = lights.lights_collection(scene)
         objects, keyed, images, copies = baked_layers.build(
             scene,
@@ -587,12 +644,7 @@ class Baker:
                     col = [x[c] for x in colours]
                     key_column(nt, path.format(baked_layers.COLOUR_NODE), c, at, col, "CONSTANT")
                 key_visibility(o, light_tracks.visibility_keys(frames, present))
-        return dict(
-            objects=len(objects) + spots,
-            images=images,
-            layer_resolution=res,
-            layer_segments=[(len(s.frames), s.coarsening) for s in segments],
-        )
+        return objects, [c[0] for c in copies if c is not None], images
 
 
 def bake(

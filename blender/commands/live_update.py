@@ -60,6 +60,14 @@ render_init refines at once, and an update with the render's depsgraph (or durin
 render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
 mesh's beam need the full layer at once.
 
+**Water** (issue 26): every update runs the water stage (`water_stage.prepare`, as
+Generate) and writes its layers into the water's layer objects in place where the
+patches are the same (`water_stage.refill`), else makes those alone again; the lens
+lights and glass layers are matched without them. The water surfaces' evaluated
+vertices are in the inputs' signature (an Ocean's waves move every frame inside one
+bounding box) and the surfaces are watched. Always the full water layer (no coarse
+one).
+
 **The switch.** Turning ``live_update`` on brings the lights up to date at once
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.
@@ -93,7 +101,7 @@ from ..build import layers as layer_builder
 from ..build.marks import COLLECTION_MARK, LINK_MARK
 from ..read import render_probe
 from ..ui.properties import set_live_update_hook
-from . import bake_check, handlers, layer_stage, pipeline
+from . import bake_check, handlers, layer_stage, pipeline, water_stage
 
 #: The last update's figures: seconds per step, lights updated/created/removed.
 LAST_FIGURES: dict = {}
@@ -106,6 +114,9 @@ _LAST_INPUTS: dict = {}
 _WATCHED = ("Object", "Light", "Mesh", "Material", "Camera", "Collection")
 #: Per scene: where the last update's light goes (`_Watch`).
 _WATCHES: dict = {}
+#: Per scene: the names of the last update's water surfaces (their evaluated vertices
+#: are in the inputs' signature: a wave moves inside the same bounding box).
+_WATERS: dict = {}
 #: Caustic layer: per scene its last full layer (`core.caustic_layer.live.LiveLayer`),
 #: when its last update ended (perf_counter), and the scenes showing a coarse one.
 _LAYERS: dict = {}
@@ -254,6 +265,9 @@ def _watch_of(scene, depsgraph, work) -> _Watch | None:
     watched = {read.sphere_objects[i].name for i in lenses}
     watched.update(name for name, _ in read.left_out_lenses)
     watched.update(m.orig.name for m in read.mesh_lenses)  # the glass meshes traced
+    water = getattr(work, "water", None)
+    if water is not None:  # the water surfaces: an edit of theirs changes the net
+        watched.update(w.name for w in water.waters)
     known = {ob.original.name: _slots(ob.original) for ob in objects}
     solid = [
         ob for ob in objects if ob.type not in _NO_GEOMETRY and ob.original.name not in watched
@@ -391,7 +405,8 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
     live = _LAYERS.get(scene.as_pointer()) if coarse and layered else None
 
     def unchanged(read) -> bool:
-        seen.update(signature=_signature(read, options, scene), how=read.how)
+        signature = _signature(read, options, scene) + _water_print(scene, depsgraph)
+        seen.update(signature=signature, how=read.how)
         return not force and _unchanged(scene, seen["signature"], coarse)
 
     work = pipeline.plan_scene(
@@ -409,6 +424,10 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
         )
     signature = seen["signature"]
     is_coarse = work.layer_bake is not None and work.layer_bake.coarse
+    t_water = time.perf_counter()
+    water_stage.prepare(depsgraph, work)  # the water's layer of this frame (built below)
+    _WATERS[scene.as_pointer()] = [w.name for w in work.water.waters]
+    work.timings["water"] = time.perf_counter() - t_water
     # Before the build: the handler's depsgraph still holds what it evaluated. (A
     # coarse layer keeps the last full one's watch: the full one follows.)
     t_watch = time.perf_counter()
@@ -421,7 +440,8 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
     # the user's copies, renamed and moved lens lights: theirs, never updated or removed
     figures["kept"] = len(ownership.keep_users(scene))
     if layered:
-        if not _layer_update(scene, work, figures):  # not in place: rebuilt whole
+        if not _no_glass(scene, work) and not _layer_update(scene, work, figures):
+            # not in place: rebuilt whole
             cleanup.clear(scene)
             cycles_caustics.restore(scene)
             made = layer_stage.build(scene, work)
@@ -432,7 +452,9 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.after_build(scene, plan, read, figures["updated"])
         _remember_layer(scene, work.layer_bake)
     else:
-        existing = ownership.created_objects(scene)
+        existing = [
+            ob for ob in ownership.created_objects(scene) if not water_stage.is_water_layer(ob)
+        ]
         old_keys = keys_of([_existing_key(ob) for ob in existing])
         new_keys = keys_of(
             (p.light_name, p.lens_name, p.light.kind, p.light.model) for p in plan.lights
@@ -478,6 +500,7 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
+    figures["water_layers"] = _water_update(scene, work)
     _LAST_INPUTS[scene.as_pointer()] = (
         signature,
         len(scene.lens_lights.created_objects),
@@ -491,6 +514,54 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
     if layered and work.layer_bake is not None:
         figures["layer"] = work.layer_bake.layer  # (the bench compares it)
     return figures
+
+
+def _no_glass(scene, work) -> bool:
+    """Nothing but water, before and now: no lens light or glass layer planned, none
+    in the scene (the water's layers are `_water_update`'s alone)."""
+    if work.plan.lights or work.layer_bake is not None:
+        return False
+    return all(water_stage.is_water_layer(ob) for ob in ownership.created_objects(scene))
+
+
+def _water_print(scene, depsgraph) -> str:
+    """A digest of the last update's water surfaces as evaluated now (their vertices:
+    an Ocean modifier's waves move every frame within one bounding box)."""
+    names = _WATERS.get(scene.as_pointer())
+    if not names:
+        return ""
+    h = hashlib.blake2b(digest_size=16)
+    for name in names:
+        ob = bpy.data.objects.get(name)
+        if ob is None or ob.type != "MESH":
+            h.update(b"-")
+            continue
+        me = ob.evaluated_get(depsgraph).data
+        co = np.empty(len(me.vertices) * 3, dtype=np.float32)
+        me.vertices.foreach_get("co", co)
+        h.update(co.tobytes())
+        h.update(np.asarray(ob.evaluated_get(depsgraph).matrix_world, np.float32).tobytes())
+    return h.hexdigest()
+
+
+def _water_update(scene, work) -> str:
+    """The water's layers of this update (`water_stage`): written into the existing
+    ones in place where the patches are the same (the frame's waves: only positions,
+    UVs and irradiance), else those alone removed and made again (the glass layers and
+    lens lights are not touched; after a whole rebuild none are left). Returns what
+    was done: "refilled", "rebuilt", "removed" or ""."""
+    existing = water_stage.water_layers(scene)
+    if water_stage.refill(scene, work, existing):
+        done, made = "refilled", existing
+    else:
+        if existing:
+            _remove(scene, existing)
+        made = water_stage.build(scene, work)
+        done = "rebuilt" if made else ("removed" if existing else "")
+    if made:  # Cycles' own caustics off for them (again where the lights' rebuild put
+        # them back; a switch already off is left as it is)
+        cycles_caustics.after_build(scene, work.plan, work.read, len(made), layers=True)
+    return done
 
 
 def _layer_update(scene, work, figures) -> bool:
@@ -647,6 +718,7 @@ def on_load(*args):
     global _RENDERING
     _LAST_INPUTS.clear()  # another file: other objects
     _WATCHES.clear()
+    _WATERS.clear()
     _LAYERS.clear()
     _PENDING.clear()
     _RENDERING = 0

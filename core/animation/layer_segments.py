@@ -56,6 +56,9 @@ class FrameLayers:
     source_keys: list  # hashable bake key per source (`light_keys.LightKey`)
     receiver_names: list  # per receiver object id
     skip_objects: frozenset = frozenset()  # receiver object ids with no layer (fallback)
+    # (raster_frames, res) → the patches landed on them, for beams that are not
+    # `pipeline.bake`'s (water's: `water_sources.water_bake`); None: `pipeline.bake`
+    reland: object = None
 
 
 @dataclass
@@ -193,6 +196,9 @@ def bake_frames(frames: list[FrameLayers], limit: float = COARSEN_LIMIT) -> tupl
             continue
         if all(_is_own_raster(s.own[i], s.axes, res) for s in here):
             layers = [s.own[i] for s in here]
+        elif fl.reland is not None:
+            given = [RasterFrame(*s.members[i], *s.plane, s.axes, s.key[-1]) for s in here]
+            layers = fl.reland(given, res)
         else:
             given = [RasterFrame(*s.members[i], *s.plane, s.axes, s.key[-1]) for s in here]
             layers = sheet_bake(

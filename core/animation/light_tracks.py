@@ -303,16 +303,23 @@ def profile_slice_table(
 
 def bake_message(figures: dict) -> str:
     """The report of a bake (`blender/commands/bake.py`'s figures)."""
-    n = figures["objects"]
+    water = figures.get("water_objects", 0)  # the water's layers, in every tier
+    n = figures["objects"] - water
     what = "caustic layer object" if figures["energy_model"] == "CAUSTIC_LAYER" else "lens light"
     what += "s" if n != 1 else ""
+    parts = [f"{n} {what}"] if n or not water else []
+    if water:
+        parts.append(f"{water} water caustic layer object{'s' if water != 1 else ''}")
     text = (
-        f"Baked {n} {what} over frames {figures['frame_start']}–{figures['frame_end']} "
-        f"({figures['frames']} frames, {figures['seconds']:.1f} s)"
+        f"Baked {' and '.join(parts)} over frames {figures['frame_start']}–"
+        f"{figures['frame_end']} ({figures['frames']} frames, {figures['seconds']:.1f} s)"
     )
     if figures.get("images"):
         kind = "layer" if "layer_resolution" in figures else "profile"
         text += f"; {figures['images']} {kind} image{'s' if figures['images'] != 1 else ''}"
+    if figures.get("water_images"):
+        k = figures["water_images"]
+        text += f"; {k} water layer image{'s' if k != 1 else ''}"
     masks = figures.get("mask_images", 0)
     if masks:
         text += f"; {masks} shadow mask image{'s' if masks != 1 else ''}"

@@ -11,6 +11,7 @@ between a light and the water (a diving board) does not shadow the net yet.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -19,7 +20,7 @@ from ..lens.water import WaterSurface
 from ..scene.primaries import AreaPrimary, PointPrimary, SpotPrimary, SunPrimary
 from .emitters import AreaLight, PointLight, SpotLight, SunLight
 from .pipeline import SheetBake
-from .rasters import build_layer
+from .rasters import RasterFrame, build_layer
 from .ray_budget import RayBudget
 from .receiver_bvh import ReceiverMesh
 from .receiver_index import ReceiverIndex, build_index
@@ -122,10 +123,15 @@ def water_bake(
     resolution: int = 256,
     view=None,
     max_texels: int | None = None,
+    raster_frames: list[RasterFrame] | None = None,
 ) -> SheetBake:
     """The caustic layer of every water source on ``receivers`` (a `SheetBake`, as
     `pipeline.bake` gives; ``budgets`` (ny, nx) per source as `RayBudget`s);
-    ``n_rays``: node rays per source (one number for all, or one each)."""
+    ``n_rays``: node rays per source (one number for all, or one each).
+    ``raster_frames`` (their ``beams``: source indices, as the layer's patches name
+    them): the rasters to fill instead of those fitted to the landings (the bake's
+    fixed topology, `core.animation.layer_segments`); the same ``n_rays`` trace the
+    same rays, so a frame's beams land again exactly as Generate's did."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     beams, owner, budgets = [], [], []
     rays = [n_rays] * len(sources) if np.ndim(n_rays) == 0 else list(n_rays)
@@ -136,6 +142,12 @@ def water_bake(
         owner += [i] * len(made)
         budgets.append(RayBudget(shape[0], shape[1] + 1))
     own = [sources[i].own_object for i in owner]
+    if raster_frames is not None:  # sources → their beams (a tint's three channels)
+        of = np.asarray(owner, dtype=np.int64)
+        raster_frames = [
+            dataclasses.replace(rf, beams=tuple(np.nonzero(np.isin(of, rf.beams))[0].tolist()))
+            for rf in raster_frames
+        ]
     layer = build_layer(
         beams,
         index,
@@ -144,6 +156,7 @@ def water_bake(
         view=view,
         max_texels=max_texels,
         subcells_per_texel=WATER_SUBCELLS_PER_TEXEL,
+        raster_frames=raster_frames,
     )
     # a coloured absorption makes a beam per channel: the layer's sources are beams
     for p in layer.patches:
