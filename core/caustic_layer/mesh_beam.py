@@ -346,7 +346,7 @@ def trace_mesh_beam(
     if len(mixed):
         sub, sub_splat, n_sub = _refine(
             bt, optics, mixed, (k, nr, na), iota_k, phi_k, di_k, dp, m, frames, emitter, parallel,
-            per_cell, max_depth, min_weight,
+            per_cell, max_depth, min_weight, br,
         )  # fmt: skip
         out.parts.append(sub)
         splats.append(sub_splat)
@@ -388,11 +388,13 @@ def _main_sheet(br, w, g, cells, nodes, slots, flux) -> MeshPart:
 
 def _refine(
     bt, optics, cells, shape, iota, phi, di, dp, m, frames, emitter, parallel, per_cell,
-    max_depth, min_weight,
+    max_depth, min_weight, node_br,
 ):  # fmt: skip
     """Trace an m × m sub-grid in each of ``cells`` (flat indices of the (K, Nr, Na)
     grid; ``iota`` (K, Nr+1), ``di`` (K, Nr), ``phi`` (K, Na): each sample's grid):
-    quads of its coherent sub-cells, splats for the rest."""
+    quads of its coherent sub-cells, splats for the rest. ``node_br``: the node grid's
+    branches (B, K, Nr+1, Na), whose rays the sub-grids' corners are. Returns the
+    parts and the rays traced here."""
     kc, ic, jc = np.unravel_index(cells, shape)
     c = len(cells)
     a = np.arange(m + 1) / m
@@ -402,7 +404,8 @@ def _refine(
     sp = p_c[:, None, None] + dp * a[None, None, :]
     si, sp = np.broadcast_arrays(si, sp)
     origins, dirs, g = rays_at(bt, rows, si, sp, frames, emitter, parallel)
-    br = optics.trace_branches(origins, dirs, max_depth, min_weight)
+    br, n_traced = _sub_branches(optics, node_br, shape, kc, ic, jc, m, origins, dirs,
+                                 max_depth, min_weight)  # fmt: skip
     keep = (br.crossings >= 2) & (br.weight > 0.0)
     w = np.where(keep, br.weight, 0.0)
     sub_rows = np.broadcast_to(kc[:, None, None], (c, m, m))
@@ -421,4 +424,48 @@ def _refine(
     quads, _, _, _, splat = _draw(
         st, ok, sub_rows.reshape(-1), corners, br.points, br.directions, g, w, cg
     )
-    return quads, splat, int(origins.size // 3)
+    return quads, splat, n_traced
+
+
+def _sub_branches(optics, node_br, shape, kc, ic, jc, m, origins, dirs, max_depth, min_weight):
+    """The branches (B, C, m+1, m+1) of the refined cells' sub-grid rays, each ray
+    traced once: cells side by side share the rays of their common edge, and a
+    sub-grid's corners are rays of the node grid (``node_br``), traced already (the
+    same (ι, φ) but for the last bit of a far edge's sum). Returns them and the
+    number of rays traced (about half of 9 per cell in a band of refined cells)."""
+    k, nr, na = shape
+    c = len(kc)
+    s = np.arange(m + 1)
+    big_i = np.broadcast_to(ic[:, None, None] * m + s[None, :, None], (c, m + 1, m + 1))
+    big_j = (jc[:, None, None] * m + s[None, None, :]) % (na * m)  # φ wraps
+    big_j = np.broadcast_to(big_j, big_i.shape)
+    key = (kc[:, None, None] * (nr * m + 1) + big_i) * (na * m) + big_j
+    _, first, inverse = np.unique(key.reshape(-1), return_index=True, return_inverse=True)
+    fi, fj = big_i.reshape(-1)[first], big_j.reshape(-1)[first]
+    on_node = (fi % m == 0) & (fj % m == 0)
+    node = (kc[first // (m + 1) ** 2] * (nr + 1) + fi // m) * na + fj // m
+    new = first[~on_node]
+    traced = optics.trace_branches(
+        origins.reshape(-1, 3)[new], dirs.reshape(-1, 3)[new], max_depth, min_weight
+    )
+    nb = max(node_br.weight.shape[0], traced.weight.shape[0])
+    out = {}
+    for f in ("points", "directions", "weight", "crossings", "signature"):
+        a, b = getattr(node_br, f), getattr(traced, f)
+        tail = a.shape[1 + len(shape) :]
+        col = np.zeros((nb, len(first), *tail), dtype=a.dtype)
+        col[: a.shape[0], on_node] = a.reshape(a.shape[0], -1, *tail)[:, node[on_node]]
+        col[: b.shape[0], ~on_node] = b
+        out[f] = col[:, inverse].reshape(nb, c, m + 1, m + 1, *tail)
+    return _SubBranches(**out), len(new)
+
+
+@dataclass
+class _SubBranches:
+    """The `BranchRays` fields a refinement reads."""
+
+    points: np.ndarray
+    directions: np.ndarray
+    weight: np.ndarray
+    crossings: np.ndarray
+    signature: np.ndarray
