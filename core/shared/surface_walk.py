@@ -36,8 +36,13 @@ from .triangle_bvh import (
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
-#: The cube map's side at most (texels per face side; about 3 texels a triangle).
-MAP_SIDE = 64
+#: The cube map's texels per triangle, and its side at most (texels per face side).
+#: A texel holds the triangle whose centre is nearest (filled outward from those in
+#: it), so a finer map guesses the triangle under a point more often: on the
+#: glass_generate_speed pebble, 12 a triangle against 3 made the walks' triangle tests
+#: 12 % (1 984 triangles) and 34 % (19 800) fewer; 24 gained nothing more.
+MAP_PER_TRIANGLE = 12.0
+MAP_SIDE = 256
 
 
 @dataclass(frozen=True)
@@ -84,7 +89,7 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     center, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-300)
     # a hair more than the farthest vertex: rounding never makes a hit a miss
     reach = float(np.linalg.norm((v - center) / half, axis=1).max()) * (1.0 + 1e-7) + 1e-12
-    m = int(np.clip(np.sqrt(t / 2.0), 1, MAP_SIDE))
+    m = int(np.clip(np.sqrt(t * MAP_PER_TRIANGLE / 6.0), 1, MAP_SIDE))
     cube = np.zeros((6, m, m), dtype=np.int64)
     if t:
         cen = bvh.vertices[tris].mean(axis=1)
