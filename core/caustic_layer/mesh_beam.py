@@ -88,15 +88,30 @@ class MeshBeam:
     n_rays: int = 0
 
 
-def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool):
+def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = True):
     """Origins, unit directions and flux density without the glass (per unit (ι, φ))
     of the rays entering the bounding sphere at (ι, φ) for the samples ``rows``; all
     arrays of one shape (elementwise `beam_trace._incoming` × the sample's weight and
-    angular factor)."""
+    angular factor). ``rays`` False: the density alone (origins and directions None)
+    where it needs no direction (a sun, an isotropic emitter: the corner integrals'
+    nine points per cell)."""
     rows = np.asarray(rows)
     iota = np.asarray(iota, dtype=float)
     phi = np.asarray(phi, dtype=float)
     sin_i, cos_i = np.sin(iota), np.cos(iota)
+    if not rays and (parallel or is_isotropic(emitter)):
+        r = bt.radius[rows]
+        if parallel:
+            jac = r * r * sin_i * cos_i
+        else:
+            s = r / np.maximum(np.linalg.norm(bt.center[rows] - bt.points[rows], axis=-1), r)
+            sin_psi = s * sin_i
+            cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
+            jac = np.divide(
+                s * s * sin_i * cos_i, cos_psi, out=np.zeros_like(cos_psi), where=cos_psi > 0.0
+            )
+        jac = np.broadcast_to(jac, np.broadcast_shapes(np.shape(jac), np.shape(phi)))
+        return None, None, np.where(bt.valid[rows], bt.weights[rows] * jac, 0.0)
     f = frames[rows]  # (…, 2, 3)
     radial = np.cos(phi)[..., None] * f[..., 0, :] + np.sin(phi)[..., None] * f[..., 1, :]
     u = bt.axes[rows]
@@ -130,7 +145,9 @@ def corner_integrals(bt, rows, i0, di, p0, dp, frames, emitter, parallel, gl=(_G
     out = np.zeros((*np.shape(i0), 4))
     for a in range(len(x)):
         for b in range(len(x)):
-            _, _, g = rays_at(bt, rows, i0 + di * s[a], p0 + dp * s[b], frames, emitter, parallel)
+            _, _, g = rays_at(
+                bt, rows, i0 + di * s[a], p0 + dp * s[b], frames, emitter, parallel, rays=False
+            )
             g = g * (0.25 * w[a] * w[b]) * di * dp
             bil = ((1 - s[a]) * (1 - s[b]), s[a] * (1 - s[b]), s[a] * s[b], (1 - s[a]) * s[b])
             for k in range(4):
