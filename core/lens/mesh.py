@@ -336,8 +336,10 @@ class MeshLens(Lens):
         exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
         inside = np.where(exiting, np.linalg.norm(p - seg.at, axis=1), 0.0)  # from the surface
         # a piece's light leaves it where it entered it (pieces never overlap)
-        att = np.exp(-self.triangle_absorption[tri] * inside)
-        np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
+        att = 1.0  # clear glass (the usual): no exponentials, nothing absorbed
+        if self.triangle_absorption.any():
+            att = np.exp(-self.triangle_absorption[tri] * inside)
+            np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
         path = seg.path + inside
         cn = self.corner_normals[tri]
         bary = np.stack([1.0 - u - v, u, v], axis=1)

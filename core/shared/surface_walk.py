@@ -136,9 +136,10 @@ def _fill(cube):
 def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     """Where each ray's walk starts: the triangle in the cube map where its line meets
     the inscribed ellipsoid (entering for side +1, leaving for −1; its closest approach
-    where it misses), and a second guess where it meets the bounding box (a box-like
-    mesh). And which rays surely miss: their line misses the grown ellipsoid, or meets
-    it only outside (t_min, t_max]."""
+    where it misses), and a function giving a second guess for some of the rays
+    (their indices), where they meet the bounding box (a box-like mesh): asked only
+    for the rays whose first walk did not arrive. And which rays surely miss: their
+    line misses the grown ellipsoid, or meets it only outside (t_min, t_max]."""
     p = (o - walk.center) / walk.half
     q = d / walk.half
     ia = 1.0 / np.maximum(np.einsum("ij,ij->i", q, q), 1e-300)
@@ -149,13 +150,17 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     t = tc + np.where(side < 0, half_chord, -half_chord)
     m = walk.cube.shape[1]
     start = walk.cube[_texel(p + t[:, None] * q, m)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1, t2 = (-1.0 - p) / q, (1.0 - p) / q
-        near = np.fmax.reduce(np.minimum(t1, t2), axis=1)
-        far = np.fmin.reduce(np.maximum(t1, t2), axis=1)
-    t_box = np.where(side < 0, far, near)
-    t_box = np.where(np.isfinite(t_box), t_box, t)
-    second = walk.cube[_texel(p + t_box[:, None] * q, m)]
+
+    def second(rows):
+        pr, qr = p[rows], q[rows]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (-1.0 - pr) / qr, (1.0 - pr) / qr
+            near = np.fmax.reduce(np.minimum(t1, t2), axis=1)
+            far = np.fmin.reduce(np.maximum(t1, t2), axis=1)
+        t_box = np.where(side[rows] < 0, far, near)
+        t_box = np.where(np.isfinite(t_box), t_box, t[rows])
+        return walk.cube[_texel(pr + t_box[:, None] * qr, m)]
+
     wide = np.sqrt(np.maximum(walk.reach**2 - h2, 0.0) * ia)
     miss = (h2 > walk.reach**2) | (tc + wide <= t_min) | (tc - wide > t_max)
     return start, second, miss & np.any(d != 0.0, axis=1)
@@ -203,11 +208,15 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
         start, second, miss = aim(walk, o_, d_, s_, lo, hi)
         ray = np.nonzero(~miss)[0]
         out = (tri[block], tt[block], uu[block], vv[block])  # views: written in place
-        for guess in (start, second):  # rays whose first walk did not arrive: the second
-            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess[ray])
+        guess = start[ray]
+        for _ in range(2):  # rays whose first walk did not arrive: from the second guess
+            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess)
             for col, val in zip(out, found, strict=True):
                 col[ray] = val
             ray = ray[out[0][ray] < 0]
+            if len(ray) == 0:
+                break
+            guess = second(ray)
         if len(ray):  # neither walk arrived: the BVH decides
             hb = intersect(walk.bvh, o_[ray], d_[ray], lo[ray], hi[ray], facing=s_[ray])
             for col, val in zip(out, (hb.triangle, hb.t, hb.u, hb.v), strict=True):
