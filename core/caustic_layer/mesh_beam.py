@@ -8,11 +8,14 @@ outside reflects and what misses the glass is not the caustic). Each node's bran
 sorted by their path signature (the events and smooth face groups on the way), so that
 slot b of neighbouring nodes that took the same paths is the same path. A cell is
 *coherent* when its four corners carry the same set of paths: then slot b is one smooth
-piece of sheet b over it, drawn by the layer as a quad (bilinear sub-cells). A cell
-whose corners differ (a cube's edge, a rod's cap, the rim of what reaches a face) is
-refined: an m × m sub-grid of rays is traced in it, its coherent sub-cells drawn as
-quads and the rest landed as splats (each sub-corner's branches as points carrying their
-share). Every such cell is refined (the budget in proportion to their number); cells
+piece of sheet b over it, drawn by the layer as a quad (bilinear sub-cells); the path
+with the most flux, and any path over more cells than a quarter of the grid's nodes, is
+drawn on the node grid itself (neighbouring cells share their nodes: a quad of its own
+lands four). A cell whose corners differ (a cube's edge, a rod's cap, the rim of what
+reaches a face) is refined: an m × m sub-grid of rays is traced in it (each ray once:
+refined cells side by side share their edge's rays, and its corners are node rays), its
+coherent sub-cells drawn as quads and the rest landed as splats (each sub-corner's
+branches as points carrying their share). Every such cell is refined (the budget in proportion to their number); cells
 beyond its cap are splatted at their own corners (``cut_cells``).
 
 Flux: the emitter's density without the glass, g = I·A·dΩ/d(ι, φ) (or S·dA/d(ι, φ)),
