@@ -15,8 +15,9 @@ lands four). A cell whose corners differ (a cube's edge, a rod's cap, the rim of
 reaches a face) is refined: an m × m sub-grid of rays is traced in it (each ray once:
 refined cells side by side share their edge's rays, and its corners are node rays), its
 coherent sub-cells drawn as quads and the rest landed as splats (each sub-corner's
-branches as points carrying their share). Every such cell is refined (the budget in proportion to their number); cells
-beyond its cap are splatted at their own corners (``cut_cells``).
+branches as points carrying their share). Every such cell is refined (the budget in
+proportion to their number); cells beyond its cap are splatted at their own corners
+(``cut_cells``).
 
 Flux: the emitter's density without the glass, g = I·A·dΩ/d(ι, φ) (or S·dA/d(ι, φ)),
 is integrated over each cell by Gauss–Legendre points (no tracing: it is analytic), as
