@@ -238,7 +238,13 @@ def _fill(me, drawn, faces):
     n_f, corners = faces.shape
     me.vertices.add(len(drawn.vertices))
     me.loops.add(corners * n_f)
-    me.loops.foreach_set("vertex_index", faces.ravel())
+    # the corners' vertices as one attribute array (MeshLoop.vertex_index goes corner
+    # by corner: 30–100 ms for a 256² raster's 390 000 corners, the attribute < 1 ms)
+    corner_vert = me.attributes.get(".corner_vert")
+    if corner_vert is not None and corner_vert.data_type == "INT":
+        corner_vert.data.foreach_set("value", faces.ravel())
+    else:
+        me.loops.foreach_set("vertex_index", faces.ravel())
     me.polygons.add(n_f)
     me.polygons.foreach_set("loop_start", np.arange(0, corners * n_f, corners, dtype=np.int32))
     if drawn.uvs is not None:

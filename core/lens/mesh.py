@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..shared import parallel
 from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
@@ -40,6 +41,9 @@ SMOOTH_COS = 0.9999
 #: The sine of a fold between two faces below which `MeshLens.convex` calls them flat.
 FLAT_SIN = 1e-4
 _HASH = np.uint64(1_000_003)
+#: Rays from which a walk is split over threads (≥ half of them each): below ~2 000
+#: rays a block's numpy steps are too short for the GIL's hand-overs to pay.
+WALK_ROWS = 4096
 
 
 def _dot(a, b):
@@ -244,9 +248,34 @@ class MeshLens(Lens):
     # ------------------------------------------------------------------ the walk
 
     def _walk(self, origins, directions, max_depth, min_weight, split) -> BranchRays:
+        """Every ray's paths (`trace_branches`; ``split`` False: `trace`'s one path).
+        Each ray's paths are its own: blocks of rays walk in threads (numpy lets go of
+        the GIL in its loops), each block's waves inline, and the blocks' branches
+        joined in ray order give what one walk of all the rays gives."""
         o, d, shape = _flat(origins, directions)
-        n = len(o)
         groups = self.face_groups if split else np.zeros(len(self.triangles), dtype=np.int64)
+        if self.convex:  # built once here, not by the threads
+            _ = self.walker
+
+        def run(block: slice):
+            with parallel.inline():
+                return self._walk_block(o[block], d[block], max_depth, min_weight, split, groups)
+
+        blocks = parallel.split(len(o), parallel.workers(len(o), WALK_ROWS))
+        if len(blocks) == 1:
+            parts = [self._walk_block(o, d, max_depth, min_weight, split, groups)]
+        else:
+            parts = parallel.map_slices(run, len(o), threads=len(blocks))
+        for (out, *_), block in zip(parts, blocks, strict=True):
+            out.ray += block.start
+        out = _Segments.join([p[0] for p in parts])
+        absorbed, dropped, leaked = (np.concatenate([p[i] for p in parts]) for i in (1, 2, 3))
+        return _assemble(out, o, d, shape, absorbed, dropped, leaked)
+
+    def _walk_block(self, o, d, max_depth, min_weight, split, groups):
+        """The finished segments of the rays (o, d) (rows of a block) and per ray the
+        weight absorbed, dropped, and whether some leaked."""
+        n = len(o)
         seg = _Segments(
             ray=np.arange(n),
             origin=o,
@@ -296,8 +325,7 @@ class MeshLens(Lens):
             else:
                 seg = nxt.take(~small)
         np.add.at(dropped, seg.ray, seg.weight)  # still live after the last wave
-        out = _Segments.join(done)
-        return _assemble(out, o, d, shape, absorbed, dropped, leaked)
+        return _Segments.join(done), absorbed, dropped, leaked
 
     def _cross(self, seg, tri, t, u, v, p, groups, absorbed):
         """One surface crossing of every segment: Beer on the way if it ran inside,
@@ -308,8 +336,10 @@ class MeshLens(Lens):
         exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
         inside = np.where(exiting, np.linalg.norm(p - seg.at, axis=1), 0.0)  # from the surface
         # a piece's light leaves it where it entered it (pieces never overlap)
-        att = np.exp(-self.triangle_absorption[tri] * inside)
-        np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
+        att = 1.0  # clear glass (the usual): no exponentials, nothing absorbed
+        if self.triangle_absorption.any():
+            att = np.exp(-self.triangle_absorption[tri] * inside)
+            np.add.at(absorbed, seg.ray, seg.weight * (1.0 - att))
         path = seg.path + inside
         cn = self.corner_normals[tri]
         bary = np.stack([1.0 - u - v, u, v], axis=1)

@@ -188,3 +188,45 @@ def test_a_far_light_grazing_the_silhouette_is_not_taken_for_a_miss():
     k, t = _brute(verts, tris, o, d, np.ones(300))
     np.testing.assert_array_equal(got.triangle, k)
     assert 30 < (k >= 0).sum() < 290
+
+
+def test_a_tilted_pebble_is_walked_in_its_own_frame(monkeypatch):
+    """An oblate pebble (semi-axes 0.5, 0.4, 0.2) tilted 15° about a slanted axis:
+    the walks' ellipsoid is inscribed in the pebble's own box (its principal axes are
+    the rotation's columns, up to order and sign), so a point light's bundle is
+    walked: the BVH casts 2 of its 6 161 rays (entering and leaving; in the
+    world-aligned box 738), and the hits are brute force's."""
+    ang = np.radians(15.0)
+    k = np.array([1.0, 2.0, 0.5]) / np.linalg.norm([1.0, 2.0, 0.5])
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    rot = np.eye(3) + np.sin(ang) * kx + (1 - np.cos(ang)) * kx @ kx  # Rodrigues
+    verts, tris, _ = ellipsoid_mesh((0.0, 0.0, 1.0), (0.5, 0.4, 0.2), rot, 32, 64)
+    walk = build_walk(build_bvh(verts, tris))
+    # each of the walk's axes is one of the pebble's (|cos| 1 with exactly one)
+    np.testing.assert_allclose(np.sort(np.abs(walk.axes.T @ rot), axis=1)[:, -1], 1.0, atol=1e-6)
+    cast = []
+    real = surface_walk.intersect
+
+    def counting(bvh, o, *args, **kw):
+        cast.append(len(o))
+        return real(bvh, o, *args, **kw)
+
+    monkeypatch.setattr(surface_walk, "intersect", counting)
+    rng = np.random.default_rng(5)
+    light = np.array([0.4, -0.3, 3.0])
+    target = rng.uniform(-0.55, 0.55, (4000, 3)) * [1, 1, 0.3] + [0, 0, 1.0]
+    d = target - light
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(light, d.shape)
+    h1 = intersect_convex(walk, o, d, 1)
+    hit = h1.triangle >= 0
+    o2, d2 = h1.point[hit] + 1e-7 * d[hit], d[hit]
+    h2 = intersect_convex(walk, o2, d2, -1)
+    assert hit.sum() > 2000 and np.all(h2.triangle >= 0)
+    assert sum(cast) < 0.01 * (len(d) + len(d2)), sum(cast)
+    monkeypatch.setattr(surface_walk, "intersect", real)
+    pick = rng.choice(len(d2), 60, replace=False)
+    k2, _ = _brute(verts, tris, o2[pick], d2[pick], -np.ones(60))
+    np.testing.assert_array_equal(h2.triangle[pick], k2)
+    k1, _ = _brute(verts, tris, o[pick], d[pick], np.ones(60))
+    np.testing.assert_array_equal(h1.triangle[pick], k1)
