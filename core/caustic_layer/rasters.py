@@ -350,7 +350,12 @@ def build_layer(
         in_view = view.in_view(pts[idx]) if view is not None else None
         if view is not None:  # a faint tail far out: the bulk decides (`bulk_boxes`)
             boxes, tail = bulk_boxes(
-                x, y, w_here, owner[bid[idx]], in_view, boxes, local, clip_fraction
+                (x, y, w_here, owner[bid[idx]], local),
+                in_view,
+                view.pixel(pts[idx]),
+                boxes,
+                clip_fraction,
+                res,
             )
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
@@ -609,35 +614,45 @@ BULK_SHARE = 0.99
 TAIL_SPREAD = 2.0
 
 
-def bulk_boxes(x, y, w, owner, in_view, boxes, local, clip_fraction):
+def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     """The boxes (beams here, 4) the rasters are clustered by, and per beam whether
     its box is its glass's bulk (then its fine raster spans only that; what lands
-    beyond goes to the coarse raster): each beam's footprint ``boxes``
-    (its ``clip_fraction`` quantiles), or, where its glass's whole footprint is more
-    than `TAIL_SPREAD` times wider than the `BULK_SHARE` of its flux in view, that
-    bulk's box. A glass mesh sends a few % of its light far (internal reflections out
-    of a rod's side, a lens's rim): without this, that faint tail joined every caustic
+    beyond goes to the coarse raster): each beam's footprint ``boxes`` (its
+    ``clip_fraction`` quantiles), or its glass's bulk (the `BULK_SHARE` of its flux
+    in view) where its whole footprint is more than `TAIL_SPREAD` times wider along
+    either axis and its part in view needs more than ``res_max`` texels a side at
+    `TEXELS_PER_PIXEL` per pixel (so spanning it all would coarsen the bulk's
+    texels). A glass mesh sends a few % of its light far (internal reflections out of
+    a rod's side, a lens's rim): without this, that faint tail joined every caustic
     on the table into one raster, whose texels, fine only about the middle of all,
-    were 3 mm at the showcase rod's line for a 0.6 mm pixel. ``owner``, ``in_view``
-    per landing: its glass (the beams given to `build_layer`) and whether the camera
-    sees it; ``local`` (per landing) the beam index into ``boxes``."""
+    were 1.4–2.9 mm at the showcase rod's line for a 0.6 mm pixel. ``landings``:
+    (x, y, flux, glass, beam) per landing (the glass: of the beams given to
+    `build_layer`; the beam: its index into ``boxes``); ``in_view``, ``pixel``: per
+    landing, whether the camera sees it and its pixel there."""
+    x, y, w, owner, local = landings
     owners, group = np.unique(owner, return_inverse=True)
     n = len(owners)
     seen = in_view & (w > 1e-300)
-    # per glass: its bulk in view (all its landings if none is) and its whole footprint
+    # per glass: its bulk and extent in view (all its landings if none is), its pixel
+    # there, and its whole footprint
     has = np.bincount(group[seen], minlength=n) > 0
     use = seen | ~has[group]
     half = 0.5 * (1.0 - BULK_SHARE)
     whole_q = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
-    bulk, whole = [], []
+    bulk, whole, span = [], [], np.zeros(n)
     for c in (x, y):
-        bulk.append(grouped_interp_quantiles(c[use], w[use], group[use], n, (half, 1.0 - half)))
+        cu, wu, gu = c[use], w[use], group[use]
+        bulk.append(grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half)))
         whole.append(grouped_interp_quantiles(c, w, group, n, whole_q))
+        q = grouped_interp_quantiles(cu, wu, gu, n, whole_q)
+        span = np.maximum(span, q[:, 1] - q[:, 0])
+    pix = grouped_quantiles(pixel[use], w[use], group[use], n, (NEAR_PIXEL_SHARE,))[:, 0]
+    starved = TEXELS_PER_PIXEL * span > res_max * np.where(np.isfinite(pix), pix, np.inf)
     bulk = np.concatenate(bulk, axis=1)  # (glasses, 4)
     whole = np.concatenate(whole, axis=1)
     width_b = np.stack([bulk[:, 1] - bulk[:, 0], bulk[:, 3] - bulk[:, 2]], axis=1)
     width_w = np.stack([whole[:, 1] - whole[:, 0], whole[:, 3] - whole[:, 2]], axis=1)
-    tail = np.any(width_w > TAIL_SPREAD * np.maximum(width_b, 1e-300), axis=1)
+    tail = starved & np.any(width_w > TAIL_SPREAD * np.maximum(width_b, 1e-300), axis=1)
     beam_glass = group[np.searchsorted(local, np.arange(len(boxes)))]
     return np.where(tail[beam_glass][:, None], bulk[beam_glass], boxes), tail[beam_glass]
 
