@@ -159,6 +159,30 @@ def corner_integrals(bt, rows, i0, di, p0, dp, frames, emitter, parallel, gl=(_G
     return out
 
 
+#: Roberts' R2 sequence (the plastic number): the samples' grid offsets, well spread.
+_R2 = (0.7548776662466927, 0.5698402909980532)
+
+
+def staggered_grids(iota, phi, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(K, Nr+1) and (K, Na): each of the ``k`` samples' node grid, the given one
+    shifted by its own fraction of a cell (the R2 sequence, within ±½ a cell; sample 0
+    unshifted): its ring edges inside (ι = 0 and the rim stay) and its azimuths. A
+    bilinear quad cannot follow a fold (a rod's focal line) inside a cell, and on one
+    grid every sample would make the same error in the same places: the rod's line in
+    steps one cell long. Staggered, the samples' errors fall in different places and
+    average out (the showcase rod on its 8 × 32 grid, 16 sun samples: its along-line
+    variation 0.22 → 0.08, L1 0.58 → 0.26 against the glass tracer at 1 mm)."""
+    iota = np.asarray(iota, dtype=float)
+    phi = np.asarray(phi, dtype=float)
+    i = np.arange(k, dtype=float)
+    fi = np.modf(0.5 + i * _R2[0])[0] - 0.5
+    fp = np.modf(0.5 + i * _R2[1])[0] - 0.5
+    iota_k = np.tile(iota, (k, 1))
+    iota_k[:, 1:-1] += fi[:, None] * 0.5 * (np.diff(iota)[None, :-1] + np.diff(iota)[None, 1:])
+    dp = 2.0 * np.pi / max(len(phi), 1)
+    return iota_k, phi[None, :] + fp[:, None] * dp
+
+
 def _grid_corners(k, nr, na, wrap: bool):
     """Flat node indices (k·nr·na, 4) of each cell's corners on a (k, nr+1, na) node
     grid, in the layer's order; ``wrap``: the last column's cells close onto column 0
@@ -304,10 +328,7 @@ def trace_mesh_beam(
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
     dp = float(2.0 * np.pi / na)
-    # every sample on the given grid (staggering the samples' grids by fractions of a
-    # cell was tried: the real_glass ice cube at L1 0.110 staggered, 0.114 not: noise)
-    iota_k = np.broadcast_to(np.asarray(iota, dtype=float), (k, nr + 1))
-    phi_k = np.broadcast_to(np.asarray(phi, dtype=float), (k, na))
+    iota_k, phi_k = staggered_grids(iota, phi, k)
     di_k = np.diff(iota_k, axis=1)  # (K, Nr): each sample's ring widths
     rows = np.broadcast_to(np.arange(k)[:, None, None], (k, nr + 1, na))
     ii = np.broadcast_to(iota_k[:, :, None], rows.shape)

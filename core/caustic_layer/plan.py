@@ -164,7 +164,7 @@ class LayerFigures:
         if self.coarse:  # drawn: a mirror may show them
             out += (
                 f"; {self.coarse} of the layers coarse, where the camera does not see the "
-                "caustic (for reflections)"
+                "caustic (for reflections) or for a glass's faint light far from its caustic"
             )
         if self.undrawn:
             out += (
