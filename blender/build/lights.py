@@ -50,6 +50,7 @@ import numpy as np
 from mathutils import Vector
 
 from ...core.plan.linking import MAX_COLLECTIONS, MAX_SETS, beams_of, plan_linking, sets_used
+from ...core.tiers import exact_profile
 from . import mask_nodes
 from .marks import (
     COLLECTION_MARK,
@@ -606,6 +607,7 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
     collection = lights_collection(scene)
     images: dict = {}
     made = []
+    exact_profile.prepare_tables([p.light for p in plan.lights])  # their tables at once
     for k, planned in enumerate(plan.lights):
         made.append(
             create_light(

@@ -60,6 +60,12 @@ render_init refines at once, and an update with the render's depsgraph (or durin
 render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
 mesh's beam need the full layer at once.
 
+**The Exact profile** (Cycles' AUTO) follows the same way: every table the plan's
+lights read is made in one batch (`exact_profile.prepare_tables`); in Blender's
+window a light whose exact table is not made yet reads a *coarse* one (fewer rays:
+within 1 % of the flux and 5 % of the peak; its image keyed apart), and `refine`
+writes the exact tables once the burst is over, or at once when a render starts.
+
 **The switch.** Turning ``live_update`` on brings the lights up to date at once
 (`live_update_changed`, forced): `register` installs it as the switch's update hook
 (`properties.set_live_update_hook`), so that the settings never import this module.
@@ -86,7 +92,7 @@ from ...core.caustic_layer.live import LiveLayer
 from ...core.plan import watch
 from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
-from ...core.tiers import builds_layer
+from ...core.tiers import builds_layer, exact_profile
 from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
 from ..build import cleanup, cycles_caustics, lights, ownership
 from ..build import layers as layer_builder
@@ -439,6 +445,10 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
         )
         m = match(old_keys, new_keys)
         images: dict = {}
+        # every table the lights read, at once (coarse ones while the user works)
+        t_tables = time.perf_counter()
+        figures["coarse"] = exact_profile.prepare_tables([p.light for p in plan.lights], coarse)
+        work.timings["tables"] = time.perf_counter() - t_tables
         for i, j in m.update:
             # with phase 1's arrays: a non-full source's profile light keeps its mask
             lights.apply_light(existing[i], plan.lights[j], images, read.arrays)
@@ -478,10 +488,11 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
+        _remember_coarse(scene, figures["coarse"] > 0)
     _LAST_INPUTS[scene.as_pointer()] = (
         signature,
         len(scene.lens_lights.created_objects),
-        is_coarse,
+        is_coarse or figures.get("coarse", 0) > 0,
     )
     t1 = time.perf_counter()
     figures.update(
@@ -535,19 +546,32 @@ def _remember_layer(scene, bake):
         _LAYERS[ptr] = LiveLayer(bake, bake.names, bake.receivers_key)
 
 
+def _remember_coarse(scene, coarse: bool):
+    """After an Exact profile update: coarse tables wait for the exact ones (`refine`,
+    a timer)."""
+    ptr = scene.as_pointer()
+    if not coarse:
+        _PENDING.discard(ptr)
+    else:
+        _PENDING.add(ptr)
+        if not bpy.app.timers.is_registered(refine):
+            bpy.app.timers.register(refine, first_interval=BURST_SECONDS)
+
+
 def _coarse_allowed(depsgraph) -> bool:
-    """May this update show a coarse layer? Never for a render (its depsgraph, or
-    while one runs: every frame renders the full layer), and only in Blender's
-    window (`INTERACTIVE`)."""
+    """May this update show a coarse layer or coarse Exact profile tables? Never for
+    a render (its depsgraph, or while one runs: every frame renders the full layer
+    and the exact tables), and only in Blender's window (`INTERACTIVE`)."""
     if _RENDERING or getattr(depsgraph, "mode", "VIEWPORT") == "RENDER":
         return False
     return (not bpy.app.background) if INTERACTIVE is None else INTERACTIVE
 
 
 def refine(scene=None, wait=True) -> float | None:
-    """The full layer for the scenes showing a coarse one (all, or `scene`), each once
-    its burst is over (``wait``: `BURST_SECONDS` after its last update; False: now).
-    The timer's function: returns the seconds until it runs again, None when done."""
+    """The full layer (the exact tables) for the scenes showing a coarse one (all, or
+    `scene`), each once its burst is over (``wait``: `BURST_SECONDS` after its last
+    update; False: now). The timer's function: returns the seconds until it runs
+    again, None when done."""
     now = time.perf_counter()
     again = 0.0
     for ptr in list(_PENDING):

@@ -72,7 +72,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, FAN_FAR, fan_tables
+from .profile_fan import FAN, FAN_FAR, caustic_end, fan_tables
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -444,9 +444,15 @@ def fan_profile(
 
 
 #: The coarse table live update shows while the user works (`prepare_tables`): rays
-#: of its fan near the lens and beyond ``FAR_ROWS``: within 1 % of the exact table's
-#: flux and 5 % of its peak on every row (tests/core/tiers/test_profile_coarse.py).
+#: of its fan near the lens and beyond ``FAR_ROWS``, and beyond the caustic
+#: (`profile_fan.caustic_end`, where the table changes smoothly) every
+#: ``COARSE_ROW_STEP``-th row, linear in between as the texture reads them: within
+#: 1 % of the exact table's flux and 5 % of its peak on every row
+#: (tests/core/tiers/test_profile_coarse.py).
 COARSE_FAN, COARSE_FAN_FAR = 300, 150
+COARSE_ROW_STEP = 4
+#: Rows from this factor times the caustic's end on are coarse rows.
+COARSE_MARGIN = 1.1
 
 
 def fan_profiles(
@@ -464,7 +470,7 @@ def fan_profiles(
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
     fans = (n_fan or (COARSE_FAN if coarse else FAN), COARSE_FAN_FAR if coarse else FAN_FAR)
-    profs, batches = [], {}
+    profs, batches, betweens = [], {}, []
     for i, (D_over_R, n, near, receiver, M, slope) in enumerate(specs):
         if receiver is not None:
             apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
@@ -480,24 +486,62 @@ def fan_profiles(
         dense = (apex + h < FAR_ROWS) & (apex < 1.0)
         if n_fan is not None:
             dense[:] = True
+        between = None
+        if coarse:  # beyond the caustic every step-th row (and the last)
+            end = COARSE_MARGIN * caustic_end(float(D_over_R), n, absorption, fans[0])
+            smooth = np.flatnonzero(apex + h >= end)
+            if smooth.size > 2:
+                kept = np.unique(np.append(smooth[::COARSE_ROW_STEP], smooth[-1]))
+                between = (kept, np.setdiff1d(smooth, kept))
         for part, rows in enumerate((dense, ~dense)):
+            if between is not None:
+                rows = rows.copy()
+                rows[between[1]] = False
             if rows.any():
                 job = (float(D_over_R), n, absorption, apex, h[rows])
-                batches.setdefault((fans[part], with_slope), []).append((i, part, job))
+                batches.setdefault((fans[part], with_slope), []).append((i, part, rows, job))
+        betweens.append(between)
     parts = [{} for _ in specs]
     for (fan, with_slope), items in batches.items():
-        made = fan_tables([it[2] for it in items], g_edges, n_fan=fan, slope=with_slope)
-        for (i, part, _), got in zip(items, made, strict=True):
-            parts[i][part] = got
-    for prof, got in zip(profs, parts, strict=True):
+        made = fan_tables([it[3] for it in items], g_edges, n_fan=fan, slope=with_slope)
+        for (i, part, rows, _), got in zip(items, made, strict=True):
+            parts[i][part] = (rows, *got)
+    for (*_, M, _), prof, got, between in zip(specs, profs, parts, betweens, strict=True):
         pieces = [got[k] for k in sorted(got)]  # the dense rows first
-        prof.table = np.concatenate([p[0] for p in pieces]) if len(pieces) > 1 else pieces[0][0]
+        prof.flux = pieces[0][3]  # the dense fan's where it has rows
+        with_slope = pieces[0][2] is not None
+        if len(pieces) == 1 and between is None:
+            prof.table, prof.slope = pieces[0][1], pieces[0][2]
+        else:
+            prof.table = np.empty((M, K))
+            prof.slope = np.empty((M, K)) if with_slope else None
+            for rows, table, mean_slope, _ in pieces:
+                prof.table[rows] = table
+                if with_slope:
+                    prof.slope[rows] = mean_slope
+            if between is not None:
+                _between_rows(prof, *between, g_edges)
         prof.table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
-        prof.flux = pieces[0][2]  # the dense fan's where it has rows
-        if pieces[0][1] is not None:
-            prof.slope = np.concatenate([p[1] for p in pieces]) if len(pieces) > 1 else pieces[0][1]
+        if with_slope:
             _fill_inside_lens(prof, g_edges)
     return profs
+
+
+def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
+    """A coarse table's rows `todo` (not computed) from the computed rows `kept`
+    around them: linear in the row index, as the texture reads between rows (the
+    intensity and the intensity × slope)."""
+    k = np.searchsorted(kept, todo)  # kept[k - 1] < todo < kept[k]
+    lo, hi = kept[k - 1], kept[k]
+    t = ((todo - lo) / (hi - lo))[:, None]
+    table = prof.table
+    table[todo] = (1.0 - t) * table[lo] + t * table[hi]
+    if prof.slope is not None:
+        s = prof.slope
+        product = (1.0 - t) * table[lo] * s[lo] + t * table[hi] * s[hi]
+        mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s[todo] = np.where(table[todo] > 0.0, product / table[todo], mid)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:

@@ -121,6 +121,22 @@ def fan_tables(
     ]
 
 
+def caustic_end(D_over_R: float, n: float, absorption: float = 0.0, n_fan: int = FAN) -> float:
+    """How far (R, from the lens centre along the axis) the beam's rays still cross:
+    one another (the caustic) or the axis. Beyond, every ray keeps its side and its
+    order, and the table changes smoothly from row to row."""
+    iota = fan_angles(n_fan)
+    f = _fan(iota, np.diff(iota), D_over_R, n, absorption)
+    both = f.good[:-1] & f.good[1:] & (f.w[:-1] > 0.0) & (f.w[1:] > 0.0)
+    boc, tan = f.b_over_c.astype(float), f.tan_exit.astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        axis = boc / tan  # where each ray's line meets the axis
+        pair = (boc[:-1] - boc[1:]) / (tan[:-1] - tan[1:])  # where neighbours meet
+    found = np.concatenate([axis[f.good & (f.w > 0.0)], pair[both]])
+    found = found[np.isfinite(found)]
+    return float(np.max(found, initial=0.0))
+
+
 class _Context(NamedTuple):
     """What every chunk of rows reads: the fans, their per-ray weights, exit heights
     and piece fluxes stacked by job, the pieces' widths, the bins' tangents."""
