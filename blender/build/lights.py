@@ -196,14 +196,24 @@ def write_profile_pixels(img, profile: dict) -> None:
     packed: a live update's rewrite is packed when the file is saved
     (`pack_dirty_profile_images`)."""
     H, K = int(profile["height"]), int(profile["width"])
-    rgba = np.ones((H, K, 4), dtype=np.float32)
-    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    rgba = _RGBA.get((H, K))
+    if rgba is None:  # one buffer per size (alpha 1), rewritten for every table
+        rgba = _RGBA[(H, K)] = np.ones((H, K, 4), dtype=np.float32)
+    px = np.asarray(profile["pixels"], dtype=np.float32)
+    rgba[..., 0] = px
+    rgba[..., 2] = px
     if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
         rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
+    else:
+        rgba[..., 1] = px
     img.pixels.foreach_set(rgba.ravel())
     img.update()
     if profile.get("key") is not None:
         img[PROFILE_KEY] = profile["key"]
+
+
+#: `write_profile_pixels`' RGBA buffers by (height, width).
+_RGBA: dict = {}
 
 
 def pack_dirty_profile_images() -> int:

@@ -160,6 +160,9 @@ class BeamProfile:
     #: outward, of the rays through each texel (M, K) (`_slope_table`); the light's
     #: image holds table × slope
     slope: np.ndarray | None = field(default=None, repr=False)
+    #: the image's float32 pixels per normalisation (`_profile_dict`): a table read
+    #: again (an unchanged light planned again) is not converted again
+    pixel_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -529,19 +532,39 @@ def fan_profiles(
 
 def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
     """A coarse table's rows `todo` (not computed) from the computed rows `kept`
-    around them: linear in the row index, as the texture reads between rows (the
-    intensity and the intensity × slope)."""
-    k = np.searchsorted(kept, todo)  # kept[k - 1] < todo < kept[k]
-    lo, hi = kept[k - 1], kept[k]
-    t = ((todo - lo) / (hi - lo))[:, None]
-    table = prof.table
-    table[todo] = (1.0 - t) * table[lo] + t * table[hi]
-    if prof.slope is not None:
-        s = prof.slope
-        product = (1.0 - t) * table[lo] * s[lo] + t * table[hi] * s[hi]
-        mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s[todo] = np.where(table[todo] > 0.0, product / table[todo], mid)
+    around them (every ``COARSE_ROW_STEP``-th of a run of rows, and its last):
+    linear in the row index, as the texture reads between rows (the intensity and
+    the intensity × slope)."""
+    table, slope = prof.table, prof.slope
+    mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
+    step = COARSE_ROW_STEP
+    # the regular gaps, `step` rows apart: as views of the rows they span
+    gaps = kept.size - 2
+    if gaps > 0:
+        rows = slice(int(kept[0]), int(kept[-2]) + 1)
+        ends = table[rows][::step]
+        inner = table[rows][:-1].reshape(gaps, step, -1)
+        if slope is not None:
+            s_ends = slope[rows][::step] * ends
+            s_inner = slope[rows][:-1].reshape(gaps, step, -1)
+        for off in range(1, step):
+            t = off / step
+            inner[:, off] = (1.0 - t) * ends[:-1] + t * ends[1:]
+            if slope is not None:
+                product = (1.0 - t) * s_ends[:-1] + t * s_ends[1:]
+                got = inner[:, off]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s_inner[:, off] = np.where(got > 0.0, product / got, mid)
+    # the last gap (shorter)
+    last = todo[todo > kept[-2]]
+    if last.size:
+        lo, hi = int(kept[-2]), int(kept[-1])
+        t = ((last - lo) / (hi - lo))[:, None]
+        table[last] = (1.0 - t) * table[lo] + t * table[hi]
+        if slope is not None:
+            product = (1.0 - t) * table[lo] * slope[lo] + t * table[hi] * slope[hi]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope[last] = np.where(table[last] > 0.0, product / table[last], mid)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -641,9 +664,18 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
 def _profile_dict(
     prof: BeamProfile, t_ref: float, R: float, center, axis, key, receivers=()
 ) -> dict:
+    pixels = prof.pixel_cache.get(t_ref)
+    if pixels is None:  # (shared by every light of this table: never written to)
+        pixels = (prof.table / t_ref).astype(np.float32), None
+        if prof.slope is not None:
+            # the image's green channel: intensity × mean slope, which the texture's
+            # linear interpolation blends as it blends the intensity (`_slope_table`)
+            pixels = pixels[0], (prof.table * prof.slope / t_ref).astype(np.float32)
+        prof.pixel_cache.clear()
+        prof.pixel_cache[t_ref] = pixels
     out = {
         # (height, width), row 0 = v at the bottom
-        "pixels": (prof.table / t_ref).astype(np.float32),
+        "pixels": pixels[0],
         "width": prof.table.shape[1],
         "height": prof.table.shape[0],
         "gamma_max_deg": prof.gamma_max_deg,
@@ -660,10 +692,8 @@ def _profile_dict(
         out["angular_apex_location"] = tuple(
             float(v) for v in center + prof.angular_apex * R * axis
         )
-    if prof.slope is not None:
-        # the image's green channel: intensity × mean slope, which the texture's
-        # linear interpolation blends as it blends the intensity (`_slope_table`)
-        out["slope_pixels"] = (prof.table * prof.slope / t_ref).astype(np.float32)
+    if pixels[1] is not None:
+        out["slope_pixels"] = pixels[1]
     if receivers and prof.slope is not None:
         # receivers tilted against the axis: the node tree's tilt correction, each
         # plane's own where the shading point lies on it (`build_profile_nodes`)

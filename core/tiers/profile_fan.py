@@ -170,10 +170,8 @@ def _chunk(ctx, h, Z, job_of_row):
     # counts once it has left the sphere; each job's rows from its own fan
     height = np.empty((M, N + 1), dtype=f32)
     valid = np.empty((M, N + 1), dtype=bool)
-    good = np.empty((M, N + 1), dtype=bool)
     for blk, f in blocks:
         height[blk] = f.b_over_c[None, :] - Z32[blk, None] * f.tan_exit[None, :]
-        good[blk] = f.good[None, :]
         valid[blk] = f.good[None, :] & (Z[blk, None] >= f.z_exit[None, :])
     rho = np.abs(height)
     # each landing's ring: u = √(γ/γ_max), K rings uniform in u
@@ -182,7 +180,7 @@ def _chunk(ctx, h, Z, job_of_row):
     ring = np.minimum(np.where(valid, u * f32(K), 0.0), K - 1).astype(np.int32)
     ok = valid[:, :-1] & valid[:, 1:]
     ha, hb = height[:, :-1], height[:, 1:]
-    cross = ok & ((ha < 0.0) != (hb < 0.0)) & (ha != 0.0) & (hb != 0.0)
+    cross = ok & (ha * hb < 0.0)  # the two rays on either side of the axis
     plain = ok & ~cross
     ia, ib = ring[:, :-1], ring[:, 1:]
     same = plain & (ia == ib)
@@ -248,7 +246,9 @@ def _chunk(ctx, h, Z, job_of_row):
     # next still inside: planes through the lens, the near field's first rows): the
     # part already out, to where the exit point (linear along the piece) meets the
     # plane (`ExactBeam` drops the whole piece: an error of one piece's flux)
-    edge = good[:, :-1] & good[:, 1:] & (valid[:, :-1] != valid[:, 1:])
+    edge = valid[:, :-1] != valid[:, 1:]
+    for blk, f in blocks:
+        edge[blk] &= (f.good[:-1] & f.good[1:])[None, :]
     cut = np.flatnonzero(edge)
     if cut.size:
         r_e = cut // N
@@ -275,52 +275,26 @@ def _chunk(ctx, h, Z, job_of_row):
         pieces.append(
             (r_e, np.abs(h_out), rho_mid, flat_ring[ray_out], ring_mid, w_out, w_mid, fl, sl)
         )
-    r, rho0, rho1, ring0, ring1, w0, w1, fl = (
-        np.concatenate([p[i] for p in pieces]) for i in range(8)
-    )
-    sl = np.concatenate([p[8] for p in pieces]).astype(float) if slope else None
-    # Spread: along a piece the radius and the flux weight are both linear in the
-    # incidence angle, so its flux per unit radius is linear too (d_lo at its near
-    # end, d_hi at its far end): the partial rings at its ends take their share of
-    # that, the rings inside it a running sum of both coefficients.
-    near_first = rho0 <= rho1
-    lo, hi = np.where(near_first, rho0, rho1), np.where(near_first, rho1, rho0)
-    w_lo, w_hi = np.where(near_first, w0, w1), np.where(near_first, w1, w0)
-    j0, j1 = np.minimum(ring0, ring1).astype(np.int64), np.maximum(ring0, ring1).astype(np.int64)
-    b = r * K
-    spread = (j0 != j1) & (fl > 0.0)
-    # a piece within one ring (or without flux): all of it there
-    one = ~spread
-    idx.append(b[one] + j0[one])
-    val.append(fl[one])
-    if slope:
-        sls.append(sl[one])
-    r, lo, hi, w_lo, w_hi, fl, j0, j1, b = (
-        x[spread] for x in (r, lo, hi, w_lo, w_hi, fl, j0, j1, b)
-    )
-    if slope:
-        sl = sl[spread]
-    length = hi - lo
-    total_w = w_lo + w_hi
-    d_lo = 2.0 * fl * w_lo / (total_w * length)
-    slope_d = 2.0 * fl * (w_hi - w_lo) / (total_w * length * length)
-    first = _below(h[r] * tan_g[j0 + 1], lo, length, d_lo, slope_d, fl)
-    last = fl - _below(h[r] * tan_g[j1], lo, length, d_lo, slope_d, fl)
-    idx += [b + j0, b + j1]
-    val += [first, last]
-    if slope:
-        sls += [sl, sl]
+    # the main group alone (no copy into one array with the few others)
+    marks, coef_a, coef_c, mark_sl = [], [], [], []
+    small = pieces[1:]
+    groups = [pieces[0]]
+    if small:
+        groups.append(
+            tuple(
+                None if small[0][i] is None else np.concatenate([p[i] for p in small])
+                for i in range(9)
+            )
+        )
+    for group in groups:
+        _spread(K, h, tan_g, group, idx, val, sls, marks, coef_a, coef_c, mark_sl)
     all_idx = np.concatenate(idx)
     all_val = np.concatenate(val)
     size = M * K
     flux_w = np.bincount(all_idx, all_val, size).reshape(M, K)
-    # inside: flux per unit radius a + c ρ with a = d_lo − c lo, c = slope_d, from
-    # ring j0 + 1 up to ring j1 (exclusive): marks at both ends, running sums per row
-    # (a piece's two marks cancel within its row)
-    marks = np.concatenate([b + j0 + 1, b + j1])
-    a = d_lo - slope_d * lo
-    coef_a = np.concatenate([a, -a])
-    coef_c = np.concatenate([slope_d, -slope_d])
+    marks = np.concatenate(marks)
+    coef_a = np.concatenate(coef_a)
+    coef_c = np.concatenate(coef_c)
     dtan = np.diff(tan_g)
     width = h[:, None] * dtan[None, :]
     half_sq = 0.5 * (h * h)[:, None] * np.diff(tan_g * tan_g)[None, :]
@@ -336,8 +310,57 @@ def _chunk(ctx, h, Z, job_of_row):
     if not slope:
         return table, None
     S = np.bincount(all_idx, all_val * np.concatenate(sls), size).reshape(M, K)
-    sl2 = np.concatenate([sl, sl])
+    sl2 = np.concatenate(mark_sl)
     return table, S + inside(coef_a * sl2, coef_c * sl2)
+
+
+def _spread(K, h, tan_g, piece, idx, val, sls, marks, coef_a, coef_c, mark_sl):
+    """Lay a group of pieces ``(row, radii, rings, flux weights at both ends, flux,
+    slope)`` on the texels: onto the lists of (index, flux, slope) and of the inner
+    rings' marks (index, coefficients, slope).
+
+    Along a piece the radius and the flux weight are both linear in the incidence
+    angle, so its flux per unit radius is linear too (d_lo at its near end, d_hi at
+    its far end): the partial rings at its ends take their share of that, the rings
+    inside it a running sum of both coefficients (`_chunk`'s ``inside``)."""
+    r, rho0, rho1, ring0, ring1, w0, w1, fl, sl = piece
+    if sl is not None:
+        sl = sl.astype(float)
+    near_first = rho0 <= rho1
+    lo, hi = np.where(near_first, rho0, rho1), np.where(near_first, rho1, rho0)
+    w_lo, w_hi = np.where(near_first, w0, w1), np.where(near_first, w1, w0)
+    j0, j1 = np.minimum(ring0, ring1).astype(np.int64), np.maximum(ring0, ring1).astype(np.int64)
+    b = r * K
+    spread = (j0 != j1) & (fl > 0.0)
+    if not spread.all():
+        # a piece within one ring (or without flux): all of it there
+        one = ~spread
+        idx.append(b[one] + j0[one])
+        val.append(fl[one])
+        if sl is not None:
+            sls.append(sl[one])
+            sl = sl[spread]
+        r, lo, hi, w_lo, w_hi, fl, j0, j1, b = (
+            x[spread] for x in (r, lo, hi, w_lo, w_hi, fl, j0, j1, b)
+        )
+    length = hi - lo
+    total_w = w_lo + w_hi
+    d_lo = 2.0 * fl * w_lo / (total_w * length)
+    slope_d = 2.0 * fl * (w_hi - w_lo) / (total_w * length * length)
+    first = _below(h[r] * tan_g[j0 + 1], lo, length, d_lo, slope_d, fl)
+    last = fl - _below(h[r] * tan_g[j1], lo, length, d_lo, slope_d, fl)
+    idx += [b + j0, b + j1]
+    val += [first, last]
+    if sl is not None:
+        sls += [sl, sl]
+        mark_sl += [sl, sl]
+    # inside: flux per unit radius a + c ρ with a = d_lo − c lo, c = slope_d, from
+    # ring j0 + 1 up to ring j1 (exclusive): marks at both ends, running sums per row
+    # (a piece's two marks cancel within its row)
+    marks += [b + j0 + 1, b + j1]
+    a = d_lo - slope_d * lo
+    coef_a += [a, -a]
+    coef_c += [slope_d, -slope_d]
 
 
 class _Fan(NamedTuple):
