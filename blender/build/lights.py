@@ -520,10 +520,11 @@ def _update_profile_in_place(data, profile: dict, image_cache) -> bool:
     ):
         return False
     h0, h1 = float(profile["h_min"]), float(profile["h_max"])
-    h_min.outputs[0].default_value = h0
-    log_range.outputs[0].default_value = math.log(h1 / h0)
-    for name, value in tilts.items():
-        nt.nodes[name].outputs[0].default_value = value
+    values = {H_MIN_NODE: h0, LOG_RANGE_NODE: math.log(h1 / h0), **tilts}
+    for name, value in values.items():  # (each write tags the tree: only changes)
+        socket = nt.nodes[name].outputs[0]
+        if socket.default_value != float(np.float32(value)):  # (a float socket)
+            socket.default_value = value
     key = profile["key"]
     H, K = int(profile["height"]), int(profile["width"])
     img = _keyed_image(key, K, H, image_cache)
