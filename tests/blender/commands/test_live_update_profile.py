@@ -79,7 +79,8 @@ def _state():
         nums = np.array([*ob.location, *ob.rotation_quaternion, d.energy, d.shadow_soft_size])
         values = {n.name: n.outputs[0].default_value for n in nt.nodes if n.type == "VALUE"}
         pointers = (ob.as_pointer(), nt.as_pointer(), img.as_pointer())
-        out[ob.lens_lights.source_light] = (pointers, nums, values, px.reshape(*tuple(img.size)[::-1], 4))
+        px = px.reshape(img.size[1], img.size[0], 4)
+        out[ob.lens_lights.source_light] = (pointers, nums, values, px)
     return out
 
 

@@ -5,8 +5,9 @@ caustic) against the row-by-row exact table (`exact_profile.exact_profile`, from
 over a sweep of D/R and n, far and near field: on every row the flux within 1 % of
 the beam's; on the rows that carry the beam (a tenth of it or more) the peak (the
 brightest ring of width PEAK_DISC R on the row's plane) within 5 % and the L1
-difference within 5 % of the row's flux (the exact table's: 1 %). Then: tables made in one batch are the tables made alone, and
-`prepare_tables` gives coarse tables only where the exact one is not made."""
+difference within 5 % of the row's flux (the exact table's: 1 %). Then: tables made
+in one batch are the tables made alone, and `prepare_tables` gives coarse tables
+only where the exact one is not made."""
 
 import math
 
