@@ -662,6 +662,8 @@ def on_render_end(scene, *args):
 
 @bpy.app.handlers.persistent
 def on_save(*args):
+    if _PENDING:  # a coarse state is never saved: the full one first
+        refine(wait=False)
     # the Exact profile's images live update rewrote in place: packed as they are now
     lights.pack_dirty_profile_images()
 
@@ -678,9 +680,13 @@ def on_load(*args):
 
 
 def live_update_changed(settings, context):
-    """The checkbox's update: turned on, bring the lights up to date at once."""
+    """The checkbox's update: turned on, bring the lights up to date at once; turned
+    off while a coarse state shows, the full one first (never left coarse)."""
     scene = settings.id_data
     if not _on(scene):
+        if scene.as_pointer() in _PENDING and context is not None and context.view_layer:
+            _PENDING.discard(scene.as_pointer())
+            _run(scene, context.evaluated_depsgraph_get(), "refined", coarse=False)
         return  # off, or a bake exists: left alone
     if context is not None and context.view_layer is not None:
         _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True, coarse=False)

@@ -163,3 +163,21 @@ def test_a_render_after_a_burst_of_frames_sees_the_exact_state(empty_blend, inte
     finally:
         live.on_render_end(sc)
     _equal_to_generate(rendered)
+
+
+def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
+    empty_blend, interactive, tmp_path
+):
+    live = interactive
+    sc, _lamp = _scene()
+    sc.frame_set(3)
+    assert live.LAST_FIGURES["coarse"] == 1
+    sc.lens_lights.live_update = False  # off while the coarse state shows: refined first
+    assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
+    _equal_to_generate(_state())
+    sc.lens_lights.live_update = True
+    sc.frame_set(4)
+    assert live.LAST_FIGURES["coarse"] == 1
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "saved.blend"))  # refined first
+    assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
+    _equal_to_generate(_state())
