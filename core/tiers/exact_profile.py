@@ -621,12 +621,18 @@ class ProfileLight(BlenderLight):
 
     profile_info: dict | None = None
     receiver_distance: float | None = None  # from the lens centre, where known (shadow mask)
-    #: `cached_profile`'s key of its table (None: a table passed in); `coarse`: it
-    #: reads the coarse table (`prepare_tables`: live update while the user works)
-    table_key: tuple | None = None
+    #: `coarse`: it reads the coarse table (`prepare_tables`: live update while the
+    #: user works)
     coarse: bool = False
     _profile: dict | None = field(default=None, repr=False)
     _profile_maker: object = field(default=None, repr=False, compare=False)
+    _table_key: tuple | None = field(default=None, repr=False)
+
+    @property
+    def table_key(self) -> tuple | None:
+        """`cached_profile`'s key of its table (None: a table passed in, or a light of
+        `make_table`, which has none)."""
+        return self._table_key
 
     @property
     def profile(self) -> dict | None:
@@ -898,7 +904,7 @@ def make_profile_light(
         profile_info=profile_info,
         receiver_distance=None if receiver_distance is None else float(receiver_distance),
         _profile_maker=maker,
-        table_key=table_key,
+        _table_key=table_key,
         inside_lens=bool(apex < 1.0),
     )
 
