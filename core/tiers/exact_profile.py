@@ -332,6 +332,8 @@ class _Tables:
     and as many of the coarse tables live update shows while the user works
     (`prepare_tables`)."""
 
+    LARGEST = 128
+
     def __init__(self, size: int):
         self.size = size
         self.exact: OrderedDict = OrderedDict()
@@ -389,7 +391,9 @@ class _Tables:
             # the flux the light's energy is made of (`make_profile_light`, planned)
             prof.flux = _beam_summary(key[0], key[1])[0]
             store[key] = prof
-        while len(store) > max(self.size, len(keys)):
+        # what this call needs is kept (up to `LARGEST`: 2–3 MB a near table; beyond,
+        # the oldest are made again one by one when read)
+        while len(store) > max(self.size, min(len(keys), self.LARGEST)):
             store.popitem(last=False)
 
     def cache_clear(self) -> None:
