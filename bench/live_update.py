@@ -28,8 +28,10 @@ time, and whether the state after it equals a fresh Generate (the layer meshes'
 positions and irradiance, array for array).
 
 Resting marbles (issue 27, ``--resting``: lens counts): the Exact profile in Cycles
-with the marbles on the floor (the near field), per frame change and per drag of the
-other lamp, and the state after them against a fresh Generate (`run_resting`).
+with the marbles on the floor (the near field), as in Blender's window (coarse tables
+while frames and drags follow each other), per frame change and per drag of the
+other lamp, the coarse state after them and the refined one (the timer's exact
+tables) against a fresh Generate (`run_resting`).
 
 Unrelated edits (issue 28): with ``--unrelated`` lenses (20 by default), a cube no
 light path touches is dragged with live update off and on; the difference is what
@@ -458,11 +460,14 @@ def _tiny_render(path, px):
 
 def run_resting(n, frames, drags, render_px):
     """Issue 27: `n` marbles resting on the floor, Cycles, the Exact profile; live update
-    on, the lamp keyed to move: per frame change (`frame_set`) and per drag of the
-    other lamp (a transform update without a frame change, `view_layer.update()`), the
-    update's time; then the state after the last frame against a fresh Generate on
-    that frame (the lights' numbers, their trees' Value nodes, their tables' pixels,
-    and a tiny Cycles render of each)."""
+    on as in Blender's window (`live_update.INTERACTIVE`: coarse tables while frames
+    and drags follow each other), the lamp keyed to move: per frame change
+    (`frame_set`) and per drag of the other lamp (a transform update without a frame
+    change, `view_layer.update()`), the update's time; the coarse state after them
+    against a fresh Generate's; then the refine (the timer's work, called at once) and
+    the state after it against a fresh Generate on that frame (the lights' numbers,
+    their trees' Value nodes, their tables' pixels, and a tiny Cycles render of
+    each)."""
     import tempfile
 
     from lens_lights.blender.commands import live_update
@@ -470,6 +475,7 @@ def run_resting(n, frames, drags, render_px):
     from lens_lights.core.tiers import exact_profile
 
     exact_profile.cached_profile.cache_clear()  # from cold caches
+    live_update.INTERACTIVE = True  # as in Blender's window
     build_scene(n, frames, resting=True)
     scene = bpy.context.scene
     set_engine("CYCLES")
@@ -481,7 +487,7 @@ def run_resting(n, frames, drags, render_px):
     first = time.perf_counter() - t
     lights0 = {ob.as_pointer() for ob in bpy.data.objects if ob.lens_lights.is_lens_light}
     images0 = {i.as_pointer() for i in bpy.data.images}
-    frame_t, frame_wall, drag_t, frame_cpu, drag_cpu = [], [], [], [], []
+    frame_t, frame_wall, drag_t, frame_cpu, drag_cpu, coarse = [], [], [], [], [], []
     for k in range(2, frames + 2):
         t, c = time.perf_counter(), time.process_time()
         scene.frame_set(k)
@@ -491,6 +497,7 @@ def run_resting(n, frames, drags, render_px):
         if "error" in f:
             raise RuntimeError(f["error"])
         frame_t.append(f["seconds"])
+        coarse.append(f.get("coarse", 0))
     lamp = bpy.data.objects["Lamp B"]
     for _ in range(drags):
         before = live_update.LAST_FIGURES
@@ -505,6 +512,14 @@ def run_resting(n, frames, drags, render_px):
         if "error" in f:
             raise RuntimeError(f["error"])
         drag_t.append(f["seconds"])
+        coarse.append(f.get("coarse", 0))
+    shown = _profile_state()  # what the user sees while working (no render: it refines)
+    t, c = time.perf_counter(), time.process_time()
+    live_update.refine(scene, wait=False)  # the timer's work once the burst is over
+    refine_wall, refine_cpu = time.perf_counter() - t, time.process_time() - c
+    if live_update.LAST_FIGURES.get("why") != "refined":
+        raise RuntimeError("no refine after coarse tables")
+    live_update.INTERACTIVE = None
     lights1 = {ob.as_pointer() for ob in bpy.data.objects if ob.lens_lights.is_lens_light}
     images1 = {i.as_pointer() for i in bpy.data.images}
     live = _profile_state()
@@ -516,6 +531,7 @@ def run_resting(n, frames, drags, render_px):
     fresh = _profile_state()
     render_fresh = _tiny_render(tmp / "fresh.exr", render_px)
     same, nums, vals, pix = _state_difference(live, fresh)
+    coarse_same, _n, _v, coarse_pix = _state_difference(shown, fresh)
     l1 = float(np.abs(render_live - render_fresh).mean() / max(render_fresh.mean(), 1e-30))
     med = statistics.median
     return dict(
@@ -537,6 +553,10 @@ def run_resting(n, frames, drags, render_px):
         vals=vals,
         pix=pix,
         l1=l1,
+        coarse=statistics.median(coarse),
+        coarse_pix=coarse_pix if coarse_same else math.inf,
+        refine=refine_wall,
+        refine_cpu=refine_cpu,
     )
 
 
@@ -697,7 +717,10 @@ def write_report(rows, args, unrelated=(), layer_rows=(), resting=()):
             "",
             "N glass marbles resting on the floor (their tables in the near field, the "
             "floor tilted against each lens' axis as the lamp moves), Cycles, the Exact "
-            f"profile tier; live update on. **frame**: live update's time per frame change "
+            f"profile tier; live update on as in Blender's window (`live_update.INTERACTIVE`: "
+            "a light whose exact table is not made yet shows a coarse one while frames and "
+            "drags follow each other, `exact_profile.prepare_tables`; **coarse**: lights "
+            "with a coarse table per update, median). **frame**: live update's time per frame change "
             f"(median over {args.frames} frames of `frame_set`, the keyed lamp moving; max; "
             "**CPU**: the process's CPU time per `frame_set`, less sensitive to the other "
             "work on the machine than the wall time); "
@@ -705,7 +728,10 @@ def write_report(rows, args, unrelated=(), layer_rows=(), resting=()):
             f"`view_layer.update()`, median over {args.drags}; max); **first**: turning live "
             "update on; **kept**: the same light objects after all of it; **new images**: "
             "images made by the frames and drags (the tables are written into each light's "
-            "own image in place). Then Generate on the last state: **Δ numbers** the largest "
+            "own image in place). **coarse Δ pixels**: the coarse state after the last drag "
+            "against Generate's exact tables (the largest difference over each table's "
+            "largest texel); **refine**: the timer's exact tables once the burst is over "
+            "(wall, CPU). Then Generate on the refined state: **Δ numbers** the largest "
             "relative difference of the lights' values (transform, power, colour, cone, "
             "radius), **Δ nodes** of their trees' Value nodes (distances, tilts), **Δ pixels** "
             "of their tables (over each table's largest texel), **render L1** the relative "
@@ -715,17 +741,20 @@ def write_report(rows, args, unrelated=(), layer_rows=(), resting=()):
             "Target (issue 27): frame ≤ 100 ms for 10 marbles, ≤ 30 ms for one; the state "
             "equal to a fresh Generate's.",
             "",
-            "| lenses | lens lights | frame ms (max) | CPU ms | drag ms (max) | CPU ms "
+            "| lenses | lens lights | coarse | frame ms (max) | CPU ms | drag ms (max) | CPU ms "
+            "| coarse Δ pixels | refine ms | CPU ms "
             "| first ms | kept | new images | Generate ms | Δ numbers | Δ nodes | Δ pixels "
             "| render L1 |",
-            "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: "
-            "| ---: | ---: | ---: |",
+            "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- "
+            "| ---: | ---: | ---: | ---: | ---: | ---: |",
         ]
         for r in resting:
             lines.append(
-                f"| {r['n']} | {r['lights']} | {ms(r['frame'])} ({ms(r['frame_max'])}) | "
+                f"| {r['n']} | {r['lights']} | {r['coarse']:g} | {ms(r['frame'])} "
+                f"({ms(r['frame_max'])}) | "
                 f"{ms(r['frame_cpu'])} | {ms(r['drag'])} ({ms(r['drag_max'])}) | "
-                f"{ms(r['drag_cpu'])} | {ms(r['first'])} | "
+                f"{ms(r['drag_cpu'])} | {r['coarse_pix']:.1e} | {ms(r['refine'])} | "
+                f"{ms(r['refine_cpu'])} | {ms(r['first'])} | "
                 f"{'yes' if r['kept'] else 'no'} | {r['new_images']} | {ms(r['generate'])} | "
                 + (
                     f"{r['nums']:.1e} | {r['vals']:.1e} | {r['pix']:.1e} | {r['l1']:.1e} |"
@@ -798,8 +827,10 @@ def main(argv=None):
         r = run_resting(n, args.frames, args.drags, args.render_px)
         resting.append(r)
         print(
-            f"resting, {n} lenses EXACT_PROFILE: {r['lights']} lights, frame {ms(r['frame'])} ms, "
-            f"drag {ms(r['drag'])} ms; against Generate: numbers {r['nums']:.1e}, nodes "
+            f"resting, {n} lenses EXACT_PROFILE: {r['lights']} lights, frame {ms(r['frame'])} ms "
+            f"(CPU {ms(r['frame_cpu'])}), drag {ms(r['drag'])} ms (CPU {ms(r['drag_cpu'])}), "
+            f"coarse pixels {r['coarse_pix']:.1e}, refine {ms(r['refine'])} ms; against "
+            f"Generate: numbers {r['nums']:.1e}, nodes "
             f"{r['vals']:.1e}, pixels {r['pix']:.1e}, render L1 {r['l1']:.1e}",
             flush=True,
         )

@@ -50,6 +50,7 @@ import numpy as np
 from mathutils import Vector
 
 from ...core.plan.linking import MAX_COLLECTIONS, MAX_SETS, beams_of, plan_linking, sets_used
+from ...core.tiers import exact_profile
 from . import mask_nodes
 from .marks import (
     COLLECTION_MARK,
@@ -195,14 +196,24 @@ def write_profile_pixels(img, profile: dict) -> None:
     packed: a live update's rewrite is packed when the file is saved
     (`pack_dirty_profile_images`)."""
     H, K = int(profile["height"]), int(profile["width"])
-    rgba = np.ones((H, K, 4), dtype=np.float32)
-    rgba[..., :3] = np.asarray(profile["pixels"], dtype=np.float32)[..., None]
+    rgba = _RGBA.get((H, K))
+    if rgba is None:  # one buffer per size (alpha 1), rewritten for every table
+        rgba = _RGBA[(H, K)] = np.ones((H, K, 4), dtype=np.float32)
+    px = np.asarray(profile["pixels"], dtype=np.float32)
+    rgba[..., 0] = px
+    rgba[..., 2] = px
     if profile.get("slope_pixels") is not None:  # near field: intensity × mean slope
         rgba[..., 1] = np.asarray(profile["slope_pixels"], dtype=np.float32)
+    else:
+        rgba[..., 1] = px
     img.pixels.foreach_set(rgba.ravel())
     img.update()
     if profile.get("key") is not None:
         img[PROFILE_KEY] = profile["key"]
+
+
+#: `write_profile_pixels`' RGBA buffers by (height, width).
+_RGBA: dict = {}
 
 
 def pack_dirty_profile_images() -> int:
@@ -509,10 +520,11 @@ def _update_profile_in_place(data, profile: dict, image_cache) -> bool:
     ):
         return False
     h0, h1 = float(profile["h_min"]), float(profile["h_max"])
-    h_min.outputs[0].default_value = h0
-    log_range.outputs[0].default_value = math.log(h1 / h0)
-    for name, value in tilts.items():
-        nt.nodes[name].outputs[0].default_value = value
+    values = {H_MIN_NODE: h0, LOG_RANGE_NODE: math.log(h1 / h0), **tilts}
+    for name, value in values.items():  # (each write tags the tree: only changes)
+        socket = nt.nodes[name].outputs[0]
+        if socket.default_value != float(np.float32(value)):  # (a float socket)
+            socket.default_value = value
     key = profile["key"]
     H, K = int(profile["height"]), int(profile["width"])
     img = _keyed_image(key, K, H, image_cache)
@@ -606,6 +618,7 @@ def build(scene, plan, lens_objects, progress=None, arrays=None):
     collection = lights_collection(scene)
     images: dict = {}
     made = []
+    exact_profile.prepare_tables([p.light for p in plan.lights])  # their tables at once
     for k, planned in enumerate(plan.lights):
         made.append(
             create_light(

@@ -60,6 +60,12 @@ render_init refines at once, and an update with the render's depsgraph (or durin
 render) is always full. Other pairs, other receivers (moved, recoloured) or a glass
 mesh's beam need the full layer at once.
 
+**The Exact profile** (Cycles' AUTO) follows the same way: every table the plan's
+lights read is made in one batch (`exact_profile.prepare_tables`); in Blender's
+window a light whose exact table is not made yet reads a *coarse* one (fewer rays:
+within 1 % of the flux and 5 % of the peak; its image keyed apart), and `refine`
+writes the exact tables once the burst is over, or at once when a render starts.
+
 **Water** (issue 26): every update runs the water stage (`water_stage.prepare`, as
 Generate) and writes its layers into the water's layer objects in place where the
 patches are the same (`water_stage.refill`), else makes those alone again; the lens
@@ -94,7 +100,7 @@ from ...core.caustic_layer.live import LiveLayer
 from ...core.plan import watch
 from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
-from ...core.tiers import builds_layer
+from ...core.tiers import builds_layer, exact_profile
 from ...core.tiers.base import COLLIMATED_DISTANCE_FACTOR
 from ..build import cleanup, cycles_caustics, lights, ownership
 from ..build import layers as layer_builder
@@ -461,6 +467,10 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
         )
         m = match(old_keys, new_keys)
         images: dict = {}
+        # every table the lights read, at once (coarse ones while the user works)
+        t_tables = time.perf_counter()
+        figures["coarse"] = exact_profile.prepare_tables([p.light for p in plan.lights], coarse)
+        work.timings["tables"] = time.perf_counter() - t_tables
         for i, j in m.update:
             # with phase 1's arrays: a non-full source's profile light keeps its mask
             lights.apply_light(existing[i], plan.lights[j], images, read.arrays)
@@ -500,11 +510,12 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
+        _remember_coarse(scene, figures["coarse"] > 0)
     figures["water_layers"] = _water_update(scene, work)
     _LAST_INPUTS[scene.as_pointer()] = (
         signature,
         len(scene.lens_lights.created_objects),
-        is_coarse,
+        is_coarse or figures.get("coarse", 0) > 0,
     )
     t1 = time.perf_counter()
     figures.update(
@@ -606,19 +617,32 @@ def _remember_layer(scene, bake):
         _LAYERS[ptr] = LiveLayer(bake, bake.names, bake.receivers_key)
 
 
+def _remember_coarse(scene, coarse: bool):
+    """After an Exact profile update: coarse tables wait for the exact ones (`refine`,
+    a timer)."""
+    ptr = scene.as_pointer()
+    if not coarse:
+        _PENDING.discard(ptr)
+    else:
+        _PENDING.add(ptr)
+        if not bpy.app.timers.is_registered(refine):
+            bpy.app.timers.register(refine, first_interval=BURST_SECONDS)
+
+
 def _coarse_allowed(depsgraph) -> bool:
-    """May this update show a coarse layer? Never for a render (its depsgraph, or
-    while one runs: every frame renders the full layer), and only in Blender's
-    window (`INTERACTIVE`)."""
+    """May this update show a coarse layer or coarse Exact profile tables? Never for
+    a render (its depsgraph, or while one runs: every frame renders the full layer
+    and the exact tables), and only in Blender's window (`INTERACTIVE`)."""
     if _RENDERING or getattr(depsgraph, "mode", "VIEWPORT") == "RENDER":
         return False
     return (not bpy.app.background) if INTERACTIVE is None else INTERACTIVE
 
 
 def refine(scene=None, wait=True) -> float | None:
-    """The full layer for the scenes showing a coarse one (all, or `scene`), each once
-    its burst is over (``wait``: `BURST_SECONDS` after its last update; False: now).
-    The timer's function: returns the seconds until it runs again, None when done."""
+    """The full layer (the exact tables) for the scenes showing a coarse one (all, or
+    `scene`), each once its burst is over (``wait``: `BURST_SECONDS` after its last
+    update; False: now). The timer's function: returns the seconds until it runs
+    again, None when done."""
     now = time.perf_counter()
     again = 0.0
     for ptr in list(_PENDING):
@@ -709,6 +733,8 @@ def on_render_end(scene, *args):
 
 @bpy.app.handlers.persistent
 def on_save(*args):
+    if _PENDING:  # a coarse state is never saved: the full one first
+        refine(wait=False)
     # the Exact profile's images live update rewrote in place: packed as they are now
     lights.pack_dirty_profile_images()
 
@@ -726,9 +752,13 @@ def on_load(*args):
 
 
 def live_update_changed(settings, context):
-    """The checkbox's update: turned on, bring the lights up to date at once."""
+    """The checkbox's update: turned on, bring the lights up to date at once; turned
+    off while a coarse state shows, the full one first (never left coarse)."""
     scene = settings.id_data
     if not _on(scene):
+        if scene.as_pointer() in _PENDING and context is not None and context.view_layer:
+            _PENDING.discard(scene.as_pointer())
+            _run(scene, context.evaluated_depsgraph_get(), "refined", coarse=False)
         return  # off, or a bake exists: left alone
     if context is not None and context.view_layer is not None:
         _run(scene, context.evaluated_depsgraph_get(), "turned on", force=True, coarse=False)

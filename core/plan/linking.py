@@ -32,6 +32,7 @@ such lenses apart, within `budget` groups.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -137,19 +138,35 @@ def cone_bands(half_angle_deg: float) -> tuple[np.ndarray, np.ndarray]:
     return np.array([-np.inf, np.inf]), np.array([math.radians(min(half_angle_deg, 90.0))])
 
 
+#: The bands of the Exact profile tables met lately (live update: every update), by
+#: their key and distances: lights with one table share its bands (equal keys, equal
+#: pixels: `exact_profile`'s profile key).
+KEYED_BANDS = 256
+_KEYED_BANDS: OrderedDict = OrderedDict()
+
+
+def _bands(profile: dict):
+    """`profile_bands` of `profile`, remembered by its key where it has one."""
+    if profile.get("key") is None:
+        return profile_bands(profile)
+    key = (profile["key"], profile["h_min"], profile["h_max"], profile["gamma_max_deg"])
+    found = _KEYED_BANDS.get(key)
+    if found is None:
+        found = _KEYED_BANDS[key] = profile_bands(profile)
+        while len(_KEYED_BANDS) > KEYED_BANDS:
+            _KEYED_BANDS.popitem(last=False)
+    _KEYED_BANDS.move_to_end(key)
+    return found
+
+
 def beams_of(lights, lens) -> Beams:
     """`Beams` of `BlenderLight`s (an Exact profile light: its table's reach; any
     other: its cone) of the spheres `lens`."""
     bands = []
-    seen: dict = {}  # lights with one table (same key and distances) share its bands
     for bl in lights:
         profile = getattr(bl, "profile", None)
         if profile is not None and "pixels" in profile:
-            key = profile.get("key")
-            key = (key, profile["h_min"], profile["h_max"]) if key is not None else id(profile)
-            if key not in seen:
-                seen[key] = profile_bands(profile)
-            bands.append(seen[key])
+            bands.append(_bands(profile))
         else:
             bands.append(cone_bands(float(bl.cone_half_angle_deg or bl.spot_size_deg / 2.0)))
     B = max((len(a) for _, a in bands), default=1)

@@ -251,6 +251,26 @@ def other_planes(occluders, axis, center, radius, z, normal) -> list:
     return side_planes(origins, dirs, hits, radius, known)
 
 
+def all_other_planes(occluders, axis, center, radius, z, normals) -> dict:
+    """`other_planes` of the sources `normals` holds (row → the receiver's normal or
+    None; their receivers `z[row]` from the centre), every bundle in one cast."""
+    rows = list(normals)
+    rays = [side_plane_rays(axis[k], center[k], float(radius[k])) for k in rows]
+    origins = np.concatenate([o for o, _ in rays])
+    dirs = np.concatenate([d for _, d in rays])
+    reach = SIDE_REACH * np.asarray(radius, dtype=float)[rows]
+    hits = cast_bundles(occluders, origins, dirs, float(reach.max()))
+    out, start = {}, 0
+    for k, (o, d) in zip(rows, rays, strict=True):
+        part = slice(start, start + len(o))
+        start += len(o)
+        u = np.asarray(axis[k], dtype=float)
+        c = np.asarray(center[k], dtype=float)
+        known = [] if normals[k] is None else [(normals[k], c + float(z[k]) * u)]
+        out[k] = side_planes(o, d, hits[part], float(radius[k]), known)
+    return out
+
+
 def _frames(axis, center, radius):
     """Unit axes, the two unit vectors square to them (as `free_distance_behind`),
     centres and radii, per row."""
@@ -712,16 +732,18 @@ def _final_lights(read, selection, cols, rows, tier, model, common) -> _KeptLigh
             occ, sub.axis[beams], sub.lens_center[beams], sub.lens_radius[beams], size
         )
     optics = read.lens_optics
+    normals = {}
+    for k in np.flatnonzero(np.isfinite(recv)).tolist():
+        r = float(sub.lens_radius[k])
+        normals[k] = rim_plane_normal(origins[k], axis[k], hits[k], r, distance=float(recv[k]))
+    found = {}
+    if tier.name == EXACT_PROFILE and normals:  # the only tier that reads them
+        found = all_other_planes(occ, axis, sub.lens_center, sub.lens_radius, recv, normals)
     out = []
     for k, src in enumerate(sources):
         near = None
-        if np.isfinite(recv[k]):
-            z, r = float(recv[k]), float(sub.lens_radius[k])
-            normal = rim_plane_normal(origins[k], axis[k], hits[k], r, distance=z)
-            planes = ()
-            if tier.name == EXACT_PROFILE:  # the only tier that reads them
-                planes = other_planes(occ, axis[k], sub.lens_center[k], r, z, normal)
-            near = ReceiverDistance(z, normal, planes)
+        if k in normals:
+            near = ReceiverDistance(float(recv[k]), normals[k], found.get(k, ()))
         out.append(
             make_blender_light(
                 src,

@@ -12,9 +12,13 @@ plane perpendicular to the axis the exact irradiance (to the table's
 resolution), including the converging part and the focus. Beyond the table's
 last distance the intensity tends to the beam's far-field profile, which is
 exact for a far receiver whatever the apex. The table is computed per source
-from the exact ray fan (`profile_fan`, every row at once: about 20 ms, 50 ms for
-the near field's; remembered per geometry, `cached_profile`); :func:`exact_profile`,
-row by row from `beam_error.ExactBeam` (0.3–0.9 s), is its reference.
+from the exact ray fan (`profile_fan`, every row at once: about 20 ms, 30 ms for
+the near field's; remembered per geometry, `cached_profile`; many at once,
+`fan_profiles`, `prepare_tables`); :func:`exact_profile`, row by row from
+`beam_error.ExactBeam` (0.3–0.9 s), is its reference. Live update shows a coarse
+table while the user works (``coarse``: fewer rays, every fourth row beyond the
+caustic; within 1 % of the flux and 5 % of the peak) until its timer makes the
+exact one.
 
 The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
 has a row on the receiver's plane (right past the lens the beam changes by tens
@@ -45,6 +49,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -71,7 +76,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, FAN_FAR, fan_table
+from .profile_fan import FAN, FAN_FAR, caustic_end, fan_tables
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -122,6 +127,12 @@ def table_geometry(
     return NEAR_APEX, NEAR_H_MIN * shift, NEAR_H_MAX * shift
 
 
+def row_distances(h_min: float, h_max: float, M: int) -> np.ndarray:
+    """The distances (R, from the apex) of a table's `M` rows (`BeamProfile`)."""
+    v = (np.arange(M) + 0.5) / M
+    return h_min * (h_max / h_min) ** v
+
+
 #: Largest angle from the axis the table covers (degrees).
 PROFILE_GAMMA_MAX_DEG = 90.0
 
@@ -153,6 +164,9 @@ class BeamProfile:
     #: outward, of the rays through each texel (M, K) (`_slope_table`); the light's
     #: image holds table × slope
     slope: np.ndarray | None = field(default=None, repr=False)
+    #: the image's float32 pixels per normalisation (`_profile_dict`): a table read
+    #: again (an unchanged light planned again) is not converted again
+    pixel_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -162,9 +176,7 @@ class BeamProfile:
 
     @property
     def distances(self) -> np.ndarray:
-        M = self.table.shape[0]
-        v = (np.arange(M) + 0.5) / M
-        return self.h_min * (self.h_max / self.h_min) ** v
+        return row_distances(self.h_min, self.h_max, self.table.shape[0])
 
     def intensity_at(self, h: float) -> np.ndarray:
         """The angular profile (K values) the light has for points at distance
@@ -200,18 +212,24 @@ def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
     those texels into the points just outside: left as traced (no light yet, or
     only part of the bin) they darken the caustic around the contact point of a
     resting lens (a dark disc of about 4° at the back pole)."""
-    h = prof.distances[:, None]
-    inside = (prof.apex + h) ** 2 + (h * np.tan(g_edges[:-1])) ** 2 < 1.0
-    M = prof.table.shape[0]
+    h = prof.distances
+    M = h.size
+    # only rows whose plane passes through the lens have texels inside it
+    through = np.flatnonzero((prof.apex + h) ** 2 < 1.0)
+    if not through.size:
+        return
+    m = int(through[-1]) + 1
+    hm = h[:m, None]
+    inside = (prof.apex + hm) ** 2 + (hm * np.tan(g_edges[:-1])) ** 2 < 1.0
     # per column: the first row past its last texel inside (every column at once)
-    last = M - 1 - np.argmax(inside[::-1], axis=0)
+    last = m - 1 - np.argmax(inside[::-1], axis=0)
     first = np.where(inside.any(axis=0), last + 1, 0)
-    fill = (np.arange(M)[:, None] < first[None, :]) & (first[None, :] < M)
+    fill = (np.arange(m)[:, None] < first[None, :]) & (first[None, :] < M)
     cols = np.flatnonzero(fill.any(axis=0))
     src = first[cols]
     for arr in (prof.table, prof.slope):
         if arr is not None and cols.size:
-            arr[:, cols] = np.where(fill[:, cols], arr[src, cols][None, :], arr[:, cols])
+            arr[:m, cols] = np.where(fill[:, cols], arr[src, cols][None, :], arr[:m, cols])
 
 
 def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
@@ -307,27 +325,113 @@ def exact_profile(
     return prof
 
 
-#: (a near table with its slopes is 2 MB: a light dragged for a while leaves one per
-#: step, the oldest forgotten)
-@functools.lru_cache(maxsize=64)
-def cached_profile(
-    D_over_R: float,
-    n: float,
-    near: bool = False,
-    receiver: float | None = None,
-    slope: bool = False,
-) -> BeamProfile:
-    """The tier's table (Generate, live update and the bake read this one): the
-    exact beam binned straight from the ray fan (`profile_fan.fan_table`, a few
-    tens of milliseconds), in :func:`exact_profile`'s geometry and layout, within
-    1 % of its flux per row (`profile_fan`); without the 1-D ``angular`` profile.
-    Remembered: a scene re-evaluated with unchanged lenses and lights (frame
-    changes, re-runs) pays once. Do not modify the returned table."""
-    M = NEAR_DISTANCES if receiver is not None else PROFILE_DISTANCES
-    prof = fan_profile(D_over_R, n, near=near, receiver=receiver, M=M, slope=slope)
-    # the flux the light's energy is made of (`make_profile_light`, planned already)
-    prof.flux = _beam_summary(D_over_R, n)[0]
-    return prof
+class _Tables:
+    """`cached_profile`: the tier's tables remembered by their arguments ``(D/R, n,
+    near, receiver, slope)``, the last `size` of them (a near table with its slopes
+    is 2 MB: a light dragged for a while leaves one per step, the oldest forgotten),
+    and as many of the coarse tables live update shows while the user works
+    (`prepare_tables`)."""
+
+    LARGEST = 128
+
+    def __init__(self, size: int):
+        self.size = size
+        self.exact: OrderedDict = OrderedDict()
+        self.coarse: OrderedDict = OrderedDict()
+
+    @staticmethod
+    def key(D_over_R, n, near=False, receiver=None, slope=False) -> tuple:
+        return (D_over_R, n, bool(near), receiver, bool(slope))
+
+    def __call__(
+        self,
+        D_over_R: float,
+        n: float,
+        near: bool = False,
+        receiver: float | None = None,
+        slope: bool = False,
+    ) -> BeamProfile:
+        """The tier's table (Generate, live update and the bake read this one): the
+        exact beam binned straight from the ray fan (`fan_profiles`, a few tens of
+        milliseconds), in :func:`exact_profile`'s geometry and layout, within 1 % of
+        its flux per row (`profile_fan`); without the 1-D ``angular`` profile.
+        Remembered: a scene re-evaluated with unchanged lenses and lights (frame
+        changes, re-runs) pays once. Do not modify the returned table."""
+        key = self.key(D_over_R, n, near, receiver, slope)
+        if key not in self.exact:
+            self.make([key])
+        self.exact.move_to_end(key)
+        return self.exact[key]
+
+    def get(self, key: tuple, coarse: bool = False) -> BeamProfile | None:
+        """The table of `key` if remembered: the exact one, else with `coarse` the
+        coarse one."""
+        found = self.exact.get(key)
+        if found is None and coarse:
+            found = self.coarse.get(key)
+        return found
+
+    def make(self, keys, coarse: bool = False) -> None:
+        """The tables of `keys` not remembered yet, made at once (`fan_profiles`: one
+        batch of fans) and remembered (with `coarse`: the coarse ones)."""
+        store = self.coarse if coarse else self.exact
+        keys = list(dict.fromkeys(keys))
+        for k in keys:  # what this call needs is the newest (kept however many)
+            for known in (self.exact, store):
+                if k in known:
+                    known.move_to_end(k)
+        todo = [k for k in keys if k not in self.exact and k not in store]
+        if not todo:
+            return
+        specs = [
+            (d, n, near, r, NEAR_DISTANCES if r is not None else PROFILE_DISTANCES, slope)
+            for d, n, near, r, slope in todo
+        ]
+        for key, prof in zip(todo, fan_profiles(specs, coarse=coarse), strict=True):
+            # the flux the light's energy is made of (`make_profile_light`, planned)
+            prof.flux = _beam_summary(key[0], key[1])[0]
+            store[key] = prof
+        # what this call needs is kept (up to `LARGEST`: 2–3 MB a near table; beyond,
+        # the oldest are made again one by one when read)
+        while len(store) > max(self.size, min(len(keys), self.LARGEST)):
+            store.popitem(last=False)
+
+    def cache_clear(self) -> None:
+        self.exact.clear()
+        self.coarse.clear()
+
+    def cache_info(self):
+        return _CacheInfo(len(self.exact), len(self.coarse))
+
+
+@dataclass(frozen=True)
+class _CacheInfo:
+    currsize: int  # exact tables remembered
+    coarse: int
+
+
+cached_profile = _Tables(64)
+
+
+def prepare_tables(lights, coarse: bool = False) -> int:
+    """Make the tables the Exact profile `lights` (`ProfileLight`s) will read, all at
+    once (one batch of fans for every table not remembered yet, not one per light as
+    each light's `profile` would on first use). With `coarse` (live update while the
+    user works) a light whose exact table is not remembered gets a coarse one
+    (`COARSE_FAN` rays: within 1 % of the flux and 5 % of the peak of the exact
+    table, a fifth of its time; keyed apart, so that no image holding it is taken
+    for the exact one) and reads it until it is planned again without `coarse`.
+    Returns how many lights read a coarse table."""
+    lights = [bl for bl in lights if getattr(bl, "table_key", None) is not None]
+    cached_profile.make([bl.table_key for bl in lights], coarse=coarse)
+    n_coarse = 0
+    for bl in lights:
+        now = coarse and cached_profile.get(bl.table_key) is None
+        if bl.coarse != now:
+            bl.coarse = now
+            bl._profile = None  # made again from the table it reads now
+        n_coarse += now
+    return n_coarse
 
 
 def fan_profile(
@@ -345,46 +449,130 @@ def fan_profile(
     """:func:`exact_profile`'s table (same geometry, rows, columns, slopes and
     filled texels inside the lens) from `profile_fan.fan_table` (`n_fan` rays for
     every row; by default ``FAN`` for the rows nearer than ``FAR_ROWS`` R to the
-    lens centre, ``FAN_FAR`` beyond); ``angular`` None."""
+    lens centre, ``FAN_FAR`` beyond); ``angular`` None. One of `fan_profiles`."""
+    spec = (D_over_R, n, near, receiver, M, slope)
+    return fan_profiles([spec], absorption=absorption, n_fan=n_fan, K=K)[0]
+
+
+#: The coarse table live update shows while the user works (`prepare_tables`): rays
+#: of its fan near the lens and beyond ``FAR_ROWS``, and beyond the caustic
+#: (`profile_fan.caustic_end`, where the table changes smoothly) every
+#: ``COARSE_ROW_STEP``-th row, linear in between as the texture reads them: within
+#: 1 % of the exact table's flux and 5 % of its peak on every row
+#: (tests/core/tiers/test_profile_coarse.py).
+COARSE_FAN, COARSE_FAN_FAR = 300, 150
+COARSE_ROW_STEP = 4
+#: Rows from this factor times the caustic's end on are coarse rows.
+COARSE_MARGIN = 1.1
+
+
+def fan_profiles(
+    specs,
+    *,
+    coarse: bool = False,
+    absorption: float = 0.0,
+    n_fan: int | None = None,
+    K: int = PROFILE_ANGLES,
+) -> list[BeamProfile]:
+    """`fan_profile` for each of `specs` ``(D/R, n, near, receiver, M, slope)``, every
+    table's rows in one batch of fans per fan size (`profile_fan.fan_tables`); with
+    `coarse` the coarse tables (``COARSE_FAN``)."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
-    if receiver is not None:
-        apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
-    else:
-        apex, h_min, h_max = table_geometry(0.0 if near else None)
-    prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.zeros((M, K)))
-    with_slope = apex < 1.0 and slope
-    h = prof.distances
-    # the near field's rows through and right past the lens need the denser fan;
-    # from 1 R behind it on, and the far table's rows (all behind the lens), the
-    # sparser one is as good (`profile_fan.FAN_FAR`)
-    dense = (apex + h < FAR_ROWS) & (apex < 1.0)
-    if n_fan is not None:
-        dense[:] = True
-    parts = [
-        fan_table(
-            float(D_over_R),
-            n,
-            absorption,
-            apex,
-            h[rows],
-            g_edges,
-            n_fan=fan,
-            slope=with_slope,
-        )
-        for rows, fan in ((dense, n_fan or FAN), (~dense, FAN_FAR))
-        if rows.any()
-    ]
-    table = np.concatenate([p[0] for p in parts])
-    mean_slope = np.concatenate([p[1] for p in parts]) if with_slope else None
-    flux = parts[0][2]
-    table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
-    prof.table, prof.flux = table, flux
-    if with_slope:
-        prof.slope = mean_slope
-        _fill_inside_lens(prof, g_edges)
-    return prof
+    fans = (n_fan or (COARSE_FAN if coarse else FAN), COARSE_FAN_FAR if coarse else FAN_FAR)
+    profs, batches, betweens = [], {}, []
+    for i, (D_over_R, n, near, receiver, M, slope) in enumerate(specs):
+        if receiver is not None:
+            apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
+        else:
+            apex, h_min, h_max = table_geometry(0.0 if near else None)
+        prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, None)
+        with_slope = apex < 1.0 and slope
+        profs.append(prof)
+        h = row_distances(h_min, h_max, M)
+        # the near field's rows through and right past the lens need the denser fan;
+        # from 1 R behind it on, and the far table's rows (all behind the lens), the
+        # sparser one is as good (`profile_fan.FAN_FAR`)
+        dense = (apex + h < FAR_ROWS) & (apex < 1.0)
+        if n_fan is not None:
+            dense[:] = True
+        between = None
+        if coarse:  # beyond the caustic every step-th row (and the last)
+            end = COARSE_MARGIN * caustic_end(float(D_over_R), n, absorption, fans[0])
+            smooth = np.flatnonzero(apex + h >= end)
+            if smooth.size > 2:
+                kept = np.unique(np.append(smooth[::COARSE_ROW_STEP], smooth[-1]))
+                between = (kept, np.setdiff1d(smooth, kept))
+        for part, rows in enumerate((dense, ~dense)):
+            if between is not None:
+                rows = rows.copy()
+                rows[between[1]] = False
+            if rows.any():
+                job = (float(D_over_R), n, absorption, apex, h[rows])
+                batches.setdefault((fans[part], with_slope), []).append((i, part, rows, job))
+        betweens.append(between)
+    parts = [{} for _ in specs]
+    for (fan, with_slope), items in batches.items():
+        made = fan_tables([it[3] for it in items], g_edges, n_fan=fan, slope=with_slope)
+        for (i, part, rows, _), got in zip(items, made, strict=True):
+            parts[i][part] = (rows, *got)
+    for (*_, M, _), prof, got, between in zip(specs, profs, parts, betweens, strict=True):
+        pieces = [got[k] for k in sorted(got)]  # the dense rows first
+        prof.flux = pieces[0][3]  # the dense fan's where it has rows
+        with_slope = pieces[0][2] is not None
+        if len(pieces) == 1 and between is None:
+            prof.table, prof.slope = pieces[0][1], pieces[0][2]
+        else:
+            prof.table = np.empty((M, K))
+            prof.slope = np.empty((M, K)) if with_slope else None
+            for rows, table, mean_slope, _ in pieces:
+                prof.table[rows] = table
+                if with_slope:
+                    prof.slope[rows] = mean_slope
+            if between is not None:
+                _between_rows(prof, *between, g_edges)
+        prof.table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
+        if with_slope:
+            _fill_inside_lens(prof, g_edges)
+    return profs
+
+
+def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
+    """A coarse table's rows `todo` (not computed) from the computed rows `kept`
+    around them (every ``COARSE_ROW_STEP``-th of a run of rows, and its last):
+    linear in the row index, as the texture reads between rows (the intensity and
+    the intensity × slope)."""
+    table, slope = prof.table, prof.slope
+    mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
+    step = COARSE_ROW_STEP
+    # the regular gaps, `step` rows apart: as views of the rows they span
+    gaps = kept.size - 2
+    if gaps > 0:
+        rows = slice(int(kept[0]), int(kept[-2]) + 1)
+        ends = table[rows][::step]
+        inner = table[rows][:-1].reshape(gaps, step, -1)
+        if slope is not None:
+            s_ends = slope[rows][::step] * ends
+            s_inner = slope[rows][:-1].reshape(gaps, step, -1)
+        for off in range(1, step):
+            t = off / step
+            inner[:, off] = (1.0 - t) * ends[:-1] + t * ends[1:]
+            if slope is not None:
+                product = (1.0 - t) * s_ends[:-1] + t * s_ends[1:]
+                got = inner[:, off]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s_inner[:, off] = np.where(got > 0.0, product / got, mid)
+    # the last gap (shorter)
+    last = todo[todo > kept[-2]]
+    if last.size:
+        lo, hi = int(kept[-2]), int(kept[-1])
+        t = ((last - lo) / (hi - lo))[:, None]
+        table[last] = (1.0 - t) * table[lo] + t * table[hi]
+        if slope is not None:
+            product = (1.0 - t) * table[lo] * slope[lo] + t * table[hi] * slope[hi]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                slope[last] = np.where(table[last] > 0.0, product / table[last], mid)
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -437,13 +625,26 @@ class ProfileLight(BlenderLight):
 
     profile_info: dict | None = None
     receiver_distance: float | None = None  # from the lens centre, where known (shadow mask)
+    #: `coarse`: it reads the coarse table (`prepare_tables`: live update while the
+    #: user works)
+    coarse: bool = False
     _profile: dict | None = field(default=None, repr=False)
     _profile_maker: object = field(default=None, repr=False, compare=False)
+    _table_key: tuple | None = field(default=None, repr=False)
+
+    @property
+    def table_key(self) -> tuple | None:
+        """`cached_profile`'s key of its table (None: a table passed in, or a light of
+        `make_table`, which has none)."""
+        return self._table_key
 
     @property
     def profile(self) -> dict | None:
         if self._profile is None and self._profile_maker is not None:
-            self._profile = self._profile_maker()
+            if self.table_key is None:
+                self._profile = self._profile_maker()
+            else:
+                self._profile = self._profile_maker(coarse=self.coarse)
         return self._profile
 
     def to_json(self) -> dict:
@@ -477,9 +678,18 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
 def _profile_dict(
     prof: BeamProfile, t_ref: float, R: float, center, axis, key, receivers=()
 ) -> dict:
+    pixels = prof.pixel_cache.get(t_ref)
+    if pixels is None:  # (shared by every light of this table: never written to)
+        pixels = (prof.table / t_ref).astype(np.float32), None
+        if prof.slope is not None:
+            # the image's green channel: intensity × mean slope, which the texture's
+            # linear interpolation blends as it blends the intensity (`_slope_table`)
+            pixels = pixels[0], (prof.table * prof.slope / t_ref).astype(np.float32)
+        prof.pixel_cache.clear()
+        prof.pixel_cache[t_ref] = pixels
     out = {
         # (height, width), row 0 = v at the bottom
-        "pixels": (prof.table / t_ref).astype(np.float32),
+        "pixels": pixels[0],
         "width": prof.table.shape[1],
         "height": prof.table.shape[0],
         "gamma_max_deg": prof.gamma_max_deg,
@@ -496,10 +706,8 @@ def _profile_dict(
         out["angular_apex_location"] = tuple(
             float(v) for v in center + prof.angular_apex * R * axis
         )
-    if prof.slope is not None:
-        # the image's green channel: intensity × mean slope, which the texture's
-        # linear interpolation blends as it blends the intensity (`_slope_table`)
-        out["slope_pixels"] = (prof.table * prof.slope / t_ref).astype(np.float32)
+    if pixels[1] is not None:
+        out["slope_pixels"] = pixels[1]
     if receivers and prof.slope is not None:
         # receivers tilted against the axis: the node tree's tilt correction, each
         # plane's own where the shading point lies on it (`build_profile_nodes`)
@@ -509,6 +717,19 @@ def _profile_dict(
         ]
         out["plane_tolerance"] = float(PLANE_TOLERANCE * R)
     return out
+
+
+def _table_dict(table_key, t_ref, R, center, axis, name, planes, coarse=False) -> dict:
+    """A `ProfileLight`'s ``profile``: its table from `cached_profile` (`coarse`: the
+    coarse one where the exact one is not made yet, its key marked so)."""
+    prof = cached_profile.exact.get(table_key)
+    if prof is None and coarse:
+        prof = cached_profile.coarse.get(table_key)
+        if prof is not None:
+            return _profile_dict(prof, t_ref, R, center, axis, name + " coarse", planes)
+    if prof is None:
+        prof = cached_profile(*table_key)
+    return _profile_dict(prof, t_ref, R, center, axis, name, planes)
 
 
 #: A shading point within this (R) of a receiver plane takes that plane's tilt
@@ -643,25 +864,19 @@ def make_profile_light(
         )
     irradiance = primary.intensity * scale * e_ref / R**2
     primary_irr = primary.intensity / D**2
+    table_key = None
     if profile is not None:
         maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, planes)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:
-
-        def maker():
-            return _profile_dict(
-                cached_profile(*key, near, z_near, bool(planes)),
-                t_ref,
-                R,
-                center,
-                axis,
-                f"D/R {key[0]:.9g} n {key[1]:.9g}"
-                + (f" near {z_near:.6g}" if near else "")
-                + (" tilted" if planes else ""),
-                planes,
-            )
-
+        table_key = cached_profile.key(*key, near, z_near, bool(planes))
+        name = (
+            f"D/R {key[0]:.9g} n {key[1]:.9g}"
+            + (f" near {z_near:.6g}" if near else "")
+            + (" tilted" if planes else "")
+        )
+        maker = functools.partial(_table_dict, table_key, t_ref, R, center, axis, name, planes)
         rows = NEAR_DISTANCES if near else PROFILE_DISTANCES
         shape = (rows, PROFILE_ANGLES)
         info = (PROFILE_GAMMA_MAX_DEG, *table_geometry(z_near, rows, on_row=True)[1:])
@@ -693,6 +908,7 @@ def make_profile_light(
         profile_info=profile_info,
         receiver_distance=None if receiver_distance is None else float(receiver_distance),
         _profile_maker=maker,
+        _table_key=table_key,
         inside_lens=bool(apex < 1.0),
     )
 

@@ -11,32 +11,10 @@ import math
 
 import numpy as np
 import pytest
+from profile_measures import D_OMEGA, compare
 
 from core.tiers import exact_profile as xp
-from core.tiers.beam_error import PEAK_DISC, ExactBeam
-
-# ring solid angles of the tables' angular bins (u = sqrt(gamma/90°), K uniform)
-K = xp.PROFILE_ANGLES
-G_EDGES = math.radians(xp.PROFILE_GAMMA_MAX_DEG) * (np.arange(K + 1) / K) ** 2
-OMEGA_EDGES = 4.0 * math.pi * np.sin(0.5 * G_EDGES) ** 2
-D_OMEGA = np.diff(OMEGA_EDGES)
-
-
-def _row_measures(table, distances):
-    """Per row: flux (W per W/sr) and peak irradiance on its plane, from rings of
-    width PEAK_DISC R (the flux within a radius read from the cumulative over the
-    bins, linear in solid angle within a bin, as the table holds a mean per bin)."""
-    cum = np.concatenate([np.zeros((table.shape[0], 1)), np.cumsum(table * D_OMEGA, 1)], 1)
-    flux = cum[:, -1]
-    peaks = np.zeros(table.shape[0])
-    for j, h in enumerate(distances):
-        rho = np.arange(0.0, 4.0 * h, PEAK_DISC)  # to 76° from the apex
-        omega = 4.0 * math.pi * np.sin(0.5 * np.arctan2(rho, h)) ** 2
-        within = np.interp(omega, OMEGA_EDGES, cum[j])
-        area = math.pi * np.diff(rho**2)
-        peaks[j] = np.max(np.diff(within) / area)
-    return flux, peaks
-
+from core.tiers.beam_error import ExactBeam
 
 CASES = [
     (d, n, where)
@@ -59,14 +37,9 @@ def test_fast_table_matches_the_exact_table(d_over_r, n, where):
     assert (fast.apex, fast.h_min, fast.h_max) == (exact.apex, exact.h_min, exact.h_max)
     # texels reaching inside the lens (near field: apex at the centre) hold no
     # receiver's light: compared outside it only
-    h = exact.distances[:, None]
-    outside = (exact.apex + h) ** 2 + (h * np.tan(G_EDGES[:-1])) ** 2 >= 1.0
-    t_exact, t_fast = exact.table * outside, fast.table * outside
-    f_exact, p_exact = _row_measures(t_exact, exact.distances)
-    f_fast, p_fast = _row_measures(t_fast, fast.distances)
+    l1, f_exact, p_exact, f_fast, p_fast = compare(exact, fast)
     beam = exact.flux
     # every row: the L1 difference and the flux within 1 % of the beam's flux
-    l1 = np.sum(np.abs(t_fast - t_exact) * D_OMEGA, 1)
     assert l1.max() <= 0.01 * beam, (l1.max() / beam, int(np.argmax(l1)))
     assert np.max(np.abs(f_fast - f_exact)) <= 0.01 * beam
     # the rows that carry the beam (a tenth of it or more: not the planes inside the

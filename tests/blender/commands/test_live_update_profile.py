@@ -1,0 +1,183 @@
+"""Live update's Exact profile while the user works (issue 27, bpy module): in
+Blender's window a marble resting on a table, the lamp keyed to move: frame changes
+show coarse tables (written into the same light, tree and image; the table within
+1 % of the beam's flux and 5 % of the peak of the exact table of that geometry, the
+row-by-row trace of `exact_profile`, not the code under test), the refine timer
+once they stop makes the state a fresh Generate's; a render starting after a burst
+of frame changes, and every frame it renders, sees the exact state."""
+
+import math
+import time
+
+import bpy
+import numpy as np
+import pytest
+from blender_scene_helpers import add_point_light, add_sphere, glass_material, set_engine
+from profile_measures import compare
+
+from core.tiers import exact_profile as xp
+from core.tiers.beam_error import ExactBeam
+
+pytestmark = pytest.mark.blender
+
+R, N = 0.5, 1.5
+CENTRE = np.array([0.0, 0.0, R])  # resting on the table z = 0
+LAMP = {1: (1.0, 0.4, 5.0), 5: (-0.6, -0.9, 4.2)}
+
+
+def _live():
+    from lens_lights.blender.commands import live_update
+
+    return live_update
+
+
+@pytest.fixture
+def interactive():
+    live = _live()
+    live.INTERACTIVE = True  # as in Blender's window
+    yield live
+    live.INTERACTIVE = None
+    if bpy.app.timers.is_registered(live.refine):
+        bpy.app.timers.unregister(live.refine)
+
+
+def _scene():
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere(
+        "Marble", tuple(CENTRE), radius=R, material=glass_material(ior=N), segments=64, rings=32
+    )
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    lamp = add_point_light("Lamp", LAMP[1])
+    for frame, loc in LAMP.items():
+        lamp.location = loc
+        lamp.keyframe_insert("location", frame=frame)
+    sc.frame_start, sc.frame_end = 1, 5
+    sc.frame_set(1)
+    from lens_lights.core.tiers import exact_profile  # the extension's own tables
+
+    exact_profile.cached_profile.cache_clear()  # (a former test's would be exact already)
+    sc.lens_lights.live_update = True  # turned on: the exact state at once
+    return sc, lamp
+
+
+def _state():
+    """Each lens light: (object, tree and image pointers), its numbers, its Value
+    nodes, its table's pixels."""
+    from lens_lights.blender.build import lights
+
+    out = {}
+    for ob in bpy.data.objects:
+        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
+            continue
+        d = ob.data
+        nt = d.node_tree
+        img = nt.nodes[lights.PROFILE_TEX_NODE].image
+        px = np.empty(len(img.pixels), dtype=np.float32)
+        img.pixels.foreach_get(px)
+        nums = np.array([*ob.location, *ob.rotation_quaternion, d.energy, d.shadow_soft_size])
+        values = {n.name: n.outputs[0].default_value for n in nt.nodes if n.type == "VALUE"}
+        pointers = (ob.as_pointer(), nt.as_pointer(), img.as_pointer())
+        px = px.reshape(img.size[1], img.size[0], 4)
+        out[ob.lens_lights.source_light] = (pointers, nums, values, px)
+    return out
+
+
+def _check_coarse_table(pixels, lamp_at):
+    """The image's table (red × the energy's normalisation) against the exact
+    near-field table of this geometry (D/R, the table met along the axis, by hand):
+    every row's flux within 1 % of the beam's, the lit rows' peaks within 5 %."""
+    d = CENTRE - np.asarray(lamp_at, float)
+    D = float(np.linalg.norm(d))
+    d_over_r, z = D / R, 1.0 / (-d[2] / D)
+    exact = xp.exact_profile(d_over_r, N, receiver=z, M=xp.NEAR_DISTANCES, slope=True)
+    t_ref = ExactBeam(1.0, d_over_r, 1.0, N, n_fan=8000).lens_flux / (2.0 * math.pi)
+    shown = xp.BeamProfile(
+        exact.apex, exact.gamma_max_deg, exact.h_min, exact.h_max, pixels[..., 0] * t_ref
+    )
+    _l1, f_exact, p_exact, f_shown, p_shown = compare(exact, shown)
+    assert np.max(np.abs(f_shown - f_exact)) <= 0.01 * exact.flux
+    lit = f_exact >= 0.1 * exact.flux
+    assert lit.sum() > 100
+    assert np.max(np.abs(p_shown[lit] / p_exact[lit] - 1.0)) <= 0.05
+
+
+def _equal_to_generate(state):
+    from lens_lights.blender.commands.generate import generate
+
+    bpy.context.scene.lens_lights.live_update = False
+    generate(bpy.context)
+    fresh = _state()
+    assert state.keys() == fresh.keys()
+    for k, (_p, nums, values, px) in fresh.items():
+        np.testing.assert_allclose(state[k][1], nums, rtol=1e-6, atol=1e-9)
+        assert state[k][2].keys() == values.keys()
+        for name, v in values.items():
+            assert state[k][2][name] == pytest.approx(v, rel=1e-6, abs=1e-9), name
+        np.testing.assert_array_equal(state[k][3], px)
+
+
+def test_coarse_tables_while_working_then_the_timer_gives_generates_lights(
+    empty_blend, interactive, monkeypatch
+):
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 1.0)  # (a busy machine: no early refine)
+    sc, lamp = _scene()
+    exact = _state()
+    sc.frame_set(3)
+    f = live.LAST_FIGURES
+    assert "error" not in f and f["coarse"] == 1  # one light, its table not made yet
+    assert bpy.app.timers.is_registered(live.refine)
+    coarse = _state()
+    (key,) = coarse
+    assert coarse[key][0] == exact[key][0]  # the same light, tree and image: in place
+    _check_coarse_table(coarse[key][3], lamp.location)
+    sc.frame_set(3)  # the same inputs: nothing planned
+    assert live.LAST_FIGURES.get("skipped") is True
+    wait = live.refine()  # the burst is not over: the timer comes back later
+    assert wait is not None and 0.0 < wait <= live.BURST_SECONDS
+    time.sleep(live.BURST_SECONDS)
+    assert live.refine() is None  # done: the timer stops
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and f["coarse"] == 0
+    refined = _state()
+    assert refined[key][0] == exact[key][0]
+    assert not np.array_equal(refined[key][3], coarse[key][3])
+    _equal_to_generate(refined)
+
+
+def test_a_render_after_a_burst_of_frames_sees_the_exact_state(empty_blend, interactive):
+    live = interactive
+    sc, _lamp = _scene()
+    for frame in (2, 3, 4):
+        sc.frame_set(frame)
+        assert live.LAST_FIGURES["coarse"] == 1
+    live.on_render_start(sc)  # render_init: the exact tables before the first frame
+    try:
+        f = live.LAST_FIGURES
+        assert f["why"] == "refined" and f["coarse"] == 0
+        sc.frame_set(2)  # a frame the render changes to: never coarse
+        assert live.LAST_FIGURES["coarse"] == 0
+        rendered = _state()
+    finally:
+        live.on_render_end(sc)
+    _equal_to_generate(rendered)
+
+
+def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
+    empty_blend, interactive, tmp_path
+):
+    live = interactive
+    sc, _lamp = _scene()
+    sc.frame_set(3)
+    assert live.LAST_FIGURES["coarse"] == 1
+    sc.lens_lights.live_update = False  # off while the coarse state shows: refined first
+    assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
+    _equal_to_generate(_state())
+    sc.lens_lights.live_update = True
+    sc.frame_set(4)
+    assert live.LAST_FIGURES["coarse"] == 1
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "saved.blend"))  # refined first
+    assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
+    _equal_to_generate(_state())
