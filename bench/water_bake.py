@@ -303,7 +303,8 @@ def main():
         "Rendered by a process that never loaded the extension (registered: "
         f"{out['facts']['registered']}, operators: {out['facts']['operators']}), each "
         f"frame as `-a` renders it ({out['stock_render_s']:.0f} s for "
-        f"{2 * len(checks)} renders with its start-up), against Generate at that frame "
+        f"{2 * len(checks)} renders and the animation below, with its start-up), against "
+        "Generate at that frame "
         "rendered here (render − render without the layers, as irradiance; L1 over "
         "the region as bench/real_scenes.py):",
         "",
