@@ -10,8 +10,8 @@ from core.caustic_layer.emitters import Lens, PointLight
 from core.caustic_layer.pipeline import SheetSource, bake
 from core.caustic_layer.plan import figures_of
 from core.caustic_layer.receiver_index import build_index
-from reference.meshes import rectangle
 from core.lens.mesh import MeshLens
+from reference.meshes import rectangle
 
 N = 1.5
 
