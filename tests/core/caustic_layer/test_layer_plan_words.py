@@ -23,7 +23,8 @@ def test_coarse_layers_out_of_view_are_said_as_drawn():
     assert text == (
         "800 texels and 5000 rays traced from the lights; of the flux, 0.4 % landed "
         "outside the layers (past their edge); 1 of the layers coarse, where the camera "
-        "does not see the caustic (for reflections) or for a glass's faint light far from its caustic"
+        "does not see the caustic (for reflections) or for a glass's faint light far from "
+        "its caustic"
     )
 
 
