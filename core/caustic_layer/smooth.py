@@ -52,18 +52,22 @@ def dual_lines(res: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return lo, hi, np.clip(i - 1, 0, res - 1)
 
 
+@lru_cache(maxsize=8)
 def grid_triangles(n: int) -> tuple[np.ndarray, np.ndarray]:
     """The triangles of an n × n vertex grid (row-major, rows along v) whose every cell
     is cut into four about an extra vertex at its centre (n² + k, k the cell's index):
     (4 (n−1)², 3), counter-clockwise about u × v, and the cells' corners ((n−1)², 4).
     Four, not two along a diagonal: a diagonal would favour two corners of each cell
     (a third of its area each against a sixth), so a uniform raster would not be drawn
-    uniform at the raster's corners."""
+    uniform at the raster's corners. Read-only (cached per n)."""
     a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).reshape(-1)
     corners = np.stack([a, a + 1, a + n + 1, a + n], 1)
     m = n * n + np.arange(len(a))
     tris = np.stack([np.stack([corners[:, k], corners[:, (k + 1) % 4], m], 1) for k in range(4)], 1)
-    return tris.reshape(-1, 3), corners
+    tris = tris.reshape(-1, 3)
+    tris.flags.writeable = False  # cached per n: shared
+    corners.flags.writeable = False
+    return tris, corners
 
 
 @lru_cache(maxsize=8)
