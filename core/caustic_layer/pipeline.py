@@ -68,7 +68,8 @@ class SheetBake:
     names: list | None = None  # per source (light, lens) names (the layer stage's)
     receivers_key: bytes = b""  # what it landed on (`layer_stage.receivers_key`)
     # rays traced from the lights (a ball's node rays; a glass mesh's node rays and its
-    # refinements' sub-grid rays, not the nodes its parts land): None, the layer's nodes
+    # refinements' sub-grid rays, not the nodes its parts land; the coarse probe's
+    # too): None, the layer's nodes
     rays_traced: int | None = None
 
 
@@ -109,6 +110,7 @@ def bake(
     ``max_rays`` and ``total_rays``)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
+    coarse = []
     if budgets is not None:
         pixels = [math.inf] * len(sources)
     elif grid is not None:
@@ -189,7 +191,8 @@ def bake(
     out = SheetBake(layer, budgets, int(resolution), index, refinement)
     # a glass mesh lands more nodes than it traces (each quad's own corners) and traces
     # refinement rays it lands as splats: its own count; a ball's nodes are its rays
-    out.rays_traced = sum(b.traced_rays or b.n_rays for b in beams)
+    # (the coarse probe's rays, which placed them, are traced too)
+    out.rays_traced = sum(b.traced_rays or b.n_rays for b in [*coarse, *beams])
     return out
 
 

@@ -41,3 +41,29 @@ def test_the_report_counts_the_rays_traced(monkeypatch):
     assert figures_of(out).rays == ball_rays + sum(handed)
     # (the nodes the layer lands are another number: the old count)
     assert out.layer.n_rays != ball_rays + sum(handed)
+
+
+def test_the_count_includes_the_coarse_probe(monkeypatch):
+    """Without a given grid a coarse 4 × 16 trace places the rays first: its rays are
+    traced too (the ball's (4 + 1) × 16, the cube's as its tracer is handed them)."""
+    v, t = box((-0.5, -0.5, 0.0), (0.5, 0.5, 1.0))
+    c = 0.5 * (v.min(axis=0) + v.max(axis=0))
+    r = float(np.linalg.norm(v - c, axis=1).max()) * (1 + 1e-9)
+    cube = Lens(c, r, N, kind="mesh", params=(v, t, None))
+    ball = Lens(np.array([-2.0, 0.0, 0.5]), 0.5, N)
+    floor = build_index(rectangle([0, 0, -0.001], [0, 0, 1], 16.0, 16.0))
+    light = PointLight(np.array([2.5, 0.7, 3.0]), 1000.0)
+    handed = []
+    plain = MeshLens.trace_branches
+
+    def counted(self, origins, *args, **kwargs):
+        handed.append(int(np.asarray(origins).size // 3))
+        return plain(self, origins, *args, **kwargs)
+
+    monkeypatch.setattr(MeshLens, "trace_branches", counted)
+    out = bake(
+        [SheetSource(light, ball), SheetSource(light, cube)], floor, max_rays=4096, min_rays=1024
+    )
+    b = out.budgets[0]
+    ball_rays = (4 + 1) * 16 + (b.n_radial + 1) * b.n_azimuth  # one point-light sample
+    assert figures_of(out).rays == ball_rays + sum(handed)
