@@ -165,21 +165,20 @@ def weighted_quantile(x, w, q):
 
 
 def _group_order(x, groups, n_groups: int) -> np.ndarray:
-    """The order by group, then by x (equal x in any order: the quantiles read the
-    cumulative weight only where x changes). Groups already in order (contiguous
-    runs, as the rasters' and beams' landings are) and long are sorted run by run;
-    otherwise x is sorted, then the groups (a stable radix sort of small ints). numpy's
-    default sort, not its stable one: 2.5× faster on the landings' floats."""
+    """np.lexsort((x, groups)): the order by group, then by x (stable). Groups already
+    in order (contiguous runs, as the rasters' and beams' landings are) and long are
+    sorted run by run: twice as fast as one two-key lexsort."""
     groups = np.asarray(groups)
-    # short runs: one sort is cheaper than a sort call per run
+    # short runs: one lexsort is cheaper than a sort call per run
     if len(groups) < 64 * max(n_groups, 1) or not np.all(groups[1:] >= groups[:-1]):
-        o = np.argsort(x)
-        g = groups[o]
-        return o[np.argsort(g.astype(np.int16) if n_groups < 1 << 15 else g, kind="stable")]
+        return np.lexsort((x, groups))
     bounds = np.searchsorted(groups, np.arange(n_groups + 1)).tolist()
     return np.concatenate(
         [np.zeros(0, dtype=np.intp)]
-        + [a + np.argsort(x[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        + [
+            a + np.argsort(x[a:b], kind="stable")
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
     )
 
 
