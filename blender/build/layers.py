@@ -247,6 +247,7 @@ def _fill(me, drawn, faces):
         me.loops.foreach_set("vertex_index", faces.ravel())
     me.polygons.add(n_f)
     me.polygons.foreach_set("loop_start", np.arange(0, corners * n_f, corners, dtype=np.int32))
+    _set_edges(me, drawn)
     if drawn.uvs is not None:
         me.uv_layers.new(name=UV_NAME)
     _set_positions_uvs(me, drawn, faces)
@@ -255,6 +256,27 @@ def _fill(me, drawn, faces):
             "color", _rgba(drawn).ravel()
         )
     me.update()
+
+
+def _set_edges(me, drawn) -> bool:
+    """The edges `drawn` gives (`smooth.grid_edges`: in closed form) written whole, so
+    that `me.update()` need not find them (a hash of every corner pair: 45 ms of a
+    251² raster's build); False (Blender finds them) without them or where the mesh
+    has no such attributes."""
+    if drawn.edges is None or drawn.corner_edges is None:
+        return False
+    corner_edge = me.attributes.get(".corner_edge")
+    if corner_edge is None or corner_edge.data_type != "INT":
+        return False
+    me.edges.add(len(drawn.edges))
+    verts = me.attributes.get(".edge_verts")
+    edges = np.asarray(drawn.edges, dtype=np.int32).ravel()
+    if verts is not None and verts.data_type == "INT32_2D":
+        verts.data.foreach_set("value", edges)
+    else:
+        me.edges.foreach_set("vertices", edges)
+    corner_edge.data.foreach_set("value", np.asarray(drawn.corner_edges, dtype=np.int32))
+    return True
 
 
 def refill_mesh(me, drawn):
@@ -300,7 +322,9 @@ def _set_positions_uvs(me, drawn, faces):
     else:
         me.vertices.foreach_set("co", co)
     if drawn.uvs is not None:
-        uv = np.asarray(drawn.uvs, dtype=np.float32)[faces].ravel()
+        # each corner's (u, v) gathered as one 8-byte word: 4× faster than by pairs
+        uv32 = np.ascontiguousarray(drawn.uvs, dtype=np.float32)
+        uv = uv32.view(np.uint64).reshape(-1)[faces.reshape(-1)].view(np.float32)
         attr = me.attributes.get(UV_NAME)
         if attr is not None and attr.data_type == "FLOAT2" and attr.domain == "CORNER":
             attr.data.foreach_set("vector", uv)

@@ -67,6 +67,10 @@ class SheetBake:
     coarse: bool = False
     names: list | None = None  # per source (light, lens) names (the layer stage's)
     receivers_key: bytes = b""  # what it landed on (`layer_stage.receivers_key`)
+    # rays traced from the lights (a ball's node rays; a glass mesh's node rays and its
+    # refinements' sub-grid rays, not the nodes its parts land; the coarse probe's
+    # too): None, the layer's nodes
+    rays_traced: int | None = None
 
 
 def bake(
@@ -106,6 +110,7 @@ def bake(
     ``max_rays`` and ``total_rays``)."""
     index = receivers if isinstance(receivers, ReceiverIndex) else build_index(receivers)
     extents = spans = [2.0 * s.lens.radius for s in sources]
+    coarse = []
     if budgets is not None:
         pixels = [math.inf] * len(sources)
     elif grid is not None:
@@ -183,7 +188,12 @@ def bake(
     if view is not None and layer.patches:
         resolution = max(p.resolution for p in layer.patches)
     refinement = [(b.refined_cells, b.cut_cells, b.traced_rays) for b in beams]
-    return SheetBake(layer, budgets, int(resolution), index, refinement)
+    out = SheetBake(layer, budgets, int(resolution), index, refinement)
+    # a glass mesh lands more nodes than it traces (each quad's own corners) and traces
+    # refinement rays it lands as splats: its own count; a ball's nodes are its rays
+    # (the coarse probe's rays, which placed them, are traced too)
+    out.rays_traced = sum(b.traced_rays or b.n_rays for b in [*coarse, *beams])
+    return out
 
 
 def caustic_extents(

@@ -136,7 +136,7 @@ class LayerFigures:
 
     layers: int = 0
     faces: int = 0
-    rays: int = 0
+    rays: int = 0  # traced from the lights (`SheetBake.rays_traced`)
     flux_emitted: float = 0.0
     flux_in_layers: float = 0.0
     flux_lost: float = 0.0  # missed every receiver
@@ -158,7 +158,7 @@ class LayerFigures:
         )
         parts = [f"{share} {what}" for share, what in shares if share]
         # (the report's first words count the layers and fallback spots: not said again)
-        out = f"{self.faces} texels and {self.rays} rays in all" + (
+        out = f"{self.faces} texels and {self.rays} rays traced from the lights" + (
             f"; of the flux, {' and '.join(parts)}" if parts else ""
         )
         if self.coarse:  # drawn: a mirror may show them
@@ -192,7 +192,7 @@ def figures_of(bake, fallback_lights: int = 0, fallback_receivers=(), undrawn=()
     return LayerFigures(
         layers=len(layer.patches),
         faces=sum(p.resolution**2 for p in layer.patches),  # texels
-        rays=int(layer.n_rays),
+        rays=int(layer.n_rays if bake.rays_traced is None else bake.rays_traced),
         flux_emitted=float(layer.flux_emitted),
         flux_in_layers=float(layer.flux_in_rasters),
         flux_lost=float(layer.flux_lost),

@@ -640,13 +640,18 @@ def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     half = 0.5 * (1.0 - BULK_SHARE)
     whole_q = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
     bulk, whole, span = [], [], np.zeros(n)
+    every = bool(np.all(use))
     for c in (x, y):
-        cu, wu, gu = c[use], w[use], group[use]
-        bulk.append(grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half)))
-        whole.append(grouped_interp_quantiles(c, w, group, n, whole_q))
-        q = grouped_interp_quantiles(cu, wu, gu, n, whole_q)
-        span = np.maximum(span, q[:, 1] - q[:, 0])
-    pix = grouped_quantiles(pixel[use], w[use], group[use], n, (NEAR_PIXEL_SHARE,))[:, 0]
+        cu, wu, gu = (c, w, group) if every else (c[use], w[use], group[use])
+        # one sort per axis for the bulk and the span in view (and the whole footprint
+        # when every landing is used: the same landings)
+        q = grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half, *whole_q))
+        bulk.append(q[:, :2])
+        whole.append(q[:, 2:] if every else grouped_interp_quantiles(c, w, group, n, whole_q))
+        span = np.maximum(span, q[:, 3] - q[:, 2])
+    pix = grouped_quantiles(
+        pixel if every else pixel[use], w if every else w[use], gu, n, (NEAR_PIXEL_SHARE,)
+    )[:, 0]
     starved = TEXELS_PER_PIXEL * span > res_max * np.where(np.isfinite(pix), pix, np.inf)
     bulk = np.concatenate(bulk, axis=1)  # (glasses, 4)
     whole = np.concatenate(whole, axis=1)

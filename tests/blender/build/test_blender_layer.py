@@ -303,3 +303,36 @@ def test_layers_of_one_topology_each_keep_their_own_values(empty_blend):
         loops = np.empty(len(me.loops), dtype=np.int32)
         me.loops.foreach_get("vertex_index", loops)
         np.testing.assert_array_equal(loops.reshape(-1, 3), tris)
+
+
+def test_a_drawn_layers_edges_are_the_ones_blender_finds(empty_blend):
+    """The drawn mesh's edges written with its faces (`smooth.grid_edges`, so that
+    `mesh.update()` need not hash ~380 000 corner pairs) are the edges Blender finds
+    itself for the same faces, and the mesh is valid as built (`validate` changes
+    nothing)."""
+    from lens_lights.blender.build.layers import layer_mesh
+    from lens_lights.core.caustic_layer.smooth import DrawnMesh, grid_edges, grid_triangles
+
+    n = 6
+    tris, _ = grid_triangles(n)
+    v = n * n + (n - 1) ** 2
+    rng = np.random.default_rng(2)
+    verts, uvs, irr = rng.random((v, 3)), rng.random((v, 2)), rng.random((v, 3))
+    ours = layer_mesh("ours", DrawnMesh(verts, tris, uvs, irr, *grid_edges(n)))
+    found = layer_mesh("found", DrawnMesh(verts, tris, uvs, irr))
+
+    def edge_set(me):
+        e = np.empty(2 * len(me.edges), dtype=np.int32)
+        me.edges.foreach_get("vertices", e)
+        return {tuple(sorted(p)) for p in e.reshape(-1, 2).tolist()}
+
+    assert len(ours.edges) == len(found.edges) == 4 * (n - 1) ** 2 + 2 * n * (n - 1)
+    assert edge_set(ours) == edge_set(found)
+    # each corner's edge joins it to its triangle's next corner
+    ce = np.empty(len(ours.loops), dtype=np.int32)
+    ours.loops.foreach_get("edge_index", ce)
+    e = np.empty(2 * len(ours.edges), dtype=np.int32)
+    ours.edges.foreach_get("vertices", e)
+    want = np.sort(np.stack([tris.ravel(), np.roll(tris, -1, axis=1).ravel()], 1), axis=1)
+    np.testing.assert_array_equal(np.sort(e.reshape(-1, 2)[ce], axis=1), want)
+    assert not ours.validate(verbose=False)

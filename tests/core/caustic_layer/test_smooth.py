@@ -175,3 +175,20 @@ def test_image_texels_keep_the_flux_of_a_linear_image_on_a_warped_raster():
     area = np.diff(edges[1])[:, None] * np.diff(edges[0])[None, :]
     drawn_flux = np.sum(stored * tent_v[:, None] * tent_u[None, :])
     assert drawn_flux == pytest.approx(np.sum(irr * area), rel=1e-8)
+
+
+@pytest.mark.parametrize("n", [2, 3, 7])
+def test_the_drawn_grids_edges_are_its_triangles_sides(n):
+    """`grid_edges` (closed form, for the build to hand Blender) against the sides of
+    `grid_triangles`' triangles found by sorting their corner pairs: every side once,
+    and each corner's edge the one to its triangle's next corner."""
+    from core.caustic_layer.smooth import grid_edges, grid_triangles
+
+    tris, _ = grid_triangles(n)
+    edges, corner_edges = grid_edges(n)
+    pairs = np.sort(np.stack([tris.ravel(), np.roll(tris, -1, axis=1).ravel()], 1), axis=1)
+    sides = np.unique(pairs, axis=0)
+    # (n − 1)² cells: 4 spokes each, and the grid's 2 n (n − 1) lines
+    assert len(edges) == len(sides) == 4 * (n - 1) ** 2 + 2 * n * (n - 1)
+    np.testing.assert_array_equal(np.unique(np.sort(edges, axis=1), axis=0), sides)
+    np.testing.assert_array_equal(np.sort(edges[corner_edges], axis=1), pairs)
