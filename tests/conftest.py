@@ -46,6 +46,20 @@ def auto_builds_lights(extension, monkeypatch):
         monkeypatch.setitem(tiers.AUTO_RESOLUTION, engine, tiers.FITTED)
 
 
+@pytest.fixture
+def interactive(extension):
+    """Live update as in Blender's window (`live_update.INTERACTIVE`: coarse states while
+    updates follow one another, the `refine` timer after them); put back after."""
+    import bpy
+    from lens_lights.blender.commands import live_update
+
+    live_update.INTERACTIVE = True
+    yield live_update
+    live_update.INTERACTIVE = None
+    if bpy.app.timers.is_registered(live_update.refine):
+        bpy.app.timers.unregister(live_update.refine)
+
+
 def pytest_configure(config):
     # `./lens-lights test --blender 4.2` runs only these (`-m blender`) on another release.
     config.addinivalue_line("markers", "blender: the module runs Blender (the bpy module)")

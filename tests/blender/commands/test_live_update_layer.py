@@ -19,16 +19,6 @@ def _live():
     return live_update
 
 
-@pytest.fixture
-def interactive():
-    live = _live()
-    live.INTERACTIVE = True  # as in Blender's window
-    yield live
-    live.INTERACTIVE = None
-    if bpy.app.timers.is_registered(live.refine):
-        bpy.app.timers.unregister(live.refine)
-
-
 def _scene():
     _, lamp = basic_scene()
     for frame, loc in {1: (0.0, 0.0, 4.5), 5: (0.8, 0.4, 4.3)}.items():

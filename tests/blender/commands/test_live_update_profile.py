@@ -25,22 +25,6 @@ CENTRE = np.array([0.0, 0.0, R])  # resting on the table z = 0
 LAMP = {1: (1.0, 0.4, 5.0), 5: (-0.6, -0.9, 4.2)}
 
 
-def _live():
-    from lens_lights.blender.commands import live_update
-
-    return live_update
-
-
-@pytest.fixture
-def interactive():
-    live = _live()
-    live.INTERACTIVE = True  # as in Blender's window
-    yield live
-    live.INTERACTIVE = None
-    if bpy.app.timers.is_registered(live.refine):
-        bpy.app.timers.unregister(live.refine)
-
-
 def _scene():
     sc = bpy.context.scene
     set_engine("CYCLES")

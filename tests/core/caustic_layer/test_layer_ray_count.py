@@ -16,15 +16,19 @@ from reference.meshes import rectangle
 N = 1.5
 
 
-def test_the_report_counts_the_rays_traced(monkeypatch):
+def _scene():
+    """A point light, a glass ball and a glass cube (a mesh lens) over a floor."""
     v, t = box((-0.5, -0.5, 0.0), (0.5, 0.5, 1.0))
     c = 0.5 * (v.min(axis=0) + v.max(axis=0))
     r = float(np.linalg.norm(v - c, axis=1).max()) * (1 + 1e-9)
     cube = Lens(c, r, N, kind="mesh", params=(v, t, None))
     ball = Lens(np.array([-2.0, 0.0, 0.5]), 0.5, N)
     floor = build_index(rectangle([0, 0, -0.001], [0, 0, 1], 16.0, 16.0))
-    light = PointLight(np.array([2.5, 0.7, 3.0]), 1000.0)
-    # every ray the glass mesh's tracer is handed, counted as it is called
+    return PointLight(np.array([2.5, 0.7, 3.0]), 1000.0), ball, cube, floor
+
+
+def _count_handed(monkeypatch) -> list:
+    """The rays the glass mesh's tracer is handed, one entry per call."""
     handed = []
     plain = MeshLens.trace_branches
 
@@ -33,6 +37,12 @@ def test_the_report_counts_the_rays_traced(monkeypatch):
         return plain(self, origins, *args, **kwargs)
 
     monkeypatch.setattr(MeshLens, "trace_branches", counted)
+    return handed
+
+
+def test_the_report_counts_the_rays_traced(monkeypatch):
+    light, ball, cube, floor = _scene()
+    handed = _count_handed(monkeypatch)
     out = bake([SheetSource(light, ball), SheetSource(light, cube)], floor, grid=(24, 96))
     # the ball: one point-light sample, (24 + 1) × 96 node rays
     ball_rays = 25 * 96
@@ -46,21 +56,8 @@ def test_the_report_counts_the_rays_traced(monkeypatch):
 def test_the_count_includes_the_coarse_probe(monkeypatch):
     """Without a given grid a coarse 4 × 16 trace places the rays first: its rays are
     traced too (the ball's (4 + 1) × 16, the cube's as its tracer is handed them)."""
-    v, t = box((-0.5, -0.5, 0.0), (0.5, 0.5, 1.0))
-    c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-    r = float(np.linalg.norm(v - c, axis=1).max()) * (1 + 1e-9)
-    cube = Lens(c, r, N, kind="mesh", params=(v, t, None))
-    ball = Lens(np.array([-2.0, 0.0, 0.5]), 0.5, N)
-    floor = build_index(rectangle([0, 0, -0.001], [0, 0, 1], 16.0, 16.0))
-    light = PointLight(np.array([2.5, 0.7, 3.0]), 1000.0)
-    handed = []
-    plain = MeshLens.trace_branches
-
-    def counted(self, origins, *args, **kwargs):
-        handed.append(int(np.asarray(origins).size // 3))
-        return plain(self, origins, *args, **kwargs)
-
-    monkeypatch.setattr(MeshLens, "trace_branches", counted)
+    light, ball, cube, floor = _scene()
+    handed = _count_handed(monkeypatch)
     out = bake(
         [SheetSource(light, ball), SheetSource(light, cube)], floor, max_rays=4096, min_rays=1024
     )
