@@ -94,6 +94,24 @@ def layer_flux(ob) -> float:
     return float(layer_triangle_flux(ob)[:, 1].sum())
 
 
+def layer_states(objects) -> dict:
+    """The layer meshes among `objects` (not their reflection copies): name →
+    (positions, irradiance, object and mesh pointers), to compare two states."""
+    out = {}
+    for ob in objects:
+        if ob.type != "MESH" or not ob.lens_lights.is_lens_light:
+            continue
+        if ob.get("lens_lights_reflection"):
+            continue
+        me = ob.data
+        co = np.zeros(3 * len(me.vertices), np.float32)
+        me.vertices.foreach_get("co", co)
+        irr = np.zeros(4 * len(me.vertices), np.float32)
+        me.attributes["lens_irradiance"].data.foreach_get("color", irr)
+        out[ob.name] = (co, irr, ob.as_pointer(), me.as_pointer())
+    return out
+
+
 def generate():
     from lens_lights.blender.commands.generate import generate as run
 

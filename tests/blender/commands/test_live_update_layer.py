@@ -8,7 +8,7 @@ import time
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import basic_scene, generate, set_engine
+from blender_scene_helpers import basic_scene, generate, layer_states, set_engine
 
 pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
@@ -36,19 +36,7 @@ def _scene():
 def _layers():
     """Layer meshes (not the reflection copies): name → (positions, irradiance,
     object and mesh pointers)."""
-    out = {}
-    for ob in bpy.data.objects:
-        if ob.type != "MESH" or not ob.lens_lights.is_lens_light:
-            continue
-        if ob.get("lens_lights_reflection"):
-            continue
-        me = ob.data
-        co = np.zeros(3 * len(me.vertices), np.float32)
-        me.vertices.foreach_get("co", co)
-        irr = np.zeros(4 * len(me.vertices), np.float32)
-        me.attributes["lens_irradiance"].data.foreach_get("color", irr)
-        out[ob.name] = (co, irr, ob.as_pointer(), me.as_pointer())
-    return out
+    return layer_states(bpy.data.objects)
 
 
 def _pointers(state):

@@ -6,7 +6,7 @@ at k, in the lens-light tier (Cycles' AUTO) and the Caustic layer tier (EEVEE)."
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import generate
+from blender_scene_helpers import generate, layer_states
 from water_scenes import moving_pool, water_layers
 
 pytestmark = pytest.mark.blender
@@ -21,17 +21,7 @@ def _live():
 def _state():
     """The water's layer meshes (not the reflection copies): name → (positions,
     irradiance, object and mesh pointers)."""
-    out = {}
-    for ob in water_layers():
-        if ob.get("lens_lights_reflection"):
-            continue
-        me = ob.data
-        co = np.zeros(3 * len(me.vertices), np.float32)
-        me.vertices.foreach_get("co", co)
-        irr = np.zeros(4 * len(me.vertices), np.float32)
-        me.attributes["lens_irradiance"].data.foreach_get("color", irr)
-        out[ob.name] = (co, irr, ob.as_pointer(), me.as_pointer())
-    return out
+    return layer_states(water_layers())
 
 
 @pytest.mark.parametrize("engine, model", [("CYCLES", "AUTO"), ("BLENDER_EEVEE", "CAUSTIC_LAYER")])
