@@ -164,6 +164,15 @@ def run_case(n, tier, max_lights, frames):
             steps.setdefault(key, []).append(v)
     lights = [ob for ob in bpy.data.objects if ob.lens_lights.is_lens_light]
     kept = pointers <= {ob.as_pointer() for ob in lights} if pointers else None
+    return dict(
+        **_timing_row(n, tier, max_lights, lights, first, upd, plan, apply, total, base, steps),
+        kept=kept,
+        last=dict(live_update.LAST_FIGURES),
+    )
+
+
+def _timing_row(n, tier, max_lights, lights, first, upd, plan, apply, total, base, steps):
+    """A report row's case and timings (medians over the frames; the slowest update)."""
     med = statistics.median
     return dict(
         n=n,
@@ -178,8 +187,6 @@ def run_case(n, tier, max_lights, frames):
         frame=med(total),
         base=med(base),
         steps={k: med(v) for k, v in steps.items() if not k.startswith("bake ")},
-        kept=kept,
-        last=dict(live_update.LAST_FIGURES),
     )
 
 
@@ -326,18 +333,9 @@ def run_layer_case(n, max_lights, frames, drags):
     med = statistics.median
     lights = [ob for ob in bpy.data.objects if ob.lens_lights.is_lens_light]
     return dict(
-        n=n,
-        tier="CAUSTIC_LAYER",
-        max_lights=max_lights,
-        lights=len(lights),
-        first=first,
-        update=med(upd),
-        update_max=max(upd),
-        plan=med(plan),
-        apply=med(apply),
-        frame=med(total),
-        base=med(base),
-        steps={k: med(v) for k, v in steps.items() if not k.startswith("bake ")},
+        **_timing_row(
+            n, "CAUSTIC_LAYER", max_lights, lights, first, upd, plan, apply, total, base, steps
+        ),
         kept=kept,
         coarse=sum(coarse),
         frames=frames,
