@@ -112,6 +112,25 @@ def layer_states(objects) -> dict:
     return out
 
 
+def resting_marble(lamp_at, radius=0.5, ior=1.5):
+    """Cycles, the Exact profile tier: a glass marble resting on a 20 m plane at the
+    origin (its centre `radius` above it) and a point light "Lamp" at `lamp_at`.
+    Returns (scene, lamp)."""
+    sc = bpy.context.scene
+    set_engine("CYCLES")
+    sc.lens_lights.energy_model = "EXACT_PROFILE"
+    add_sphere(
+        "Marble",
+        (0.0, 0.0, radius),
+        radius=radius,
+        material=glass_material(ior=ior),
+        segments=64,
+        rings=32,
+    )
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    return sc, add_point_light("Lamp", lamp_at)
+
+
 def generate():
     from lens_lights.blender.commands.generate import generate as run
 

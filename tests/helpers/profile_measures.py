@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from core.tiers import exact_profile as xp
-from core.tiers.beam_error import PEAK_DISC
+from core.tiers.beam_error import PEAK_DISC, ExactBeam
 
 # ring solid angles of the tables' angular bins (u = sqrt(gamma/90°), K uniform)
 K = xp.PROFILE_ANGLES
@@ -48,3 +48,16 @@ def compare(exact, other):
     f_other, p_other = row_measures(t_other, other.distances)
     l1 = np.sum(np.abs(t_other - t_exact) * D_OMEGA, 1)
     return l1, f_exact, p_exact, f_other, p_other
+
+
+def exact_near_table(centre, radius, n, lamp_at):
+    """The exact near-field table (`exact_profile.exact_profile`, slopes too) of a lens
+    at `centre` lit from `lamp_at` over the table z = 0, the geometry by hand (D/R; the
+    table met along the axis, in R from the centre), and the factor that turns a
+    light's image (red: the table over the energy's normalisation) into it."""
+    d = np.asarray(centre, float) - np.asarray(lamp_at, float)
+    D = float(np.linalg.norm(d))
+    d_over_r, z = D / radius, float(centre[2]) / (-d[2] / D) / radius
+    exact = xp.exact_profile(d_over_r, n, receiver=z, M=xp.NEAR_DISTANCES, slope=True)
+    t_ref = ExactBeam(1.0, d_over_r, 1.0, n, n_fan=8000).lens_flux / (2.0 * math.pi)
+    return exact, t_ref

@@ -12,15 +12,12 @@ import bpy
 import numpy as np
 import pytest
 from blender_scene_helpers import (
-    add_point_light,
-    add_sphere,
-    glass_material,
     lens_lights,
-    set_engine,
+    resting_marble,
 )
+from profile_measures import exact_near_table
 
 from core.tiers import exact_profile as xp
-from core.tiers.beam_error import ExactBeam
 
 pytestmark = pytest.mark.blender
 
@@ -29,14 +26,7 @@ CENTRE = np.array([0.0, 0.0, R])  # resting on the table z = 0
 
 
 def _scene():
-    sc = bpy.context.scene
-    set_engine("CYCLES")
-    sc.lens_lights.energy_model = "EXACT_PROFILE"
-    add_sphere(
-        "Marble", tuple(CENTRE), radius=R, material=glass_material(ior=N), segments=64, rings=32
-    )
-    bpy.ops.mesh.primitive_plane_add(size=20)
-    return sc, add_point_light("Lamp", (1.0, 0.4, 5.0))
+    return resting_marble((1.0, 0.4, 5.0), radius=R, ior=N)
 
 
 def _light():
@@ -62,9 +52,7 @@ def _geometry(lamp_at):
 def _check_against_exact(img, lamp_at):
     """The image's red channel × energy/(4π) normalisation is the exact near-field
     table of this geometry, within 1 % of each lit row's flux (outside the lens)."""
-    d_over_r, z = _geometry(lamp_at)
-    exact = xp.exact_profile(d_over_r, N, receiver=z, M=xp.NEAR_DISTANCES, slope=True)
-    t_ref = ExactBeam(1.0, d_over_r, 1.0, N, n_fan=8000).lens_flux / (2.0 * math.pi)
+    exact, t_ref = exact_near_table(CENTRE, R, N, lamp_at)
     table = _pixels(img)[..., 0].astype(float) * t_ref
     assert table.shape == exact.table.shape
     K = table.shape[1]

@@ -6,17 +6,15 @@ row-by-row trace of `exact_profile`, not the code under test), the refine timer
 once they stop makes the state a fresh Generate's; a render starting after a burst
 of frame changes, and every frame it renders, sees the exact state."""
 
-import math
 import time
 
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import add_point_light, add_sphere, glass_material, set_engine
-from profile_measures import compare
+from blender_scene_helpers import resting_marble
+from profile_measures import compare, exact_near_table
 
 from core.tiers import exact_profile as xp
-from core.tiers.beam_error import ExactBeam
 
 pytestmark = pytest.mark.blender
 
@@ -26,14 +24,7 @@ LAMP = {1: (1.0, 0.4, 5.0), 5: (-0.6, -0.9, 4.2)}
 
 
 def _scene():
-    sc = bpy.context.scene
-    set_engine("CYCLES")
-    sc.lens_lights.energy_model = "EXACT_PROFILE"
-    add_sphere(
-        "Marble", tuple(CENTRE), radius=R, material=glass_material(ior=N), segments=64, rings=32
-    )
-    bpy.ops.mesh.primitive_plane_add(size=20)
-    lamp = add_point_light("Lamp", LAMP[1])
+    sc, lamp = resting_marble(LAMP[1], radius=R, ior=N)
     for frame, loc in LAMP.items():
         lamp.location = loc
         lamp.keyframe_insert("location", frame=frame)
@@ -72,11 +63,7 @@ def _check_coarse_table(pixels, lamp_at):
     """The image's table (red × the energy's normalisation) against the exact
     near-field table of this geometry (D/R, the table met along the axis, by hand):
     every row's flux within 1 % of the beam's, the lit rows' peaks within 5 %."""
-    d = CENTRE - np.asarray(lamp_at, float)
-    D = float(np.linalg.norm(d))
-    d_over_r, z = D / R, 1.0 / (-d[2] / D)
-    exact = xp.exact_profile(d_over_r, N, receiver=z, M=xp.NEAR_DISTANCES, slope=True)
-    t_ref = ExactBeam(1.0, d_over_r, 1.0, N, n_fan=8000).lens_flux / (2.0 * math.pi)
+    exact, t_ref = exact_near_table(CENTRE, R, N, lamp_at)
     shown = xp.BeamProfile(
         exact.apex, exact.gamma_max_deg, exact.h_min, exact.h_max, pixels[..., 0] * t_ref
     )
