@@ -32,6 +32,7 @@ import numpy as np
 from ..lens import base as lens_base
 from ..lens import kinds
 from ..lens.base import ExitRays
+from ..shared.vectors import cross
 from . import mesh_beam, shadow
 from .emitters import (
     Lens,
@@ -133,21 +134,9 @@ def frames_of(axes: np.ndarray) -> np.ndarray:
     vectorised (the same branch, so the same frames)."""
     a = np.asarray(axes, dtype=float)
     helper = np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    e1 = _cross(helper, a)
+    e1 = cross(helper, a)
     e1 /= np.linalg.norm(e1, axis=1)[:, None]
-    return np.stack([e1, _cross(a, e1)], axis=1)
-
-
-def _cross(a, b):
-    """Cross products of (…, 3) arrays (np.cross is slow on small arrays)."""
-    return np.stack(
-        [
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ],
-        axis=-1,
-    )
+    return np.stack([e1, cross(a, e1)], axis=1)
 
 
 @dataclass
@@ -450,4 +439,4 @@ def _share_rotations(samples: SourceSamples, lens: Lens) -> np.ndarray:
     else:
         dist = np.linalg.norm(np.asarray(lens.center, float) - samples.points, axis=1)
         du = -samples.shares / np.maximum(dist, lens.radius)[:, None, None]
-    return _cross(np.broadcast_to(u, du.shape), du)
+    return cross(np.broadcast_to(u, du.shape), du)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene.blender_spot import spot_mask
+from ..shared.vectors import cross
 
 
 def _vec(v) -> np.ndarray:
@@ -125,16 +126,9 @@ def perpendicular_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     in the axis except near −x (Frisvad-style branch on the largest helper)."""
     a = np.asarray(axis, dtype=float)
     helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = _cross3(helper, a)
+    e1 = cross(helper, a)
     e1 /= np.linalg.norm(e1)
-    return e1, _cross3(a, e1)
-
-
-def _cross3(a, b) -> np.ndarray:
-    """The cross product of two 3-vectors (np.cross is slow on small arrays)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+    return e1, cross(a, e1)
 
 
 def concentric_disc(s, t):

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..shared.triangle_bvh import Hits, TriangleBvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
+from ..shared.vectors import cross
 
 #: Cells a ray's stretch across the slab may pass over before the BVH takes it.
 MAX_CELLS = 64
@@ -164,24 +165,15 @@ def _block(g: SlabGrid, o, d):
     return tri, tt, uu, vv, oblique
 
 
-def _cross(a, b):
-    """Cross products of (N, 3) arrays (np.cross is slow on many small rows)."""
-    out = np.empty_like(a)
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
-
-
 def _moller_trumbore(o, d, v0, e1, e2, scale):
     """(t, u, v) of each ray–triangle pair, two-sided; t NaN where it misses."""
-    p = _cross(d, e2)
+    p = cross(d, e2)
     det = np.einsum("ij,ij->i", e1, p)
     good = np.abs(det) > 1e-14 * scale
     inv = 1.0 / np.where(good, det, 1.0)
     s = o - v0
     u = np.einsum("ij,ij->i", s, p) * inv
-    q = _cross(s, e1)
+    q = cross(s, e1)
     v = np.einsum("ij,ij->i", d, q) * inv
     t = np.einsum("ij,ij->i", e2, q) * inv
     hit = good & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0)

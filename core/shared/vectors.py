@@ -1,0 +1,18 @@
+"""Small vector helpers shared by the core's ray code."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def cross(a, b) -> np.ndarray:
+    """Cross products of (…, 3) arrays, or of two 3-vectors (np.cross is slow on
+    small arrays and on many short rows)."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
