@@ -76,7 +76,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, FAN_FAR, caustic_end, fan_tables
+from .profile_fan import FAN, FAN_FAR, fan_caustic_end, fan_fill, ray_fan
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -225,11 +225,13 @@ def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
     last = m - 1 - np.argmax(inside[::-1], axis=0)
     first = np.where(inside.any(axis=0), last + 1, 0)
     fill = (np.arange(m)[:, None] < first[None, :]) & (first[None, :] < M)
-    cols = np.flatnonzero(fill.any(axis=0))
-    src = first[cols]
+    if not fill.any():
+        return
+    src = np.minimum(first, M - 1)
+    cols = np.arange(fill.shape[1])
     for arr in (prof.table, prof.slope):
-        if arr is not None and cols.size:
-            arr[:m, cols] = np.where(fill[:, cols], arr[src, cols][None, :], arr[:m, cols])
+        if arr is not None:  # (in place: no copy of the rows)
+            np.copyto(arr[:m], np.broadcast_to(arr[src, cols], fill.shape), where=fill)
 
 
 def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
@@ -456,7 +458,7 @@ def fan_profile(
 
 #: The coarse table live update shows while the user works (`prepare_tables`): rays
 #: of its fan near the lens and beyond ``FAR_ROWS``, and beyond the caustic
-#: (`profile_fan.caustic_end`, where the table changes smoothly) every
+#: (`profile_fan.fan_caustic_end`, where the table changes smoothly) every
 #: ``COARSE_ROW_STEP``-th row, linear in between as the texture reads them: within
 #: 1 % of the exact table's flux and 5 % of its peak on every row
 #: (tests/core/tiers/test_profile_coarse.py).
@@ -475,20 +477,31 @@ def fan_profiles(
     K: int = PROFILE_ANGLES,
 ) -> list[BeamProfile]:
     """`fan_profile` for each of `specs` ``(D/R, n, near, receiver, M, slope)``, every
-    table's rows in one batch of fans per fan size (`profile_fan.fan_tables`); with
-    `coarse` the coarse tables (``COARSE_FAN``)."""
+    table's rows in one batch of fans per fan size (`profile_fan.fan_fill`, each row
+    written straight into its table); with `coarse` the coarse tables
+    (``COARSE_FAN``)."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
     fans = (n_fan or (COARSE_FAN if coarse else FAN), COARSE_FAN_FAR if coarse else FAN_FAR)
+    traced: dict = {}  # each (D/R, n, rays) fan traced once (the caustic's end reads it)
+
+    def fan_of(D_over_R, n, rays):
+        key = (D_over_R, n, rays)
+        if key not in traced:
+            traced[key] = ray_fan(D_over_R, n, absorption, n_fan=rays)
+        return traced[key]
+
     profs, batches, betweens = [], {}, []
     for i, (D_over_R, n, near, receiver, M, slope) in enumerate(specs):
+        D_over_R = float(D_over_R)
         if receiver is not None:
             apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
         else:
             apex, h_min, h_max = table_geometry(0.0 if near else None)
-        prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, None)
         with_slope = apex < 1.0 and slope
+        prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.empty((M, K)))
+        prof.slope = np.empty((M, K)) if with_slope else None
         profs.append(prof)
         h = row_distances(h_min, h_max, M)
         # the near field's rows through and right past the lens need the denser fan;
@@ -499,7 +512,7 @@ def fan_profiles(
             dense[:] = True
         between = None
         if coarse:  # beyond the caustic every step-th row (and the last)
-            end = COARSE_MARGIN * caustic_end(float(D_over_R), n, absorption, fans[0])
+            end = COARSE_MARGIN * fan_caustic_end(fan_of(D_over_R, n, fans[0]))
             smooth = np.flatnonzero(apex + h >= end)
             if smooth.size > 2:
                 kept = np.unique(np.append(smooth[::COARSE_ROW_STEP], smooth[-1]))
@@ -508,32 +521,30 @@ def fan_profiles(
             if between is not None:
                 rows = rows.copy()
                 rows[between[1]] = False
-            if rows.any():
-                job = (float(D_over_R), n, absorption, apex, h[rows])
-                batches.setdefault((fans[part], with_slope), []).append((i, part, rows, job))
+            rows = np.flatnonzero(rows)
+            if rows.size:
+                job = (D_over_R, n, absorption, apex, h[rows])
+                out = (prof.table, prof.slope, rows)
+                batch = batches.setdefault((fans[part], with_slope), [])
+                batch.append((i, part, job, out, fan_of(D_over_R, n, fans[part])))
         betweens.append(between)
-    parts = [{} for _ in specs]
-    for (fan, with_slope), items in batches.items():
-        made = fan_tables([it[3] for it in items], g_edges, n_fan=fan, slope=with_slope)
-        for (i, part, rows, _), got in zip(items, made, strict=True):
-            parts[i][part] = (rows, *got)
-    for (*_, M, _), prof, got, between in zip(specs, profs, parts, betweens, strict=True):
-        pieces = [got[k] for k in sorted(got)]  # the dense rows first
-        prof.flux = pieces[0][3]  # the dense fan's where it has rows
-        with_slope = pieces[0][2] is not None
-        if len(pieces) == 1 and between is None:
-            prof.table, prof.slope = pieces[0][1], pieces[0][2]
-        else:
-            prof.table = np.empty((M, K))
-            prof.slope = np.empty((M, K)) if with_slope else None
-            for rows, table, mean_slope, _ in pieces:
-                prof.table[rows] = table
-                if with_slope:
-                    prof.slope[rows] = mean_slope
-            if between is not None:
-                _between_rows(prof, *between, g_edges)
+    flux = [{} for _ in specs]
+    for (rays, _), items in batches.items():
+        got = fan_fill(
+            [it[2] for it in items],
+            g_edges,
+            [it[3] for it in items],
+            n_fan=rays,
+            fans=[it[4] for it in items],
+        )
+        for (i, part, *_), f in zip(items, got, strict=True):
+            flux[i][part] = f
+    for prof, fluxes, between in zip(profs, flux, betweens, strict=True):
+        prof.flux = fluxes[min(fluxes)]  # the dense fan's where it has rows
+        if between is not None:
+            _between_rows(prof, *between, g_edges)
         prof.table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
-        if with_slope:
+        if prof.slope is not None:
             _fill_inside_lens(prof, g_edges)
     return profs
 
@@ -546,23 +557,21 @@ def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
     table, slope = prof.table, prof.slope
     mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
     step = COARSE_ROW_STEP
-    # the regular gaps, `step` rows apart: as views of the rows they span
+    # the regular gaps, `step` rows apart: as views of the rows they span, every
+    # offset in one pass
     gaps = kept.size - 2
     if gaps > 0:
         rows = slice(int(kept[0]), int(kept[-2]) + 1)
+        t = (np.arange(1, step) / step)[None, :, None]
         ends = table[rows][::step]
-        inner = table[rows][:-1].reshape(gaps, step, -1)
+        inner = table[rows][:-1].reshape(gaps, step, -1)[:, 1:]
+        inner[...] = ends[:-1, None] + t * (ends[1:] - ends[:-1])[:, None]
         if slope is not None:
             s_ends = slope[rows][::step] * ends
-            s_inner = slope[rows][:-1].reshape(gaps, step, -1)
-        for off in range(1, step):
-            t = off / step
-            inner[:, off] = (1.0 - t) * ends[:-1] + t * ends[1:]
-            if slope is not None:
-                product = (1.0 - t) * s_ends[:-1] + t * s_ends[1:]
-                got = inner[:, off]
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    s_inner[:, off] = np.where(got > 0.0, product / got, mid)
+            product = s_ends[:-1, None] + t * (s_ends[1:] - s_ends[:-1])[:, None]
+            s_inner = slope[rows][:-1].reshape(gaps, step, -1)[:, 1:]
+            s_inner[...] = mid
+            np.divide(product, inner, out=s_inner, where=inner > 0.0)
     # the last gap (shorter)
     last = todo[todo > kept[-2]]
     if last.size:
