@@ -535,15 +535,17 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
 
 
 def _geometry_changed(scene, depsgraph) -> bool:
-    """Did `depsgraph` change the shape of something not ours (an edited mesh, a
+    """Did `depsgraph` change the shape of an object not ours (an edited mesh, a
     shape key or modifier animated over frames: what the planner's rays may meet,
-    inside the same box)? A frame change's depsgraph lists them as an edit's does."""
+    inside the same box)? A frame change's depsgraph lists them as an edit's does
+    (the object, its geometry updated; the scene, node trees and images say
+    "geometry" too and are no shapes)."""
     ours = None
     for u in depsgraph.updates:
-        if not u.is_updated_geometry:
+        if not u.is_updated_geometry or not isinstance(u.id, bpy.types.Object):
             continue
-        orig = getattr(u.id, "original", u.id)
-        if isinstance(orig, bpy.types.Object) and orig.lens_lights.is_lens_light:
+        orig = u.id.original
+        if orig.type in _NO_GEOMETRY or orig.lens_lights.is_lens_light:
             continue
         if ours is None:
             ours = _ours(scene)

@@ -604,12 +604,13 @@ def plan_result(
     same lights as tests/helpers/planning_reference.py's source by source
     (tests/core/plan/test_planning_speed_equivalence.py).
 
-    `rays` (live update): each kept source's rays remembered by their inputs
-    (`ray_memo.RayMemo`), cast only for the pairs whose lens, axis or the geometry
-    changed since the last update."""
+    `rays` (live update): the bundles cast before on the same geometry are not cast
+    again (`ray_memo.RayMemo`: the pairs whose lens and axis did not change)."""
     timings = {} if timings is None else timings
+    occ = read.occluders
     if rays is not None:
-        rays.start(read.occluders, safe_scene_size(read.scene_size))
+        rays.start(occ)
+        occ = rays.view(occ)
     t = time.perf_counter()
     selection = select_sources(
         result,
@@ -647,9 +648,9 @@ def plan_result(
         first = _scaled(make_light_table(table, cols, model, **common), scale)
         everything = np.arange(len(table))
         kept = _rank(first, names_of(everything), min_b, max_lights, plan.skipped)
-        kept = _without_sunk(read, table, kept, names_of(kept), plan.skipped, rays)
+        kept = _without_sunk(read, occ, table, kept, names_of(kept), plan.skipped)
         timings["plan first"] = time.perf_counter() - t
-        lights = _final_lights(read, selection, cols, kept, tier, model, common, rays)
+        lights = _final_lights(read, occ, selection, cols, kept, tier, model, common)
         names = names_of(kept)
         for k in _rank(lights, names, min_b, max_lights, plan.skipped).tolist():
             src = selection.sources[int(kept[k])]
@@ -659,21 +660,14 @@ def plan_result(
     return Work(read, result, selection, plan, timings)
 
 
-def _without_sunk(read, table, kept, names, skipped, rays=None) -> np.ndarray:
+def _without_sunk(read, occ, table, kept, names, skipped) -> np.ndarray:
     """`kept` less the rows whose lens another surface cuts into (`sunk_lenses`),
     each listed in `skipped` (`Reason.SUNK`)."""
     if not len(kept):
         return kept
     lenses, row_lens = np.unique(np.asarray(table.lens)[kept], return_inverse=True)
-    c, r = read.arrays.center[lenses], read.arrays.radius[lenses]
-    if rays is None:
-        sunk = sunk_lenses(read.occluders, c, r)
-    else:
-        sunk = np.array(
-            rays.rows("sunk", rays.keys(c, r), lambda k: sunk_lenses(read.occluders, c[k], r[k])),
-            dtype=bool,
-        )
-    sunk = sunk[row_lens]
+    a = read.arrays
+    sunk = sunk_lenses(occ, a.center[lenses], a.radius[lenses])[row_lens]
     for k in np.flatnonzero(sunk).tolist():
         skipped.append(SkippedPair(*names(k), Reason.SUNK))
     return kept[~sunk]
@@ -713,80 +707,16 @@ class _KeptLights:
         return bl
 
 
-class _Casts:
-    """`_final_lights`' casts of the rows of `sub` (a `SourceTable`), each row's
-    remembered by `rays` (a `RayMemo`; None: all cast)."""
-
-    def __init__(self, occ, sub, size, rays):
-        self.occ, self.sub, self.size, self.rays = occ, sub, size, rays
-        self.inputs = (sub.axis, sub.lens_center, sub.lens_radius)
-        self._keys = None if rays is None else rays.keys(*self.inputs)
-
-    def receivers(self):
-        """`receiver_rays` of every row."""
-        if self.rays is None:
-            return receiver_rays(self.occ, *self.inputs, self.size)
-
-        def cast(k):
-            got = receiver_rays(self.occ, *(x[k] for x in self.inputs), self.size)
-            return list(zip(*got, strict=True))
-
-        got = self.rays.rows("receiver", self._keys, cast)
-        n = len(self._keys)
-        shapes = ((n, 5, 3), (n, 3), (n, 5), (n,))
-        if not n:
-            return tuple(np.zeros(s) for s in shapes)
-        columns = zip(*got, strict=True)
-        return tuple(
-            np.array(x, dtype=float).reshape(s) for x, s in zip(columns, shapes, strict=True)
-        )
-
-    def free(self, rows) -> np.ndarray:
-        """`free_distances` of the rows `rows` (a mask)."""
-        picked = [x[rows] for x in self.inputs]
-        if self.rays is None:
-            return free_distances(self.occ, *picked, self.size)
-        keys = [k for k, on in zip(self._keys, rows.tolist(), strict=True) if on]
-        got = self.rays.rows(
-            "free",
-            keys,
-            lambda k: free_distances(self.occ, *(x[k] for x in picked), self.size).tolist(),
-        )
-        return np.array(got, dtype=float).reshape(-1)
-
-    def other_planes(self, axis, recv, normals) -> dict:
-        """`all_other_planes` of the rows `normals` holds."""
-        center, radius = self.sub.lens_center, self.sub.lens_radius
-        if self.rays is None:
-            return all_other_planes(self.occ, axis, center, radius, recv, normals)
-        rows = list(normals)
-        nrm = np.array([np.full(3, np.nan) if normals[k] is None else normals[k] for k in rows])
-        idx = np.asarray(rows, dtype=np.int64)
-        keys = self.rays.keys(
-            axis[idx], center[idx], radius[idx], recv[idx], nrm.reshape(len(rows), 3)
-        )
-
-        def cast(k):
-            picked = {rows[i]: normals[rows[i]] for i in k.tolist()}
-            got = all_other_planes(self.occ, axis, center, radius, recv, picked)
-            return [got[rows[i]] for i in k.tolist()]
-
-        return dict(zip(rows, self.rays.rows("planes", keys, cast), strict=True))
-
-
-def _final_lights(read, selection, cols, rows, tier, model, common, rays=None) -> _KeptLights:
-    """The lights of the selection's `rows` with their rays (`plan_result`): the
-    tier's table maker for `RECEIVER_TABLES`, else its per-source maker. With `rays`
-    (a `RayMemo`) the rays of a row whose inputs were cast before are not cast
-    again."""
+def _final_lights(read, occ, selection, cols, rows, tier, model, common) -> _KeptLights:
+    """The lights of the selection's `rows` with their rays against `occ` (the read's
+    occluders, or their `RayMemo` view) (`plan_result`): the tier's table maker for
+    `RECEIVER_TABLES`, else its per-source maker."""
     sub = take(selection.table, rows)
     size = common["scene_size"]
-    occ = read.occluders
     f = selection.scale[rows]
-    cast = _Casts(occ, sub, size, rays)
-    origins, axis, hits, recv = cast.receivers()
+    origins, axis, hits, recv = receiver_rays(occ, sub.axis, sub.lens_center, sub.lens_radius, size)
     if tier.name in RECEIVER_TABLES:
-        free = cast.free(np.ones(len(rows), dtype=bool))
+        free = free_distances(occ, sub.axis, sub.lens_center, sub.lens_radius, size)
         far = np.where(np.isfinite(free), free, COLLIMATED_DISTANCE_FACTOR * size)
         picked = dataclasses.replace(
             cols,
@@ -807,7 +737,9 @@ def _final_lights(read, selection, cols, rows, tier, model, common, rays=None) -
     )
     free = np.full(len(rows), np.nan)
     if beams.any():
-        free[beams] = cast.free(beams)
+        free[beams] = free_distances(
+            occ, sub.axis[beams], sub.lens_center[beams], sub.lens_radius[beams], size
+        )
     optics = read.lens_optics
     normals = {}
     for k in np.flatnonzero(np.isfinite(recv)).tolist():
@@ -815,7 +747,7 @@ def _final_lights(read, selection, cols, rows, tier, model, common, rays=None) -
         normals[k] = rim_plane_normal(origins[k], axis[k], hits[k], r, distance=float(recv[k]))
     found = {}
     if tier.name == EXACT_PROFILE and normals:  # the only tier that reads them
-        found = cast.other_planes(axis, recv, normals)
+        found = all_other_planes(occ, axis, sub.lens_center, sub.lens_radius, recv, normals)
     out = []
     for k, src in enumerate(sources):
         near = None

@@ -1,18 +1,20 @@
-"""Live update's planner rays remembered per pair (issue 27): a lamp dragged over ten
-marbles moves half the pairs of a two-lamp scene, yet every update cast the rays of
-all of them again (the receiver behind each lens, the free distance, the side planes,
+"""Live update's planner rays remembered (issue 27): a lamp dragged over ten marbles
+moves half the pairs of a two-lamp scene, yet every update cast the rays of all of
+them again (the receiver behind each lens, the free distance, the side planes,
 whether a lens is sunk: a fifth of an update).
 
-`RayMemo` keeps each row's result by the exact inputs of its rays (the lens' axis,
-centre and radius, and what the kind reads besides: the receiver's distance and
-normal for the side planes), valid only while the geometry the rays meet is the one
-they were cast against: `start` compares the occluders' spheres, instance matrices,
-boxes and mesh groups and the scene's size with the last update's and forgets
-everything when any differs. What those do not show (a mesh deformed within its box:
+`RayMemo.view` wraps the read's occluders: each bundle the planner casts
+(`planning.cast_bundles`) is looked up by its exact rays (origins and direction) and
+cast only when new, without a limit, the caller's limit applied after (the first hit
+within a limit is the first hit if it lies within it: the same hits as a cast with the
+limit, whatever the scene's size, which moves with a lamp). Valid only while the
+geometry is the one they were cast against: `start` compares the occluders' spheres,
+instance matrices, boxes and mesh groups with the last update's and forgets
+everything when any differs. What those do not show (a mesh reshaped within its box:
 an edit, a shape key or modifier on a frame change) the caller reports with `clear`
-(`blender/commands/live_update.py`: an update whose depsgraph changed a geometry, or
-a forced one). Occluders without those arrays (a test's stand-in) are never
-remembered. Pure Python + numpy; `planning.plan_result` takes it as ``rays``.
+(`blender/commands/live_update.py`: an update whose depsgraph changed an object's
+geometry, or a forced one). Occluders without those arrays (a test's stand-in) are
+never remembered.
 """
 
 from __future__ import annotations
@@ -26,72 +28,98 @@ GEOMETRY = ("centers", "radii", "matrices", "box_lo", "box_hi", "source_index")
 
 
 class RayMemo:
-    """Per-row results of the planner's casts, by kind and exact inputs (see the
-    module). ``cast_rows``: rows cast since made, per kind (what the tests count)."""
+    """The first hits of the bundles cast on this geometry, by their rays (see the
+    module). ``cast`` / ``reused``: bundles cast and looked up since the last
+    `start` (an update's: what the tests count)."""
 
-    #: Rows remembered at most (the oldest forgotten first): a few updates' worth of
-    #: a 1000-lens scene.
-    LIMIT = 16384
+    #: Bundles remembered at most (the oldest forgotten first): a few updates' worth
+    #: of a 1000-lens scene.
+    LIMIT = 65536
 
     def __init__(self):
         self._geometry = None
-        self._entries: OrderedDict = OrderedDict()
-        self.cast_rows: dict = {}
+        self._hits: OrderedDict = OrderedDict()
+        self.cast = self.reused = 0
 
-    def start(self, occluders, scene_size) -> None:
+    def start(self, occluders) -> None:
         """Before an update's plan: keep what was cast against this geometry, else
         forget it all."""
+        self.cast = self.reused = 0
         if any(not hasattr(occluders, k) for k in GEOMETRY):
-            self._geometry = None
-            self._entries.clear()
+            self.clear()
             return
-        geometry = [np.array(float(scene_size))] + [
-            np.asarray(getattr(occluders, k)) for k in GEOMETRY
-        ]
+        geometry = [np.asarray(getattr(occluders, k)) for k in GEOMETRY]
         same = self._geometry is not None and all(
             a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b)
             for a, b in zip(self._geometry, geometry, strict=True)
         )
         if not same:
-            self._entries.clear()
+            self._hits.clear()
             self._geometry = [a.copy() for a in geometry]
 
     def clear(self) -> None:
-        """Forget every row (the geometry changed in a way `start` cannot see)."""
-        self._entries.clear()
+        """Forget every bundle (the geometry changed in a way `start` cannot see)."""
+        self._hits.clear()
         self._geometry = None
 
     def __len__(self) -> int:
-        return len(self._entries)
+        return len(self._hits)
 
-    @staticmethod
-    def keys(*columns) -> list[bytes]:
-        """One key per row of `columns` (arrays with as many rows): their float64
-        bytes, row by row."""
-        n = len(columns[0])
-        if not n:
-            return []
-        parts = [np.asarray(c, dtype=np.float64).reshape(n, -1) for c in columns]
-        rows = np.ascontiguousarray(np.concatenate(parts, axis=1))
-        return [r.tobytes() for r in rows]
+    def view(self, occluders) -> _Remembered:
+        """`occluders` whose `first_hits` go through this memo (after `start`)."""
+        return _Remembered(occluders, self)
 
-    def rows(self, kind: str, keys: list, cast) -> list:
-        """Per key the remembered result of `kind`, the missing ones from
-        ``cast(rows)`` (their row indices: one result per row, in order). Without a
-        geometry (`start` saw none) everything is cast and nothing kept."""
-        keep = self._geometry is not None
-        out = [self._entries.get((kind, k)) if keep else None for k in keys]
-        todo = [i for i, got in enumerate(out) if got is None]
+    def first_hits(self, occluders, origins, directions, limit) -> np.ndarray:
+        """`occluders.first_hits` of bundles (`origins` B × k × 3, one direction per
+        bundle), the ones cast before on this geometry not cast again."""
+        origins = np.asarray(origins, dtype=np.float64)
+        directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+        B, k = origins.shape[:2]
+        if self._geometry is None or not B:
+            self.cast += B
+            return _cast(occluders, origins, directions, limit)
+        rays = np.concatenate([origins.reshape(B, -1), directions], axis=1)
+        keys = [(k, r.tobytes()) for r in np.ascontiguousarray(rays)]
+        hits = np.empty((B, k))
+        todo = []
+        for b, key in enumerate(keys):
+            got = self._hits.get(key)
+            if got is None:
+                todo.append(b)
+            else:
+                hits[b] = got
+                self._hits.move_to_end(key)
+        self.reused += B - len(todo)
         if todo:
-            self.cast_rows[kind] = self.cast_rows.get(kind, 0) + len(todo)
-            made = cast(np.asarray(todo, dtype=np.int64))
-            for i, got in zip(todo, made, strict=True):
-                out[i] = got
-                if keep:
-                    self._entries[(kind, keys[i])] = got
-        if keep:
-            for k in keys:  # what this update read is the newest
-                self._entries.move_to_end((kind, k))
-            while len(self._entries) > max(self.LIMIT, 2 * len(keys)):
-                self._entries.popitem(last=False)
-        return out
+            self.cast += len(todo)
+            rows = np.asarray(todo)
+            new = _cast(occluders, origins[rows], directions[rows], np.inf).reshape(len(todo), k)
+            hits[rows] = new
+            for b, h in zip(todo, new, strict=True):
+                self._hits[keys[b]] = h.copy()
+            while len(self._hits) > max(self.LIMIT, 2 * B):
+                self._hits.popitem(last=False)
+        return np.where(hits <= limit, hits, np.inf)
+
+
+def _cast(occluders, origins, directions, limit) -> np.ndarray:
+    """`occluders.first_hits`, or bundle by bundle where they have only `first_hit`."""
+    if hasattr(occluders, "first_hits"):
+        return np.asarray(occluders.first_hits(origins, directions, limit), dtype=float)
+    return np.array(
+        [occluders.first_hit(o, d, limit) for o, d in zip(origins, directions, strict=True)],
+        dtype=float,
+    ).reshape(origins.shape[:2])
+
+
+class _Remembered:
+    """Occluders whose batched casts go through a `RayMemo` (anything else: theirs)."""
+
+    def __init__(self, occluders, memo: RayMemo):
+        self._occluders, self._memo = occluders, memo
+
+    def first_hits(self, origins, directions, limit):
+        return self._memo.first_hits(self._occluders, origins, directions, limit)
+
+    def __getattr__(self, name):
+        return getattr(self._occluders, name)

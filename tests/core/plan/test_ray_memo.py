@@ -1,7 +1,8 @@
-"""Live update's planner rays remembered per pair (`ray_memo.RayMemo`, issue 27): a
-plan made with the memo is the plan made without it (every light's fields equal), a
-pair whose lens and axis did not change is not cast again (the rays the geometry is
-asked for, counted), and a moved floor, wall or sphere casts every pair again."""
+"""Live update's planner rays remembered (`ray_memo.RayMemo`, issue 27): a plan made
+with the memo is the plan made without it (every light's fields equal), a pair whose
+lens and axis did not change is not cast again (the rays the geometry is asked for,
+counted), also when the scene's size (the casts' limit) moves with the lamp, and a
+moved floor, wall or sphere casts every pair again."""
 
 import math
 from types import SimpleNamespace
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 from core.phase1.point_lights import compute_phase1
-from core.plan.planning import plan_result
+from core.plan.planning import SUNK_PROBES, plan_result
 from core.plan.ray_memo import RayMemo
 from core.scene.arrays import SceneArrays
 from core.scene.model import Light, Scene, Sphere, Surface
@@ -61,7 +62,8 @@ class CountingGeometry:
 
 def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5)):
     """Four marbles resting on the floor z = `floor` (a wall x = `wall` beside them,
-    a fifth sphere at `blocker`), lit by the point lights `lamps`."""
+    a fifth sphere at `blocker`), lit by the point lights `lamps` (the scene's size
+    grows with the lamps' reach, as a read's)."""
     centres = [(x, y, floor + R) for x in (0.0, 1.5) for y in (0.0, 1.5)]
     glass = Surface(transmission=1.0, ior=1.5)
     scene = Scene(
@@ -81,7 +83,7 @@ def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5)):
         light_sources=[f"lamp {j}" for j in range(len(lamps))],
         sphere_sources=[f"marble {i}" for i in range(len(spheres))],
         lens_candidates=None,
-        scene_size=20.0,
+        scene_size=float(np.max(np.abs(np.array(lamps)))) + 10.0,
         bounds=(np.full(3, -10.0), np.full(3, 10.0)),
         occluders=occ,
     )
@@ -119,17 +121,16 @@ def test_an_unchanged_pair_is_not_cast_again_and_the_plan_is_the_one_without_mem
     _same_lights(first, _plan(*_read([LAMP_A[0], LAMP_B])))
     # the next frame: lamp A moved, lamp B's four pairs the same
     read, result = _read([LAMP_A[1], LAMP_B])
-    cast_before = dict(memo.cast_rows)
+    cast_before = memo.cast
     got = _plan(read, result, memo)
     fresh_read, fresh_result = _read([LAMP_A[1], LAMP_B])
     _same_lights(got, _plan(fresh_read, fresh_result))
-    # only lamp A's pairs cast: half of every kind's rows, half of the rays (no sunk
-    # lens probes: the marbles did not move)
-    for kind in ("receiver", "planes"):
-        assert memo.cast_rows[kind] - cast_before[kind] == 4, kind
-    assert memo.cast_rows["sunk"] == cast_before["sunk"]
-    fresh = fresh_read.occluders.rays
-    assert read.occluders.rays < 0.5 * fresh
+    # only lamp A's pairs cast: half of the pairs' bundles (none of the sunk lens
+    # probes: the marbles did not move), as many reused for lamp B's
+    probes = len(SUNK_PROBES)
+    pairs = cast_before - probes  # the first plan: every pair's bundles and the probes
+    assert memo.cast == pairs // 2 and memo.reused == pairs // 2 + probes
+    assert read.occluders.rays < 0.5 * fresh_read.occluders.rays
     # the same inputs again: nothing cast at all
     read, result = _read([LAMP_A[1], LAMP_B])
     _same_lights(_plan(read, result, memo), got)
@@ -175,9 +176,8 @@ def test_occluders_without_geometry_arrays_are_never_remembered():
             return np.full(np.asarray(origins).shape[:2], np.inf)
 
     memo = RayMemo()
-    memo.start(Bare(), 1.0)
-    calls = []
-    keys = memo.keys(np.zeros((2, 3)))
-    memo.rows("k", keys, lambda rows: calls.append(rows.tolist()) or [1, 2])
-    memo.rows("k", keys, lambda rows: calls.append(rows.tolist()) or [1, 2])
-    assert calls == [[0, 1], [0, 1]] and len(memo) == 0
+    for _ in range(2):
+        memo.start(Bare())
+        got = memo.view(Bare()).first_hits(np.zeros((2, 3, 3)), np.eye(3)[:2], 10.0)
+        assert got.shape == (2, 3) and memo.cast == 2 and memo.reused == 0
+    assert len(memo) == 0
