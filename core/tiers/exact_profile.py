@@ -459,13 +459,20 @@ def fan_profile(
 #: The coarse table live update shows while the user works (`prepare_tables`): rays
 #: of its fan near the lens and beyond ``FAR_ROWS``, and beyond the caustic
 #: (`profile_fan.fan_caustic_end`, where the table changes smoothly) every
-#: ``COARSE_ROW_STEP``-th row, linear in between as the texture reads them: within
+#: ``COARSE_ROW_STEP``-th row, sparser farther (`coarse_rows`), linear in between
+#: as the texture reads them: within
 #: 1 % of the exact table's flux and 5 % of its peak on every row
 #: (tests/core/tiers/test_profile_coarse.py).
 COARSE_FAN, COARSE_FAN_FAR = 300, 150
 COARSE_ROW_STEP = 4
 #: Rows from this factor times the caustic's end on are coarse rows.
 COARSE_MARGIN = 1.1
+#: From this factor times the caustic's end on, the coarse rows are twice as sparse,
+#: and twice again at each doubling of the distance, up to eight times
+#: (`coarse_rows`): within the same share of the budget as every fourth row
+#: (tests/core/tiers/test_profile_coarse.py's sweep: its worst cases are the
+#: caustic's rows, made with ``COARSE_FAN`` rays).
+COARSE_FAR_FACTOR = 1.5
 
 
 def fan_profiles(
@@ -515,7 +522,7 @@ def fan_profiles(
             end = COARSE_MARGIN * fan_caustic_end(fan_of(D_over_R, n, fans[0]))
             smooth = np.flatnonzero(apex + h >= end)
             if smooth.size > 2:
-                kept = np.unique(np.append(smooth[::COARSE_ROW_STEP], smooth[-1]))
+                kept = coarse_rows(smooth, apex + h, end)
                 between = (kept, np.setdiff1d(smooth, kept))
         for part, rows in enumerate((dense, ~dense)):
             if between is not None:
@@ -551,37 +558,37 @@ def fan_profiles(
 
 def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
     """A coarse table's rows `todo` (not computed) from the computed rows `kept`
-    around them (every ``COARSE_ROW_STEP``-th of a run of rows, and its last):
-    linear in the row index, as the texture reads between rows (the intensity and
-    the intensity × slope)."""
+    around them (`coarse_rows`): linear in the row index, as the texture reads
+    between rows (the intensity and the intensity × slope)."""
     table, slope = prof.table, prof.slope
-    mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
-    step = COARSE_ROW_STEP
-    # the regular gaps, `step` rows apart: as views of the rows they span, every
-    # offset in one pass
-    gaps = kept.size - 2
-    if gaps > 0:
-        rows = slice(int(kept[0]), int(kept[-2]) + 1)
-        t = (np.arange(1, step) / step)[None, :, None]
-        ends = table[rows][::step]
-        inner = table[rows][:-1].reshape(gaps, step, -1)[:, 1:]
-        inner[...] = ends[:-1, None] + t * (ends[1:] - ends[:-1])[:, None]
-        if slope is not None:
-            s_ends = slope[rows][::step] * ends
-            product = s_ends[:-1, None] + t * (s_ends[1:] - s_ends[:-1])[:, None]
-            s_inner = slope[rows][:-1].reshape(gaps, step, -1)[:, 1:]
-            s_inner[...] = mid
-            np.divide(product, inner, out=s_inner, where=inner > 0.0)
-    # the last gap (shorter)
-    last = todo[todo > kept[-2]]
-    if last.size:
-        lo, hi = int(kept[-2]), int(kept[-1])
-        t = ((last - lo) / (hi - lo))[:, None]
-        table[last] = (1.0 - t) * table[lo] + t * table[hi]
-        if slope is not None:
-            product = (1.0 - t) * table[lo] * slope[lo] + t * table[hi] * slope[hi]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                slope[last] = np.where(table[last] > 0.0, product / table[last], mid)
+    at = np.searchsorted(kept, todo)  # the kept row above each
+    lo, hi = kept[at - 1], kept[at]
+    t = ((todo - lo) / (hi - lo))[:, None]
+    a, b = table[lo], table[hi]
+    got = a + t * (b - a)
+    table[todo] = got
+    if slope is not None:
+        sa, sb = a * slope[lo], b * slope[hi]
+        mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
+        out = np.broadcast_to(mid, got.shape).copy()
+        np.divide(sa + t * (sb - sa), got, out=out, where=got > 0.0)
+        slope[todo] = out
+
+
+def coarse_rows(smooth: np.ndarray, Z: np.ndarray, end: float) -> np.ndarray:
+    """The rows a coarse table computes among its `smooth` ones (beyond the caustic's
+    `end`, R from the centre; `Z`: every row's distance from the centre): every
+    ``COARSE_ROW_STEP``-th, twice as sparse from ``COARSE_FAR_FACTOR`` × `end` on,
+    and twice again at each doubling of that distance up to eight times (the beam
+    tends to its far field there: its change per row falls as 1/Z), and the last."""
+    far = COARSE_FAR_FACTOR * end
+    level = np.clip(np.floor(np.log2(np.maximum(Z[smooth] / far, 0.5))) + 1, 0, 3)
+    step = COARSE_ROW_STEP * 2 ** level.astype(np.int64)
+    kept, k = [], 0
+    while k < smooth.size:
+        kept.append(smooth[k])
+        k += int(step[k])
+    return np.unique(np.append(np.asarray(kept, dtype=np.int64), smooth[-1]))
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -689,11 +696,15 @@ def _profile_dict(
 ) -> dict:
     pixels = prof.pixel_cache.get(t_ref)
     if pixels is None:  # (shared by every light of this table: never written to)
-        pixels = (prof.table / t_ref).astype(np.float32), None
+        # divided in float64 and rounded once into float32 (no float64 copy made)
+        red = np.empty(prof.table.shape, dtype=np.float32)
+        pixels = np.divide(prof.table, t_ref, out=red, casting="same_kind"), None
         if prof.slope is not None:
             # the image's green channel: intensity × mean slope, which the texture's
             # linear interpolation blends as it blends the intensity (`_slope_table`)
-            pixels = pixels[0], (prof.table * prof.slope / t_ref).astype(np.float32)
+            green = np.empty(prof.table.shape, dtype=np.float32)
+            product = prof.table * prof.slope
+            pixels = red, np.divide(product, t_ref, out=green, casting="same_kind")
         prof.pixel_cache.clear()
         prof.pixel_cache[t_ref] = pixels
     out = {
