@@ -557,22 +557,29 @@ def fan_profiles(
 
 
 def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
-    """A coarse table's rows `todo` (not computed) from the computed rows `kept`
-    around them (`coarse_rows`): linear in the row index, as the texture reads
-    between rows (the intensity and the intensity × slope)."""
+    """A coarse table's rows `todo` (not computed: every row between two of `kept`)
+    from the computed rows `kept` around them (`coarse_rows`): linear in the row
+    index, as the texture reads between rows (the intensity and the intensity ×
+    slope). Each run of gaps of one size in one pass, on views of its rows."""
     table, slope = prof.table, prof.slope
-    at = np.searchsorted(kept, todo)  # the kept row above each
-    lo, hi = kept[at - 1], kept[at]
-    t = ((todo - lo) / (hi - lo))[:, None]
-    a, b = table[lo], table[hi]
-    got = a + t * (b - a)
-    table[todo] = got
-    if slope is not None:
-        sa, sb = a * slope[lo], b * slope[hi]
-        mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
-        out = np.broadcast_to(mid, got.shape).copy()
-        np.divide(sa + t * (sb - sa), got, out=out, where=got > 0.0)
-        slope[todo] = out
+    mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
+    gap = np.diff(kept)
+    starts = np.flatnonzero(np.r_[True, gap[1:] != gap[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], gap.size], strict=True):
+        step, n = int(gap[a]), int(b - a)
+        if step < 2:
+            continue
+        rows = slice(int(kept[a]), int(kept[b]) + 1)  # n gaps of `step` rows
+        t = (np.arange(1, step) / step)[None, :, None]
+        ends = table[rows][::step]
+        inner = table[rows][:-1].reshape(n, step, -1)[:, 1:]
+        inner[...] = ends[:-1, None] + t * (ends[1:] - ends[:-1])[:, None]
+        if slope is not None:
+            s_ends = slope[rows][::step] * ends
+            product = s_ends[:-1, None] + t * (s_ends[1:] - s_ends[:-1])[:, None]
+            s_inner = slope[rows][:-1].reshape(n, step, -1)[:, 1:]
+            s_inner[...] = mid
+            np.divide(product, inner, out=s_inner, where=inner > 0.0)
 
 
 def coarse_rows(smooth: np.ndarray, Z: np.ndarray, end: float) -> np.ndarray:
