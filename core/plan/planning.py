@@ -254,14 +254,27 @@ def other_planes(occluders, axis, center, radius, z, normal) -> list:
 
 def all_other_planes(occluders, axis, center, radius, z, normals) -> dict:
     """`other_planes` of the sources `normals` holds (row → the receiver's normal or
-    None; their receivers `z[row]` from the centre), every bundle in one cast."""
-    rows = list(normals)
+    None; their receivers `z[row]` from the centre), every bundle in one cast. With
+    occluders seen through a `RayMemo` (``ray_memo``), a row whose inputs were
+    planned before on this geometry is not cast or derived again."""
+    memo = getattr(occluders, "ray_memo", None)
+    out, keys = {}, {}
+    if memo is not None:
+        for k in normals:
+            nrm = np.full(3, np.nan) if normals[k] is None else normals[k]
+            keys[k] = memo.key(axis[k], center[k], radius[k], z[k], nrm)
+            found = memo.derived("planes", keys[k])
+            if found is not None:
+                out[k] = found
+    rows = [k for k in normals if k not in out]
+    if not rows:
+        return out
     rays = [side_plane_rays(axis[k], center[k], float(radius[k])) for k in rows]
     origins = np.concatenate([o for o, _ in rays])
     dirs = np.concatenate([d for _, d in rays])
     reach = SIDE_REACH * np.asarray(radius, dtype=float)[rows]
     hits = cast_bundles(occluders, origins, dirs, float(reach.max()))
-    out, start = {}, 0
+    start = 0
     for k, (o, d) in zip(rows, rays, strict=True):
         part = slice(start, start + len(o))
         start += len(o)
@@ -269,6 +282,8 @@ def all_other_planes(occluders, axis, center, radius, z, normals) -> dict:
         c = np.asarray(center[k], dtype=float)
         known = [] if normals[k] is None else [(normals[k], c + float(z[k]) * u)]
         out[k] = side_planes(o, d, hits[part], float(radius[k]), known)
+        if memo is not None:  # (side_planes keeps a hit within the pair's own reach)
+            memo.remember("planes", keys[k], out[k])
     return out
 
 

@@ -14,7 +14,9 @@ everything when any differs. What those do not show (a mesh reshaped within its 
 an edit, a shape key or modifier on a frame change) the caller reports with `clear`
 (`blender/commands/live_update.py`: an update whose depsgraph changed an object's
 geometry, or a forced one). Occluders without those arrays (a test's stand-in) are
-never remembered.
+never remembered. What the planner derives from a pair's hits alone (its side
+planes: `planning.all_other_planes`) is remembered beside them (`derived`), by the
+pair's inputs, and forgotten with them.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ class RayMemo:
     def __init__(self):
         self._geometry = None
         self._hits: OrderedDict = OrderedDict()
+        self._derived: OrderedDict = OrderedDict()
         self.cast = self.reused = 0
 
     def start(self, occluders) -> None:
@@ -55,15 +58,38 @@ class RayMemo:
         )
         if not same:
             self._hits.clear()
+            self._derived.clear()
             self._geometry = [a.copy() for a in geometry]
 
     def clear(self) -> None:
         """Forget every bundle (the geometry changed in a way `start` cannot see)."""
         self._hits.clear()
+        self._derived.clear()
         self._geometry = None
 
     def __len__(self) -> int:
         return len(self._hits)
+
+    @staticmethod
+    def key(*values) -> bytes:
+        """A key of exact inputs: their float64 bytes."""
+        return np.concatenate([np.ravel(np.asarray(v, dtype=np.float64)) for v in values]).tobytes()
+
+    def derived(self, kind: str, key: bytes):
+        """What was derived as `kind` from the hits of the inputs `key` on this
+        geometry (None: not yet, or no geometry known)."""
+        got = self._derived.get((kind, key))
+        if got is not None:
+            self._derived.move_to_end((kind, key))
+        return got
+
+    def remember(self, kind: str, key: bytes, value) -> None:
+        """Keep `value` as `derived` (only while the geometry is known)."""
+        if self._geometry is None:
+            return
+        self._derived[(kind, key)] = value
+        while len(self._derived) > self.LIMIT:
+            self._derived.popitem(last=False)
 
     def view(self, occluders) -> _Remembered:
         """`occluders` whose `first_hits` go through this memo (after `start`)."""
@@ -113,13 +139,14 @@ def _cast(occluders, origins, directions, limit) -> np.ndarray:
 
 
 class _Remembered:
-    """Occluders whose batched casts go through a `RayMemo` (anything else: theirs)."""
+    """Occluders whose batched casts go through a `RayMemo` (``ray_memo``; anything
+    else: theirs)."""
 
     def __init__(self, occluders, memo: RayMemo):
-        self._occluders, self._memo = occluders, memo
+        self._occluders, self.ray_memo = occluders, memo
 
     def first_hits(self, origins, directions, limit):
-        return self._memo.first_hits(self._occluders, origins, directions, limit)
+        return self.ray_memo.first_hits(self._occluders, origins, directions, limit)
 
     def __getattr__(self, name):
         return getattr(self._occluders, name)

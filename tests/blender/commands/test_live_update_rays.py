@@ -90,14 +90,17 @@ def _equal_to_generate(state):
 
 def test_a_frame_casts_the_moving_lamps_pair_only(empty_blend):
     from lens_lights.core.plan.planning import SUNK_PROBES
+    from lens_lights.core.tiers.near_field import SIDE_AZIMUTHS, SIDE_POLAR_DEG
 
     sc, rays = _scene()
     # turned on: both pairs' bundles and the sunk probes of the marble, all cast
-    probes = len(SUNK_PROBES)
+    probes, side = len(SUNK_PROBES), len(SIDE_POLAR_DEG) * SIDE_AZIMUTHS
     pairs = rays.cast - probes
     assert rays.reused == 0 and pairs > 0 and pairs % 2 == 0
-    sc.frame_set(2)  # the moving lamp's pair cast, the resting one's and the probes not
-    assert rays.cast == pairs // 2 and rays.reused == pairs // 2 + probes
+    # the moving lamp's pair cast; the resting one's receiver and free distance
+    # bundles and the probes looked up, its side planes not even that
+    sc.frame_set(2)
+    assert rays.cast == pairs // 2 and rays.reused == pairs // 2 - side + probes
     _equal_to_generate(_state())
 
 

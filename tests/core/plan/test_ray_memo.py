@@ -17,6 +17,7 @@ from core.scene.arrays import SceneArrays
 from core.scene.model import Light, Scene, Sphere, Surface
 from core.scene.primaries import PrimaryLight
 from core.scene.ray_hits import sphere_hits_bundles
+from core.tiers.near_field import SIDE_AZIMUTHS, SIDE_POLAR_DEG
 
 R = 0.5
 OPTIONS = dict(
@@ -126,10 +127,12 @@ def test_an_unchanged_pair_is_not_cast_again_and_the_plan_is_the_one_without_mem
     fresh_read, fresh_result = _read([LAMP_A[1], LAMP_B])
     _same_lights(got, _plan(fresh_read, fresh_result))
     # only lamp A's pairs cast: half of the pairs' bundles (none of the sunk lens
-    # probes: the marbles did not move), as many reused for lamp B's
-    probes = len(SUNK_PROBES)
+    # probes: the marbles did not move); lamp B's receiver and free distance bundles
+    # looked up, its side planes (derived from their hits alone) not even that
+    probes, side = len(SUNK_PROBES), len(SIDE_POLAR_DEG) * SIDE_AZIMUTHS
     pairs = cast_before - probes  # the first plan: every pair's bundles and the probes
-    assert memo.cast == pairs // 2 and memo.reused == pairs // 2 + probes
+    assert memo.cast == pairs // 2
+    assert memo.reused == 4 * (pairs // 8 - side) + probes
     assert read.occluders.rays < 0.5 * fresh_read.occluders.rays
     # the same inputs again: nothing cast at all
     read, result = _read([LAMP_A[1], LAMP_B])
