@@ -65,6 +65,10 @@ lights read is made in one batch (`exact_profile.prepare_tables`); in Blender's
 window a light whose exact table is not made yet reads a *coarse* one (fewer rays:
 within 1 % of the flux and 5 % of the peak; its image keyed apart), and `refine`
 writes the exact tables once the burst is over, or at once when a render starts.
+The planner's rays are remembered per scene (`core.plan.ray_memo.RayMemo`, by their
+own rays, while the occluders' transforms and boxes are the same; forgotten on a
+forced update and when the depsgraph changed an object's shape): the pairs of a lamp
+that did not move are not cast again.
 
 **Water** (issue 26): every update runs the water stage (`water_stage.prepare`, as
 Generate) and writes its layers into the water's layer objects in place where the

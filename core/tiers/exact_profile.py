@@ -17,8 +17,8 @@ the near field's; remembered per geometry, `cached_profile`; many at once,
 `fan_profiles`, `prepare_tables`); :func:`exact_profile`, row by row from
 `beam_error.ExactBeam` (0.3–0.9 s), is its reference. Live update shows a coarse
 table while the user works (``coarse``: fewer rays, every fourth row beyond the
-caustic; within 1 % of the flux and 5 % of the peak) until its timer makes the
-exact one.
+caustic and sparser farther; within 1 % of the flux and 5 % of the peak) until its
+timer makes the exact one.
 
 The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
 has a row on the receiver's plane (right past the lens the beam changes by tens
