@@ -132,8 +132,8 @@ def fan_fill(jobs, gamma_edges: np.ndarray, outs, *, n_fan: int = FAN, fans=None
         rows = lit[start : start + CHUNK_ROWS]
         t, s = _chunk(ctx, h[rows], Z[rows], job_of_row[rows])
         if slope:  # the flux-weighted mean; the bin's middle where no ray lands
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = np.where(t > 0.0, s / np.where(t > 0.0, t, 1.0), mid)
+            lit_texel = t > 0.0
+            s = np.divide(s, t, out=np.broadcast_to(mid, t.shape).copy(), where=lit_texel)
         t /= omega
         # each job's part of the chunk into its own table
         jobs_here = job_of_row[rows]
