@@ -5,9 +5,11 @@ whether a lens is sunk: a fifth of an update).
 
 `RayMemo.view` wraps the read's occluders: each bundle the planner casts
 (`planning.cast_bundles`) is looked up by its exact rays (origins and direction) and
-cast only when new, without a limit, the caller's limit applied after (the first hit
-within a limit is the first hit if it lies within it: the same hits as a cast with the
-limit, whatever the scene's size, which moves with a lamp). Valid only while the
+cast only when new or asked within a longer limit than it was cast with; it is cast
+within ``HEADROOM`` times the caller's limit, which is applied after (the first hit
+within a limit is the first hit within a longer one if it lies within the shorter:
+the same hits as a cast with the caller's limit, while the scene's size, which moves
+with a lamp, stays within the headroom). Valid only while the
 geometry is the one they were cast against: `start` compares the occluders' spheres,
 instance matrices, boxes and mesh groups with the last update's and forgets
 everything when any differs. What those do not show (a mesh reshaped within its box:
@@ -27,6 +29,9 @@ import numpy as np
 
 #: The occluders' arrays the rays meet (`blender/read/occluders.Occluders`).
 GEOMETRY = ("centers", "radii", "matrices", "box_lo", "box_hi", "source_index")
+#: A bundle is cast within this many times the limit asked (a later update may ask a
+#: longer one: the scene's size grows as a lamp is dragged away).
+HEADROOM = 2.0
 
 
 class RayMemo:
@@ -110,19 +115,21 @@ class RayMemo:
         todo = []
         for b, key in enumerate(keys):
             got = self._hits.get(key)
-            if got is None:
+            if got is None or got[1] < limit:  # new, or cast within a shorter limit
                 todo.append(b)
             else:
-                hits[b] = got
+                hits[b] = got[0]
                 self._hits.move_to_end(key)
         self.reused += B - len(todo)
         if todo:
             self.cast += len(todo)
             rows = np.asarray(todo)
-            new = _cast(occluders, origins[rows], directions[rows], np.inf).reshape(len(todo), k)
+            reach = HEADROOM * float(limit)
+            new = _cast(occluders, origins[rows], directions[rows], reach).reshape(len(todo), k)
             hits[rows] = new
             for b, h in zip(todo, new, strict=True):
-                self._hits[keys[b]] = h.copy()
+                self._hits[keys[b]] = (h.copy(), reach)
+                self._hits.move_to_end(keys[b])
             while len(self._hits) > max(self.LIMIT, 2 * B):
                 self._hits.popitem(last=False)
         return np.where(hits <= limit, hits, np.inf)

@@ -61,7 +61,7 @@ class CountingGeometry:
         pass
 
 
-def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5)):
+def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5), size=None):
     """Four marbles resting on the floor z = `floor` (a wall x = `wall` beside them,
     a fifth sphere at `blocker`), lit by the point lights `lamps` (the scene's size
     grows with the lamps' reach, as a read's)."""
@@ -84,7 +84,7 @@ def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5)):
         light_sources=[f"lamp {j}" for j in range(len(lamps))],
         sphere_sources=[f"marble {i}" for i in range(len(spheres))],
         lens_candidates=None,
-        scene_size=float(np.max(np.abs(np.array(lamps)))) + 10.0,
+        scene_size=size or float(np.max(np.abs(np.array(lamps)))) + 10.0,
         bounds=(np.full(3, -10.0), np.full(3, 10.0)),
         occluders=occ,
     )
@@ -159,6 +159,20 @@ def test_moved_geometry_casts_every_pair_again(moved):
         assert not math.isclose(
             got[key].receiver_distance, _plan(*_read([LAMP_A[0], LAMP_B]))[key].receiver_distance
         )
+
+
+def test_a_longer_limit_than_a_bundle_was_cast_with_casts_it_again():
+    """The receivers' and free distances' casts reach as far as the scene's size
+    (which grows with a lamp dragged away): a bundle asked within more than the
+    headroom it was cast with is cast again; the side planes' and the probes' reach
+    (the lens' radius) is the same."""
+    memo = RayMemo()
+    _plan(*_read([LAMP_A[0], LAMP_B], size=10.0), memo)
+    read, result = _read([LAMP_A[0], LAMP_B], size=10.0 * 2.5)
+    got = _plan(read, result, memo)
+    fresh_read, fresh_result = _read([LAMP_A[0], LAMP_B], size=10.0 * 2.5)
+    _same_lights(got, _plan(fresh_read, fresh_result))
+    assert memo.cast == 2 * 8  # every pair's receiver and free distance bundle
 
 
 def test_clear_forgets_what_start_cannot_see():
