@@ -65,6 +65,10 @@ lights read is made in one batch (`exact_profile.prepare_tables`); in Blender's
 window a light whose exact table is not made yet reads a *coarse* one (fewer rays:
 within 1 % of the flux and 5 % of the peak; its image keyed apart), and `refine`
 writes the exact tables once the burst is over, or at once when a render starts.
+The planner's rays are remembered per scene (`core.plan.ray_memo.RayMemo`, by their
+own rays, while the occluders' transforms and boxes are the same; forgotten on a
+forced update and when the depsgraph changed an object's shape): the pairs of a lamp
+that did not move are not cast again.
 
 **Water** (issue 26): every update runs the water stage (`water_stage.prepare`, as
 Generate) and writes its layers into the water's layer objects in place where the
@@ -98,6 +102,7 @@ import numpy as np
 from ...core.animation.light_keys import keys_of, match
 from ...core.caustic_layer.live import LiveLayer
 from ...core.plan import watch
+from ...core.plan.ray_memo import RayMemo
 from ...core.plan.watch import Capsules
 from ...core.scene.primaries import PrimaryArrays
 from ...core.tiers import builds_layer, exact_profile
@@ -126,6 +131,9 @@ _WATERS: dict = {}
 #: Caustic layer: per scene its last full layer (`core.caustic_layer.live.LiveLayer`),
 #: when its last update ended (perf_counter), and the scenes showing a coarse one.
 _LAYERS: dict = {}
+#: Per scene: the planner's rays of the last updates (`core.plan.ray_memo.RayMemo`):
+#: a pair whose lens, axis and surroundings did not change is not cast again.
+_RAYS: dict = {}
 _LAST_RUN: dict = {}
 _PENDING: set = set()
 #: The full layer follows this long (s) after the last update of a burst.
@@ -415,8 +423,11 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
         seen.update(signature=signature, how=read.how)
         return not force and _unchanged(scene, seen["signature"], coarse)
 
+    rays = _RAYS.setdefault(scene.as_pointer(), RayMemo())
+    if force or _geometry_changed(scene, depsgraph):
+        rays.clear()  # (its own check sees transforms and boxes, not a mesh's shape)
     work = pipeline.plan_scene(
-        depsgraph, scene, options, timings=timings, unless=unchanged, layer_live=live
+        depsgraph, scene, options, timings=timings, unless=unchanged, layer_live=live, rays=rays
     )
     if work is None:  # the inputs of the last update: nothing planned
         t1 = time.perf_counter()
@@ -525,6 +536,26 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
     if layered and work.layer_bake is not None:
         figures["layer"] = work.layer_bake.layer  # (the bench compares it)
     return figures
+
+
+def _geometry_changed(scene, depsgraph) -> bool:
+    """Did `depsgraph` change the shape of an object not ours (an edited mesh, a
+    shape key or modifier animated over frames: what the planner's rays may meet,
+    inside the same box)? A frame change's depsgraph lists them as an edit's does
+    (the object, its geometry updated; the scene, node trees and images say
+    "geometry" too and are no shapes)."""
+    ours = None
+    for u in depsgraph.updates:
+        if not u.is_updated_geometry or not isinstance(u.id, bpy.types.Object):
+            continue
+        orig = u.id.original
+        if orig.type in _NO_GEOMETRY or orig.lens_lights.is_lens_light:
+            continue
+        if ours is None:
+            ours = _ours(scene)
+        if orig.as_pointer() not in ours:
+            return True
+    return False
 
 
 def _no_glass(scene, work) -> bool:
@@ -746,6 +777,7 @@ def on_load(*args):
     _WATCHES.clear()
     _WATERS.clear()
     _LAYERS.clear()
+    _RAYS.clear()
     _PENDING.clear()
     _RENDERING = 0
     render_probe.note_render(None)

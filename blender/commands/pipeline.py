@@ -44,7 +44,14 @@ def options_from(settings) -> dict:
 
 
 def plan_scene(
-    depsgraph, scene, options: dict, *, timings: dict | None = None, unless=None, layer_live=None
+    depsgraph,
+    scene,
+    options: dict,
+    *,
+    timings: dict | None = None,
+    unless=None,
+    layer_live=None,
+    rays=None,
 ):
     """Plan `scene` as `depsgraph` shows it; changes nothing. Read it
     (`read.scene.read_depsgraph`: the rays that keep a beam's spot clear of the geometry
@@ -58,7 +65,8 @@ def plan_scene(
 
     `unless(read)`, when given, is asked right after the read: True stops there (the
     read's occluders released) and None is returned. ``layer_live``: live update's
-    coarse layer state (`layer_stage.prepare`)."""
+    coarse layer state (`layer_stage.prepare`); ``rays``: its planner rays of the
+    last updates (`core.plan.ray_memo.RayMemo`)."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
     read = read_depsgraph(depsgraph, scene)
@@ -69,5 +77,5 @@ def plan_scene(
     t = time.perf_counter()
     result = compute_phase1_primaries(read.arrays, read.primary_lights)
     timings["phase1"] = time.perf_counter() - t
-    work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR)
+    work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR, rays=rays)
     return layer_stage.prepare(depsgraph, work, options, layer_live)

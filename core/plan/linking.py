@@ -96,10 +96,11 @@ def profile_bands(
     first row's h the first row, beyond the last the last; γ up to the next column's
     centre, u = sqrt(γ/γ_max)). Consecutive bands within 2° are merged, then equal
     runs, to at most `max_bands` (each the largest angle of its rows)."""
-    px = np.asarray(profile["pixels"], dtype=float)
+    px = np.asarray(profile["pixels"])  # (float32: compared in float64, not copied)
     H, K = px.shape[:2]
     gmax = math.radians(float(profile["gamma_max_deg"]))
-    nz = px > faint * float(px.max()) if px.size and px.max() > 0 else px > 0
+    top = float(px.max()) if px.size else 0.0
+    nz = px > np.float64(faint * top) if top > 0 else px > 0
     last = np.where(nz.any(axis=1), K - 1 - np.argmax(nz[:, ::-1], axis=1), -1)
     u = np.minimum((last + 1.5) / K, 1.0)
     row_angle = np.where(last >= 0, gmax * u * u, -1.0)

@@ -62,6 +62,7 @@ from ..tiers.near_field import (
 )
 from ..tiers.paraxial import is_beyond_scene
 from .budget import BudgetReport, apply_budget, source_flux
+from .ray_memo import RayMemo
 
 #: A lens another surface cuts into by more than this share of its radius is sunk
 #: into it (`sunk_lenses`): its light would focus inside that surface.
@@ -253,14 +254,27 @@ def other_planes(occluders, axis, center, radius, z, normal) -> list:
 
 def all_other_planes(occluders, axis, center, radius, z, normals) -> dict:
     """`other_planes` of the sources `normals` holds (row → the receiver's normal or
-    None; their receivers `z[row]` from the centre), every bundle in one cast."""
-    rows = list(normals)
+    None; their receivers `z[row]` from the centre), every bundle in one cast. With
+    occluders seen through a `RayMemo` (``ray_memo``), a row whose inputs were
+    planned before on this geometry is not cast or derived again."""
+    memo = getattr(occluders, "ray_memo", None)
+    out, keys = {}, {}
+    if memo is not None:
+        for k in normals:
+            nrm = np.full(3, np.nan) if normals[k] is None else normals[k]
+            keys[k] = memo.key(axis[k], center[k], radius[k], z[k], nrm)
+            found = memo.derived("planes", keys[k])
+            if found is not None:
+                out[k] = found
+    rows = [k for k in normals if k not in out]
+    if not rows:
+        return out
     rays = [side_plane_rays(axis[k], center[k], float(radius[k])) for k in rows]
     origins = np.concatenate([o for o, _ in rays])
     dirs = np.concatenate([d for _, d in rays])
     reach = SIDE_REACH * np.asarray(radius, dtype=float)[rows]
     hits = cast_bundles(occluders, origins, dirs, float(reach.max()))
-    out, start = {}, 0
+    start = 0
     for k, (o, d) in zip(rows, rays, strict=True):
         part = slice(start, start + len(o))
         start += len(o)
@@ -268,6 +282,8 @@ def all_other_planes(occluders, axis, center, radius, z, normals) -> dict:
         c = np.asarray(center[k], dtype=float)
         known = [] if normals[k] is None else [(normals[k], c + float(z[k]) * u)]
         out[k] = side_planes(o, d, hits[part], float(radius[k]), known)
+        if memo is not None:  # (side_planes keeps a hit within the pair's own reach)
+            memo.remember("planes", keys[k], out[k])
     return out
 
 
@@ -577,6 +593,7 @@ def plan_result(
     timings: dict | None = None,
     *,
     preselect_factor: int = PRESELECT_FACTOR,
+    rays: RayMemo | None = None,
 ) -> Work:
     """The pre-selection and the plan for phase 1's `result` on a scene read
     (`read.arrays`, `primaries`, `lens_optics`, names, `scene_size`, `bounds`,
@@ -600,8 +617,15 @@ def plan_result(
     (`free_distances`, `receiver_rays`), and the kept lights are the table maker's
     where it takes receivers (`RECEIVER_TABLES`), else the per-source maker's; the
     same lights as tests/helpers/planning_reference.py's source by source
-    (tests/core/plan/test_planning_speed_equivalence.py)."""
+    (tests/core/plan/test_planning_speed_equivalence.py).
+
+    `rays` (live update): the bundles cast before on the same geometry are not cast
+    again (`ray_memo.RayMemo`: the pairs whose lens and axis did not change)."""
     timings = {} if timings is None else timings
+    occ = read.occluders
+    if rays is not None:
+        rays.start(occ)
+        occ = rays.view(occ)
     t = time.perf_counter()
     selection = select_sources(
         result,
@@ -639,9 +663,9 @@ def plan_result(
         first = _scaled(make_light_table(table, cols, model, **common), scale)
         everything = np.arange(len(table))
         kept = _rank(first, names_of(everything), min_b, max_lights, plan.skipped)
-        kept = _without_sunk(read, table, kept, names_of(kept), plan.skipped)
+        kept = _without_sunk(read, occ, table, kept, names_of(kept), plan.skipped)
         timings["plan first"] = time.perf_counter() - t
-        lights = _final_lights(read, selection, cols, kept, tier, model, common)
+        lights = _final_lights(read, occ, selection, cols, kept, tier, model, common)
         names = names_of(kept)
         for k in _rank(lights, names, min_b, max_lights, plan.skipped).tolist():
             src = selection.sources[int(kept[k])]
@@ -651,14 +675,14 @@ def plan_result(
     return Work(read, result, selection, plan, timings)
 
 
-def _without_sunk(read, table, kept, names, skipped) -> np.ndarray:
+def _without_sunk(read, occ, table, kept, names, skipped) -> np.ndarray:
     """`kept` less the rows whose lens another surface cuts into (`sunk_lenses`),
     each listed in `skipped` (`Reason.SUNK`)."""
     if not len(kept):
         return kept
     lenses, row_lens = np.unique(np.asarray(table.lens)[kept], return_inverse=True)
     a = read.arrays
-    sunk = sunk_lenses(read.occluders, a.center[lenses], a.radius[lenses])[row_lens]
+    sunk = sunk_lenses(occ, a.center[lenses], a.radius[lenses])[row_lens]
     for k in np.flatnonzero(sunk).tolist():
         skipped.append(SkippedPair(*names(k), Reason.SUNK))
     return kept[~sunk]
@@ -698,12 +722,12 @@ class _KeptLights:
         return bl
 
 
-def _final_lights(read, selection, cols, rows, tier, model, common) -> _KeptLights:
-    """The lights of the selection's `rows` with their rays (`plan_result`): the
-    tier's table maker for `RECEIVER_TABLES`, else its per-source maker."""
+def _final_lights(read, occ, selection, cols, rows, tier, model, common) -> _KeptLights:
+    """The lights of the selection's `rows` with their rays against `occ` (the read's
+    occluders, or their `RayMemo` view) (`plan_result`): the tier's table maker for
+    `RECEIVER_TABLES`, else its per-source maker."""
     sub = take(selection.table, rows)
     size = common["scene_size"]
-    occ = read.occluders
     f = selection.scale[rows]
     origins, axis, hits, recv = receiver_rays(occ, sub.axis, sub.lens_center, sub.lens_radius, size)
     if tier.name in RECEIVER_TABLES:

@@ -17,8 +17,8 @@ the near field's; remembered per geometry, `cached_profile`; many at once,
 `fan_profiles`, `prepare_tables`); :func:`exact_profile`, row by row from
 `beam_error.ExactBeam` (0.3–0.9 s), is its reference. Live update shows a coarse
 table while the user works (``coarse``: fewer rays, every fourth row beyond the
-caustic; within 1 % of the flux and 5 % of the peak) until its timer makes the
-exact one.
+caustic and sparser farther; within 1 % of the flux and 5 % of the peak) until its
+timer makes the exact one.
 
 The near field's table (apex at the centre; remembered per ``(D/R, n, receiver)``)
 has a row on the receiver's plane (right past the lens the beam changes by tens
@@ -76,7 +76,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, FAN_FAR, caustic_end, fan_tables
+from .profile_fan import FAN, FAN_FAR, fan_caustic_end, fan_fill, ray_fan
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -225,11 +225,13 @@ def _fill_inside_lens(prof: BeamProfile, g_edges: np.ndarray) -> None:
     last = m - 1 - np.argmax(inside[::-1], axis=0)
     first = np.where(inside.any(axis=0), last + 1, 0)
     fill = (np.arange(m)[:, None] < first[None, :]) & (first[None, :] < M)
-    cols = np.flatnonzero(fill.any(axis=0))
-    src = first[cols]
+    if not fill.any():
+        return
+    src = np.minimum(first, M - 1)
+    cols = np.arange(fill.shape[1])
     for arr in (prof.table, prof.slope):
-        if arr is not None and cols.size:
-            arr[:m, cols] = np.where(fill[:, cols], arr[src, cols][None, :], arr[:m, cols])
+        if arr is not None:  # (in place: no copy of the rows)
+            np.copyto(arr[:m], np.broadcast_to(arr[src, cols], fill.shape), where=fill)
 
 
 def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> np.ndarray:
@@ -456,14 +458,21 @@ def fan_profile(
 
 #: The coarse table live update shows while the user works (`prepare_tables`): rays
 #: of its fan near the lens and beyond ``FAR_ROWS``, and beyond the caustic
-#: (`profile_fan.caustic_end`, where the table changes smoothly) every
-#: ``COARSE_ROW_STEP``-th row, linear in between as the texture reads them: within
+#: (`profile_fan.fan_caustic_end`, where the table changes smoothly) every
+#: ``COARSE_ROW_STEP``-th row, sparser farther (`coarse_rows`), linear in between
+#: as the texture reads them: within
 #: 1 % of the exact table's flux and 5 % of its peak on every row
 #: (tests/core/tiers/test_profile_coarse.py).
 COARSE_FAN, COARSE_FAN_FAR = 300, 150
 COARSE_ROW_STEP = 4
 #: Rows from this factor times the caustic's end on are coarse rows.
 COARSE_MARGIN = 1.1
+#: From this factor times the caustic's end on, the coarse rows are twice as sparse,
+#: and twice again at each doubling of the distance, up to eight times
+#: (`coarse_rows`): within the same share of the budget as every fourth row
+#: (tests/core/tiers/test_profile_coarse.py's sweep: its worst cases are the
+#: caustic's rows, made with ``COARSE_FAN`` rays).
+COARSE_FAR_FACTOR = 1.5
 
 
 def fan_profiles(
@@ -475,20 +484,31 @@ def fan_profiles(
     K: int = PROFILE_ANGLES,
 ) -> list[BeamProfile]:
     """`fan_profile` for each of `specs` ``(D/R, n, near, receiver, M, slope)``, every
-    table's rows in one batch of fans per fan size (`profile_fan.fan_tables`); with
-    `coarse` the coarse tables (``COARSE_FAN``)."""
+    table's rows in one batch of fans per fan size (`profile_fan.fan_fill`, each row
+    written straight into its table); with `coarse` the coarse tables
+    (``COARSE_FAN``)."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
     fans = (n_fan or (COARSE_FAN if coarse else FAN), COARSE_FAN_FAR if coarse else FAN_FAR)
+    traced: dict = {}  # each (D/R, n, rays) fan traced once (the caustic's end reads it)
+
+    def fan_of(D_over_R, n, rays):
+        key = (D_over_R, n, rays)
+        if key not in traced:
+            traced[key] = ray_fan(D_over_R, n, absorption, n_fan=rays)
+        return traced[key]
+
     profs, batches, betweens = [], {}, []
     for i, (D_over_R, n, near, receiver, M, slope) in enumerate(specs):
+        D_over_R = float(D_over_R)
         if receiver is not None:
             apex, h_min, h_max = table_geometry(float(receiver), M, on_row=True)
         else:
             apex, h_min, h_max = table_geometry(0.0 if near else None)
-        prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, None)
         with_slope = apex < 1.0 and slope
+        prof = BeamProfile(apex, PROFILE_GAMMA_MAX_DEG, h_min, h_max, np.empty((M, K)))
+        prof.slope = np.empty((M, K)) if with_slope else None
         profs.append(prof)
         h = row_distances(h_min, h_max, M)
         # the near field's rows through and right past the lens need the denser fan;
@@ -499,80 +519,83 @@ def fan_profiles(
             dense[:] = True
         between = None
         if coarse:  # beyond the caustic every step-th row (and the last)
-            end = COARSE_MARGIN * caustic_end(float(D_over_R), n, absorption, fans[0])
+            end = COARSE_MARGIN * fan_caustic_end(fan_of(D_over_R, n, fans[0]))
             smooth = np.flatnonzero(apex + h >= end)
             if smooth.size > 2:
-                kept = np.unique(np.append(smooth[::COARSE_ROW_STEP], smooth[-1]))
+                kept = coarse_rows(smooth, apex + h, end)
                 between = (kept, np.setdiff1d(smooth, kept))
         for part, rows in enumerate((dense, ~dense)):
             if between is not None:
                 rows = rows.copy()
                 rows[between[1]] = False
-            if rows.any():
-                job = (float(D_over_R), n, absorption, apex, h[rows])
-                batches.setdefault((fans[part], with_slope), []).append((i, part, rows, job))
+            rows = np.flatnonzero(rows)
+            if rows.size:
+                job = (D_over_R, n, absorption, apex, h[rows])
+                out = (prof.table, prof.slope, rows)
+                batch = batches.setdefault((fans[part], with_slope), [])
+                batch.append((i, part, job, out, fan_of(D_over_R, n, fans[part])))
         betweens.append(between)
-    parts = [{} for _ in specs]
-    for (fan, with_slope), items in batches.items():
-        made = fan_tables([it[3] for it in items], g_edges, n_fan=fan, slope=with_slope)
-        for (i, part, rows, _), got in zip(items, made, strict=True):
-            parts[i][part] = (rows, *got)
-    for (*_, M, _), prof, got, between in zip(specs, profs, parts, betweens, strict=True):
-        pieces = [got[k] for k in sorted(got)]  # the dense rows first
-        prof.flux = pieces[0][3]  # the dense fan's where it has rows
-        with_slope = pieces[0][2] is not None
-        if len(pieces) == 1 and between is None:
-            prof.table, prof.slope = pieces[0][1], pieces[0][2]
-        else:
-            prof.table = np.empty((M, K))
-            prof.slope = np.empty((M, K)) if with_slope else None
-            for rows, table, mean_slope, _ in pieces:
-                prof.table[rows] = table
-                if with_slope:
-                    prof.slope[rows] = mean_slope
-            if between is not None:
-                _between_rows(prof, *between, g_edges)
+    flux = [{} for _ in specs]
+    for (rays, _), items in batches.items():
+        got = fan_fill(
+            [it[2] for it in items],
+            g_edges,
+            [it[3] for it in items],
+            n_fan=rays,
+            fans=[it[4] for it in items],
+        )
+        for (i, part, *_), f in zip(items, got, strict=True):
+            flux[i][part] = f
+    for prof, fluxes, between in zip(profs, flux, betweens, strict=True):
+        prof.flux = fluxes[min(fluxes)]  # the dense fan's where it has rows
+        if between is not None:
+            _between_rows(prof, *between, g_edges)
         prof.table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
-        if with_slope:
+        if prof.slope is not None:
             _fill_inside_lens(prof, g_edges)
     return profs
 
 
 def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
-    """A coarse table's rows `todo` (not computed) from the computed rows `kept`
-    around them (every ``COARSE_ROW_STEP``-th of a run of rows, and its last):
-    linear in the row index, as the texture reads between rows (the intensity and
-    the intensity × slope)."""
+    """A coarse table's rows `todo` (not computed: every row between two of `kept`)
+    from the computed rows `kept` around them (`coarse_rows`): linear in the row
+    index, as the texture reads between rows (the intensity and the intensity ×
+    slope). Each run of gaps of one size in one pass, on views of its rows."""
     table, slope = prof.table, prof.slope
     mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
-    step = COARSE_ROW_STEP
-    # the regular gaps, `step` rows apart: as views of the rows they span
-    gaps = kept.size - 2
-    if gaps > 0:
-        rows = slice(int(kept[0]), int(kept[-2]) + 1)
+    gap = np.diff(kept)
+    starts = np.flatnonzero(np.r_[True, gap[1:] != gap[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], gap.size], strict=True):
+        step, n = int(gap[a]), int(b - a)
+        if step < 2:
+            continue
+        rows = slice(int(kept[a]), int(kept[b]) + 1)  # n gaps of `step` rows
+        t = (np.arange(1, step) / step)[None, :, None]
         ends = table[rows][::step]
-        inner = table[rows][:-1].reshape(gaps, step, -1)
+        inner = table[rows][:-1].reshape(n, step, -1)[:, 1:]
+        inner[...] = ends[:-1, None] + t * (ends[1:] - ends[:-1])[:, None]
         if slope is not None:
             s_ends = slope[rows][::step] * ends
-            s_inner = slope[rows][:-1].reshape(gaps, step, -1)
-        for off in range(1, step):
-            t = off / step
-            inner[:, off] = (1.0 - t) * ends[:-1] + t * ends[1:]
-            if slope is not None:
-                product = (1.0 - t) * s_ends[:-1] + t * s_ends[1:]
-                got = inner[:, off]
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    s_inner[:, off] = np.where(got > 0.0, product / got, mid)
-    # the last gap (shorter)
-    last = todo[todo > kept[-2]]
-    if last.size:
-        lo, hi = int(kept[-2]), int(kept[-1])
-        t = ((last - lo) / (hi - lo))[:, None]
-        table[last] = (1.0 - t) * table[lo] + t * table[hi]
-        if slope is not None:
-            product = (1.0 - t) * table[lo] * slope[lo] + t * table[hi] * slope[hi]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                slope[last] = np.where(table[last] > 0.0, product / table[last], mid)
+            product = s_ends[:-1, None] + t * (s_ends[1:] - s_ends[:-1])[:, None]
+            s_inner = slope[rows][:-1].reshape(n, step, -1)[:, 1:]
+            s_inner[...] = mid
+            np.divide(product, inner, out=s_inner, where=inner > 0.0)
+
+
+def coarse_rows(smooth: np.ndarray, Z: np.ndarray, end: float) -> np.ndarray:
+    """The rows a coarse table computes among its `smooth` ones (beyond the caustic's
+    `end`, R from the centre; `Z`: every row's distance from the centre): every
+    ``COARSE_ROW_STEP``-th, twice as sparse from ``COARSE_FAR_FACTOR`` × `end` on,
+    and twice again at each doubling of that distance up to eight times (the beam
+    tends to its far field there: its change per row falls as 1/Z), and the last."""
+    far = COARSE_FAR_FACTOR * end
+    level = np.clip(np.floor(np.log2(np.maximum(Z[smooth] / far, 0.5))) + 1, 0, 3)
+    step = COARSE_ROW_STEP * 2 ** level.astype(np.int64)
+    kept, k = [], 0
+    while k < smooth.size:
+        kept.append(smooth[k])
+        k += int(step[k])
+    return np.unique(np.append(np.asarray(kept, dtype=np.int64), smooth[-1]))
 
 
 def _weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
@@ -680,11 +703,15 @@ def _profile_dict(
 ) -> dict:
     pixels = prof.pixel_cache.get(t_ref)
     if pixels is None:  # (shared by every light of this table: never written to)
-        pixels = (prof.table / t_ref).astype(np.float32), None
+        # divided in float64 and rounded once into float32 (no float64 copy made)
+        red = np.empty(prof.table.shape, dtype=np.float32)
+        pixels = np.divide(prof.table, t_ref, out=red, casting="same_kind"), None
         if prof.slope is not None:
             # the image's green channel: intensity × mean slope, which the texture's
             # linear interpolation blends as it blends the intensity (`_slope_table`)
-            pixels = pixels[0], (prof.table * prof.slope / t_ref).astype(np.float32)
+            green = np.empty(prof.table.shape, dtype=np.float32)
+            product = prof.table * prof.slope
+            pixels = red, np.divide(product, t_ref, out=green, casting="same_kind")
         prof.pixel_cache.clear()
         prof.pixel_cache[t_ref] = pixels
     out = {

@@ -81,32 +81,50 @@ def fan_tables(
     Python loop per pair). `jobs`: ``(D_over_R, n, absorption, apex, distances)``
     per table, every one traced with `n_fan` rays; returns ``(table, mean_slope,
     flux)`` per job."""
+    K = gamma_edges.size - 1
+    outs = []
+    for job in jobs:
+        M = np.asarray(job[4]).size
+        outs.append((np.empty((M, K)), np.empty((M, K)) if slope else None, np.arange(M)))
+    fluxes = fan_fill(jobs, gamma_edges, outs, n_fan=n_fan)
+    return [(t, s, f) for (t, s, _), f in zip(outs, fluxes, strict=True)]
+
+
+def fan_fill(jobs, gamma_edges: np.ndarray, outs, *, n_fan: int = FAN, fans=None) -> list:
+    """`fan_tables` written straight into the callers' tables (no batch table copied
+    out): `outs` per job ``(table, mean_slope or None, rows)``, the job's distances
+    going to those rows of its arrays (every job with or every one without slopes);
+    `fans` per job its `ray_fan` if already traced (with `n_fan` rays). Returns the
+    beams' fluxes."""
     iota = fan_angles(n_fan)
     dx = np.diff(iota)  # per piece
-    K = gamma_edges.size - 1
     gmax = float(gamma_edges[-1])
-    fans = [_fan(iota, dx, *job[:3]) for job in jobs]
+    slope = outs[0][1] is not None if outs else False
+    if fans is None:
+        fans = [ray_fan(*job[:3], n_fan=n_fan) for job in jobs]
     dists = [np.asarray(job[4], dtype=float).reshape(-1) for job in jobs]
     h = np.concatenate(dists)
     Z = np.concatenate([float(job[3]) + d for job, d in zip(jobs, dists, strict=True)])
-    job_of_row = np.repeat(np.arange(len(jobs)), [d.size for d in dists])
+    sizes = [d.size for d in dists]
+    job_of_row = np.repeat(np.arange(len(jobs)), sizes)
+    starts = np.cumsum([0] + sizes)
     tan_g = np.tan(np.minimum(gamma_edges, 0.5 * np.pi - 1e-9))
     # per-ray values of every job's fan, read at (row, ray): [job of the row, ray]
     w_all = np.stack([f.w for f in fans])
     seg_all = dx[None, :] * 0.5 * (w_all[:, :-1] + w_all[:, 1:])  # the trapezoid, as `ExactBeam`
     ctx = _Context(fans, w_all, np.stack([f.z_exit for f in fans]), seg_all, dx, tan_g, gmax, slope)
-    M = h.size
-    table = np.empty((M, K))
-    out_slope = np.empty((M, K)) if slope else None
     mid = np.tan(0.5 * (gamma_edges[:-1] + gamma_edges[1:]))
     omega = np.diff(4.0 * np.pi * np.sin(0.5 * gamma_edges) ** 2)
     # the rows no ray has reached yet (planes through the lens nearer than every
     # exit point) stay dark: not computed
     first_exit = np.array([np.min(f.z_exit[f.good], initial=np.inf) for f in fans])
     dark = Z < first_exit[job_of_row]
-    table[dark] = 0.0
-    if slope:
-        out_slope[dark] = mid
+    for j, (table, mean_slope, rows) in enumerate(outs):
+        off = np.flatnonzero(dark[starts[j] : starts[j + 1]])
+        if off.size:
+            table[rows[off]] = 0.0
+            if slope:
+                mean_slope[rows[off]] = mid
     lit = np.flatnonzero(~dark)
     # rows in chunks: each chunk's temporaries stay in the CPU's cache (the whole
     # rows × rays arrays at once: twice the time, most of it in fresh pages)
@@ -114,22 +132,32 @@ def fan_tables(
         rows = lit[start : start + CHUNK_ROWS]
         t, s = _chunk(ctx, h[rows], Z[rows], job_of_row[rows])
         if slope:  # the flux-weighted mean; the bin's middle where no ray lands
-            with np.errstate(divide="ignore", invalid="ignore"):
-                out_slope[rows] = np.where(t > 0.0, s / np.where(t > 0.0, t, 1.0), mid)
-        table[rows] = t / omega
-    starts = np.cumsum([0] + [d.size for d in dists])
-    return [
-        (table[i:j], None if out_slope is None else out_slope[i:j], f.flux)
-        for i, j, f in zip(starts[:-1], starts[1:], fans, strict=True)
-    ]
+            lit_texel = t > 0.0
+            s = np.divide(s, t, out=np.broadcast_to(mid, t.shape).copy(), where=lit_texel)
+        t /= omega
+        # each job's part of the chunk into its own table
+        jobs_here = job_of_row[rows]
+        cut = np.flatnonzero(np.diff(jobs_here)) + 1
+        for a, b in zip(np.r_[0, cut], np.r_[cut, rows.size], strict=True):
+            j = int(jobs_here[a])
+            table, mean_slope, dest = outs[j]
+            at = dest[rows[a:b] - starts[j]]
+            table[at] = t[a:b]
+            if slope:
+                mean_slope[at] = s[a:b]
+    return [f.flux for f in fans]
 
 
 def caustic_end(D_over_R: float, n: float, absorption: float = 0.0, n_fan: int = FAN) -> float:
     """How far (R, from the lens centre along the axis) the beam's rays still cross:
     one another (the caustic) or the axis. Beyond, every ray keeps its side and its
     order, and the table changes smoothly from row to row."""
-    iota = fan_angles(n_fan)
-    f = _fan(iota, np.diff(iota), D_over_R, n, absorption)
+    return fan_caustic_end(ray_fan(D_over_R, n, absorption, n_fan=n_fan))
+
+
+def fan_caustic_end(f) -> float:
+    """`caustic_end` of a traced `ray_fan` (the coarse table's rows, from the fan its
+    rows are binned from: traced once)."""
     both = f.good[:-1] & f.good[1:] & (f.w[:-1] > 0.0) & (f.w[1:] > 0.0)
     boc, tan = f.b_over_c.astype(float), f.tan_exit.astype(float)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -366,7 +394,7 @@ def _spread(K, h, tan_g, piece, idx, val, sls, marks, coef_a, coef_c, mark_sl):
     coef_c += [slope_d, -slope_d]
 
 
-class _Fan(NamedTuple):
+class RayFan(NamedTuple):
     """One lens' ray fan, per ray: its flux weight, where it lands (b/c and tan θ_exit
     of its exit line), the height of its exit point, whether it leaves the lens."""
 
@@ -378,9 +406,11 @@ class _Fan(NamedTuple):
     flux: float
 
 
-def _fan(iota, dx, D_over_R, n, absorption):
-    """The fan's per-ray arrays (flux weight, b/c, tan θ_exit, exit height, good) and
-    the beam's flux."""
+def ray_fan(D_over_R, n, absorption=0.0, *, n_fan: int = FAN) -> RayFan:
+    """The fan of `n_fan` rays (`fan_angles`): its per-ray arrays (flux weight, b/c,
+    tan θ_exit, exit height, good) and the beam's flux."""
+    iota = fan_angles(n_fan)
+    dx = np.diff(iota)
     fan = xo.trace_rays_iota(iota, float(D_over_R), 1.0, float(n), float(absorption))
     k = 1.0 / float(D_over_R)
     w = fan.transmission * 2.0 * np.pi * k * k * np.sin(iota) * np.cos(iota) / np.cos(fan.psi)
@@ -394,7 +424,7 @@ def _fan(iota, dx, D_over_R, n, absorption):
     # `ExactBeam`, which drops that piece (at 1200 rays the caustic's first texels)
     good = (c > 0.0) & np.isfinite(b_over_c) & np.isfinite(w)
     f32 = np.float32
-    return _Fan(w, b_over_c.astype(f32), tan_exit.astype(f32), z_exit, good, flux)
+    return RayFan(w, b_over_c.astype(f32), tan_exit.astype(f32), z_exit, good, flux)
 
 
 def _below(e, lo, length, d_lo, slope_d, flux):
