@@ -426,12 +426,17 @@ def build_layer(
     if not given:  # every raster's texel lines at once (one sort per axis for all)
         gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
         w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
+        c_all = [
+            np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0) for k in (0, 1)
+        ]
+        # per axis the footprint's quantiles and median: the view's spans and the warp's
+        qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+        quant = [grouped_interp_quantiles(c, w_all, gid, len(frames), qs) for c in c_all]
         if view is not None and len(frames):
-            fr["res"] = _view_resolutions(slot_pts, gid, w_all, pixels, clip_fraction, res)
+            fr["res"] = _view_resolutions(quant, pixels, res)
             fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
-        c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
-        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, fr["res"], warp, floors)
+        axis = _warp_axes(c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors)
         for name, val in zip(AXIS_FIELDS, axis, strict=True):
             fr[key + name] = val
     # every raster's texels in blocks of side × side (a raster of fewer uses a corner)
@@ -743,17 +748,11 @@ COARSE_RESOLUTION = 48
 COARSE_SHARE = 0.25
 
 
-def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.ndarray:
+def _view_resolutions(quantiles, pixels, res_max) -> np.ndarray:
     """Per raster, texels per side for `TEXELS_PER_PIXEL` per pixel over the span of its
-    landings in view (the larger of its two axes), within [`MIN_RESOLUTION`,
-    ``res_max``]."""
-    n = len(slot_pts)
-    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
-    span = np.zeros(n)
-    for k in (0, 1):
-        x = np.concatenate([t[k] for t in slot_pts])
-        q = grouped_interp_quantiles(x, w, gid, n, qs)
-        span = np.maximum(span, q[:, 1] - q[:, 0])
+    landings in view (the larger of its two axes: ``quantiles`` per axis, (rasters, ≥2)
+    their ``clip_fraction`` quantiles), within [`MIN_RESOLUTION`, ``res_max``]."""
+    span = np.maximum(*(q[:, 1] - q[:, 0] for q in quantiles))
     pix = np.maximum(np.asarray(pixels, dtype=float), 1e-300)
     want = np.ceil(TEXELS_PER_PIXEL * span / pix)
     return np.clip(want, MIN_RESOLUTION, max(int(res_max), MIN_RESOLUTION)).astype(np.int64)
@@ -783,15 +782,14 @@ def _with_coarse(res: np.ndarray, coarse: np.ndarray, res_max: int, max_texels) 
     return res
 
 
-def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
+def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel):
     """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
     ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
-    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median; the
+    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median
+    (``quantiles`` (n_groups, 3): those three, `grouped_interp_quantiles`); the
     warp is flattened (s grown) until the finest texel, s·dξ, is the group's
     ``min_texel`` (or the texels are uniform)."""
-    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
-    q = grouped_interp_quantiles(x, w, groups, n_groups, qs)
-    lo, hi, c = q[:, 0], q[:, 1], q[:, 2]
+    lo, hi, c = quantiles[:, 0], quantiles[:, 1], quantiles[:, 2]
     span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
     if warp:
