@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..shared import parallel
 from .beam_trace import BeamGrid, flatten_parts
 from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
@@ -857,8 +858,18 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
     coordinates ``xy``, which all rasters of a patch share) or, without one, to its
     ``out_acc``."""
     n = len(acc)
+    for both in _texel_sums(n, len(out_acc), ix, iy, slots, flux, fr, xy):
+        acc += both[:n]
+        out_acc += both[n:]
+
+
+def _texel_sums(n, n_out, ix, iy, slots, flux, fr, xy=None) -> list[np.ndarray]:
+    """What `_accumulate` adds, as the arrays (n + n_out,) it adds in turn (the texels
+    of all rasters' blocks, then the flux beyond each raster): what lands beyond a
+    raster into its coarse one first, then the rest."""
     side = fr["side"]
     res = fr["res"].astype(np.uint64)[slots]
+    sums = []
     # unsigned: a negative index compares as huge (one test per side); the texels
     # beyond a raster go to bin n + slot, so one bincount takes both
     inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
@@ -870,9 +881,9 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
             x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
             to = outer[move]
             flux = np.broadcast_to(flux, inside.shape)
-            _accumulate(
-                acc,
-                out_acc,
+            sums += _texel_sums(
+                n,
+                n_out,
                 _texel_index(x, fr, "u", to),
                 _texel_index(y, fr, "v", to),
                 to,
@@ -881,9 +892,8 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
             )
             flux = np.where(move, 0.0, flux)
     idx = np.where(inside, (slots * side + iy) * side + ix, n + slots)
-    both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
-    acc += both[:n]
-    out_acc += both[n:]
+    sums.append(np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + n_out))
+    return sums
 
 
 def _splat_cells(
@@ -937,9 +947,13 @@ def _splat_cells(
     yn = (y - fr["vc"][slots][:, None]) / sv[:, None]
     xi0u, dxiu = fr["uxi0"][slots], fr["udxi"][slots]
     xi0v, dxiv = fr["vxi0"][slots], fr["vdxi"][slots]
-    n_sub = 0
-    for mm in np.unique(m):  # loop over subdivision levels
-        sel = np.nonzero(m == mm)[0]
+    levels = [int(mm) for mm in np.unique(m)]
+    sels = [np.nonzero(m == mm)[0] for mm in levels]
+    # each level's first sub-cell (along the share points' sequence)
+    first = np.cumsum([0] + [len(sel) * mm * mm for sel, mm in zip(sels, levels, strict=True)])
+
+    def level(k):  # one subdivision level's texel sums
+        mm, sel, n_sub = levels[k], sels[k], int(first[k])
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
@@ -960,9 +974,16 @@ def _splat_cells(
                 px * su[sel, None] + fr["uc"][slots[sel], None],
                 py * sv[sel, None] + fr["vc"][slots[sel], None],
             )
-        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, fr, xy)
-        n_sub += w.size
-    return n_sub
+        return _texel_sums(len(acc), len(out_acc), ix, iy, slots[sel][:, None], w, fr, xy)
+
+    # the levels side by side in threads, their sums added in the levels' order: the
+    # same additions as one level after the other
+    n = len(acc)
+    for sums in parallel.map_items(level, range(len(levels)), work=int(first[-1])):
+        for both in sums:
+            acc += both[:n]
+            out_acc += both[n:]
+    return int(first[-1])
 
 
 def _rows_matmul(a, b, limit: int = 1 << 18):
