@@ -874,12 +874,15 @@ def _texel_sums(n, n_out, ix, iy, slots, flux, fr, xy=None) -> list[np.ndarray]:
     # beyond a raster go to bin n + slot, so one bincount takes both
     inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
     if xy is not None and np.any(fr["outer"] >= 0):
-        slots = np.broadcast_to(slots, inside.shape)
-        outer = fr["outer"][slots]
+        outer = fr["outer"][slots]  # per cell in a splat (cells, 1): not per sub-cell
         move = ~inside & (outer >= 0)
         if np.any(move):
-            x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
-            to = outer[move]
+            # ``xy``: the plane coordinates, or a function giving those of the rows moved
+            if callable(xy):
+                x, y = xy(move)
+            else:
+                x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
+            to = np.broadcast_to(outer, inside.shape)[move]
             flux = np.broadcast_to(flux, inside.shape)
             sums += _texel_sums(
                 n,
@@ -968,12 +971,18 @@ def _splat_cells(
         w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
         ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
         iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
-        xy = None
-        if np.any(fr["outer"] >= 0):  # the plane coordinates, for the coarse rasters
-            xy = (
-                px * su[sel, None] + fr["uc"][slots[sel], None],
-                py * sv[sel, None] + fr["vc"][slots[sel], None],
+
+        def xy(move):  # the plane coordinates of the sub-cells beyond a fine raster
+            def plane(p, s, c):
+                return (
+                    p[move] * np.broadcast_to(s, p.shape)[move] + np.broadcast_to(c, p.shape)[move]
+                )
+
+            return (
+                plane(px, su[sel, None], fr["uc"][slots[sel], None]),
+                plane(py, sv[sel, None], fr["vc"][slots[sel], None]),
             )
+
         return _texel_sums(len(acc), len(out_acc), ix, iy, slots[sel][:, None], w, fr, xy)
 
     # the levels side by side in threads, their sums added in the levels' order: the
