@@ -183,11 +183,34 @@ def _group_order(x, groups, n_groups: int) -> np.ndarray:
     )
 
 
-def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+def regroup(order_x, groups, n_groups: int) -> np.ndarray:
+    """`_group_order` (by group, then x, then index) from ``order_x``, a stable order
+    of x (``np.argsort(x, kind="stable")``): one stable sort of the small group ids
+    along it (a radix sort), not a sort of x again."""
+    g = groups[order_x]
+    if n_groups < 1 << 15:
+        g = g.astype(np.int16)
+    return order_x[np.argsort(g, kind="stable")]
+
+
+def sub_order(order_x, rows, n: int) -> np.ndarray | None:
+    """The stable order of x[rows] from ``order_x`` (that of all ``n`` of x), ``rows``
+    increasing (then ties keep their order); None when they are not."""
+    rows = np.asarray(rows)
+    if len(rows) > 1 and not np.all(rows[1:] > rows[:-1]):
+        return None
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[rows] = np.arange(len(rows))
+    p = pos[order_x]
+    return p[p >= 0]
+
+
+def grouped_quantiles(x, w, groups, n_groups: int, qs, order=None) -> np.ndarray:
     """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
     group non-empty): (n_groups, len(qs)), the values where the group's cumulative
-    weight first reaches each share (one sort for all groups)."""
-    o = _group_order(x, groups, n_groups)
+    weight first reaches each share (one sort for all groups; ``order``: that sort,
+    `_group_order`'s, if known)."""
+    o = _group_order(x, groups, n_groups) if order is None else order
     g, xs, ws = groups[o], x[o], w[o]
     cw = np.cumsum(ws)
     total = np.bincount(g, weights=ws, minlength=n_groups)
@@ -328,6 +351,7 @@ def build_layer(
     wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
     frames, members, slot_pts, floors, pixels = [], [], [], [], []
+    slot_orders = []  # per raster, the stable order of its landings' x and y (or None)
     outer_of, coarse_of = [], []  # per raster: its coarse raster (−1: none); coarse or not
     on = np.nonzero(pid >= 0)[0]
     on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
@@ -345,8 +369,17 @@ def build_layer(
         w_here = wts[idx]
         local = np.repeat(np.arange(len(b_starts)), b_ends - b_starts)
         qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+        # one sort per axis of the patch's landings: the beams' boxes, the glasses'
+        # bulks and the rasters' texel lines take their orders from it
+        ox, oy = (np.argsort(c, kind="stable") for c in (x, y))
         boxes = np.concatenate(
-            [grouped_quantiles(c, w_here, local, len(b_starts), qs) for c in (x, y)], axis=1
+            [
+                grouped_quantiles(
+                    c, w_here, local, len(b_starts), qs, regroup(o, local, len(b_starts))
+                )
+                for c, o in ((x, ox), (y, oy))
+            ],
+            axis=1,
         )  # (beams here, 4): u_lo, u_hi, v_lo, v_hi
         in_view = view.in_view(pts[idx]) if view is not None else None
         if view is not None:  # a faint tail far out: the bulk decides (`bulk_boxes`)
@@ -357,6 +390,7 @@ def build_layer(
                 boxes,
                 clip_fraction,
                 res,
+                (ox, oy),
             )
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
@@ -398,6 +432,7 @@ def build_layer(
                 frames.append((p, n_out, au, av))
                 members.append(beams_here)
                 slot_pts.append((x[part], y[part], w_here[part]))
+                slot_orders.append([sub_order(o, part, len(x)) for o in (ox, oy)])
                 floors.append(floor)
     given = raster_frames or []
     base = len(frames)
@@ -432,7 +467,10 @@ def build_layer(
         ]
         # per axis the footprint's quantiles and median: the view's spans and the warp's
         qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
-        quant = [grouped_interp_quantiles(c, w_all, gid, len(frames), qs) for c in c_all]
+        quant = [
+            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, _joined(slot_orders, k))
+            for k, c in enumerate(c_all)
+        ]
         if view is not None and len(frames):
             fr["res"] = _view_resolutions(quant, pixels, res)
             fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
@@ -620,7 +658,19 @@ BULK_SHARE = 0.99
 TAIL_SPREAD = 2.0
 
 
-def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
+def _joined(orders, k: int) -> np.ndarray | None:
+    """The rasters' stable orders along axis ``k`` as one order of their landings
+    concatenated (by raster, then x: `_group_order`'s), or None if one is unknown."""
+    parts = [o[k] for o in orders]
+    if any(p is None for p in parts):
+        return None
+    starts = np.cumsum([0] + [len(p) for p in parts])
+    return np.concatenate(
+        [np.zeros(0, dtype=np.int64)] + [p + a for p, a in zip(parts, starts[:-1], strict=True)]
+    )
+
+
+def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max, orders=None):
     """The boxes (beams here, 4) the rasters are clustered by, and per beam whether
     its box is its glass's bulk (then its fine raster spans only that; what lands
     beyond goes to the coarse raster): each beam's footprint ``boxes`` (its
@@ -634,7 +684,8 @@ def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     were 1.4–2.9 mm at the showcase rod's line for a 0.6 mm pixel. ``landings``:
     (x, y, flux, glass, beam) per landing (the glass: of the beams given to
     `build_layer`; the beam: its index into ``boxes``); ``in_view``, ``pixel``: per
-    landing, whether the camera sees it and its pixel there."""
+    landing, whether the camera sees it and its pixel there; ``orders``: the stable
+    orders of x and y (np.argsort(…, kind="stable")), if known."""
     x, y, w, owner, local = landings
     owners, group = np.unique(owner, return_inverse=True)
     n = len(owners)
@@ -647,13 +698,21 @@ def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     whole_q = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
     bulk, whole, span = [], [], np.zeros(n)
     every = bool(np.all(use))
-    for c in (x, y):
+    rows = None if every else np.nonzero(use)[0]
+    for k, c in enumerate((x, y)):
         cu, wu, gu = (c, w, group) if every else (c[use], w[use], group[use])
+        o = None if orders is None else orders[k]
+        o_all = None if o is None else regroup(o, group, n)
+        o_use = o_all if every or o is None else sub_order(o, rows, len(c))
+        if not every and o_use is not None:
+            o_use = regroup(o_use, gu, n)
         # one sort per axis for the bulk and the span in view (and the whole footprint
         # when every landing is used: the same landings)
-        q = grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half, *whole_q))
+        q = grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half, *whole_q), o_use)
         bulk.append(q[:, :2])
-        whole.append(q[:, 2:] if every else grouped_interp_quantiles(c, w, group, n, whole_q))
+        whole.append(
+            q[:, 2:] if every else grouped_interp_quantiles(c, w, group, n, whole_q, o_all)
+        )
         span = np.maximum(span, q[:, 3] - q[:, 2])
     pix = grouped_quantiles(
         pixel if every else pixel[use], w if every else w[use], gu, n, (NEAR_PIXEL_SHARE,)
@@ -704,11 +763,12 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
         )
 
 
-def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+def grouped_interp_quantiles(x, w, groups, n_groups: int, qs, order=None) -> np.ndarray:
     """:func:`weighted_quantile` (interpolated in the cumulative weight, as np.interp)
     of ``x`` within each group (ids 0..n_groups−1, every group non-empty), for each
-    share in ``qs``: (n_groups, len(qs)), one sort for all groups."""
-    o = _group_order(x, groups, n_groups)
+    share in ``qs``: (n_groups, len(qs)), one sort for all groups (``order``: that
+    sort, `_group_order`'s, if known)."""
+    o = _group_order(x, groups, n_groups) if order is None else order
     g, xs = groups[o], x[o]
     cw = np.cumsum(w[o])
     ends = np.cumsum(np.bincount(g, minlength=n_groups))
