@@ -887,7 +887,12 @@ def _asinh(u):
     """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
     a few ulps)."""
     a = np.abs(u)
-    return np.copysign(np.log(a + np.sqrt(a * a + 1.0)), u)
+    t = a * a  # in place from here: the same arithmetic, two temporaries, not six
+    t += 1.0
+    np.sqrt(t, out=t)
+    t += a
+    np.log(t, out=t)
+    return np.copysign(t, u, out=t)
 
 
 def _texel_index(x, fr, key, slots):
@@ -1029,8 +1034,10 @@ def _splat_cells(
             py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
         # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
         w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
-        ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
-        iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
+        ix, iy = (
+            _floor_index(_asinh(p), x0[sel, None], dx[sel, None])
+            for p, x0, dx in ((px, xi0u, dxiu), (py, xi0v, dxiv))
+        )
 
         def xy(move):  # the plane coordinates of the sub-cells beyond a fine raster
             def plane(p, s, c):
@@ -1053,6 +1060,13 @@ def _splat_cells(
             acc += both[:n]
             out_acc += both[n:]
     return int(first[-1])
+
+
+def _floor_index(xi, xi0, dxi) -> np.ndarray:
+    """⌊(ξ − ξ0) / dξ⌋ as integers, ``xi`` overwritten (a splat's large temporaries)."""
+    xi -= xi0
+    xi /= dxi
+    return np.floor(xi, out=xi).astype(np.int64)
 
 
 def _rows_matmul(a, b, limit: int = 1 << 18):
