@@ -103,12 +103,17 @@ def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = T
     iota = np.asarray(iota, dtype=float)
     phi = np.asarray(phi, dtype=float)
     sin_i, cos_i = np.sin(iota), np.cos(iota)
+    # sin of the sphere's half-angle from each sample, per sample once (then by row):
+    # the same values as gathered per ray first
+    reach = None
+    if not parallel:
+        reach = bt.radius / np.maximum(np.linalg.norm(bt.center - bt.points, axis=-1), bt.radius)
     if not rays and (parallel or is_isotropic(emitter)):
         r = bt.radius[rows]
         if parallel:
             jac = r * r * sin_i * cos_i
         else:
-            s = r / np.maximum(np.linalg.norm(bt.center[rows] - bt.points[rows], axis=-1), r)
+            s = reach[rows]
             sin_psi = s * sin_i
             cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
             jac = np.divide(
@@ -127,7 +132,7 @@ def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = T
         jac = r * r * sin_i * cos_i
     else:
         pts = bt.points[rows]
-        s = r / np.maximum(np.linalg.norm(c - pts, axis=-1), r)
+        s = reach[rows]
         sin_psi = s * sin_i
         cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
         dirs = cos_psi[..., None] * u + sin_psi[..., None] * radial
