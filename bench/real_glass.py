@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import shlex
 import sys
 import tempfile
 import time
@@ -422,12 +423,13 @@ def strip(rows, path):
 
 
 def write_report(table, notes, args, total, version):
-    cmd = "./lens-lights bench real_glass" + "".join(f" {a}" for a in sys.argv[1:])
+    cmd = "./lens-lights bench real_glass" + "".join(f" {shlex.quote(a)}" for a in sys.argv[1:])
+    pt = f"Cycles path tracing {args.pt_samples} spp" if args.pt else "no Cycles path tracing run"
     lines = [
         "# Real glass: lenses, rods, blocks in Cycles and EEVEE vs the glass tracer (issue 25)",
         "",
-        f"`{cmd}` — Blender {version}, {args.px}×{args.px} px, Cycles path tracing "
-        f"{args.pt_samples} spp, Generate: Cycles {args.cycles_samples} spp, EEVEE "
+        f"`{cmd}` — Blender {version}, {args.px}×{args.px} px, {pt}, "
+        f"Generate: Cycles {args.cycles_samples} spp, EEVEE "
         f"{args.eevee_samples} samples; truth {args.rays:.3g} rays per case "
         f"(`reference.glass_tracer`); {total / 60:.1f} min in all on 2 shared cores.",
         "",

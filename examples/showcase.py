@@ -150,6 +150,16 @@ def uv_sphere(mesh, radius, segments, rings):
 
     bm = bmesh.new()
     bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    # the operator's face order follows memory addresses (it differs build to build,
+    # and so did the glass showcase's layer, a pebble of it): one order by vertices
+    bm.verts.index_update()
+    nv = len(bm.verts)
+
+    def by_vertices(f):  # a face's three least vertices name it
+        a, b, c = sorted(v.index for v in f.verts)[:3]
+        return (a * nv + b) * nv + c
+
+    bm.faces.sort(key=by_vertices)
     for f in bm.faces:
         f.smooth = True
     bm.to_mesh(mesh)
