@@ -8,7 +8,10 @@ EEVEE and Cycles. ``bpy.ops``-free: `blender.commands.generate.generate` on the
 context, ``--repeat`` times per case after one Generate that warms the process up
 (imports, numpy's first calls: a user's first Generate of a session pays them once);
 the median and the best wall and CPU time and the median of each step's time
-(`generate.LAST_FIGURES["timings"]`), the node and refinement rays traced.
+(`generate.LAST_FIGURES["timings"]`), the node and refinement rays traced. Each timed
+Generate is of a glass the process has not built yet (`beam_trace.clear_built` first,
+where the tree has it); *again*: Generate pressed once more right after, nothing changed
+(a tree that keeps built glass by content reuses its BVH then).
 
     ./lens-lights bench glass_generate_speed [--before TREE] [--repeat 3] [--rounds 1]
 
@@ -107,15 +110,21 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
             traced[0] += time.process_time() - c
 
     MeshLens.trace_branches = timed
+    # a tree that keeps built glass by content (`beam_trace.clear_built`): each timed
+    # Generate is of a glass seen for the first time, "again" of the same glass
+    from lens_lights.core.caustic_layer import beam_trace
+
+    forget = getattr(beam_trace, "clear_built", lambda: None)
 
     scene(*CASES[0][1:], ENGINES[0])  # the warm-up, untimed
     gen.generate(bpy.context)
     rows = []
     for label, seg, rings in CASES:
         for engine in ENGINES:
-            walls, cpus, traces, parts, rays = [], [], [], [], None
+            walls, cpus, traces, parts, rays, again = [], [], [], [], None, []
             for _ in range(repeat):
                 tris = scene(seg, rings, engine)
+                forget()
                 t, c = time.perf_counter(), time.process_time()
                 traced[0] = 0.0
                 gen.generate(bpy.context)
@@ -126,6 +135,9 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
                 parts.append(dict(fig.get("timings", {})))
                 lb = getattr(bpy.context.scene.lens_lights, "last_report", "")
                 rays = rays or lb
+                t = time.perf_counter()  # Generate again, nothing changed
+                gen.generate(bpy.context)
+                again.append(time.perf_counter() - t)
             rows.append(
                 dict(
                     label=label,
@@ -136,6 +148,7 @@ def run_tree(tree: Path, repeat: int) -> list[dict]:
                     traces=traces,
                     parts=parts,
                     report=rays,
+                    again=again,
                 )
             )
             print(f"{label} {engine}: {statistics.median(walls):.3f} s", flush=True)
@@ -160,6 +173,7 @@ def summary(runs) -> list[dict]:
                 cpu=statistics.median(cpus),
                 cpu_best=min(cpus),
                 trace_cpu=statistics.median(t for r in group for t in r["traces"]),
+                again=statistics.median(a for r in group for a in r.get("again", [])),
                 parts={k: statistics.median(p.get(k, 0.0) for p in parts) for k in keys},
             )
         )
@@ -177,9 +191,9 @@ def table(rows) -> list[str]:
     out = [
         "| triangles | engine | Generate (median) | best | CPU (median) | best | trace CPU | "
         + " | ".join(SHOWN)
-        + " | runs |"
+        + " | runs | again |"
     ]
-    out.append("|---:|---|---:|---:|---:|---:|---:|" + "---:|" * len(SHOWN) + "---|")
+    out.append("|---:|---|---:|---:|---:|---:|---:|" + "---:|" * len(SHOWN) + "---|---:|")
     for r in rows:
         p = r["parts"]
         cells = [f"{p[k]:.3f}" if k in p else "–" for k in SHOWN]
@@ -189,7 +203,7 @@ def table(rows) -> list[str]:
             f"| {r['triangles']} | {eng} | **{r['wall']:.3f}** | {r['wall_best']:.3f} | "
             f"{r['cpu']:.3f} | {r['cpu_best']:.3f} | {r['trace_cpu']:.3f} | "
             + " | ".join(cells)
-            + f" | {runs} |"
+            + f" | {runs} | {r['again']:.3f} |"
         )
     return out
 
@@ -244,7 +258,10 @@ def main(argv=None) -> int:
         " (all its threads: on a shared machine the wall time waits for the cores), the"
         " CPU time inside the glass mesh's tracer (`MeshLens.trace_branches`: the coarse"
         " and the final trace, node rays and refinements), and the median of each step"
-        " (wall), s.",
+        " (wall), s. Each timed Generate is of a glass new to the process (a tree that"
+        " keeps built glass by content forgets it first: `beam_trace.clear_built`);"
+        " *again*: the median wall time of Generate pressed once more right after,"
+        " nothing changed (the same glass: its BVH kept where the tree keeps it).",
         "",
     ]
     for name, (rows, l0, l1) in results.items():

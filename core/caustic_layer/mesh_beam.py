@@ -123,12 +123,17 @@ def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = T
     iota = np.asarray(iota, dtype=float)
     phi = np.asarray(phi, dtype=float)
     sin_i, cos_i = np.sin(iota), np.cos(iota)
+    # sin of the sphere's half-angle from each sample, per sample once (then by row):
+    # the same values as gathered per ray first
+    reach = None
+    if not parallel:
+        reach = bt.radius / np.maximum(np.linalg.norm(bt.center - bt.points, axis=-1), bt.radius)
     if not rays and (parallel or is_isotropic(emitter)):
         r = bt.radius[rows]
         if parallel:
             jac = r * r * sin_i * cos_i
         else:
-            s = r / np.maximum(np.linalg.norm(bt.center[rows] - bt.points[rows], axis=-1), r)
+            s = reach[rows]
             sin_psi = s * sin_i
             cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
             jac = np.divide(
@@ -147,7 +152,7 @@ def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = T
         jac = r * r * sin_i * cos_i
     else:
         pts = bt.points[rows]
-        s = r / np.maximum(np.linalg.norm(c - pts, axis=-1), r)
+        s = reach[rows]
         sin_psi = s * sin_i
         cos_psi = np.sqrt((1.0 - sin_psi) * (1.0 + sin_psi))
         dirs = cos_psi[..., None] * u + sin_psi[..., None] * radial
@@ -235,15 +240,8 @@ class _Sorted:
 
 def _sort_cells(keep, sig, w, corners, strong: float) -> _Sorted:
     """Every cell's corner paths grouped by (cell, signature) (one sort)."""
-    nb = keep.shape[0]
     n_cells = len(corners)
-    kf = keep.reshape(nb, -1)[:, corners]  # (nb, C, 4)
-    b, c, q = np.nonzero(kf)
-    node = corners[c, q]
-    sg = sig.reshape(nb, -1)[b, node]
-    wt = w.reshape(nb, -1)[b, node]
-    order = np.lexsort((-wt, q, sg, c))
-    b, c, q, sg, wt = b[order], c[order], q[order], sg[order], wt[order]
+    b, c, q, sg, wt = _corner_paths(keep, sig, w, corners)
     # a second path with one signature at one corner (rare): a splat
     first = np.ones(len(c), dtype=bool)
     first[1:] = (c[1:] != c[:-1]) | (sg[1:] != sg[:-1]) | (q[1:] != q[:-1])
@@ -271,6 +269,29 @@ def _sort_cells(keep, sig, w, corners, strong: float) -> _Sorted:
         s_slot=np.concatenate([b1[partial], b[dup]]),
         mixed=mixed,
     )
+
+
+def _corner_paths(keep, sig, w, corners):
+    """The kept (slot b, cell c, corner q) of every cell's corners with their path's
+    signature and weight, ordered by (c, signature, q, −weight, b) (as one lexsort of
+    those keys). Taken in (c, q, b) order, one stable sort by (c, signature) leaves
+    (q, b) in order; only a signature twice at one corner (rare) needs its weights."""
+    nb = keep.shape[0]
+    kf = keep.reshape(nb, -1).T[corners]  # (C, 4, nb)
+    c, q, b = np.nonzero(kf)
+    node = corners[c, q]
+    sg = sig.reshape(nb, -1)[b, node]
+    wt = w.reshape(nb, -1)[b, node]
+    order = np.lexsort((sg, c))
+    b, c, q, sg, wt = b[order], c[order], q[order], sg[order], wt[order]
+    same = (c[1:] == c[:-1]) & (sg[1:] == sg[:-1]) & (q[1:] == q[:-1])
+    if np.any(same):  # those runs by weight, heaviest first, then by slot
+        rows = np.nonzero(np.concatenate([[False], same]) | np.concatenate([same, [False]]))[0]
+        run = np.cumsum(np.concatenate([[True], ~same]))[rows]
+        sub = rows[np.lexsort((b[rows], -wt[rows], run))]
+        for a in (b, c, q, sg, wt):
+            a[rows] = a[sub]
+    return b, c, q, sg, wt
 
 
 def _quad_part(rows, slots, node, pts, dirs, g, w, flux) -> MeshPart:

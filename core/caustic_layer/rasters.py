@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..shared import parallel
 from .beam_trace import BeamGrid, flatten_parts
 from .emitters import perpendicular_frame, share_offsets
 from .receiver_index import ReceiverIndex, intersect
@@ -182,11 +183,34 @@ def _group_order(x, groups, n_groups: int) -> np.ndarray:
     )
 
 
-def grouped_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+def regroup(order_x, groups, n_groups: int) -> np.ndarray:
+    """`_group_order` (by group, then x, then index) from ``order_x``, a stable order
+    of x (``np.argsort(x, kind="stable")``): one stable sort of the small group ids
+    along it (a radix sort), not a sort of x again."""
+    g = groups[order_x]
+    if n_groups < 1 << 15:
+        g = g.astype(np.int16)
+    return order_x[np.argsort(g, kind="stable")]
+
+
+def sub_order(order_x, rows, n: int) -> np.ndarray | None:
+    """The stable order of x[rows] from ``order_x`` (that of all ``n`` of x), ``rows``
+    increasing (then ties keep their order); None when they are not."""
+    rows = np.asarray(rows)
+    if len(rows) > 1 and not np.all(rows[1:] > rows[:-1]):
+        return None
+    pos = np.full(n, -1, dtype=np.int64)
+    pos[rows] = np.arange(len(rows))
+    p = pos[order_x]
+    return p[p >= 0]
+
+
+def grouped_quantiles(x, w, groups, n_groups: int, qs, order=None) -> np.ndarray:
     """Weighted quantiles ``qs`` of ``x`` within each group (ids 0..n_groups−1, every
     group non-empty): (n_groups, len(qs)), the values where the group's cumulative
-    weight first reaches each share (one sort for all groups)."""
-    o = _group_order(x, groups, n_groups)
+    weight first reaches each share (one sort for all groups; ``order``: that sort,
+    `_group_order`'s, if known)."""
+    o = _group_order(x, groups, n_groups) if order is None else order
     g, xs, ws = groups[o], x[o], w[o]
     cw = np.cumsum(ws)
     total = np.bincount(g, weights=ws, minlength=n_groups)
@@ -327,6 +351,7 @@ def build_layer(
     wts = np.concatenate([x.node_flux for x in landed]) + 1e-300
     slot_of = np.full((len(beams), len(plist)), -1, dtype=np.int64)
     frames, members, slot_pts, floors, pixels = [], [], [], [], []
+    slot_orders = []  # per raster, the stable order of its landings' x and y (or None)
     outer_of, coarse_of = [], []  # per raster: its coarse raster (−1: none); coarse or not
     on = np.nonzero(pid >= 0)[0]
     on = on[np.argsort(pid[on], kind="stable")]  # by patch, then beam (bid is in order)
@@ -344,8 +369,17 @@ def build_layer(
         w_here = wts[idx]
         local = np.repeat(np.arange(len(b_starts)), b_ends - b_starts)
         qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
+        # one sort per axis of the patch's landings: the beams' boxes, the glasses'
+        # bulks and the rasters' texel lines take their orders from it
+        ox, oy = (np.argsort(c, kind="stable") for c in (x, y))
         boxes = np.concatenate(
-            [grouped_quantiles(c, w_here, local, len(b_starts), qs) for c in (x, y)], axis=1
+            [
+                grouped_quantiles(
+                    c, w_here, local, len(b_starts), qs, regroup(o, local, len(b_starts))
+                )
+                for c, o in ((x, ox), (y, oy))
+            ],
+            axis=1,
         )  # (beams here, 4): u_lo, u_hi, v_lo, v_hi
         in_view = view.in_view(pts[idx]) if view is not None else None
         if view is not None:  # a faint tail far out: the bulk decides (`bulk_boxes`)
@@ -356,6 +390,7 @@ def build_layer(
                 boxes,
                 clip_fraction,
                 res,
+                (ox, oy),
             )
         comps = _disjoint_clusters(boxes) if merge_footprints else [np.arange(len(b_starts))]
         for comp in comps:
@@ -397,6 +432,7 @@ def build_layer(
                 frames.append((p, n_out, au, av))
                 members.append(beams_here)
                 slot_pts.append((x[part], y[part], w_here[part]))
+                slot_orders.append([sub_order(o, part, len(x)) for o in (ox, oy)])
                 floors.append(floor)
     given = raster_frames or []
     base = len(frames)
@@ -426,12 +462,20 @@ def build_layer(
     if not given:  # every raster's texel lines at once (one sort per axis for all)
         gid = np.repeat(np.arange(len(frames)), [len(t[0]) for t in slot_pts])
         w_all = np.concatenate([t[2] for t in slot_pts]) if slot_pts else np.zeros(0)
+        c_all = [
+            np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0) for k in (0, 1)
+        ]
+        # per axis the footprint's quantiles and median: the view's spans and the warp's
+        qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+        quant = [
+            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, _joined(slot_orders, k))
+            for k, c in enumerate(c_all)
+        ]
         if view is not None and len(frames):
-            fr["res"] = _view_resolutions(slot_pts, gid, w_all, pixels, clip_fraction, res)
+            fr["res"] = _view_resolutions(quant, pixels, res)
             fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
-        c_all = np.concatenate([t[k] for t in slot_pts]) if slot_pts else np.zeros(0)
-        axis = _warp_axes(c_all, w_all, gid, len(frames), clip_fraction, fr["res"], warp, floors)
+        axis = _warp_axes(c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors)
         for name, val in zip(AXIS_FIELDS, axis, strict=True):
             fr[key + name] = val
     # every raster's texels in blocks of side × side (a raster of fewer uses a corner)
@@ -614,7 +658,19 @@ BULK_SHARE = 0.99
 TAIL_SPREAD = 2.0
 
 
-def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
+def _joined(orders, k: int) -> np.ndarray | None:
+    """The rasters' stable orders along axis ``k`` as one order of their landings
+    concatenated (by raster, then x: `_group_order`'s), or None if one is unknown."""
+    parts = [o[k] for o in orders]
+    if any(p is None for p in parts):
+        return None
+    starts = np.cumsum([0] + [len(p) for p in parts])
+    return np.concatenate(
+        [np.zeros(0, dtype=np.int64)] + [p + a for p, a in zip(parts, starts[:-1], strict=True)]
+    )
+
+
+def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max, orders=None):
     """The boxes (beams here, 4) the rasters are clustered by, and per beam whether
     its box is its glass's bulk (then its fine raster spans only that; what lands
     beyond goes to the coarse raster): each beam's footprint ``boxes`` (its
@@ -628,7 +684,8 @@ def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     were 1.4–2.9 mm at the showcase rod's line for a 0.6 mm pixel. ``landings``:
     (x, y, flux, glass, beam) per landing (the glass: of the beams given to
     `build_layer`; the beam: its index into ``boxes``); ``in_view``, ``pixel``: per
-    landing, whether the camera sees it and its pixel there."""
+    landing, whether the camera sees it and its pixel there; ``orders``: the stable
+    orders of x and y (np.argsort(…, kind="stable")), if known."""
     x, y, w, owner, local = landings
     owners, group = np.unique(owner, return_inverse=True)
     n = len(owners)
@@ -641,13 +698,21 @@ def bulk_boxes(landings, in_view, pixel, boxes, clip_fraction, res_max):
     whole_q = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
     bulk, whole, span = [], [], np.zeros(n)
     every = bool(np.all(use))
-    for c in (x, y):
+    rows = None if every else np.nonzero(use)[0]
+    for k, c in enumerate((x, y)):
         cu, wu, gu = (c, w, group) if every else (c[use], w[use], group[use])
+        o = None if orders is None else orders[k]
+        o_all = None if o is None else regroup(o, group, n)
+        o_use = o_all if every or o is None else sub_order(o, rows, len(c))
+        if not every and o_use is not None:
+            o_use = regroup(o_use, gu, n)
         # one sort per axis for the bulk and the span in view (and the whole footprint
         # when every landing is used: the same landings)
-        q = grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half, *whole_q))
+        q = grouped_interp_quantiles(cu, wu, gu, n, (half, 1.0 - half, *whole_q), o_use)
         bulk.append(q[:, :2])
-        whole.append(q[:, 2:] if every else grouped_interp_quantiles(c, w, group, n, whole_q))
+        whole.append(
+            q[:, 2:] if every else grouped_interp_quantiles(c, w, group, n, whole_q, o_all)
+        )
         span = np.maximum(span, q[:, 3] - q[:, 2])
     pix = grouped_quantiles(
         pixel if every else pixel[use], w if every else w[use], gu, n, (NEAR_PIXEL_SHARE,)
@@ -698,11 +763,12 @@ def _disjoint_clusters(boxes: np.ndarray) -> list[np.ndarray]:
         )
 
 
-def grouped_interp_quantiles(x, w, groups, n_groups: int, qs) -> np.ndarray:
+def grouped_interp_quantiles(x, w, groups, n_groups: int, qs, order=None) -> np.ndarray:
     """:func:`weighted_quantile` (interpolated in the cumulative weight, as np.interp)
     of ``x`` within each group (ids 0..n_groups−1, every group non-empty), for each
-    share in ``qs``: (n_groups, len(qs)), one sort for all groups."""
-    o = _group_order(x, groups, n_groups)
+    share in ``qs``: (n_groups, len(qs)), one sort for all groups (``order``: that
+    sort, `_group_order`'s, if known)."""
+    o = _group_order(x, groups, n_groups) if order is None else order
     g, xs = groups[o], x[o]
     cw = np.cumsum(w[o])
     ends = np.cumsum(np.bincount(g, minlength=n_groups))
@@ -743,17 +809,11 @@ COARSE_RESOLUTION = 48
 COARSE_SHARE = 0.25
 
 
-def _view_resolutions(slot_pts, gid, w, pixels, clip_fraction, res_max) -> np.ndarray:
+def _view_resolutions(quantiles, pixels, res_max) -> np.ndarray:
     """Per raster, texels per side for `TEXELS_PER_PIXEL` per pixel over the span of its
-    landings in view (the larger of its two axes), within [`MIN_RESOLUTION`,
-    ``res_max``]."""
-    n = len(slot_pts)
-    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction)
-    span = np.zeros(n)
-    for k in (0, 1):
-        x = np.concatenate([t[k] for t in slot_pts])
-        q = grouped_interp_quantiles(x, w, gid, n, qs)
-        span = np.maximum(span, q[:, 1] - q[:, 0])
+    landings in view (the larger of its two axes: ``quantiles`` per axis, (rasters, ≥2)
+    their ``clip_fraction`` quantiles), within [`MIN_RESOLUTION`, ``res_max``]."""
+    span = np.maximum(*(q[:, 1] - q[:, 0] for q in quantiles))
     pix = np.maximum(np.asarray(pixels, dtype=float), 1e-300)
     want = np.ceil(TEXELS_PER_PIXEL * span / pix)
     return np.clip(want, MIN_RESOLUTION, max(int(res_max), MIN_RESOLUTION)).astype(np.int64)
@@ -783,15 +843,14 @@ def _with_coarse(res: np.ndarray, coarse: np.ndarray, res_max: int, max_texels) 
     return res
 
 
-def _warp_axes(x, w, groups, n_groups, clip_fraction, res, warp, min_texel):
+def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel):
     """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
     ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
-    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median; the
+    ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median
+    (``quantiles`` (n_groups, 3): those three, `grouped_interp_quantiles`); the
     warp is flattened (s grown) until the finest texel, s·dξ, is the group's
     ``min_texel`` (or the texels are uniform)."""
-    qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
-    q = grouped_interp_quantiles(x, w, groups, n_groups, qs)
-    lo, hi, c = q[:, 0], q[:, 1], q[:, 2]
+    lo, hi, c = quantiles[:, 0], quantiles[:, 1], quantiles[:, 2]
     span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
     if warp:
@@ -828,7 +887,12 @@ def _asinh(u):
     """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
     a few ulps)."""
     a = np.abs(u)
-    return np.copysign(np.log(a + np.sqrt(a * a + 1.0)), u)
+    t = a * a  # in place from here: the same arithmetic, two temporaries, not six
+    t += 1.0
+    np.sqrt(t, out=t)
+    t += a
+    np.log(t, out=t)
+    return np.copysign(t, u, out=t)
 
 
 def _texel_index(x, fr, key, slots):
@@ -859,22 +923,35 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
     coordinates ``xy``, which all rasters of a patch share) or, without one, to its
     ``out_acc``."""
     n = len(acc)
+    for both in _texel_sums(n, len(out_acc), ix, iy, slots, flux, fr, xy):
+        acc += both[:n]
+        out_acc += both[n:]
+
+
+def _texel_sums(n, n_out, ix, iy, slots, flux, fr, xy=None) -> list[np.ndarray]:
+    """What `_accumulate` adds, as the arrays (n + n_out,) it adds in turn (the texels
+    of all rasters' blocks, then the flux beyond each raster): what lands beyond a
+    raster into its coarse one first, then the rest."""
     side = fr["side"]
     res = fr["res"].astype(np.uint64)[slots]
+    sums = []
     # unsigned: a negative index compares as huge (one test per side); the texels
     # beyond a raster go to bin n + slot, so one bincount takes both
     inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
     if xy is not None and np.any(fr["outer"] >= 0):
-        slots = np.broadcast_to(slots, inside.shape)
-        outer = fr["outer"][slots]
+        outer = fr["outer"][slots]  # per cell in a splat (cells, 1): not per sub-cell
         move = ~inside & (outer >= 0)
         if np.any(move):
-            x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
-            to = outer[move]
+            # ``xy``: the plane coordinates, or a function giving those of the rows moved
+            if callable(xy):
+                x, y = xy(move)
+            else:
+                x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
+            to = np.broadcast_to(outer, inside.shape)[move]
             flux = np.broadcast_to(flux, inside.shape)
-            _accumulate(
-                acc,
-                out_acc,
+            sums += _texel_sums(
+                n,
+                n_out,
                 _texel_index(x, fr, "u", to),
                 _texel_index(y, fr, "v", to),
                 to,
@@ -883,9 +960,8 @@ def _accumulate(acc, out_acc, ix, iy, slots, flux, fr, xy=None):
             )
             flux = np.where(move, 0.0, flux)
     idx = np.where(inside, (slots * side + iy) * side + ix, n + slots)
-    both = np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + len(out_acc))
-    acc += both[:n]
-    out_acc += both[n:]
+    sums.append(np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + n_out))
+    return sums
 
 
 def _splat_cells(
@@ -939,9 +1015,13 @@ def _splat_cells(
     yn = (y - fr["vc"][slots][:, None]) / sv[:, None]
     xi0u, dxiu = fr["uxi0"][slots], fr["udxi"][slots]
     xi0v, dxiv = fr["vxi0"][slots], fr["vdxi"][slots]
-    n_sub = 0
-    for mm in np.unique(m):  # loop over subdivision levels
-        sel = np.nonzero(m == mm)[0]
+    levels = [int(mm) for mm in np.unique(m)]
+    sels = [np.nonzero(m == mm)[0] for mm in levels]
+    # each level's first sub-cell (along the share points' sequence)
+    first = np.cumsum([0] + [len(sel) * mm * mm for sel, mm in zip(sels, levels, strict=True)])
+
+    def level(k):  # one subdivision level's texel sums
+        mm, sel, n_sub = levels[k], sels[k], int(first[k])
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
@@ -954,17 +1034,39 @@ def _splat_cells(
             py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
         # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
         w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
-        ix = np.floor((_asinh(px) - xi0u[sel, None]) / dxiu[sel, None]).astype(np.int64)
-        iy = np.floor((_asinh(py) - xi0v[sel, None]) / dxiv[sel, None]).astype(np.int64)
-        xy = None
-        if np.any(fr["outer"] >= 0):  # the plane coordinates, for the coarse rasters
-            xy = (
-                px * su[sel, None] + fr["uc"][slots[sel], None],
-                py * sv[sel, None] + fr["vc"][slots[sel], None],
+        ix, iy = (
+            _floor_index(_asinh(p), x0[sel, None], dx[sel, None])
+            for p, x0, dx in ((px, xi0u, dxiu), (py, xi0v, dxiv))
+        )
+
+        def xy(move):  # the plane coordinates of the sub-cells beyond a fine raster
+            def plane(p, s, c):
+                return (
+                    p[move] * np.broadcast_to(s, p.shape)[move] + np.broadcast_to(c, p.shape)[move]
+                )
+
+            return (
+                plane(px, su[sel, None], fr["uc"][slots[sel], None]),
+                plane(py, sv[sel, None], fr["vc"][slots[sel], None]),
             )
-        _accumulate(acc, out_acc, ix, iy, slots[sel][:, None], w, fr, xy)
-        n_sub += w.size
-    return n_sub
+
+        return _texel_sums(len(acc), len(out_acc), ix, iy, slots[sel][:, None], w, fr, xy)
+
+    # the levels side by side in threads, their sums added in the levels' order: the
+    # same additions as one level after the other
+    n = len(acc)
+    for sums in parallel.map_items(level, range(len(levels)), work=int(first[-1])):
+        for both in sums:
+            acc += both[:n]
+            out_acc += both[n:]
+    return int(first[-1])
+
+
+def _floor_index(xi, xi0, dxi) -> np.ndarray:
+    """⌊(ξ − ξ0) / dξ⌋ as integers, ``xi`` overwritten (a splat's large temporaries)."""
+    xi -= xi0
+    xi /= dxi
+    return np.floor(xi, out=xi).astype(np.int64)
 
 
 def _rows_matmul(a, b, limit: int = 1 << 18):

@@ -46,6 +46,17 @@ _HASH = np.uint64(1_000_003)
 WALK_ROWS = 4096
 
 
+def canonical_order(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3) corner order of each triangle (from its lowest vertex index, the winding
+    kept) and the order of the triangles (by their corners so turned): the same mesh
+    in any face order and corner rotation gives one list."""
+    t = len(triangles)
+    rot = (np.argmin(triangles, axis=1)[:, None] + np.arange(3)) % 3
+    turned = np.take_along_axis(triangles, rot, axis=1)
+    order = np.lexsort((turned[:, 2], turned[:, 1], turned[:, 0])) if t else np.zeros(0, int)
+    return rot, order
+
+
 def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
 
@@ -131,20 +142,27 @@ class MeshLens(Lens):
         # the ray grids cover the bounding sphere: it must hold every vertex
         reach = np.linalg.norm(self.vertices - self.center, axis=1).max(initial=0.0)
         self.radius = max(float(radius), float(reach) * (1.0 + 1e-9))
-        self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        # one order of the triangles, and of each one's corners, whatever Blender's: it
+        # may hand the same mesh's faces in another order run to run (a UV sphere), and
+        # sums over them would differ in their last bits
+        rot, order = canonical_order(np.asarray(triangles, dtype=np.int64).reshape(-1, 3))
+        self.triangles = np.take_along_axis(
+            np.asarray(triangles, dtype=np.int64).reshape(-1, 3), rot, axis=1
+        )[order]
         corners = self.vertices[self.triangles]
         cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         self.face_normals = _unit(cross)  # outward by the winding
         if corner_normals is None:
             cn = np.repeat(self.face_normals[:, None, :], 3, axis=1)
         else:
-            cn = _unit(np.asarray(corner_normals, dtype=float).reshape(-1, 3, 3))
+            cn = np.asarray(corner_normals, dtype=float).reshape(-1, 3, 3)
+            cn = _unit(np.take_along_axis(cn, rot[:, :, None], axis=1)[order])
         self.corner_normals = cn
         scale = max(self.radius, float(np.abs(self.vertices).max(initial=0.0)) * 1e-2)
         self.eps = 1e-7 * scale
         t = len(self.triangles)
-        self.triangle_ior = _per_triangle(triangle_ior, self.ior, t)
-        self.triangle_absorption = _per_triangle(triangle_absorption, self.absorption, t)
+        self.triangle_ior = _per_triangle(triangle_ior, self.ior, t)[order]
+        self.triangle_absorption = _per_triangle(triangle_absorption, self.absorption, t)[order]
         self.bvh = build_bvh(self.vertices, self.triangles)
 
     # ------------------------------------------------------------------ the interface

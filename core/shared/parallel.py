@@ -73,3 +73,18 @@ def map_slices(
     parts = split(n_rows, n)
     with ThreadPoolExecutor(n) as pool:
         return list(pool.map(fn, parts))
+
+
+def map_items(fn: Callable[[object], object], items, work: int | None = None) -> list:
+    """`[fn(x) for x in items]` in order, the items handed to the cores' threads as
+    each comes free (jobs of unequal size balance themselves); inline when there are
+    fewer than two, inside :func:`inline`, or when ``work`` (rows in all, say) is
+    below `MIN_ROWS`. The caller combines the results in order: the same as inline."""
+    items = list(items)
+    n = min(cores(), len(items))
+    if getattr(_state, "inline", False) or (work is not None and work < MIN_ROWS):
+        n = 1
+    if n <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(n) as pool:
+        return list(pool.map(fn, items))

@@ -200,11 +200,12 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
         r = ray[good]
         tri[r], tt[r], uu[r], vv[r] = cur[good], t[good], u[good], v[good]
         # beyond which edge the line meets the plane: the most negative barycentric
-        bary = np.stack([1.0 - u - v, u, v], axis=1)
-        corner = np.argmin(bary, axis=1)
-        step = walk.across[cur, corner]
+        # (the first of equals, as argmin over (1 − u − v, u, v), without the stack)
+        w = 1.0 - u - v
+        corner = np.where((w <= u) & (w <= v), 0, np.where(u <= v, 1, 2))
+        step = walk.across.reshape(-1)[cur * 3 + corner]
         # no way on: parallel plane, inside but rejected, an open edge, back and forth
-        stuck = (det == 0.0) | (bary[np.arange(len(cur)), corner] >= -1e-12)
+        stuck = (det == 0.0) | (np.minimum(np.minimum(w, u), v) >= -1e-12)
         stuck |= (step < 0) | (step == prev)
         go = ~good & ~stuck
         ray, prev, cur = ray[go], cur[go], step[go]

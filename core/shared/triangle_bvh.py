@@ -41,6 +41,9 @@ class TriangleBvh:
     boxes: list[np.ndarray]  # per level (6, 2^ℓ): minima then maxima, for the traversal
     cones: list[np.ndarray]  # per level (4, 2^ℓ): a cone holding the faces' normals:
     #                          unit axis, then sin of its half-angle (2: 90° or more)
+    # (slots, 13): normal, v0, e1, e2, edge_scale side by side, so that a test of many
+    # small batches (a surface walk's steps) gathers each slot's row once, not five times
+    packed: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,9 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
         while len(lo[0]) > 1:
             lo.insert(0, np.fmin(lo[0][0::2], lo[0][1::2]))
             hi.insert(0, np.fmax(hi[0][0::2], hi[0][1::2]))
+    e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    normal = np.cross(e1, e2)
+    edge_scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
     return TriangleBvh(
         cones=_normal_cones(c, pad, leaf_size, len(lo)),
         vertices=v,
@@ -105,11 +111,11 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
         leaf_size=leaf_size,
         tri_index=tri_index,
         v0=c[:, 0],
-        e1=c[:, 1] - c[:, 0],
-        e2=c[:, 2] - c[:, 0],
-        normal=np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]),
-        edge_scale=np.linalg.norm(c[:, 1] - c[:, 0], axis=1)
-        * np.linalg.norm(c[:, 2] - c[:, 0], axis=1),
+        e1=e1,
+        e2=e2,
+        normal=normal,
+        edge_scale=edge_scale,
+        packed=np.concatenate([normal, c[:, 0], e1, e2, edge_scale[:, None]], axis=1),
         lo=lo,
         hi=hi,
         boxes=[
@@ -319,19 +325,20 @@ def hit_slots(bvh, o, d, dn, slot):
     (one cross product per pair): ``det = −d·n``, ``u = e2·(s×d)/det``,
     ``v = −e1·(s×d)/det``, ``t = s·n/det`` with ``s = o − v0``; the same tolerances
     as :func:`moller_trumbore`."""
-    nrm = bvh.normal[slot]
+    row = bvh.packed[slot]
+    nrm = row[:, 0:3]
     det = -np.einsum("ij,ij->i", d, nrm)
-    ok = np.abs(det) > 1e-14 * bvh.edge_scale[slot] * dn
+    ok = np.abs(det) > 1e-14 * row[:, 12] * dn
     inv = 1.0 / np.where(ok, det, 1.0)
-    s = o - bvh.v0[slot]
+    s = o - row[:, 3:6]
     sx, sy, sz = s[:, 0], s[:, 1], s[:, 2]
     dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
     c = np.empty_like(s)
     c[:, 0] = sy * dz - sz * dy
     c[:, 1] = sz * dx - sx * dz
     c[:, 2] = sx * dy - sy * dx
-    u = np.einsum("ij,ij->i", bvh.e2[slot], c) * inv
-    v = -np.einsum("ij,ij->i", bvh.e1[slot], c) * inv
+    u = np.einsum("ij,ij->i", row[:, 9:12], c) * inv
+    v = -np.einsum("ij,ij->i", row[:, 6:9], c) * inv
     t = np.einsum("ij,ij->i", s, nrm) * inv
     eps = 1e-12
     ok &= (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
