@@ -341,20 +341,10 @@ def trace_beam(
     return trace_beams([(emitter, lens)], n_radial, n_azimuth, n_source, [blockers])[0]
 
 
-def trace_beams(
-    pairs,
-    n_radial: int = 64,
-    n_azimuth: int = 256,
-    n_source: int = 1,
-    blockers=None,
-    probe: bool = False,
-):
+def trace_beams(pairs, n_radial: int = 64, n_azimuth: int = 256, n_source: int = 1, blockers=None):
     """:func:`trace_beam` of many (emitter, lens) pairs sharing one grid, in one
     vectorised pass (many lenses cost one set of array operations, not one each).
-    ``blockers``: one `shadow.ShadowList` (or None) per pair. ``probe``: a coarse look
-    at where the beams land (`pipeline.bake`'s budget): a glass mesh's cells on an edge
-    of its beam refined at `mesh_beam.REFINE_SUB` per side only, not up to 6 × 6 within
-    `mesh_beam.REFINE_FLOOR` (its 4 × 16 grid: ~200 rays, not ~1 200)."""
+    ``blockers``: one `shadow.ShadowList` (or None) per pair."""
     if not pairs:
         return []
     blockers = list(blockers) if blockers is not None else [None] * len(pairs)
@@ -365,11 +355,10 @@ def trace_beams(
         traced = trace_beams(
             [pairs[i] for i in rest], n_radial, n_azimuth, n_source, [blockers[i] for i in rest]
         )
-        floor = 0 if probe else mesh_beam.REFINE_FLOOR
         for i, beam in zip(rest, traced, strict=True):
             out[i] = beam
         for i in meshes:
-            out[i] = _mesh_beam(pairs[i], n_radial, n_azimuth, n_source, blockers[i], floor)
+            out[i] = _mesh_beam(pairs[i], n_radial, n_azimuth, n_source, blockers[i])
         return out
     bt = _batch(pairs, n_source)
     nr, na = int(n_radial), int(n_azimuth)
@@ -431,11 +420,9 @@ def _branching(kind: str) -> bool:
     return cls is not None and cls.trace_branches is not lens_base.Lens.trace_branches
 
 
-def _mesh_beam(
-    pair, n_radial: int, n_azimuth: int, n_source: int, blockers, refine_floor: int
-) -> BeamGrid:
+def _mesh_beam(pair, n_radial: int, n_azimuth: int, n_source: int, blockers) -> BeamGrid:
     """The beam of one (light, glass mesh) pair (`mesh_beam`): the main sheet with the
-    other parts as its ``parts``; ``refine_floor``: `mesh_beam.trace_mesh_beam`'s."""
+    other parts as its ``parts``."""
     emitter, lens = pair
     bt = _batch([pair], n_source)
     nr, na = int(n_radial), int(n_azimuth)
@@ -444,16 +431,7 @@ def _mesh_beam(
     frames = frames_of(bt.axes)
     sm = bt.samples[0]
     mb = mesh_beam.trace_mesh_beam(
-        bt,
-        bt.optics[0],
-        iota,
-        phi,
-        frames,
-        sm.emitter,
-        sm.parallel,
-        lens,
-        blockers,
-        refine_floor=refine_floor,
+        bt, bt.optics[0], iota, phi, frames, sm.emitter, sm.parallel, lens, blockers
     )
     color = np.asarray(getattr(emitter, "color", (1.0, 1.0, 1.0)), dtype=float)
     color = color * np.asarray(lens.tint, dtype=float)

@@ -355,7 +355,6 @@ def trace_mesh_beam(
     lens,
     blockers=None,
     refine_rays: int | None = None,
-    refine_floor: int = REFINE_FLOOR,
     max_depth: int = MAX_DEPTH,
     min_weight: float = MIN_WEIGHT,
     strong: float = STRONG,
@@ -365,9 +364,8 @@ def trace_mesh_beam(
     centres of Na equal sectors); ``frames`` (K, 2, 3); ``lens``: its scene record
     (the shadow's centre); ``refine_rays``: sub-grid rays at most (None:
     `REFINE_SUB` per side in every cell to refine, within `REFINE_MAX_SHARE` and
-    ``refine_floor`` rays; 0: `REFINE_SUB` per side only, as a probe asks);
-    ``strong``: a path appearing at some corners of a cell with this weight makes the
-    cell refined (weaker ones are splatted where they are)."""
+    `REFINE_FLOOR`); ``strong``: a path appearing at some corners of a cell with
+    this weight makes the cell refined (weaker ones are splatted where they are)."""
     k = len(bt.weights)
     nr, na = len(iota) - 1, len(phi)
     dp = float(2.0 * np.pi / na)
@@ -397,9 +395,9 @@ def trace_mesh_beam(
     lit = np.einsum("ck,bck->c", cg, w.reshape(w.shape[0], -1)[:, corners])
     mixed = np.nonzero(st.mixed & (lit > 0.0))[0]
     n_mixed = max(len(mixed), 1)
-    cap = max(int(REFINE_MAX_SHARE * out.n_rays), refine_floor)
+    cap = max(int(REFINE_MAX_SHARE * out.n_rays), REFINE_FLOOR)
     budget = (
-        min(max(n_mixed * (REFINE_SUB + 1) ** 2, refine_floor), cap)
+        min(max(n_mixed * (REFINE_SUB + 1) ** 2, REFINE_FLOOR), cap)
         if refine_rays is None
         else int(refine_rays)
     )

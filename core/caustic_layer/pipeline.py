@@ -117,7 +117,7 @@ def bake(
         budgets = [RayBudget(int(grid[0]), int(grid[1])) for _ in sources]
         pixels = [math.inf] * len(sources)
     else:
-        coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16, probe=True)
+        coarse = trace_beams([(s.emitter, s.lens) for s in sources], 4, 16)
         own = [s.own_object for s in sources]
         # the rays go where the bulk of the flux is; the texels span nearly all of it
         extents, spans, near = caustic_extents(
