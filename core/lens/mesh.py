@@ -41,9 +41,11 @@ SMOOTH_COS = 0.9999
 #: The sine of a fold between two faces below which `MeshLens.convex` calls them flat.
 FLAT_SIN = 1e-4
 _HASH = np.uint64(1_000_003)
-#: Rays from which a walk is split over threads (≥ half of them each): below ~2 000
-#: rays a block's numpy steps are too short for the GIL's hand-overs to pay.
-WALK_ROWS = 4096
+#: Rays from which a walk is split over threads (≥ half of them each). A walk's steps
+#: are many short numpy calls on the rays still walking (the Python between them holds
+#: the GIL): at a Generate's ~17 000 rays two threads took as long as one, with up to
+#: 25 % more CPU (bench glass_generate_speed, issue 25), so only far larger walks split.
+WALK_ROWS = 1 << 17
 
 
 def canonical_order(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import parallel, triangle_bvh
+from . import parallel
 from .triangle_bvh import (
     Hits,
     TriangleBvh,
@@ -44,6 +44,11 @@ STEPS = 12
 #: 12 % (1 984 triangles) and 34 % (19 800) fewer; 24 gained nothing more.
 MAP_PER_TRIANGLE = 12.0
 MAP_SIDE = 256
+#: Rays from which the walks are split over threads: a walk's steps are short numpy
+#: calls on the rays still walking, the Python between them holding the GIL (as
+#: `core.lens.mesh.WALK_ROWS`, which calls this with the whole first wave: ~17 000 rays
+#: in a Generate, where two threads cost more CPU and no less wall time).
+THREAD_ROWS = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -241,7 +246,6 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
             for col, val in zip(out, (hb.triangle, hb.t, hb.u, hb.v), strict=True):
                 col[ray] = val
 
-    # the BVH's knob: below it, one thread
-    parallel.map_slices(run, n, min_rows=triangle_bvh.THREAD_ROWS)
+    parallel.map_slices(run, n, min_rows=THREAD_ROWS)
     point = o + np.where(np.isfinite(tt), tt, 0.0)[:, None] * d
     return Hits(triangle=tri, t=tt, u=uu, v=vv, point=point)

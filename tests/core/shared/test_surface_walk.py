@@ -156,15 +156,16 @@ def test_edge_neighbours_and_open_edges():
 
 
 def test_blocks_in_threads_give_the_same_hits(monkeypatch):
-    from core.shared import parallel, triangle_bvh
+    from core.shared import parallel, surface_walk
 
     verts, tris, _ = MESHES["lens"]()
     walk = build_walk(build_bvh(verts, tris))
     rng = np.random.default_rng(6)
     for o, d, side in _scatter(verts, rng, 3000):
         one = intersect_convex(walk, o, d, side)
-        monkeypatch.setattr(triangle_bvh, "THREAD_ROWS", 500)
+        monkeypatch.setattr(surface_walk, "THREAD_ROWS", 500)
         monkeypatch.setattr(parallel, "cores", lambda: 4)
+        assert parallel.workers(len(o), surface_walk.THREAD_ROWS) > 1
         split = intersect_convex(walk, o, d, side)
         monkeypatch.undo()
         np.testing.assert_array_equal(split.triangle, one.triangle)
