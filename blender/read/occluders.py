@@ -182,33 +182,29 @@ class Occluders:
         vlen = np.sqrt(np.sum(v * v, axis=1))
         ok = (np.all(np.isfinite(o), axis=1) & (vlen > 0)).tolist()
         near = best.tolist()  # the running best, for skipping boxes
-        trees = {}
+        # per ray only Python floats and lists (the loop runs ~1 000 times a live
+        # update): each pair's tree looked up once per box, the ray handed to the BVH
+        # in `Vector`s
+        tree_of = [None] * len(self.source_index)  # (built when a ray first needs it)
+        source_of = self.source_index.tolist()
         hit_pairs, hit_locs = [], []
-        for p, (r, n, e, lo, lv, ln) in enumerate(
-            zip(
-                ray.tolist(),
-                box.tolist(),
-                enter.tolist(),
-                o.tolist(),
-                v.tolist(),
-                vlen.tolist(),
-                strict=True,
-            )
-        ):
-            if e >= near[r] or not ok[p]:
+        ray_l, box_l, enter_l = ray.tolist(), box.tolist(), enter.tolist()
+        o_l, v_l, len_l = o.tolist(), v.tolist(), vlen.tolist()
+        for p in range(len(ray_l)):
+            r = ray_l[p]
+            if enter_l[p] >= near[r] or not ok[p]:
                 continue
-            s = int(self.source_index[n])
-            tree = trees.get(s)
+            tree = tree_of[box_l[p]]
             if tree is None:
-                tree = trees[s] = self.sources[s].tree()
+                tree = tree_of[box_l[p]] = self.sources[source_of[box_l[p]]].tree()
             if not tree:
                 continue
-            loc, _normal, _index, dist = tree.ray_cast(Vector(lo), Vector(lv))
+            loc, _normal, _index, dist = tree.ray_cast(Vector(o_l[p]), Vector(v_l[p]))
             if loc is None:
                 continue
             hit_pairs.append(p)
-            hit_locs.append(tuple(loc))
-            near[r] = min(near[r], dist / ln)
+            hit_locs.append(loc[:])
+            near[r] = min(near[r], dist / len_l[p])
         if hit_pairs:
             p = np.asarray(hit_pairs)
             m = self.matrices[box[p]]

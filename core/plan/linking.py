@@ -116,7 +116,8 @@ def profile_bands(
 
 def merge_bands(edges, angle, max_bands: int, close: float = math.radians(2.0)):
     """Fewer bands, each with the largest angle of those it covers."""
-    edges, angle = list(edges), list(angle)
+    # Python floats (the same doubles; numpy scalars cost ~5x per compare)
+    edges, angle = np.asarray(edges, dtype=float).tolist(), np.asarray(angle, dtype=float).tolist()
     out_e, out_a = [edges[0]], [angle[0]]
     for k in range(1, len(angle)):
         if abs(angle[k] - out_a[-1]) <= close:

@@ -76,7 +76,7 @@ from .base import (
     unblocked_columns,
     unit_rows,
 )
-from .profile_fan import FAN, FAN_FAR, fan_caustic_end, fan_fill, ray_fan
+from .profile_fan import FAN, FAN_FAR, fan_caustic_end, fan_fill, ray_fan, thinned
 from .spot_fit import FIRST_RECEIVER, FIT_RECEIVERS
 
 NAME = "EXACT_PROFILE"
@@ -496,7 +496,12 @@ def fan_profiles(
     def fan_of(D_over_R, n, rays):
         key = (D_over_R, n, rays)
         if key not in traced:
-            traced[key] = ray_fan(D_over_R, n, absorption, n_fan=rays)
+            # the far rows' fan: every other ray of the near rows' (traced first)
+            twice = traced.get((D_over_R, n, 2 * rays))
+            if twice is not None:
+                traced[key] = thinned(twice, rays)
+            else:
+                traced[key] = ray_fan(D_over_R, n, absorption, n_fan=rays)
         return traced[key]
 
     profs, batches, betweens = [], {}, []
@@ -573,13 +578,18 @@ def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
         t = (np.arange(1, step) / step)[None, :, None]
         ends = table[rows][::step]
         inner = table[rows][:-1].reshape(n, step, -1)[:, 1:]
-        inner[...] = ends[:-1, None] + t * (ends[1:] - ends[:-1])[:, None]
+        # start + t × change, written in place (no temporaries of the rows between;
+        # the same sums: addition commutes)
+        np.multiply(t, (ends[1:] - ends[:-1])[:, None], out=inner)
+        inner += ends[:-1, None]
         if slope is not None:
             s_ends = slope[rows][::step] * ends
-            product = s_ends[:-1, None] + t * (s_ends[1:] - s_ends[:-1])[:, None]
             s_inner = slope[rows][:-1].reshape(n, step, -1)[:, 1:]
-            s_inner[...] = mid
-            np.divide(product, inner, out=s_inner, where=inner > 0.0)
+            np.multiply(t, (s_ends[1:] - s_ends[:-1])[:, None], out=s_inner)
+            s_inner += s_ends[:-1, None]  # the product, then over the intensity
+            lit = inner > 0.0
+            np.divide(s_inner, inner, out=s_inner, where=lit)
+            np.copyto(s_inner, np.broadcast_to(mid, s_inner.shape), where=~lit)
 
 
 def coarse_rows(smooth: np.ndarray, Z: np.ndarray, end: float) -> np.ndarray:

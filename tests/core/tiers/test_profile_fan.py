@@ -14,6 +14,7 @@ import pytest
 from profile_measures import D_OMEGA, compare
 
 from core.tiers import exact_profile as xp
+from core.tiers import profile_fan as pf
 from core.tiers.beam_error import ExactBeam
 
 CASES = [
@@ -61,3 +62,16 @@ def test_cached_profile_is_the_fast_table_with_the_planned_flux():
     # the light's energy is made of the beam's flux (`SUMMARY_FAN` rays): the same number
     assert prof.flux == ExactBeam(1.0, 4.69, 1.0, 1.5, n_fan=xp.SUMMARY_FAN).lens_flux
     assert prof.flux == pytest.approx(fast.flux, rel=1e-5)
+
+
+@pytest.mark.parametrize("d_over_r", [1.1, 1.5, 3.0, 38.37, 1000.0])
+@pytest.mark.parametrize("n", [1.33, 1.9])
+@pytest.mark.parametrize("rays", [xp.COARSE_FAN_FAR, pf.FAN_FAR])
+def test_the_far_rows_fan_thinned_from_the_near_rows_is_the_fan_traced(d_over_r, n, rays):
+    """`profile_fan.thinned`: every other ray of the fan of twice the rays is the fan
+    traced with `rays` bit for bit (the same angles, per-ray values of their own
+    angle), its flux too: the far rows' fan need not be traced again."""
+    traced = pf.ray_fan(d_over_r, n, 0.0, n_fan=rays)
+    thin = pf.thinned(pf.ray_fan(d_over_r, n, 0.0, n_fan=2 * rays), rays)
+    for name in traced._fields:
+        np.testing.assert_array_equal(getattr(thin, name), getattr(traced, name))
