@@ -34,6 +34,7 @@ from ..lens.glass import LensOptics
 from ..phase1.point_lights import Phase1Result, take
 from ..phase1.skip_reasons import Reason, SkippedPair
 from ..scene.ray_hits import sphere_hits_bundles
+from ..shared.vectors import cross
 from ..tiers import (
     AUTO,
     CAUSTIC_LAYER,
@@ -56,7 +57,6 @@ from ..tiers.base import safe_scene_size
 from ..tiers.near_field import (
     SIDE_REACH,
     ReceiverDistance,
-    cross3,
     rim_plane_normal,
     side_plane_rays,
     side_planes,
@@ -184,9 +184,9 @@ def free_distance_behind(occluders, source, scene_size):
     c = np.asarray(source.lens_center, dtype=float)
     r = float(source.lens_radius)
     limit = COLLIMATED_DISTANCE_FACTOR * scene_size
-    side = cross3(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    side = cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
     side /= np.linalg.norm(side)
-    other = cross3(u, side)
+    other = cross(u, side)
     front = c - u * (r * 1.0001)
     origins = front + 0.9 * r * np.array([np.zeros(3), side, -side, other, -other])
     hits = occluders.first_hit(origins, -u, limit)
@@ -210,9 +210,9 @@ def receiver_distance(occluders, source, scene_size):
     c = np.asarray(source.lens_center, dtype=float)
     r = float(source.lens_radius)
     limit = COLLIMATED_DISTANCE_FACTOR * scene_size
-    side = cross3(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    side = cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
     side /= np.linalg.norm(side)
-    other = cross3(u, side)
+    other = cross(u, side)
     rim = RIM_OFFSET * r
     origins = np.array(
         [
@@ -294,9 +294,9 @@ def _frames(axis, center, radius):
     u = np.asarray(axis, dtype=float).reshape(-1, 3)
     u = u / np.sqrt(np.sum(u * u, axis=1))[:, None]
     ref = np.where((np.abs(u[:, 0]) < 0.9)[:, None], (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-    side = cross3(u, ref)
+    side = cross(u, ref)
     side /= np.sqrt(np.sum(side * side, axis=1))[:, None]
-    other = cross3(u, side)
+    other = cross(u, side)
     c = np.asarray(center, dtype=float).reshape(-1, 3)
     return u, side, other, c, np.asarray(radius, dtype=float).reshape(-1)
 

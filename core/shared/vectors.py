@@ -7,7 +7,9 @@ import numpy as np
 
 def cross(a, b) -> np.ndarray:
     """Cross products of (…, 3) arrays, or of two 3-vectors (np.cross is slow on
-    small arrays and on many short rows)."""
+    small arrays and on many short rows; numpy's products in numpy's order: the same
+    values bit for bit). Sequences (a tuple axis) are taken as arrays."""
+    a, b = np.asarray(a), np.asarray(b)
     return np.stack(
         [
             a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],

@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..scene.blender_spot import one_minus_cos_of_radius, spot_mask_integral
+from ..shared.vectors import cross
 from . import beam_error as acc
 from .spot_fit import SpotFit, SpotObjective, nelder_mead
 
@@ -150,16 +151,6 @@ SIDE_SPREAD = 0.05
 SIDE_REACH = 4.0
 
 
-def cross3(a, b) -> np.ndarray:
-    """`np.cross` of 3-vectors (the last axis; broadcast), by its own products in its
-    own order (the same values bit for bit) without its axis shuffles: a few
-    microseconds, not tens, for the handful of vectors a planned light needs."""
-    a, b = np.asarray(a), np.asarray(b)
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
 def side_plane_rays(axis, center, radius: float):
     """Bundles of four parallel rays (origins B × 4 × 3, unit directions B × 3)
     leaving the lens's surface outward along directions around the axis
@@ -167,14 +158,14 @@ def side_plane_rays(axis, center, radius: float):
     surface than the one on its axis (a wall beside the table)."""
     u = np.asarray(axis, dtype=float)
     u = u / np.linalg.norm(u)
-    side = cross3(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    side = cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
     side /= np.linalg.norm(side)
-    other = cross3(u, side)
+    other = cross(u, side)
     g = np.radians(np.repeat(SIDE_POLAR_DEG, SIDE_AZIMUTHS))
     phi = np.tile(2.0 * np.pi * np.arange(SIDE_AZIMUTHS) / SIDE_AZIMUTHS, len(SIDE_POLAR_DEG))
     radial = np.cos(phi)[:, None] * side + np.sin(phi)[:, None] * other
     d = np.cos(g)[:, None] * u + np.sin(g)[:, None] * radial
-    tangent = cross3(d, radial)  # square to d and to the radial direction
+    tangent = cross(d, radial)  # square to d and to the radial direction
     along = np.cos(g)[:, None] * radial - np.sin(g)[:, None] * u
     start = np.asarray(center, dtype=float) + d * (radius * (1.0 + 1e-4))
     e = SIDE_SPREAD * radius
@@ -203,7 +194,7 @@ def side_planes(origins, directions, hits, radius: float, known=()) -> list:
     with np.errstate(invalid="ignore"):
         reach = np.all(np.isfinite(hits), axis=1) & np.all(hits <= SIDE_REACH * radius, axis=1)
     pts = o + np.where(np.isfinite(hits), hits, 0.0)[:, :, None] * d[:, None, :]
-    nrm = cross3(pts[:, 1] - pts[:, 0], pts[:, 2] - pts[:, 0])
+    nrm = cross(pts[:, 1] - pts[:, 0], pts[:, 2] - pts[:, 0])
     length = np.linalg.norm(nrm, axis=1)
     nrm = nrm / np.where(length > 0.0, length, 1.0)[:, None]
     flat = np.abs(np.einsum("ij,ij->i", nrm, pts[:, 3] - pts[:, 0])) <= 1e-3 * radius
@@ -238,6 +229,6 @@ def rim_plane_normal(
     u = np.asarray(axis, dtype=float)
     u = u / np.linalg.norm(u)
     pts = np.asarray(origins, dtype=float)[:4] + hits[:, None] * u
-    nrm = cross3(pts[0] - pts[1], pts[2] - pts[3])
+    nrm = cross(pts[0] - pts[1], pts[2] - pts[3])
     length = float(np.linalg.norm(nrm))
     return None if length == 0.0 else nrm / length
