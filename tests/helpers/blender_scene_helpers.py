@@ -112,6 +112,47 @@ def layer_states(objects) -> dict:
     return out
 
 
+def profile_light_states() -> dict:
+    """Each Exact-profile lens light by its source light: (object, tree and image
+    pointers), its numbers (location, rotation, energy, radius), its Value nodes, its
+    table's pixels (rows × columns × RGBA)."""
+    from lens_lights.blender.build import lights
+
+    out = {}
+    for ob in bpy.data.objects:
+        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
+            continue
+        d = ob.data
+        nt = d.node_tree
+        img = nt.nodes[lights.PROFILE_TEX_NODE].image
+        px = np.empty(len(img.pixels), dtype=np.float32)
+        img.pixels.foreach_get(px)
+        nums = np.array([*ob.location, *ob.rotation_quaternion, d.energy, d.shadow_soft_size])
+        values = {n.name: n.outputs[0].default_value for n in nt.nodes if n.type == "VALUE"}
+        pointers = (ob.as_pointer(), nt.as_pointer(), img.as_pointer())
+        px = px.reshape(img.size[1], img.size[0], 4)
+        out[ob.lens_lights.source_light] = (pointers, nums, values, px)
+    return out
+
+
+def assert_profile_lights_are_generates(state):
+    """`state` (`profile_light_states`) equals what a fresh Generate makes now (live
+    update turned off first): the same lights, numbers, Value nodes and pixels."""
+    import pytest
+    from lens_lights.blender.commands.generate import generate
+
+    bpy.context.scene.lens_lights.live_update = False
+    generate(bpy.context)
+    fresh = profile_light_states()
+    assert state.keys() == fresh.keys()
+    for k, (_p, nums, values, px) in fresh.items():
+        np.testing.assert_allclose(state[k][1], nums, rtol=1e-6, atol=1e-9)
+        assert state[k][2].keys() == values.keys()
+        for name, v in values.items():
+            assert state[k][2][name] == pytest.approx(v, rel=1e-6, abs=1e-9), (k, name)
+        np.testing.assert_array_equal(state[k][3], px)
+
+
 def resting_marble(lamp_at, radius=0.5, ior=1.5):
     """Cycles, the Exact profile tier: a glass marble resting on a 20 m plane at the
     origin (its centre `radius` above it) and a point light "Lamp" at `lamp_at`.

@@ -7,6 +7,8 @@ from __future__ import annotations
 import time
 from types import SimpleNamespace
 
+import numpy as np
+
 from core.phase1.point_lights import Phase1Result
 from core.phase1.skip_reasons import Reason, SkippedPair
 from core.plan.planning import (
@@ -19,6 +21,7 @@ from core.plan.planning import (
     select_sources,
     sunk_lenses,
 )
+from core.scene.ray_hits import sphere_hits, sphere_hits_bundles
 from core.tiers import PHYSICAL, THESIS
 
 
@@ -98,3 +101,47 @@ def plan_result_per_source(
     timings["plan"] = time.perf_counter() - t
     read.occluders.release()  # the depsgraph may go away after this
     return Work(read, result, selection, plan, timings)
+
+
+class PlanesAndSpheres:
+    """Exact first hits against spheres and planes {x : n·x = d} (hit from either
+    side), bundle by bundle (`first_hit` only: planning loops over the bundles)."""
+
+    def __init__(self, centers, radii, planes):
+        self.centers = np.asarray(centers, dtype=float).reshape(-1, 3)
+        self.radii = np.asarray(radii, dtype=float)
+        self.planes = [(np.asarray(n, dtype=float), float(d)) for n, d in planes]
+        self.released = False
+
+    def first_hit(self, origins, direction, limit):
+        origins = np.asarray(origins, dtype=float).reshape(-1, 3)
+        d = np.asarray(direction, dtype=float)
+        d = d / np.linalg.norm(d)
+        best = sphere_hits(self.centers, self.radii, origins, d)
+        for n, off in self.planes:
+            dn = float(n @ d)
+            if dn == 0.0:
+                continue
+            t = (off - origins @ n) / dn
+            best = np.minimum(best, np.where(t > 1e-12, t, np.inf))
+        return np.where(best <= limit, best, np.inf)
+
+    def release(self):
+        self.released = True
+
+
+class Batched(PlanesAndSpheres):
+    """The same geometry with a batched `first_hits` (spheres by
+    `sphere_hits_bundles`): planning casts every kept source's rays at once."""
+
+    def first_hits(self, origins, directions, limit):
+        origins = np.asarray(origins, dtype=float)
+        d = np.asarray(directions, dtype=float)
+        d = d / np.linalg.norm(d, axis=1)[:, None]
+        best = sphere_hits_bundles(self.centers, self.radii, origins, d)
+        for n, off in self.planes:
+            dn = d @ n
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = (off - origins @ n) / dn[:, None]
+            best = np.minimum(best, np.where((dn[:, None] != 0) & (t > 1e-12), t, np.inf))
+        return np.where(best <= limit, best, np.inf)

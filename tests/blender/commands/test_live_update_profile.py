@@ -11,7 +11,11 @@ import time
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import resting_marble
+from blender_scene_helpers import (
+    assert_profile_lights_are_generates,
+    profile_light_states,
+    resting_marble,
+)
 from profile_measures import compare, exact_near_table
 
 from core.tiers import exact_profile as xp
@@ -37,28 +41,6 @@ def _scene():
     return sc, lamp
 
 
-def _state():
-    """Each lens light: (object, tree and image pointers), its numbers, its Value
-    nodes, its table's pixels."""
-    from lens_lights.blender.build import lights
-
-    out = {}
-    for ob in bpy.data.objects:
-        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
-            continue
-        d = ob.data
-        nt = d.node_tree
-        img = nt.nodes[lights.PROFILE_TEX_NODE].image
-        px = np.empty(len(img.pixels), dtype=np.float32)
-        img.pixels.foreach_get(px)
-        nums = np.array([*ob.location, *ob.rotation_quaternion, d.energy, d.shadow_soft_size])
-        values = {n.name: n.outputs[0].default_value for n in nt.nodes if n.type == "VALUE"}
-        pointers = (ob.as_pointer(), nt.as_pointer(), img.as_pointer())
-        px = px.reshape(img.size[1], img.size[0], 4)
-        out[ob.lens_lights.source_light] = (pointers, nums, values, px)
-    return out
-
-
 def _check_coarse_table(pixels, lamp_at):
     """The image's table (red × the energy's normalisation) against the exact
     near-field table of this geometry (D/R, the table met along the axis, by hand):
@@ -74,33 +56,18 @@ def _check_coarse_table(pixels, lamp_at):
     assert np.max(np.abs(p_shown[lit] / p_exact[lit] - 1.0)) <= 0.05
 
 
-def _equal_to_generate(state):
-    from lens_lights.blender.commands.generate import generate
-
-    bpy.context.scene.lens_lights.live_update = False
-    generate(bpy.context)
-    fresh = _state()
-    assert state.keys() == fresh.keys()
-    for k, (_p, nums, values, px) in fresh.items():
-        np.testing.assert_allclose(state[k][1], nums, rtol=1e-6, atol=1e-9)
-        assert state[k][2].keys() == values.keys()
-        for name, v in values.items():
-            assert state[k][2][name] == pytest.approx(v, rel=1e-6, abs=1e-9), name
-        np.testing.assert_array_equal(state[k][3], px)
-
-
 def test_coarse_tables_while_working_then_the_timer_gives_generates_lights(
     empty_blend, interactive, monkeypatch
 ):
     live = interactive
     monkeypatch.setattr(live, "BURST_SECONDS", 1.0)  # (a busy machine: no early refine)
     sc, lamp = _scene()
-    exact = _state()
+    exact = profile_light_states()
     sc.frame_set(3)
     f = live.LAST_FIGURES
     assert "error" not in f and f["coarse"] == 1  # one light, its table not made yet
     assert bpy.app.timers.is_registered(live.refine)
-    coarse = _state()
+    coarse = profile_light_states()
     (key,) = coarse
     assert coarse[key][0] == exact[key][0]  # the same light, tree and image: in place
     _check_coarse_table(coarse[key][3], lamp.location)
@@ -112,10 +79,10 @@ def test_coarse_tables_while_working_then_the_timer_gives_generates_lights(
     assert live.refine() is None  # done: the timer stops
     f = live.LAST_FIGURES
     assert f["why"] == "refined" and f["coarse"] == 0
-    refined = _state()
+    refined = profile_light_states()
     assert refined[key][0] == exact[key][0]
     assert not np.array_equal(refined[key][3], coarse[key][3])
-    _equal_to_generate(refined)
+    assert_profile_lights_are_generates(refined)
 
 
 def test_a_render_after_a_burst_of_frames_sees_the_exact_state(empty_blend, interactive):
@@ -130,10 +97,10 @@ def test_a_render_after_a_burst_of_frames_sees_the_exact_state(empty_blend, inte
         assert f["why"] == "refined" and f["coarse"] == 0
         sc.frame_set(2)  # a frame the render changes to: never coarse
         assert live.LAST_FIGURES["coarse"] == 0
-        rendered = _state()
+        rendered = profile_light_states()
     finally:
         live.on_render_end(sc)
-    _equal_to_generate(rendered)
+    assert_profile_lights_are_generates(rendered)
 
 
 def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
@@ -145,10 +112,10 @@ def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
     assert live.LAST_FIGURES["coarse"] == 1
     sc.lens_lights.live_update = False  # off while the coarse state shows: refined first
     assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
-    _equal_to_generate(_state())
+    assert_profile_lights_are_generates(profile_light_states())
     sc.lens_lights.live_update = True
     sc.frame_set(4)
     assert live.LAST_FIGURES["coarse"] == 1
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "saved.blend"))  # refined first
     assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
-    _equal_to_generate(_state())
+    assert_profile_lights_are_generates(profile_light_states())

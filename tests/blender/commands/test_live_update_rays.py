@@ -10,7 +10,11 @@ frame change (what the memo's own check of transforms and boxes cannot see)."""
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import resting_marble
+from blender_scene_helpers import (
+    assert_profile_lights_are_generates,
+    profile_light_states,
+    resting_marble,
+)
 
 pytestmark = pytest.mark.blender
 
@@ -53,39 +57,9 @@ def _scene(shape_key=False):
     return sc, live_update._RAYS[sc.as_pointer()]
 
 
-def _state():
-    """Each lens light by its source light: its numbers, Value nodes, table pixels."""
-    from lens_lights.blender.build import lights
-
-    out = {}
-    for ob in bpy.data.objects:
-        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
-            continue
-        d = ob.data
-        nt = d.node_tree
-        img = nt.nodes[lights.PROFILE_TEX_NODE].image
-        px = np.empty(len(img.pixels), dtype=np.float32)
-        img.pixels.foreach_get(px)
-        nums = np.array([*ob.location, *ob.rotation_quaternion, d.energy, d.shadow_soft_size])
-        values = {n.name: n.outputs[0].default_value for n in nt.nodes if n.type == "VALUE"}
-        out[ob.lens_lights.source_light] = (nums, values, px)
-    return out
-
-
 def _equal_to_generate(state):
-    from lens_lights.blender.commands.generate import generate
-
     assert set(state) == {"Resting", "Moving"}
-    bpy.context.scene.lens_lights.live_update = False
-    generate(bpy.context)
-    fresh = _state()
-    assert state.keys() == fresh.keys()
-    for k, (nums, values, px) in fresh.items():
-        np.testing.assert_allclose(state[k][0], nums, rtol=1e-6, atol=1e-9)
-        assert state[k][1].keys() == values.keys()
-        for name, v in values.items():
-            assert state[k][1][name] == pytest.approx(v, rel=1e-6, abs=1e-9), (k, name)
-        np.testing.assert_array_equal(state[k][2], px)
+    assert_profile_lights_are_generates(state)
 
 
 def test_a_frame_casts_the_moving_lamps_pair_only(empty_blend):
@@ -101,7 +75,7 @@ def test_a_frame_casts_the_moving_lamps_pair_only(empty_blend):
     # bundles and the probes looked up, its side planes not even that
     sc.frame_set(2)
     assert rays.cast == pairs // 2 and rays.reused == pairs // 2 - side + probes
-    _equal_to_generate(_state())
+    _equal_to_generate(profile_light_states())
 
 
 def _drag(ob, dz=0.0, dy=0.0):
@@ -116,7 +90,7 @@ def test_a_change_near_the_resting_lamps_pair_refreshes_it(empty_blend, change):
 
     sc, rays = _scene()
     sc.frame_set(2)
-    before = _state()
+    before = profile_light_states()
     figures = live_update.LAST_FIGURES
     if change == "table":
         _drag(bpy.data.objects["Plane"], dz=-0.05)  # the marble floats a little above it
@@ -126,9 +100,9 @@ def test_a_change_near_the_resting_lamps_pair_refreshes_it(empty_blend, change):
         bpy.data.objects["Resting"].data.energy = 400.0
         bpy.context.view_layer.update()
     assert live_update.LAST_FIGURES is not figures and "error" not in live_update.LAST_FIGURES
-    after = _state()
-    assert not np.array_equal(after["Resting"][0], before["Resting"][0]) or (
-        after["Resting"][1] != before["Resting"][1]
+    after = profile_light_states()
+    assert not np.array_equal(after["Resting"][1], before["Resting"][1]) or (
+        after["Resting"][2] != before["Resting"][2]
     )
     _equal_to_generate(after)
 
@@ -141,4 +115,4 @@ def test_a_shape_key_reshaping_the_table_in_its_box_refreshes_every_pair(empty_b
     after = np.array(floor.evaluated_get(bpy.context.evaluated_depsgraph_get()).bound_box)
     np.testing.assert_allclose(after, box, atol=1e-6)
     assert rays.reused == 0  # every bundle cast again
-    _equal_to_generate(_state())
+    _equal_to_generate(profile_light_states())

@@ -77,14 +77,21 @@ def test_refinement_traces_each_sub_grid_ray_once():
                 np.testing.assert_allclose(gp, rp, atol=1e-9)
 
 
+def _rays_into_cube(n, seed):
+    """`n` rays from above the cube (random origins) toward random points about its
+    centre (unit directions)."""
+    rng = np.random.default_rng(seed)
+    o = rng.uniform(-0.4, 0.4, (n, 3)) + [0.0, 0.0, 2.5]
+    d = np.array([0.0, 0.0, 0.5]) + rng.uniform(-0.4, 0.4, (n, 3)) - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return o, d
+
+
 def test_threaded_walk_gives_the_one_walks_branches(monkeypatch):
     """5 000 rays through a cube (internal reflections, TIR) in blocks over 3 threads:
     every field of every branch equal, bit for bit, to the walk in one thread."""
     lens = _cube_lens()
-    rng = np.random.default_rng(4)
-    o = rng.uniform(-0.4, 0.4, (5000, 3)) + [0.0, 0.0, 2.5]
-    d = np.array([0.0, 0.0, 0.5]) + rng.uniform(-0.4, 0.4, (5000, 3)) - o
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o, d = _rays_into_cube(5000, seed=4)
     monkeypatch.setattr(parallel, "cores", lambda: 1)
     one = lens.trace_branches(o, d)
     monkeypatch.setattr(parallel, "cores", lambda: 3)
@@ -103,10 +110,7 @@ def test_a_generate_sized_walk_runs_in_one_thread(monkeypatch):
     time the same, its CPU up to 25 % more: issue 25), so it walks in the calling
     thread, on two cores too."""
     lens = _cube_lens()
-    rng = np.random.default_rng(5)
-    o = rng.uniform(-0.4, 0.4, (16_640, 3)) + [0.0, 0.0, 2.5]
-    d = np.array([0.0, 0.0, 0.5]) + rng.uniform(-0.4, 0.4, (16_640, 3)) - o
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o, d = _rays_into_cube(16_640, seed=5)
     monkeypatch.setattr(parallel, "cores", lambda: 2)
     pools = []
     plain = parallel.map_slices

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from planning_reference import plan_result_per_source
+from planning_reference import Batched, PlanesAndSpheres, plan_result_per_source
 from random_scenes import random_scene
 
 from core.lens.glass import LensOptics
@@ -27,50 +27,6 @@ from core.scene.ray_hits import box_entries, box_entries_bundles, sphere_hits, s
 MODELS = ("THESIS", "PHYSICAL", "FITTED", "EXACT_PROFILE", "CAUSTIC_LAYER")
 #: numpy's vectorised arithmetic may differ from the per-source path in the last bits.
 RTOL = 1e-9
-
-
-class PlanesAndSpheres:
-    """Exact first hits against spheres and planes {x : n·x = d} (hit from either
-    side), bundle by bundle (`first_hit` only: planning loops over the bundles)."""
-
-    def __init__(self, centers, radii, planes):
-        self.centers = np.asarray(centers, dtype=float).reshape(-1, 3)
-        self.radii = np.asarray(radii, dtype=float)
-        self.planes = [(np.asarray(n, dtype=float), float(d)) for n, d in planes]
-        self.released = False
-
-    def first_hit(self, origins, direction, limit):
-        origins = np.asarray(origins, dtype=float).reshape(-1, 3)
-        d = np.asarray(direction, dtype=float)
-        d = d / np.linalg.norm(d)
-        best = sphere_hits(self.centers, self.radii, origins, d)
-        for n, off in self.planes:
-            dn = float(n @ d)
-            if dn == 0.0:
-                continue
-            t = (off - origins @ n) / dn
-            best = np.minimum(best, np.where(t > 1e-12, t, np.inf))
-        return np.where(best <= limit, best, np.inf)
-
-    def release(self):
-        self.released = True
-
-
-class Batched(PlanesAndSpheres):
-    """The same geometry with a batched `first_hits` (spheres by
-    `sphere_hits_bundles`): planning casts every kept source's rays at once."""
-
-    def first_hits(self, origins, directions, limit):
-        origins = np.asarray(origins, dtype=float)
-        d = np.asarray(directions, dtype=float)
-        d = d / np.linalg.norm(d, axis=1)[:, None]
-        best = sphere_hits_bundles(self.centers, self.radii, origins, d)
-        for n, off in self.planes:
-            dn = d @ n
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (off - origins @ n) / dn[:, None]
-            best = np.minimum(best, np.where((dn[:, None] != 0) & (t > 1e-12), t, np.inf))
-        return np.where(best <= limit, best, np.inf)
 
 
 def make_read(seed, occluder_class, *, other_primaries=False):

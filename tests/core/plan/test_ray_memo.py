@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from planning_reference import Batched
 
 from core.phase1.point_lights import compute_phase1
 from core.plan.planning import SUNK_PROBES, plan_result
@@ -16,7 +17,6 @@ from core.plan.ray_memo import RayMemo
 from core.scene.arrays import SceneArrays
 from core.scene.model import Light, Scene, Sphere, Surface
 from core.scene.primaries import PrimaryLight
-from core.scene.ray_hits import sphere_hits_bundles
 from core.tiers.near_field import SIDE_AZIMUTHS, SIDE_POLAR_DEG
 
 R = 0.5
@@ -29,15 +29,13 @@ OPTIONS = dict(
 )
 
 
-class CountingGeometry:
+class CountingGeometry(Batched):
     """Spheres and planes {x : n·x = d} with the arrays `RayMemo.start` compares (a
-    plane's offset stands in as its instance matrix), first hits by hand, the rays
-    asked for counted."""
+    plane's offset stands in as its instance matrix), first hits by hand
+    (`planning_reference.Batched`), the rays asked for counted."""
 
     def __init__(self, centers, radii, planes):
-        self.centers = np.asarray(centers, float).reshape(-1, 3)
-        self.radii = np.asarray(radii, float)
-        self.planes = [(np.asarray(n, float), float(d)) for n, d in planes]
+        super().__init__(centers, radii, planes)
         self.matrices = np.array([np.eye(4) * d for _, d in self.planes]).reshape(-1, 4, 4)
         self.box_lo = np.array([-10 * np.ones(3)] * len(self.planes)).reshape(-1, 3)
         self.box_hi = -self.box_lo
@@ -47,18 +45,7 @@ class CountingGeometry:
     def first_hits(self, origins, directions, limit):
         origins = np.asarray(origins, float)
         self.rays += origins.shape[0] * origins.shape[1]
-        d = np.asarray(directions, float)
-        d = d / np.linalg.norm(d, axis=1)[:, None]
-        best = sphere_hits_bundles(self.centers, self.radii, origins, d)
-        for n, off in self.planes:
-            dn = d @ n
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (off - origins @ n) / dn[:, None]
-            best = np.minimum(best, np.where((dn[:, None] != 0) & (t > 1e-12), t, np.inf))
-        return np.where(best <= limit, best, np.inf)
-
-    def release(self):
-        pass
+        return super().first_hits(origins, directions, limit)
 
 
 def _read(lamps, floor=0.0, wall=3.0, blocker=(5.0, 5.0, 0.5), size=None):
