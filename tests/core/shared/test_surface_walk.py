@@ -92,12 +92,9 @@ def test_ray_bounds_are_kept():
     assert np.all(got.triangle[k_all >= 0] < 0)  # the one hit each had is out of bounds
 
 
-def test_a_light_bundle_is_walked_not_traversed(monkeypatch):
-    """A point light's grid of rays over a 20 000-triangle pebble, the entering and
-    the leaving wave: the walk finds almost every hit (the BVH casts the rays that
-    miss and a few at the silhouette), the same hits as brute force on a sample."""
-    verts, tris, _ = ellipsoid_mesh((0.0, 0.0, 1.0), (0.5, 0.5, 0.25), None, 100, 100)
-    walk = build_walk(build_bvh(verts, tris))
+def _counted_casts(monkeypatch):
+    """From now on, the rays of each BVH cast the walk falls back to (its
+    `surface_walk.intersect`), in a list; and the plain function, to put back."""
     cast = []
     real = surface_walk.intersect
 
@@ -106,6 +103,16 @@ def test_a_light_bundle_is_walked_not_traversed(monkeypatch):
         return real(bvh, o, *args, **kw)
 
     monkeypatch.setattr(surface_walk, "intersect", counting)
+    return cast, real
+
+
+def test_a_light_bundle_is_walked_not_traversed(monkeypatch):
+    """A point light's grid of rays over a 20 000-triangle pebble, the entering and
+    the leaving wave: the walk finds almost every hit (the BVH casts the rays that
+    miss and a few at the silhouette), the same hits as brute force on a sample."""
+    verts, tris, _ = ellipsoid_mesh((0.0, 0.0, 1.0), (0.5, 0.5, 0.25), None, 100, 100)
+    walk = build_walk(build_bvh(verts, tris))
+    cast, real = _counted_casts(monkeypatch)
     light = np.array([0.3, 0.2, 4.0])
     ii, pp = np.meshgrid(np.linspace(0.0, 0.2, 65), np.linspace(0, 2 * np.pi, 256), indexing="ij")
     axis = np.array([-0.3, -0.2, -3.0]) / np.linalg.norm([-0.3, -0.2, -3.0])
@@ -205,14 +212,7 @@ def test_a_tilted_pebble_is_walked_in_its_own_frame(monkeypatch):
     walk = build_walk(build_bvh(verts, tris))
     # each of the walk's axes is one of the pebble's (|cos| 1 with exactly one)
     np.testing.assert_allclose(np.sort(np.abs(walk.axes.T @ rot), axis=1)[:, -1], 1.0, atol=1e-6)
-    cast = []
-    real = surface_walk.intersect
-
-    def counting(bvh, o, *args, **kw):
-        cast.append(len(o))
-        return real(bvh, o, *args, **kw)
-
-    monkeypatch.setattr(surface_walk, "intersect", counting)
+    cast, real = _counted_casts(monkeypatch)
     rng = np.random.default_rng(5)
     light = np.array([0.4, -0.3, 3.0])
     target = rng.uniform(-0.55, 0.55, (4000, 3)) * [1, 1, 0.3] + [0, 0, 1.0]
