@@ -66,12 +66,13 @@ from ..read.receivers import read_receivers
 EEVEE_ENGINES = frozenset(k for k, v in ENGINE_NAMES.items() if v == "EEVEE")
 
 
-def prepare(depsgraph, work, options: dict, live=None):
+def prepare(depsgraph, work, options: dict, live=None, full_plan=None):
     """Stage 1's layer part (changes nothing); returns `work` with ``receivers`` and
     ``layer_bake`` (None: no layer tier or nothing to bake). ``live``
     (`core.caustic_layer.live.LiveLayer`, live update while the user drags): the
     coarse layer in the last full bake's rasters when it can stand for it
-    (``layer_bake.coarse``), else the full bake."""
+    (``layer_bake.coarse``), else the full bake, of the plan ``full_plan()`` when
+    given (`work`'s was made for a coarse layer: `pipeline.plan_scene`)."""
     work.receivers = work.layer_bake = None
     read = work.read
     spheres = builds_layer(options.get("energy_model")) and bool(work.plan.lights)
@@ -131,6 +132,8 @@ def prepare(depsgraph, work, options: dict, live=None):
             work.layer_bake.names, work.layer_bake.receivers_key = names, receivers
             work.timings["coarse layer"] = time.perf_counter() - t
             return work
+        if full_plan is not None:
+            return prepare(depsgraph, full_plan(), options)
     work.layer_bake = bake(
         sources,
         work.receivers.mesh,

@@ -463,7 +463,7 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.restore(scene)
             made = layer_stage.build(scene, work)
             cycles_caustics.after_build(scene, plan, read, len(made))
-            figures.update(created=len(made), rebuilt=True)
+            figures.update(created=len(made), rebuilt=True, coarse=is_coarse)
         elif figures.pop("other_pairs", False):  # other lenses lit: Cycles' switches
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, figures["updated"])

@@ -65,7 +65,9 @@ def plan_scene(
 
     `unless(read)`, when given, is asked right after the read: True stops there (the
     read's occluders released) and None is returned. ``layer_live``: live update's
-    coarse layer state (`layer_stage.prepare`); ``rays``: its planner rays of the
+    coarse layer state (`layer_stage.prepare`; with it, the Fitted spots standing for
+    the layer's sources skip their near-field fits while the layer is the coarse
+    one); ``rays``: its planner rays of the
     last updates (`core.plan.ray_memo.RayMemo`)."""
     timings = {} if timings is None else timings
     t = time.perf_counter()
@@ -77,5 +79,25 @@ def plan_scene(
     t = time.perf_counter()
     result = compute_phase1_primaries(read.arrays, read.primary_lights)
     timings["phase1"] = time.perf_counter() - t
-    work = plan_result(read, result, options, timings, preselect_factor=PRESELECT_FACTOR, rays=rays)
-    return layer_stage.prepare(depsgraph, work, options, layer_live)
+
+    def plan(near_fits=True, release=True):
+        return plan_result(
+            read,
+            result,
+            options,
+            timings,
+            preselect_factor=PRESELECT_FACTOR,
+            rays=rays,
+            near_fits=near_fits,
+            release=release,
+        )
+
+    if layer_live is None:
+        return layer_stage.prepare(depsgraph, plan(), options)
+    # A coarse layer's spots only rank its sources: no near-field fits (the full
+    # plan when the coarse layer cannot stand for the full one after all).
+    work = plan(near_fits=False, release=False)
+    try:
+        return layer_stage.prepare(depsgraph, work, options, layer_live, plan)
+    finally:
+        read.occluders.release()

@@ -595,6 +595,8 @@ def plan_result(
     *,
     preselect_factor: int = PRESELECT_FACTOR,
     rays: RayMemo | None = None,
+    near_fits: bool = True,
+    release: bool = True,
 ) -> Work:
     """The pre-selection and the plan for phase 1's `result` on a scene read
     (`read.arrays`, `primaries`, `lens_optics`, names, `scene_size`, `bounds`,
@@ -621,7 +623,11 @@ def plan_result(
     (tests/core/plan/test_planning_speed_equivalence.py).
 
     `rays` (live update): the bundles cast before on the same geometry are not cast
-    again (`ray_memo.RayMemo`: the pairs whose lens and axis did not change)."""
+    again (`ray_memo.RayMemo`: the pairs whose lens and axis did not change).
+    ``near_fits=False`` (live update's coarse Caustic layer): the table makers that
+    take receivers skip their near-field fits (`fitted.make_table`). ``release=False``:
+    the read's occluders stay for a second plan of the same read (the caller releases
+    them)."""
     timings = {} if timings is None else timings
     occ = read.occluders
     if rays is not None:
@@ -666,13 +672,14 @@ def plan_result(
         kept = _rank(first, names_of(everything), min_b, max_lights, plan.skipped)
         kept = _without_sunk(read, occ, table, kept, names_of(kept), plan.skipped)
         timings["plan first"] = time.perf_counter() - t
-        lights = _final_lights(read, occ, selection, cols, kept, tier, model, common)
+        lights = _final_lights(read, occ, selection, cols, kept, tier, model, common, near_fits)
         names = names_of(kept)
         for k in _rank(lights, names, min_b, max_lights, plan.skipped).tolist():
             src = selection.sources[int(kept[k])]
             plan.lights.append(PlannedLight(src, lights.get(k), *names(k)))
     timings["plan"] = time.perf_counter() - t
-    read.occluders.release()  # the depsgraph may go away after this
+    if release:
+        read.occluders.release()  # the depsgraph may go away after this
     return Work(read, result, selection, plan, timings)
 
 
@@ -723,7 +730,9 @@ class _KeptLights:
         return bl
 
 
-def _final_lights(read, occ, selection, cols, rows, tier, model, common) -> _KeptLights:
+def _final_lights(
+    read, occ, selection, cols, rows, tier, model, common, near_fits=True
+) -> _KeptLights:
     """The lights of the selection's `rows` with their rays against `occ` (the read's
     occluders, or their `RayMemo` view) (`plan_result`): the tier's table maker for
     `RECEIVER_TABLES`, else its per-source maker."""
@@ -743,7 +752,12 @@ def _final_lights(read, occ, selection, cols, rows, tier, model, common) -> _Kep
             },
         )
         lights = tier.make_table(
-            sub, picked.effective(sub), **common, collimated_distance=far, receiver_distance=recv
+            sub,
+            picked.effective(sub),
+            **common,
+            collimated_distance=far,
+            receiver_distance=recv,
+            near_fits=near_fits,
         )
         return _KeptLights(lights, None, f)
     sources = [selection.sources[r] for r in rows.tolist()]

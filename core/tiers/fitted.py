@@ -317,13 +317,16 @@ def make_table(
     scene_size: float = 1.0,
     collimated_distance=None,
     receiver_distance=None,
+    near_fits: bool = True,
     **_ignored,
 ) -> LightTable:
     """:func:`make_light` for every source of a `phase1.SourceTable` at once.
     `collimated_distance`: a number or one per source (None or 0: the default);
     `receiver_distance`: None (no receiver known: no near-field fits) or one per
     source (NaN: unknown), the near-field rows fitted one distinct geometry at a
-    time (:func:`.near_field.receiver_fit`, remembered)."""
+    time (:func:`.near_field.receiver_fit`, remembered). ``near_fits=False``: the
+    receivers' distances without those fits (live update's coarse Caustic layer,
+    whose spots only rank its sources: the fits cost ~60 ms per new geometry)."""
     axis = unit_rows(table.axis)
     R, D = table.lens_radius, table.distance
     unblocked, full = unblocked_columns(table)
@@ -348,6 +351,7 @@ def make_table(
         z_recv = np.where(rd != 0.0, rd / R, np.nan)
         with np.errstate(invalid="ignore"):
             near = np.isfinite(z_recv) & ((z_recv <= NEAR_FIELD) | (apex > z_recv - APEX_CLEARANCE))
+        near &= near_fits
         if near.any():
             apex, intensity, half, blend = (
                 np.array(x, dtype=float) for x in (apex, intensity, half, blend)

@@ -8,7 +8,17 @@ import time
 import bpy
 import numpy as np
 import pytest
-from blender_scene_helpers import basic_scene, generate, layer_states, set_engine
+from blender_scene_helpers import (
+    add_point_light,
+    add_sphere,
+    basic_scene,
+    generate,
+    glass_material,
+    layer_states,
+    lens_lights,
+    set_engine,
+)
+from measuring_scene import new_material
 
 pytestmark = [pytest.mark.blender, pytest.mark.usefixtures("auto_builds_lights")]
 
@@ -123,3 +133,63 @@ def test_a_mesh_of_other_rasters_is_rebuilt_not_written(empty_blend, interactive
     scene.frame_set(2)
     f = live.LAST_FIGURES
     assert f.get("rebuilt") is True  # built anew, not written into the wrong mesh
+
+
+def _fallback_spots():
+    """The layer's fallback spots (glossy receivers): name → their settings."""
+    return {
+        o.name: (tuple(o.location), o.data.energy, o.data.spot_size, o.data.spot_blend)
+        for o in lens_lights()
+        if o.type == "LIGHT"
+    }
+
+
+def test_a_coarse_layer_skips_the_near_field_fits_and_the_refine_makes_them(
+    empty_blend, interactive, monkeypatch
+):
+    # A marble resting on a metal table: its caustic lands where no layer can be drawn,
+    # so the layer's Fitted spot lights the table, fitted to it (near field: a fit of
+    # ~60 ms per new light distance). While frames follow each other the coarse layer
+    # does without those fits; the refine makes them, as Generate does.
+    from lens_lights.core.tiers import fitted
+
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 60.0)  # (only the explicit refine below)
+    bpy.ops.mesh.primitive_plane_add(size=8)
+    floor = bpy.context.object
+    metal = new_material("Metal")
+    metal.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 1.0
+    floor.data.materials.append(metal)
+    add_sphere("Marble", (0.0, 0.0, 0.5), material=glass_material())
+    lamp = add_point_light("Lamp", (0.3, 0.0, 3.0), radius=0.05)
+    for frame, loc in {1: (0.3, 0.0, 3.0), 5: (0.9, 0.4, 2.6)}.items():
+        lamp.location = loc
+        lamp.keyframe_insert("location", frame=frame)
+    scene = bpy.context.scene
+    set_engine("BLENDER_EEVEE")
+    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
+    scene.frame_set(1)
+    scene.lens_lights.live_update = True  # the full layer, at once
+    assert len(_fallback_spots()) == 1
+    fits = []
+    plain = fitted.receiver_fit
+
+    def counted(*args):
+        fits.append(args)
+        return plain(*args)
+
+    monkeypatch.setattr(fitted, "receiver_fit", counted)
+    scene.frame_set(3)
+    assert live.LAST_FIGURES.get("coarse") is True and "error" not in live.LAST_FIGURES
+    assert fits == []  # the coarse state: no near-field fit
+    coarse = _fallback_spots()
+    live.refine(scene, wait=False)
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and not f.get("coarse") and "error" not in f
+    assert len(fits) == 1  # the spot's fit to the metal table at frame 3
+    refined = _fallback_spots()
+    assert refined.keys() == coarse.keys() and refined != coarse  # the fit moved it
+    scene.lens_lights.live_update = False
+    level, _message, _ = generate()
+    assert level == "INFO"
+    assert _fallback_spots() == refined  # Generate at frame 3: the same spot

@@ -205,3 +205,37 @@ def test_hand_values_of_the_lens_light_radius_and_emission():
     cone = make_light_table(result.table, p, "THESIS", scene_size=100.0).light(0)
     assert cone.radius == pytest.approx(0.1 * (30.0 / 17.0) / 10.0)
     assert not cone.inside_lens and not plain.inside_lens
+
+
+@pytest.mark.parametrize("model", ["FITTED", "CAUSTIC_LAYER"])
+def test_a_table_without_near_field_fits_keeps_the_far_spot_and_the_receivers_blur(model):
+    # Light of radius 0.1 at D = 10 from a lens (n = 1.5, R = 1); a receiver 1.2 from
+    # the lens centre (a resting marble's table): the near field. ``near_fits=False``
+    # (live update's coarse Caustic layer) gives the spot of no receiver, with the
+    # blur z·r/D of the receiver's z = 1.2 (SPEC §10).
+    from core.tiers import TIERS
+
+    scene = Scene(
+        lights=[Light(position=(0.0, 0.0, 0.0), radius=0.1)],
+        objects=[
+            Sphere(center=(10.0, 0.0, 0.0), radius=1.0, surface=Surface(transmission=1.0, ior=1.5))
+        ],
+    )
+    table = compute_phase1(scene).table
+    p = Primaries(
+        power_w=np.array([1000.0]),
+        radius=np.array([0.1]),
+        color=np.ones((1, 3)),
+        transmission_weight=np.ones(1),
+    )
+    make = TIERS[model].make_table
+    far = make(table, p, scene_size=100.0).light(0)
+    fitted = make(table, p, scene_size=100.0, receiver_distance=np.array([1.2])).light(0)
+    coarse = make(
+        table, p, scene_size=100.0, receiver_distance=np.array([1.2]), near_fits=False
+    ).light(0)
+    assert "near field" in fitted.note and "near field" not in coarse.note
+    assert fitted.location != pytest.approx(far.location)  # the fit moved the spot
+    for name in ("location", "energy_w", "spot_size_deg", "spot_blend", "cone_half_angle_deg"):
+        assert getattr(coarse, name) == pytest.approx(getattr(far, name), rel=RTOL), name
+    assert coarse.radius == pytest.approx(0.1 * 1.2 / 10.0) == pytest.approx(fitted.radius)
