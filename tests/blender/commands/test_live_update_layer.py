@@ -29,9 +29,13 @@ def _live():
     return live_update
 
 
-def _scene():
-    _, lamp = basic_scene()
-    for frame, loc in {1: (0.0, 0.0, 4.5), 5: (0.8, 0.4, 4.3)}.items():
+def _scene(lamp=None, keys=None):
+    """The Caustic layer in EEVEE, live update on at frame 1 (the full layer); the
+    lamp (default: `basic_scene`'s) keyed at frames 1 and 5 (`keys`)."""
+    if lamp is None:
+        _, lamp = basic_scene()
+    keys = keys or {1: (0.0, 0.0, 4.5), 5: (0.8, 0.4, 4.3)}
+    for frame, loc in keys.items():
         lamp.location = loc
         lamp.keyframe_insert("location", frame=frame)
     scene = bpy.context.scene
@@ -162,14 +166,7 @@ def test_a_coarse_layer_skips_the_near_field_fits_and_the_refine_makes_them(
     floor.data.materials.append(metal)
     add_sphere("Marble", (0.0, 0.0, 0.5), material=glass_material())
     lamp = add_point_light("Lamp", (0.3, 0.0, 3.0), radius=0.05)
-    for frame, loc in {1: (0.3, 0.0, 3.0), 5: (0.9, 0.4, 2.6)}.items():
-        lamp.location = loc
-        lamp.keyframe_insert("location", frame=frame)
-    scene = bpy.context.scene
-    set_engine("BLENDER_EEVEE")
-    scene.lens_lights.energy_model = "CAUSTIC_LAYER"
-    scene.frame_set(1)
-    scene.lens_lights.live_update = True  # the full layer, at once
+    scene = _scene(lamp, {1: (0.3, 0.0, 3.0), 5: (0.9, 0.4, 2.6)})
     assert len(_fallback_spots()) == 1
     fits = []
     plain = fitted.receiver_fit
