@@ -164,9 +164,22 @@ class BeamProfile:
     #: outward, of the rays through each texel (M, K) (`_slope_table`); the light's
     #: image holds table × slope
     slope: np.ndarray | None = field(default=None, repr=False)
-    #: the image's float32 pixels per normalisation (`_profile_dict`): a table read
+    #: the image's float32 pixels per normalisation (`profile_dict`): a table read
     #: again (an unchanged light planned again) is not converted again
     pixel_cache: dict = field(default_factory=dict, repr=False, compare=False)
+    #: a coarse table of live update (`fan_profiles` ``lazy``): ``(kept, todo)``, its
+    #: rows `todo` not filled yet (linear between the computed rows `kept`, as the
+    #: texture reads them): `profile_dict` interpolates them in the image's float32
+    #: pixels (half the bytes, no float64 pass); `complete` fills the table itself
+    pending: tuple | None = field(default=None, repr=False, compare=False)
+
+    def complete(self) -> BeamProfile:
+        """The table with every row filled (a `pending` coarse table's rows between
+        its computed ones: `_between_rows`); returns itself."""
+        if self.pending is not None:
+            _between_rows(self, *self.pending)
+            self.pending = None
+        return self
 
     @property
     def angles_deg(self) -> np.ndarray:
@@ -182,7 +195,7 @@ class BeamProfile:
         """The angular profile (K values) the light has for points at distance
         ``h`` along the axis: linear in ``v`` between rows, clamped at the ends,
         as the image texture (linear interpolation, EXTEND) does."""
-        M = self.table.shape[0]
+        M = self.complete().table.shape[0]
         v = math.log(max(h, 1e-300) / self.h_min) / math.log(self.h_max / self.h_min)
         y = min(max(v * M - 0.5, 0.0), M - 1.0)
         j = min(int(y), M - 2)
@@ -240,7 +253,7 @@ def _slope_table(prof: BeamProfile, D_over_R, n, absorption, n_fan, g_edges) -> 
     tilted against the axis the irradiance is ``E_perp (n·a + tan α ρ̂·n)`` per ray
     (``n`` its normal, ``a`` the axis, ``ρ̂`` outward), linear in ``tan α``, so this
     mean gives the exact tilted irradiance from the table's (`build_profile_nodes`'s
-    tilt correction, which reads the table × this mean: `_profile_dict`'s
+    tilt correction, which reads the table × this mean: `profile_dict`'s
     ``slope_pixels``). The apex's own rays have ``tan γ``: where no ray passes,
     that (no correction)."""
     M, K = prof.table.shape
@@ -389,7 +402,8 @@ class _Tables:
             (d, n, near, r, NEAR_DISTANCES if r is not None else PROFILE_DISTANCES, slope)
             for d, n, near, r, slope in todo
         ]
-        for key, prof in zip(todo, fan_profiles(specs, coarse=coarse), strict=True):
+        made = fan_profiles(specs, coarse=coarse, lazy=coarse)
+        for key, prof in zip(todo, made, strict=True):
             # the flux the light's energy is made of (`make_profile_light`, planned)
             prof.flux = _beam_summary(key[0], key[1])[0]
             store[key] = prof
@@ -482,11 +496,14 @@ def fan_profiles(
     absorption: float = 0.0,
     n_fan: int | None = None,
     K: int = PROFILE_ANGLES,
+    lazy: bool = False,
 ) -> list[BeamProfile]:
     """`fan_profile` for each of `specs` ``(D/R, n, near, receiver, M, slope)``, every
     table's rows in one batch of fans per fan size (`profile_fan.fan_fill`, each row
     written straight into its table); with `coarse` the coarse tables
-    (``COARSE_FAN``)."""
+    (``COARSE_FAN``), and with `lazy` too their rows between the computed ones left
+    ``pending`` (`BeamProfile.complete`; live update's: its image interpolates them,
+    `profile_dict`)."""
     gmax = math.radians(PROFILE_GAMMA_MAX_DEG)
     u_edges = np.arange(K + 1) / K
     g_edges = gmax * u_edges * u_edges
@@ -554,19 +571,32 @@ def fan_profiles(
     for prof, fluxes, between in zip(profs, flux, betweens, strict=True):
         prof.flux = fluxes[min(fluxes)]  # the dense fan's where it has rows
         if between is not None:
-            _between_rows(prof, *between, g_edges)
+            if lazy and between[1][0] > _last_row_through(prof):
+                prof.pending = between  # (beyond the rows `_fill_inside_lens` reads)
+            else:
+                _between_rows(prof, *between)
         prof.table[:, -1] = 0.0  # clamping beyond gamma_max gives 0 (`_profile_nodes`)
         if prof.slope is not None:
             _fill_inside_lens(prof, g_edges)
     return profs
 
 
-def _between_rows(prof: BeamProfile, kept, todo, g_edges) -> None:
+def _last_row_through(prof: BeamProfile) -> int:
+    """The first row whose plane no longer passes through the lens (-1: none
+    does): `_fill_inside_lens` reads the rows up to it."""
+    through = np.flatnonzero((prof.apex + prof.distances) ** 2 < 1.0)
+    return int(through[-1]) + 1 if through.size else -1
+
+
+def _between_rows(prof: BeamProfile, kept, todo) -> None:
     """A coarse table's rows `todo` (not computed: every row between two of `kept`)
     from the computed rows `kept` around them (`coarse_rows`): linear in the row
     index, as the texture reads between rows (the intensity and the intensity ×
     slope). Each run of gaps of one size in one pass, on views of its rows."""
     table, slope = prof.table, prof.slope
+    K = table.shape[1]
+    u_edges = np.arange(K + 1) / K
+    g_edges = math.radians(prof.gamma_max_deg) * u_edges * u_edges
     mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
     gap = np.diff(kept)
     starts = np.flatnonzero(np.r_[True, gap[1:] != gap[:-1]])
@@ -708,10 +738,18 @@ def _beam_summary(D_over_R: float, n: float) -> tuple[float, float]:
     return beam.lens_flux, e
 
 
-def _profile_dict(
+def profile_dict(
     prof: BeamProfile, t_ref: float, R: float, center, axis, key, receivers=()
 ) -> dict:
+    """A `ProfileLight`'s ``profile`` (`blender/build/lights.build_profile_nodes`
+    reads it) from the table `prof` normalised by `t_ref` (float32 pixels, made once
+    per table and normalisation), the lens' radius `R`, centre and `axis`, the
+    image's `key` and the tilted `receivers`."""
     pixels = prof.pixel_cache.get(t_ref)
+    if pixels is None and prof.pending is not None:
+        pixels = _pending_pixels(prof, t_ref)
+        prof.pixel_cache.clear()
+        prof.pixel_cache[t_ref] = pixels
     if pixels is None:  # (shared by every light of this table: never written to)
         # divided in float64 and rounded once into float32 (no float64 copy made)
         red = np.empty(prof.table.shape, dtype=np.float32)
@@ -756,6 +794,44 @@ def _profile_dict(
     return out
 
 
+def _pending_pixels(prof: BeamProfile, t_ref: float) -> tuple:
+    """`profile_dict`'s pixels of a coarse table with rows `pending`: its computed
+    rows divided and rounded as the complete table's are, the rows between them
+    linear in float32 (the intensity and the intensity × slope, as `_between_rows`
+    interpolates them in float64: within float32's rounding of it)."""
+    kept, todo = prof.pending
+    done = np.ones(prof.table.shape[0], dtype=bool)
+    done[todo] = False
+    rows = np.flatnonzero(done)
+    red = np.empty(prof.table.shape, dtype=np.float32)
+    red[rows] = prof.table[rows] / t_ref
+    arrays = [red]
+    if prof.slope is not None:
+        green = np.empty(prof.table.shape, dtype=np.float32)
+        green[rows] = prof.table[rows] * prof.slope[rows] / t_ref
+        arrays.append(green)
+    _linear_rows(arrays, kept)
+    return red, (arrays[1] if len(arrays) > 1 else None)
+
+
+def _linear_rows(arrays, kept) -> None:
+    """Every row of `arrays` between two of the rows `kept` (sorted), linear in the
+    row index between them; each run of gaps of one size in one pass, in place."""
+    gap = np.diff(kept)
+    starts = np.flatnonzero(np.r_[True, gap[1:] != gap[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], gap.size], strict=True):
+        step, n = int(gap[a]), int(b - a)
+        if step < 2:
+            continue
+        rows = slice(int(kept[a]), int(kept[b]) + 1)  # n gaps of `step` rows
+        for arr in arrays:
+            t = (np.arange(1, step, dtype=arr.dtype) / arr.dtype.type(step))[None, :, None]
+            ends = arr[rows][::step]
+            inner = arr[rows][:-1].reshape(n, step, -1)[:, 1:]
+            np.multiply(t, (ends[1:] - ends[:-1])[:, None], out=inner)
+            inner += ends[:-1, None]
+
+
 def _table_dict(table_key, t_ref, R, center, axis, name, planes, coarse=False) -> dict:
     """A `ProfileLight`'s ``profile``: its table from `cached_profile` (`coarse`: the
     coarse one where the exact one is not made yet, its key marked so)."""
@@ -763,10 +839,10 @@ def _table_dict(table_key, t_ref, R, center, axis, name, planes, coarse=False) -
     if prof is None and coarse:
         prof = cached_profile.coarse.get(table_key)
         if prof is not None:
-            return _profile_dict(prof, t_ref, R, center, axis, name + " coarse", planes)
+            return profile_dict(prof, t_ref, R, center, axis, name + " coarse", planes)
     if prof is None:
         prof = cached_profile(*table_key)
-    return _profile_dict(prof, t_ref, R, center, axis, name, planes)
+    return profile_dict(prof, t_ref, R, center, axis, name, planes)
 
 
 #: A shading point within this (R) of a receiver plane takes that plane's tilt
@@ -903,7 +979,7 @@ def make_profile_light(
     primary_irr = primary.intensity / D**2
     table_key = None
     if profile is not None:
-        maker = functools.partial(_profile_dict, profile, t_ref, R, center, axis, None, planes)
+        maker = functools.partial(profile_dict, profile, t_ref, R, center, axis, None, planes)
         shape = profile.table.shape
         info = (profile.gamma_max_deg, profile.h_min, profile.h_max)
     else:

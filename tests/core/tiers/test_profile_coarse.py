@@ -109,3 +109,34 @@ def test_prepare_tables_coarse_only_where_the_exact_table_is_not_made():
     assert not new.coarse and not new.profile["key"].endswith("coarse")
     exact = xp.cached_profile(*new.table_key)
     np.testing.assert_allclose(new.profile["pixels"], exact.table / t_ref, rtol=1e-6)
+
+
+def test_live_updates_coarse_table_leaves_its_rows_between_to_the_image():
+    """Live update's coarse table (`fan_profiles(lazy=True)`, what `prepare_tables`
+    makes) computes the rows the eager one computes and leaves the rows between
+    them pending: its light's pixels (red: intensity, green: intensity × slope, over
+    the normalisation) are the eager table's to float32's rounding, and the table
+    completed is the eager one bit for bit."""
+    spec = (39.5, 1.5, True, RESTING, xp.NEAR_DISTANCES, True)
+    (eager,) = xp.fan_profiles([spec], coarse=True)
+    (lazy,) = xp.fan_profiles([spec], coarse=True, lazy=True)
+    kept, todo = lazy.pending
+    assert todo.size > 100 and kept[0] < todo[0] and todo[-1] < kept[-1]
+    done = np.setdiff1d(np.arange(xp.NEAR_DISTANCES), todo)
+    np.testing.assert_array_equal(lazy.table[done], eager.table[done])
+    np.testing.assert_array_equal(lazy.slope[done], eager.slope[done])
+    t_ref = eager.flux / (2.0 * math.pi)
+    profile = xp.profile_dict(lazy, t_ref, 0.5, np.zeros(3), np.array([0.0, 0.0, -1.0]), "k")
+    red, green = profile["pixels"], profile["slope_pixels"]
+    assert red.dtype == np.float32 and green.dtype == np.float32
+    want_red = (eager.table / t_ref).astype(np.float32)
+    want_green = (eager.table * eager.slope / t_ref).astype(np.float32)
+    np.testing.assert_array_equal(red[done], want_red[done])
+    np.testing.assert_array_equal(green[done], want_green[done])
+    np.testing.assert_allclose(red, want_red, rtol=2e-6, atol=1e-6 * float(want_red.max()))
+    scale = float(np.abs(want_green).max())
+    np.testing.assert_allclose(green, want_green, rtol=0, atol=2e-6 * scale)
+    lazy.complete()
+    assert lazy.pending is None
+    np.testing.assert_array_equal(lazy.table, eager.table)
+    np.testing.assert_array_equal(lazy.slope, eager.slope)
