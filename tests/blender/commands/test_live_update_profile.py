@@ -119,3 +119,35 @@ def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "saved.blend"))  # refined first
     assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
     assert_profile_lights_are_generates(profile_light_states())
+
+
+def test_a_light_planned_while_working_waits_for_the_refine_even_with_its_exact_table(
+    empty_blend, interactive, monkeypatch
+):
+    """While the user works the lights' energies come from the coarse beam summary
+    (`exact_profile.coarse_summaries`): back on frame 1, whose exact table was made
+    when live update was turned on, the light reads that table, yet its energy is the
+    coarse summary's (its flux within 1e-5 of the exact one's, the pixels normalised
+    by it), so the refine still comes and makes the state a fresh Generate's, bit for
+    bit in its energy."""
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 0.0)
+    sc, _lamp = _scene()
+    exact = profile_light_states()
+    (key,) = exact
+    sc.frame_set(3)
+    sc.frame_set(1)  # the exact table of frame 1 is remembered
+    f = live.LAST_FIGURES
+    assert "error" not in f and f["coarse"] == 0 and f["coarse_energy"] is True
+    assert bpy.app.timers.is_registered(live.refine)
+    rough = profile_light_states()
+    # the exact table, over the coarse summary's normalisation (as the energy is)
+    np.testing.assert_allclose(rough[key][3], exact[key][3], rtol=1e-5)
+    energy = (rough[key][1][7], exact[key][1][7])
+    assert energy[0] != energy[1] and abs(energy[0] / energy[1] - 1.0) <= 1e-5
+    assert live.refine() is None
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and f["coarse"] == 0 and f["coarse_energy"] is False
+    refined = profile_light_states()
+    assert refined[key][1][7] == exact[key][1][7]  # the energy, bit for bit
+    assert_profile_lights_are_generates(refined)
