@@ -510,7 +510,12 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
                     arrays=read.arrays,
                 )
                 pairs.append((ob, p))
-        if pairs:  # the groups follow the beams (only what differs is written)
+        # while the user works, the same lights keep the groups the last update gave
+        # them (a beam moved a little reaches the same lenses) where the refine is
+        # due anyway (a coarse table or energy): it links them again
+        keep_groups = coarse and (figures["coarse"] > 0 or rough) and m.same_set
+        figures["linking"] = "kept" if keep_groups else "linked"
+        if pairs and not keep_groups:  # the groups follow the beams (only changes written)
             lights.link_lights(
                 scene,
                 [ob for ob, _ in pairs],

@@ -151,3 +151,54 @@ def test_a_light_planned_while_working_waits_for_the_refine_even_with_its_exact_
     refined = profile_light_states()
     assert refined[key][1][7] == exact[key][1][7]  # the energy, bit for bit
     assert_profile_lights_are_generates(refined)
+
+
+def _linking():
+    """Each lens light's receiver and blocker collections: their names and members
+    (object name, link state)."""
+    out = {}
+    for ob in bpy.data.objects:
+        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
+            continue
+        parts = []
+        for coll in (ob.light_linking.receiver_collection, ob.light_linking.blocker_collection):
+            # (a CollectionObject names no object: the same order as `objects`)
+            members = (
+                [] if coll is None else zip(coll.objects, coll.collection_objects, strict=True)
+            )
+            parts.append(
+                (
+                    None if coll is None else coll.name,
+                    sorted((o.name, m.light_linking.link_state) for o, m in members),
+                )
+            )
+        out[ob.lens_lights.source_light] = parts
+    return out
+
+
+def test_while_working_the_lights_keep_their_groups_until_the_refine(
+    empty_blend, interactive, monkeypatch
+):
+    """A coarse update of the same lights leaves their linking as the last update
+    made it (`figures["linking"] == "kept"`: no beams or groups planned while the
+    user works); the refine links them again, as a fresh Generate does."""
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 0.0)
+    sc, _lamp = _scene()
+    assert live.LAST_FIGURES["linking"] == "linked"  # turned on: exact, linked
+    linked = _linking()
+    assert linked and all(parts[0][0] is not None for parts in linked.values())
+    for frame in (2, 3):
+        sc.frame_set(frame)
+        f = live.LAST_FIGURES
+        assert f["coarse"] == 1 and f["linking"] == "kept"
+        assert _linking() == linked
+    assert live.refine() is None
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and f["linking"] == "linked"
+    refined = _linking()
+    from lens_lights.blender.commands.generate import generate
+
+    sc.lens_lights.live_update = False
+    generate(bpy.context)
+    assert _linking() == refined
