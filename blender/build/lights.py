@@ -147,10 +147,13 @@ def _is_profile_image(img) -> bool:
     return img.get(COLLECTION_MARK) == PROFILE_MARK
 
 
-def profile_image(profile: dict, image_cache: dict | None = None):
+def profile_image(profile: dict, image_cache: dict | None = None, pack: bool = True):
     """The float image of an EXACT_PROFILE table (`ProfileLight.profile`), reusing
     a marked image with the same key and size (from `image_cache`, then from
-    `bpy.data`); a table without a key gets an image of its own."""
+    `bpy.data`); a table without a key gets an image of its own. A new image is
+    packed at once unless `pack` is False (live update: packed when the file is
+    saved, as its rewrites are, `pack_dirty_profile_images`; packing one as OpenEXR
+    takes about 5 ms)."""
     key = profile.get("key")
     H, K = int(profile["height"]), int(profile["width"])
     if key is not None:
@@ -167,7 +170,8 @@ def profile_image(profile: dict, image_cache: dict | None = None):
     img.colorspace_settings.name = "Non-Color"
     img.use_half_precision = False
     write_profile_pixels(img, profile)
-    img.pack()  # kept in the .blend (as OpenEXR)
+    if pack:
+        img.pack()  # kept in the .blend (as OpenEXR)
     if image_cache is not None and key is not None:
         image_cache[key] = img
     return img
@@ -547,8 +551,8 @@ def _update_profile_in_place(data, profile: dict, image_cache) -> bool:
             img = old
             if image_cache is not None:
                 image_cache[key] = img
-        else:
-            img = profile_image(profile, image_cache)
+        else:  # (shared: a new image, packed when the file is saved)
+            img = profile_image(profile, image_cache, pack=False)
     if tex.image != img:
         tex.image = img
     return True
