@@ -467,6 +467,10 @@ PROFILE_SIGNATURE = "lens_lights_profile_signature"
 PROFILE_VALUES = "lens_lights_profile_values"
 MASKED = "lens_lights_masked"
 MASK_SIGNATURE = "lens_lights_mask_signature"
+#: A light's data whose energy live update wrote from the coarse beam summary
+#: (`exact_profile.coarse_summaries`): the refine writes the exact energy however
+#: close it is (`_put`'s tolerance would keep the coarse one).
+COARSE_ENERGY = "lens_lights_coarse_energy"
 
 
 def _profile_signatures(profile: dict) -> tuple[str, str]:
@@ -570,7 +574,14 @@ def apply_light(ob, planned, image_cache=None, arrays=None) -> bool:
     was built or rewritten."""
     bl = planned.light
     data = ob.data
-    _put(data, "energy", bl.energy_w)
+    coarse_energy = bool(getattr(bl, "coarse_energy", False))
+    if data.get(COARSE_ENERGY) and not coarse_energy:
+        data.energy = bl.energy_w  # the exact energy, however close the coarse one
+        del data[COARSE_ENERGY]
+    else:
+        _put(data, "energy", bl.energy_w)
+        if coarse_energy and not data.get(COARSE_ENERGY):
+            data[COARSE_ENERGY] = True
     _put(data, "color", bl.color)
     _put(data, "spot_size", math.radians(bl.spot_size_deg))
     _put(data, "spot_blend", bl.spot_blend)
