@@ -91,6 +91,7 @@ depsgraph has them) or Generate. Figures of the last update: `LAST_FIGURES`.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import time
 import traceback
@@ -426,9 +427,13 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
     rays = _RAYS.setdefault(scene.as_pointer(), RayMemo())
     if force or _geometry_changed(scene, depsgraph):
         rays.clear()  # (its own check sees transforms and boxes, not a mesh's shape)
-    work = pipeline.plan_scene(
-        depsgraph, scene, options, timings=timings, unless=unchanged, layer_live=live, rays=rays
-    )
+    # while the user works the Exact profile's lights take the coarse beam summary
+    # (their energies: refined with the tables)
+    rough = exact_profile.coarse_summaries() if coarse else contextlib.nullcontext()
+    with rough:
+        work = pipeline.plan_scene(
+            depsgraph, scene, options, timings=timings, unless=unchanged, layer_live=live, rays=rays
+        )
     if work is None:  # the inputs of the last update: nothing planned
         t1 = time.perf_counter()
         return dict(
@@ -481,6 +486,9 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
         # every table the lights read, at once (coarse ones while the user works)
         t_tables = time.perf_counter()
         figures["coarse"] = exact_profile.prepare_tables([p.light for p in plan.lights], coarse)
+        # a light planned with the coarse summary waits for the refine too, its table
+        # exact or not
+        rough = any(getattr(p.light, "coarse_energy", False) for p in plan.lights)
         work.timings["tables"] = time.perf_counter() - t_tables
         for i, j in m.update:
             # with phase 1's arrays: a non-full source's profile light keeps its mask
@@ -502,7 +510,12 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
                     arrays=read.arrays,
                 )
                 pairs.append((ob, p))
-        if pairs:  # the groups follow the beams (only what differs is written)
+        # while the user works, the same lights keep the groups the last update gave
+        # them (a beam moved a little reaches the same lenses) where the refine is
+        # due anyway (a coarse table or energy): it links them again
+        keep_groups = coarse and (figures["coarse"] > 0 or rough) and m.same_set
+        figures["linking"] = "kept" if keep_groups else "linked"
+        if pairs and not keep_groups:  # the groups follow the beams (only changes written)
             lights.link_lights(
                 scene,
                 [ob for ob, _ in pairs],
@@ -521,12 +534,13 @@ def update(scene, depsgraph, force=False, coarse=False) -> dict:
             cycles_caustics.restore(scene)
             cycles_caustics.after_build(scene, plan, read, len(plan.lights))
         figures.update(updated=len(m.update), created=len(m.create), removed=len(m.remove))
-        _remember_coarse(scene, figures["coarse"] > 0)
+        _remember_coarse(scene, figures["coarse"] > 0 or rough)
+        figures["coarse_energy"] = rough
     figures["water_layers"] = _water_update(scene, work)
     _LAST_INPUTS[scene.as_pointer()] = (
         signature,
         len(scene.lens_lights.created_objects),
-        is_coarse or figures.get("coarse", 0) > 0,
+        is_coarse or figures.get("coarse", 0) > 0 or figures.get("coarse_energy", False),
     )
     t1 = time.perf_counter()
     figures.update(

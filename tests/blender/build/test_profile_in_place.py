@@ -137,3 +137,65 @@ def test_saving_packs_the_rewritten_table(empty_blend, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=path)
     img = _light().data.node_tree.nodes[lights.PROFILE_TEX_NODE].image
     np.testing.assert_array_equal(_pixels(img)[..., :3], want[..., :3])
+
+
+def test_the_values_written_in_place_reach_the_evaluated_light(empty_blend):
+    """The Value nodes are written raw and the tree updated once
+    (`_update_profile_in_place`): the next depsgraph update reports the light's
+    shading changed, as a socket's own write does (what Cycles' viewport follows),
+    and the evaluated light's tree holds the new values."""
+    from lens_lights.blender.build import lights
+    from lens_lights.blender.commands import live_update
+
+    sc, lamp = _scene()
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    bpy.context.view_layer.update()
+    ob = _light()
+    old = ob.data.node_tree.nodes[lights.H_MIN_NODE].outputs[0].default_value
+    lamp.location = (-0.6, -0.9, 4.2)
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    seen = []
+
+    def record(_scene, depsgraph):
+        seen.extend((u.id.name, u.is_updated_shading) for u in depsgraph.updates)
+
+    bpy.app.handlers.depsgraph_update_post.append(record)
+    try:
+        bpy.context.view_layer.update()
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(record)
+    assert (ob.data.name, True) in seen
+    nt = ob.data.node_tree
+    assert nt.nodes[lights.H_MIN_NODE].outputs[0].default_value != old
+    evaluated = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.node_tree
+    for node in nt.nodes:
+        if node.bl_idname == "ShaderNodeValue":
+            got = evaluated.nodes[node.name].outputs[0].default_value
+            assert got == node.outputs[0].default_value, node.name
+
+
+def test_a_new_image_made_in_place_is_packed_when_saved(empty_blend, tmp_path):
+    """A light whose image something else uses too (here the user's fake user) gets a
+    new image when its table changes; live update leaves it unpacked (packing takes
+    milliseconds an image) and saving packs it: the saved file holds its pixels."""
+    from lens_lights.blender.build import lights
+    from lens_lights.blender.commands import live_update
+
+    sc, lamp = _scene()
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    old = _light().data.node_tree.nodes[lights.PROFILE_TEX_NODE].image
+    old.use_fake_user = True  # not the light's alone: kept as it is
+    kept = _pixels(old).copy()
+    lamp.location = (-0.6, -0.9, 4.2)
+    live_update.update(sc, bpy.context.evaluated_depsgraph_get(), force=True)
+    img = _light().data.node_tree.nodes[lights.PROFILE_TEX_NODE].image
+    assert img != old and img.packed_file is None and img.is_dirty
+    np.testing.assert_array_equal(_pixels(old), kept)
+    _check_against_exact(img, lamp.location)
+    want = _pixels(img).copy()
+    path = str(tmp_path / "saved.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    assert img.packed_file is not None and not img.is_dirty
+    bpy.ops.wm.open_mainfile(filepath=path)
+    img = _light().data.node_tree.nodes[lights.PROFILE_TEX_NODE].image
+    np.testing.assert_array_equal(_pixels(img)[..., :3], want[..., :3])

@@ -119,3 +119,92 @@ def test_turning_live_update_off_or_saving_never_leaves_coarse_tables(
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "saved.blend"))  # refined first
     assert live.LAST_FIGURES["why"] == "refined" and live.LAST_FIGURES["coarse"] == 0
     assert_profile_lights_are_generates(profile_light_states())
+
+
+def test_a_light_planned_while_working_waits_for_the_refine_even_with_its_exact_table(
+    empty_blend, interactive, monkeypatch
+):
+    """While the user works the lights' energies come from the coarse beam summary
+    (`exact_profile.coarse_summaries`): back on frame 1, whose exact table was made
+    when live update was turned on, the light reads that table, yet its energy is the
+    coarse summary's (its flux within 1e-5 of the exact one's, the pixels normalised
+    by it), so the refine still comes and makes the state a fresh Generate's, bit for
+    bit in its energy."""
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 0.0)
+    sc, lamp = _scene()
+    # a dim lamp: its lens light's energy below 1 W, where a write within 1e-6 W is
+    # skipped as unchanged (`lights._put`): the refine must write it all the same
+    lamp.data.energy = 5.0
+    bpy.context.view_layer.update()
+    assert live.refine() is None
+    exact = profile_light_states()
+    (key,) = exact
+    assert exact[key][1][7] < 1.0
+    sc.frame_set(3)
+    sc.frame_set(1)  # the exact table of frame 1 is remembered
+    f = live.LAST_FIGURES
+    assert "error" not in f and f["coarse"] == 0 and f["coarse_energy"] is True
+    assert bpy.app.timers.is_registered(live.refine)
+    rough = profile_light_states()
+    # the exact table, over the coarse summary's normalisation (as the energy is)
+    np.testing.assert_allclose(rough[key][3], exact[key][3], rtol=1e-5)
+    assert abs(rough[key][1][7] / exact[key][1][7] - 1.0) <= 1e-5
+    assert live.refine() is None
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and f["coarse"] == 0 and f["coarse_energy"] is False
+    refined = profile_light_states()
+    assert_profile_lights_are_generates(refined)
+    fresh = profile_light_states()  # Generate's
+    assert refined[key][1][7] == fresh[key][1][7] == exact[key][1][7]  # bit for bit
+
+
+def _linking():
+    """Each lens light's receiver and blocker collections: their names and members
+    (object name, link state)."""
+    out = {}
+    for ob in bpy.data.objects:
+        if not ob.lens_lights.is_lens_light or ob.type != "LIGHT":
+            continue
+        parts = []
+        for coll in (ob.light_linking.receiver_collection, ob.light_linking.blocker_collection):
+            # (a CollectionObject names no object: the same order as `objects`)
+            members = (
+                [] if coll is None else zip(coll.objects, coll.collection_objects, strict=True)
+            )
+            parts.append(
+                (
+                    None if coll is None else coll.name,
+                    sorted((o.name, m.light_linking.link_state) for o, m in members),
+                )
+            )
+        out[ob.lens_lights.source_light] = parts
+    return out
+
+
+def test_while_working_the_lights_keep_their_groups_until_the_refine(
+    empty_blend, interactive, monkeypatch
+):
+    """A coarse update of the same lights leaves their linking as the last update
+    made it (`figures["linking"] == "kept"`: no beams or groups planned while the
+    user works); the refine links them again, as a fresh Generate does."""
+    live = interactive
+    monkeypatch.setattr(live, "BURST_SECONDS", 0.0)
+    sc, _lamp = _scene()
+    assert live.LAST_FIGURES["linking"] == "linked"  # turned on: exact, linked
+    linked = _linking()
+    assert linked and all(parts[0][0] is not None for parts in linked.values())
+    for frame in (2, 3):
+        sc.frame_set(frame)
+        f = live.LAST_FIGURES
+        assert f["coarse"] == 1 and f["linking"] == "kept"
+        assert _linking() == linked
+    assert live.refine() is None
+    f = live.LAST_FIGURES
+    assert f["why"] == "refined" and f["linking"] == "linked"
+    refined = _linking()
+    from lens_lights.blender.commands.generate import generate
+
+    sc.lens_lights.live_update = False
+    generate(bpy.context)
+    assert _linking() == refined
