@@ -591,10 +591,11 @@ def _accumulate_beams(members_g, ids, slot_of, fr, blur_shares, splat):
     acc = np.zeros(n_slots * side * side)
     out_acc = np.zeros(n_slots)
     cs = slot[corners]
-    same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
+    c0 = cs[:, 0]  # (columns compared: numpy's reductions along a short axis are slow)
+    same = (c0 >= 0) & (cs[:, 1] == c0) & (cs[:, 2] == c0) & (cs[:, 3] == c0) & (cflux > 0.0)
     # cells across receivers (or missing): each corner its density-weighted share
     mixed = ~same & (cflux > 0.0)
-    dsum = dens[mixed].sum(axis=1, keepdims=True)
+    dsum = _corner_sum(dens[mixed])[:, None]
     share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
     share = (share * cflux[mixed, None]).reshape(-1)
     cm = corners[mixed].reshape(-1)
@@ -991,9 +992,9 @@ def _splat_cells(
     blend into its continuous blur instead of K separate copies."""
     x, y = corner_xy  # (C, 4)
     # sub-cells per side: the quad's extent in local texels at its centre
-    tx = _local_texel(x.mean(1), fr, "u", slots)
-    ty = _local_texel(y.mean(1), fr, "v", slots)
-    size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
+    tx = _local_texel(_corner_sum(x) / 4.0, fr, "u", slots)
+    ty = _local_texel(_corner_sum(y) / 4.0, fr, "v", slots)
+    size = np.maximum(_corner_ptp(x) / tx, _corner_ptp(y) / ty)
     m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
     # A dim cell's sampling error is a small share of the image: the cells that need
     # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
@@ -1004,9 +1005,9 @@ def _splat_cells(
     total = int(np.sum(m * m))
     if total > max_subcells:  # keep memory bounded: coarser sub-cells
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
-    dsum = dens.sum(axis=1)
+    dsum = _corner_sum(dens)
     dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
-    dsum = dens.sum(axis=1)
+    dsum = _corner_sum(dens)
     # The warp's argument (x − c)/s at the corners: the bilinear sub-cells commute with
     # that affine map, so they are placed in it directly (per raster constants gathered
     # once per cell, not per sub-cell).
@@ -1060,6 +1061,24 @@ def _splat_cells(
             acc += both[:n]
             out_acc += both[n:]
     return int(first[-1])
+
+
+def _corner_sum(a) -> np.ndarray:
+    """``a.sum(axis=1)`` of (C, 4) corner values, bit for bit (numpy adds a row of four
+    in turn), without numpy's slow reduction along a short axis (as `_corner_ptp`)."""
+    s = a[:, 0] + a[:, 1]
+    s += a[:, 2]
+    s += a[:, 3]
+    return s
+
+
+def _corner_ptp(a) -> np.ndarray:
+    """``np.ptp(a, axis=1)`` of (C, 4) corner values (exact: maxima and minima), four
+    columns compared instead of a short-axis reduction (~10× faster at 25 000 cells)."""
+    c0, c1, c2, c3 = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    return np.maximum(np.maximum(c0, c1), np.maximum(c2, c3)) - np.minimum(
+        np.minimum(c0, c1), np.minimum(c2, c3)
+    )
 
 
 def _floor_index(xi, xi0, dxi) -> np.ndarray:

@@ -34,6 +34,7 @@ from .triangle_bvh import (
     no_hits,
     ray_arrays,
 )
+from .vectors import norm
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
@@ -186,7 +187,7 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
 
     wide = np.sqrt(np.maximum(walk.reach**2 - h2, 0.0) * ia)
     miss = (h2 > walk.reach**2) | (tc + wide <= t_min) | (tc - wide > t_max)
-    return start, second, miss & np.any(d != 0.0, axis=1)
+    return start, second, miss & ((d[:, 0] != 0.0) | (d[:, 1] != 0.0) | (d[:, 2] != 0.0))
 
 
 def _walk_from(walk, o, d, side, t_min, t_max, start):
@@ -195,7 +196,7 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
     tri, tt, uu, vv = no_hits(len(o))
     ray = np.arange(len(o))
     cur = start
-    dn = np.linalg.norm(d, axis=1)
+    dn = norm(d)
     prev = np.full(len(ray), -1, dtype=np.int64)
     for _ in range(STEPS):
         if len(ray) == 0:

