@@ -11,8 +11,12 @@ its centre (exact for an ellipsoid pebble, a few triangles off for a lens, a rod
 cube); from there it steps across the edge the line passes beyond (the most negative
 barycentric of the line's point on the triangle's plane), a few steps at most. The
 same ellipsoid grown to hold every vertex holds the mesh: a line that misses it surely
-misses. A ray whose walk leaves the mesh, turns to the wrong side, cycles or runs out
-of steps is cast against the BVH: the walk only ever skips a traversal. The hits
+misses; so does a line that a walk carries across a silhouette edge (one face turned
+toward it, the other away) and that passes beyond that edge's plane along the line (a
+supporting plane of the convex mesh) by more than `SILHOUETTE_MARGIN`: the rays beside
+the glass within that ellipsoid stop there. A ray whose walk leaves the mesh, turns to
+the wrong side, cycles or runs out of steps is cast against the BVH: the walk only
+ever skips a traversal. The hits
 therefore equal the BVH's (with one side asked, the BVH also stops at its first hit
 found); where a ray passes exactly through an edge or a vertex (both triangles within
 the tolerance) either triangle may be the one reported, as in the BVH.
@@ -34,10 +38,17 @@ from .triangle_bvh import (
     no_hits,
     ray_arrays,
 )
-from .vectors import norm
+from .vectors import cross, norm
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
+#: A line farther than this (times the mesh's size) beyond a silhouette edge's plane
+#: surely misses (`_beyond_silhouette`): the rays that pass beside the glass within its
+#: bounding ellipsoid stop there instead of walking all their steps, twice, and then
+#: traversing the BVH. And the least |cos| between a face and the line (times its
+#: edges' lengths) for the face to count as turned toward or away from it.
+SILHOUETTE_MARGIN = 1e-6
+SILHOUETTE_COS = 1e-6
 #: The cube map's texels per triangle, and its side at most (texels per face side).
 #: A texel holds the triangle whose centre is nearest (filled outward from those in
 #: it), so a finer map guesses the triangle under a point more often: on the
@@ -192,12 +203,16 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
 
 def _walk_from(walk, o, d, side, t_min, t_max, start):
     """(triangle, t, u, v) of the rays' walks from the triangles ``start``; triangle
-    −1 where a walk did not arrive."""
+    −1 where a walk did not arrive. And which of those surely miss the mesh: their
+    line passed beyond a silhouette edge (`_beyond_silhouette`), so no second walk
+    and no BVH cast is needed (a BVH miss: the same columns)."""
     tri, tt, uu, vv = no_hits(len(o))
+    missed = np.zeros(len(o), dtype=bool)
     ray = np.arange(len(o))
     cur = start
     dn = norm(d)
     prev = np.full(len(ray), -1, dtype=np.int64)
+    margin = SILHOUETTE_MARGIN * float(np.max(walk.half)) * walk.reach
     for _ in range(STEPS):
         if len(ray) == 0:
             break
@@ -214,8 +229,51 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
         stuck = (det == 0.0) | (np.minimum(np.minimum(w, u), v) >= -1e-12)
         stuck |= (step < 0) | (step == prev)
         go = ~good & ~stuck
+        gone = _beyond_silhouette(walk, o[ray], d[ray], dn[ray], cur, corner, step, det, go, margin)
+        missed[ray[gone]] = True
+        go &= ~gone
         ray, prev, cur = ray[go], cur[go], step[go]
-    return tri, tt, uu, vv
+    return tri, tt, uu, vv, missed
+
+
+def _beyond_silhouette(walk, o, d, dn, cur, corner, step, det, go, margin) -> np.ndarray:
+    """Which of the rows ``go`` (stepping from triangle ``cur`` across the edge opposite
+    ``corner`` to ``step``) surely miss the mesh. Where one of the edge's faces turns
+    toward the line and the other away (a silhouette edge: both clearly, not grazing),
+    the plane through the edge along the line supports the convex mesh (its normal is
+    in the edge's cone of face normals): the whole mesh lies on the side of the
+    current face's third corner. A line beyond that plane by more than ``margin``
+    (far above the triangle test's tolerances and a 'convex' mesh's float32 folds)
+    meets no triangle: the BVH would find none."""
+    out = np.zeros(len(go), dtype=bool)
+    rows = np.flatnonzero(go)
+    if len(rows) == 0:
+        return out
+    row_c = walk.bvh.packed[walk.slot[cur[rows]]]
+    row_n = walk.bvh.packed[walk.slot[step[rows]]]
+    dr = d[rows]
+    det_n = -np.einsum("ij,ij->i", dr, row_n[:, 0:3])
+    det_c = det[rows]
+    tol = SILHOUETTE_COS * dn[rows]
+    sil = ((det_c > tol * row_c[:, 12]) & (det_n < -tol * row_n[:, 12])) | (
+        (det_c < -tol * row_c[:, 12]) & (det_n > tol * row_n[:, 12])
+    )
+    rows, row_c, dr = rows[sil], row_c[sil], dr[sil]
+    if len(rows) == 0:
+        return out
+    # the current face's corners: v0, v0 + e1, v0 + e2 (corner k: w, u, v's)
+    v0 = row_c[:, 3:6]
+    corners = np.stack([v0, v0 + row_c[:, 6:9], v0 + row_c[:, 9:12]], axis=1)
+    k = corner[rows]
+    n = np.arange(len(rows))
+    a, b, inner = corners[n, (k + 1) % 3], corners[n, (k + 2) % 3], corners[n, k]
+    m = cross(b - a, dr)
+    lim = margin * norm(m)
+    s_in = np.einsum("ij,ij->i", m, inner - a)
+    s_line = np.einsum("ij,ij->i", m, o[rows] - a)
+    beyond = ((s_in > lim) & (s_line < -lim)) | ((s_in < -lim) & (s_line > lim))
+    out[rows[beyond]] = True
+    return out
 
 
 def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
@@ -235,10 +293,10 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
         out = (tri[block], tt[block], uu[block], vv[block])  # views: written in place
         guess = start[ray]
         for _ in range(2):  # rays whose first walk did not arrive: from the second guess
-            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess)
+            *found, missed = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess)
             for col, val in zip(out, found, strict=True):
                 col[ray] = val
-            ray = ray[out[0][ray] < 0]
+            ray = ray[(out[0][ray] < 0) & ~missed]
             if len(ray) == 0:
                 break
             guess = second(ray)
