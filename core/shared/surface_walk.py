@@ -213,6 +213,8 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
     dn = norm(d)
     prev = np.full(len(ray), -1, dtype=np.int64)
     margin = SILHOUETTE_MARGIN * float(np.max(walk.half)) * walk.reach
+    # a line from inside meets the mesh: only rays from outside may pass beside it
+    outside = bool(np.any(side > 0))
     for _ in range(STEPS):
         if len(ray) == 0:
             break
@@ -229,14 +231,15 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
         stuck = (det == 0.0) | (np.minimum(np.minimum(w, u), v) >= -1e-12)
         stuck |= (step < 0) | (step == prev)
         go = ~good & ~stuck
-        gone = _beyond_silhouette(walk, o[ray], d[ray], dn[ray], cur, corner, step, det, go, margin)
-        missed[ray[gone]] = True
-        go &= ~gone
+        if outside:
+            gone = _beyond_silhouette(walk, (o, d, dn, ray), cur, corner, step, det, go, margin)
+            missed[ray[gone]] = True
+            go &= ~gone
         ray, prev, cur = ray[go], cur[go], step[go]
     return tri, tt, uu, vv, missed
 
 
-def _beyond_silhouette(walk, o, d, dn, cur, corner, step, det, go, margin) -> np.ndarray:
+def _beyond_silhouette(walk, rays, cur, corner, step, det, go, margin) -> np.ndarray:
     """Which of the rows ``go`` (stepping from triangle ``cur`` across the edge opposite
     ``corner`` to ``step``) surely miss the mesh. Where one of the edge's faces turns
     toward the line and the other away (a silhouette edge: both clearly, not grazing),
@@ -249,12 +252,13 @@ def _beyond_silhouette(walk, o, d, dn, cur, corner, step, det, go, margin) -> np
     rows = np.flatnonzero(go)
     if len(rows) == 0:
         return out
+    o, d, dn, ray = rays  # all the walk's rays, and which are walking (``go`` of these)
     row_c = walk.bvh.packed[walk.slot[cur[rows]]]
     row_n = walk.bvh.packed[walk.slot[step[rows]]]
-    dr = d[rows]
+    dr = d[ray[rows]]
     det_n = -np.einsum("ij,ij->i", dr, row_n[:, 0:3])
     det_c = det[rows]
-    tol = SILHOUETTE_COS * dn[rows]
+    tol = SILHOUETTE_COS * dn[ray[rows]]
     sil = ((det_c > tol * row_c[:, 12]) & (det_n < -tol * row_n[:, 12])) | (
         (det_c < -tol * row_c[:, 12]) & (det_n > tol * row_n[:, 12])
     )
@@ -270,7 +274,7 @@ def _beyond_silhouette(walk, o, d, dn, cur, corner, step, det, go, margin) -> np
     m = cross(b - a, dr)
     lim = margin * norm(m)
     s_in = np.einsum("ij,ij->i", m, inner - a)
-    s_line = np.einsum("ij,ij->i", m, o[rows] - a)
+    s_line = np.einsum("ij,ij->i", m, o[ray[rows]] - a)
     beyond = ((s_in > lim) & (s_line < -lim)) | ((s_in < -lim) & (s_line > lim))
     out[rows[beyond]] = True
     return out
