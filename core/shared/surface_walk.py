@@ -7,9 +7,10 @@ within its bounds (the BVH's own Möller–Trumbore test, `triangle_bvh.hit_slot
 same arithmetic and tolerances) is *the* hit: accepting it needs no search for a
 nearer one. A walk starts near the hit: where the ray's line meets the ellipsoid
 inscribed in the mesh's bounding box, looked up in a cube map of the triangles around
-its centre (exact for an ellipsoid pebble, a few triangles off for a lens, a rod or a
-cube); from there it steps across the edge the line passes beyond (the most negative
-barycentric of the line's point on the triangle's plane), a few steps at most. The
+its centre (each texel the triangle whose centre is nearest in direction: exact for
+an ellipsoid pebble, a few triangles off for a lens, a rod or a cube); from there it
+steps across the edge the line passes beyond (the most negative barycentric of the
+line's point on the triangle's plane), a few steps at most. The
 same ellipsoid grown to hold every vertex holds the mesh: a line that misses it surely
 misses; so does a line that a walk carries across a silhouette edge (one face turned
 toward it, the other away) and that passes beyond that edge's plane along the line (a
@@ -38,7 +39,7 @@ from .triangle_bvh import (
     no_hits,
     ray_arrays,
 )
-from .vectors import cross, norm
+from .vectors import column_bounds, corner_mean, cross, norm
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
@@ -50,12 +51,15 @@ STEPS = 12
 SILHOUETTE_MARGIN = 1e-6
 SILHOUETTE_COS = 1e-6
 #: The cube map's texels per triangle, and its side at most (texels per face side).
-#: A texel holds the triangle whose centre is nearest (filled outward from those in
-#: it), so a finer map guesses the triangle under a point more often: on the
-#: glass_generate_speed pebble, 12 a triangle against 3 made the walks' triangle tests
-#: 12 % (1 984 triangles) and 34 % (19 800) fewer; 24 gained nothing more.
-MAP_PER_TRIANGLE = 12.0
+#: A texel holds the triangle whose centre's direction is nearest its own among the
+#: centres in its 3 × 3 texels (`SEED_REACH`), then among its neighbours' choices
+#: (`_fill`). Before, the last centre to fall in a texel, the empty texels filled from
+#: the first neighbour found, at 12 a triangle: the speed bench's 2 000-triangle
+#: Generate walked 576 steps (hit tests of a few rays each, Python between them);
+#: with the nearest centres at 4 a triangle 149 (19 800 triangles: 611 -> 226).
+MAP_PER_TRIANGLE = 4.0
 MAP_SIDE = 256
+SEED_REACH = 1
 #: Rays from which the walks are split over threads: a walk's steps are short numpy
 #: calls on the rays still walking, the Python between them holding the GIL (as
 #: `core.lens.mesh.WALK_ROWS`, which calls this with the whole first wave: ~17 000 rays
@@ -113,7 +117,7 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     v = bvh.vertices[tris.reshape(-1)] if t else np.zeros((1, 3))
     axes = _box_axes(v)
     loc = v @ axes
-    lo, hi = loc.min(axis=0), loc.max(axis=0)
+    lo, hi = column_bounds(loc)
     center, half = axes @ (0.5 * (lo + hi)), np.maximum(0.5 * (hi - lo), 1e-300)
     walk = SurfaceWalk(bvh, across.reshape(t, 3), slot, center, half, None, 0.0, axes)
     # a hair more than the farthest vertex: rounding never makes a hit a miss
@@ -121,10 +125,11 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     m = int(np.clip(np.sqrt(t * MAP_PER_TRIANGLE / 6.0), 1, MAP_SIDE))
     cube = np.zeros((6, m, m), dtype=np.int64)
     if t:
-        cen = bvh.vertices[tris].mean(axis=1)
+        cen = corner_mean(bvh.vertices[tris])
         cube = np.full((6, m, m), -1, dtype=np.int64)
-        cube[_texel(walk.local(cen, cen)[0], m)] = np.arange(t)
-        cube = _fill(cube)
+        loc_c = walk.local(cen, cen)[0]
+        unit = loc_c / np.maximum(norm(loc_c), 1e-300)[:, None]
+        cube = _fill(_nearest_centres(_texel(loc_c, m), unit, m), unit)
     return dataclasses.replace(walk, cube=cube, reach=reach)
 
 
@@ -138,8 +143,11 @@ def _box_axes(v) -> np.ndarray:
     _, vecs = np.linalg.eigh(c.T @ c)
 
     def volume(axes):
-        return float(np.prod(np.ptp(v @ axes, axis=0) + 1e-12 * np.ptp(v, axis=0).max()))
+        lo, hi = column_bounds(v @ axes)
+        return float(np.prod(hi - lo + 1e-12 * span))
 
+    lo, hi = column_bounds(v)
+    span = (hi - lo).max()
     return vecs if volume(vecs) < 0.99 * volume(np.eye(3)) else np.eye(3)
 
 
@@ -155,18 +163,72 @@ def _texel(q, m):
     return face, i, j
 
 
-def _fill(cube):
-    """Empty texels take a neighbour's triangle (within a face); a face with none at
-    all, triangle 0 (a start far off: the walk or the BVH still finds the hit)."""
-    for _ in range(2 * cube.shape[1]):
-        if not (cube < 0).any():
+def _texel_directions(m: int) -> np.ndarray:
+    """(6, m, m, 3) the unit direction through each cube-map texel's centre (as
+    `_texel` reads them), float32."""
+    g = (np.arange(m) + 0.5) / m * 2.0 - 1.0
+    dirs = np.zeros((6, m, m, 3))
+    for f in range(6):
+        major = f // 2
+        dirs[f, ..., major] = -1.0 if f % 2 else 1.0
+        dirs[f, ..., (major + 1) % 3] = g[:, None]
+        dirs[f, ..., (major + 2) % 3] = g[None, :]
+    return (dirs / norm(dirs)[..., None]).astype(np.float32)
+
+
+def _nearest_centres(texels, centers, m: int) -> np.ndarray:
+    """(6, m, m) cube map: each texel within `SEED_REACH` texels of some triangle's
+    centre (its direction ``centers``, unit; in the texels ``texels``) holds the one
+    whose centre is nearest its own direction (not the last that fell in it: a UV
+    sphere's pole crowds a fan of thin triangles into a few texels), the others −1."""
+    face, i, j = texels
+    tri = np.arange(len(face), dtype=np.int64)
+    dirs = _texel_directions(m).reshape(-1, 3)
+    c32 = centers.astype(np.float32)
+    best = np.full(6 * m * m, -1, dtype=np.int64)
+    r = SEED_REACH
+    for di in range(-r, r + 1):
+        for dj in range(-r, r + 1):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < m) & (jj >= 0) & (jj < m)
+            to = ((face * m + ii) * m + jj)[ok]
+            cos = np.einsum("ij,ij->i", dirs[to], c32[ok])
+            # the nearest as the largest key: cos in the high bits, the triangle below
+            key = ((cos.astype(np.float64) + 1.0) * (1 << 30)).astype(np.int64) << 31
+            np.maximum.at(best, to, key | tri[ok])
+    return np.where(best >= 0, best & ((1 << 31) - 1), -1).reshape(6, m, m)
+
+
+def _fill(cube, centers):
+    """Each texel the nearest centre (direction, ``centers``) among its own and its 8
+    neighbours' (within a face), one neighbour direction after the other (so a centre
+    travels on along each pass: jump flooding's last step); texels still empty
+    from a neighbour, and a face with none at all triangle 0 (a start far off: the
+    walk or the BVH still finds the hit)."""
+    m = cube.shape[1]
+    dirs = _texel_directions(m)
+    none = len(centers)
+    c32 = np.concatenate([centers, np.zeros((1, 3))]).astype(np.float32)
+    cur = np.where(cube >= 0, cube, none)
+    cos = np.where(cur < none, np.einsum("fijk,fijk->fij", dirs, c32[cur]), -np.inf)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == 0 and dj == 0:
+                continue
+            pad = np.pad(cur, ((0, 0), (1, 1), (1, 1)), constant_values=none)
+            tri = pad[:, 1 + di : 1 + di + m, 1 + dj : 1 + dj + m]
+            c = np.einsum("fijk,fijk->fij", dirs, c32[tri])
+            better = (c > cos) & (tri < none)
+            cur = np.where(better, tri, cur)
+            cos = np.where(better, c, cos)
+    for _ in range(2 * m):
+        if not (cur == none).any():
             break
         for ax in (1, 2):
             for sh in (1, -1):
-                nb = np.roll(cube, sh, axis=ax)
-                take = (cube < 0) & (nb >= 0)
-                cube = np.where(take, nb, cube)
-    return np.maximum(cube, 0)
+                nb = np.roll(cur, sh, axis=ax)
+                cur = np.where((cur == none) & (nb < none), nb, cur)
+    return np.where(cur < none, cur, 0)
 
 
 def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):

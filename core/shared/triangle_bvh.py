@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
-from .vectors import norm
+from .vectors import column_bounds, corner_bounds, corner_mean, norm
 
 #: Rays below which a cast runs in the calling thread alone.
 THREAD_ROWS = 8192
@@ -77,9 +77,9 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
     v = np.asarray(vertices, dtype=float)
     tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     corners = v[tris]  # (T, 3, 3)
-    cen = corners.mean(axis=1)
+    cen = corner_mean(corners)
     if len(tris):
-        lo_c, hi_c = cen.min(axis=0), cen.max(axis=0)
+        lo_c, hi_c = column_bounds(cen)
     else:
         lo_c = hi_c = np.zeros(3)
     cells = ((cen - lo_c) / np.maximum(hi_c - lo_c, 1e-300) * 1023.0).astype(np.int64)
@@ -94,8 +94,9 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
     pad = tri_index < 0
     # Empty boxes are NaN: every slab comparison with them is false (±inf would let
     # every ray through), and fmin/fmax skip them in the reductions.
-    tlo = np.where(pad[:, None], np.nan, c.min(axis=1)).reshape(-1, leaf_size, 3)
-    thi = np.where(pad[:, None], np.nan, c.max(axis=1)).reshape(-1, leaf_size, 3)
+    c_lo, c_hi = corner_bounds(c)
+    tlo = np.where(pad[:, None], np.nan, c_lo).reshape(-1, leaf_size, 3)
+    thi = np.where(pad[:, None], np.nan, c_hi).reshape(-1, leaf_size, 3)
     with np.errstate(invalid="ignore"):
         lo = [np.fmin.reduce(tlo, axis=1)]
         hi = [np.fmax.reduce(thi, axis=1)]
