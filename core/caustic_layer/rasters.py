@@ -884,16 +884,26 @@ def _edges(axis, res):
     return c + s * np.sinh(xi0 + dxi * np.arange(res + 1))
 
 
-def _asinh(u):
+def _asinh(u, out=None, scratch=None):
     """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
-    a few ulps)."""
-    a = np.abs(u)
-    t = a * a  # in place from here: the same arithmetic, two temporaries, not six
+    a few ulps); into ``out`` with ``scratch`` (arrays of u's shape) if given."""
+    a = np.abs(u, out=scratch)
+    t = np.multiply(a, a, out=out)  # in place from here: the same arithmetic
     t += 1.0
     np.sqrt(t, out=t)
     t += a
     np.log(t, out=t)
     return np.copysign(t, u, out=t)
+
+
+class _SplatBuffers:
+    """A splat level's scratch arrays for one block of ``n`` sub-cells: four float,
+    two integer and two boolean (reused block after block: no fresh pages)."""
+
+    def __init__(self, n: int):
+        self.floats = [np.empty(n) for _ in range(4)]
+        self.ints = [np.empty(n, dtype=np.int64) for _ in range(2)]
+        self.bools = [np.empty(n, dtype=bool) for _ in range(2)]
 
 
 def _texel_index(x, fr, key, slots):
@@ -1026,32 +1036,74 @@ def _splat_cells(
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
-        px = _rows_matmul(xn[sel], bw.T)  # (c, q)
-        py = _rows_matmul(yn[sel], bw.T)
-        if jitter is not None:
-            a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
-            j = jitter[sel]
-            px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
-            py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
-        # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
-        w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
-        ix, iy = (
-            _floor_index(_asinh(p), x0[sel, None], dx[sel, None])
-            for p, x0, dx in ((px, xi0u, dxiu), (py, xi0v, dxiv))
-        )
-
-        def xy(move):  # the plane coordinates of the sub-cells beyond a fine raster
-            def plane(p, s, c):
-                return (
-                    p[move] * np.broadcast_to(s, p.shape)[move] + np.broadcast_to(c, p.shape)[move]
-                )
-
-            return (
-                plane(px, su[sel, None], fr["uc"][slots[sel], None]),
-                plane(py, sv[sel, None], fr["vc"][slots[sel], None]),
-            )
-
-        return _texel_sums(len(acc), len(out_acc), ix, iy, slots[sel][:, None], w, fr, xy)
+        q = len(s)
+        n, n_out, side = len(acc), len(out_acc), fr["side"]
+        outer_any = bool(np.any(fr["outer"] >= 0))
+        idx_all = np.empty(len(sel) * q, dtype=np.int64)
+        w_all = np.empty(len(sel) * q)
+        moved = []  # per block: (x, y, raster, flux) of the sub-cells beyond a fine raster
+        # in blocks of cells whose sub-cells' temporaries stay small (cache-sized, reused
+        # by the allocator: a level's whole arrays, ~6 MB each, cost their page faults
+        # every time), written into the level's arrays in order: the same elements
+        per = max(1, SPLAT_BLOCK // q)
+        buf = _SplatBuffers(min(per, len(sel)) * q)
+        for a0 in range(0, len(sel), per):
+            rs = sel[a0 : a0 + per]
+            shape = (len(rs), q)
+            px, py, t, tmp = (b[: len(rs) * q].reshape(shape) for b in buf.floats)
+            ix, iy = (b[: len(rs) * q].reshape(shape) for b in buf.ints)
+            inside, out_ = (b[: len(rs) * q].reshape(shape) for b in buf.bools)
+            span = slice(a0 * q, a0 * q + len(rs) * q)
+            w = w_all[span].reshape(shape)
+            np.matmul(xn[rs], bw.T, out=px)  # (c, q)
+            np.matmul(yn[rs], bw.T, out=py)
+            if jitter is not None:
+                a, b = _share_points(n_sub + a0 * q, shape, *(x[rs] for x in shares))
+                j = jitter[rs]
+                px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[rs, None]
+                py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[rs, None]
+            # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
+            np.matmul(dens[rs] * (flux[rs] / (0.25 * q * dsum[rs]))[:, None], bw.T, out=w)
+            for p, x0, dx, i in ((px, xi0u, dxiu, ix), (py, xi0v, dxiv, iy)):
+                _asinh(p, out=t, scratch=tmp)
+                t -= x0[rs, None]
+                t /= dx[rs, None]
+                np.floor(t, out=t)
+                np.copyto(i, t, casting="unsafe")  # (as astype(np.int64))
+            sl = slots[rs][:, None]
+            res = fr["res"].astype(np.uint64)[sl]
+            # unsigned: a negative index compares as huge (one test per side)
+            np.less(ix.view(np.uint64), res, out=inside)
+            np.less(iy.view(np.uint64), res, out=out_)
+            inside &= out_
+            np.logical_not(inside, out=out_)
+            if outer_any:  # beyond a fine raster: into its coarse one (`_texel_sums`)
+                move = out_ & (fr["outer"][sl] >= 0)
+                if np.any(move):
+                    moved.append(
+                        (
+                            px[move] * np.broadcast_to(su[rs, None], shape)[move]
+                            + np.broadcast_to(fr["uc"][sl], shape)[move],
+                            py[move] * np.broadcast_to(sv[rs, None], shape)[move]
+                            + np.broadcast_to(fr["vc"][sl], shape)[move],
+                            np.broadcast_to(fr["outer"][sl], shape)[move],
+                            w[move],
+                        )
+                    )
+                    np.copyto(w, 0.0, where=move)
+            idx = idx_all[span].reshape(shape)
+            np.multiply(sl, side, out=idx)
+            idx += iy
+            idx *= side
+            idx += ix
+            np.copyto(idx, np.broadcast_to(n + sl, shape), where=out_)
+        sums = []
+        if moved:  # as `_texel_sums`: the moved sub-cells' sums first, in their order
+            mx, my, to, mf = (np.concatenate(c) for c in zip(*moved, strict=True))
+            ix, iy = _texel_index(mx, fr, "u", to), _texel_index(my, fr, "v", to)
+            sums += _texel_sums(n, n_out, ix, iy, to, mf, fr)
+        sums.append(np.bincount(idx_all, weights=w_all, minlength=n + n_out))
+        return sums
 
     # the levels side by side in threads, their sums added in the levels' order: the
     # same additions as one level after the other
@@ -1061,6 +1113,10 @@ def _splat_cells(
             acc += both[:n]
             out_acc += both[n:]
     return int(first[-1])
+
+
+#: Sub-cells a splat level handles at once (`_splat_cells`): its temporaries 256 KB.
+SPLAT_BLOCK = 1 << 15
 
 
 def _corner_sum(a) -> np.ndarray:
