@@ -32,7 +32,7 @@ from ..shared import parallel
 from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
-from ..shared.vectors import norm
+from ..shared.vectors import dot, norm
 from .base import BranchRays, ExitRays, Lens
 from .refraction import fresnel_from_cosines, refract
 
@@ -61,7 +61,7 @@ def canonical_order(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot(a, b)
 
 
 def _unit(v):

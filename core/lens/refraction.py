@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..shared.vectors import norm
+from ..shared.vectors import dot, norm
 
 __all__ = [
     "Refraction",
@@ -23,7 +23,7 @@ __all__ = [
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot(a, b)
 
 
 @dataclass(frozen=True)

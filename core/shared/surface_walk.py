@@ -39,7 +39,7 @@ from .triangle_bvh import (
     no_hits,
     ray_arrays,
 )
-from .vectors import column_bounds, corner_mean, cross, norm
+from .vectors import column_bounds, corner_mean, cross, dot, norm
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
@@ -239,10 +239,10 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     for the rays whose first walk did not arrive. And which rays surely miss: their
     line misses the grown ellipsoid, or meets it only outside (t_min, t_max]."""
     p, q = walk.local(o, d)
-    ia = 1.0 / np.maximum(np.einsum("ij,ij->i", q, q), 1e-300)
+    ia = 1.0 / np.maximum(dot(q, q), 1e-300)
     # the line's closest approach to the centre (stable however far the origin is)
-    tc = -np.einsum("ij,ij->i", p, q) * ia
-    h2 = np.einsum("ij,ij->i", p + tc[:, None] * q, p + tc[:, None] * q)
+    tc = -dot(p, q) * ia
+    h2 = dot(p + tc[:, None] * q, p + tc[:, None] * q)
     half_chord = np.sqrt(np.maximum(1.0 - h2, 0.0) * ia)
     t = tc + np.where(side < 0, half_chord, -half_chord)
     m = walk.cube.shape[1]
@@ -318,7 +318,7 @@ def _beyond_silhouette(walk, rays, cur, corner, step, det, go, margin) -> np.nda
     row_c = walk.bvh.packed[walk.slot[cur[rows]]]
     row_n = walk.bvh.packed[walk.slot[step[rows]]]
     dr = d[ray[rows]]
-    det_n = -np.einsum("ij,ij->i", dr, row_n[:, 0:3])
+    det_n = -dot(dr, row_n[:, 0:3])
     det_c = det[rows]
     tol = SILHOUETTE_COS * dn[ray[rows]]
     sil = ((det_c > tol * row_c[:, 12]) & (det_n < -tol * row_n[:, 12])) | (
@@ -335,8 +335,8 @@ def _beyond_silhouette(walk, rays, cur, corner, step, det, go, margin) -> np.nda
     a, b, inner = corners[n, (k + 1) % 3], corners[n, (k + 2) % 3], corners[n, k]
     m = cross(b - a, dr)
     lim = margin * norm(m)
-    s_in = np.einsum("ij,ij->i", m, inner - a)
-    s_line = np.einsum("ij,ij->i", m, o[ray[rows]] - a)
+    s_in = dot(m, inner - a)
+    s_line = dot(m, o[ray[rows]] - a)
     beyond = ((s_in > lim) & (s_line < -lim)) | ((s_in < -lim) & (s_line > lim))
     out[rows[beyond]] = True
     return out

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
-from .vectors import column_bounds, corner_bounds, corner_mean, norm
+from .vectors import column_bounds, corner_bounds, corner_mean, dot, norm
 
 #: Rays below which a cast runs in the calling thread alone.
 THREAD_ROWS = 8192
@@ -329,7 +329,7 @@ def hit_slots(bvh, o, d, dn, slot):
     as :func:`moller_trumbore`."""
     row = bvh.packed[slot]
     nrm = row[:, 0:3]
-    det = -np.einsum("ij,ij->i", d, nrm)
+    det = -dot(d, nrm)
     ok = np.abs(det) > 1e-14 * row[:, 12] * dn
     inv = 1.0 / np.where(ok, det, 1.0)
     s = o - row[:, 3:6]
@@ -339,9 +339,9 @@ def hit_slots(bvh, o, d, dn, slot):
     c[:, 0] = sy * dz - sz * dy
     c[:, 1] = sz * dx - sx * dz
     c[:, 2] = sx * dy - sy * dx
-    u = np.einsum("ij,ij->i", row[:, 9:12], c) * inv
-    v = -np.einsum("ij,ij->i", row[:, 6:9], c) * inv
-    t = np.einsum("ij,ij->i", s, nrm) * inv
+    u = dot(row[:, 9:12], c) * inv
+    v = -dot(row[:, 6:9], c) * inv
+    t = dot(s, nrm) * inv
     eps = 1e-12
     ok &= (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
     return t, u, v, ok, det

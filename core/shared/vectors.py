@@ -57,3 +57,14 @@ def corner_bounds(c) -> tuple[np.ndarray, np.ndarray]:
         np.minimum(np.minimum(c[:, 0], c[:, 1]), c[:, 2]),
         np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2]),
     )
+
+
+def dot(a, b) -> np.ndarray:
+    """Dot products of (…, 3) rows (broadcast): ``np.einsum("...i,...i->...", a, b)`` in
+    the order numpy's einsum adds three products here, (x + z) + y, so the same values
+    bit for bit on this build (tested), without einsum's call overhead (~10 µs: a glass
+    walk makes about a thousand of these on short rows)."""
+    s = a[..., 0] * b[..., 0]
+    s += a[..., 2] * b[..., 2]
+    s += a[..., 1] * b[..., 1]
+    return s

@@ -5,7 +5,7 @@ planner passes (one vector, rows of vectors, rows against one vector)."""
 import numpy as np
 import pytest
 
-from core.shared.vectors import column_bounds, corner_bounds, corner_mean, cross, norm
+from core.shared.vectors import column_bounds, corner_bounds, corner_mean, cross, dot, norm
 
 
 @pytest.mark.parametrize(
@@ -55,3 +55,22 @@ def test_column_and_corner_reductions_are_numpys():
     lo, hi = column_bounds(a)
     np.testing.assert_array_equal(lo, a.min(axis=0))
     np.testing.assert_array_equal(hi, a.max(axis=0))
+
+
+@pytest.mark.parametrize(
+    "shape_a,shape_b",
+    [((20_000, 3), (20_000, 3)), ((7, 3), (7, 3)), ((500, 3, 3), (500, 1, 3)), ((100, 3), (3,))],
+)
+def test_dot_is_numpys_einsum_bit_for_bit(shape_a, shape_b):
+    """The walk's and the refraction's row dot products: np.einsum("...i,...i->...")
+    exactly (numpy 1.26 and 2.x add the three products as (x + z) + y), also on
+    strided rows (a packed BVH row's columns) and broadcast."""
+    rng = np.random.default_rng(17)
+    a = rng.normal(size=shape_a) * 10.0 ** rng.uniform(-5, 5, size=(*shape_a[:-1], 1))
+    b = rng.normal(size=shape_b)
+    np.testing.assert_array_equal(dot(a, b), np.einsum("...i,...i->...", a, b))
+    packed = rng.normal(size=(300, 13))
+    rows = rng.normal(size=(300, 3)) * 10.0 ** rng.uniform(-5, 5, size=(300, 1))
+    np.testing.assert_array_equal(
+        dot(packed[:, 9:12], rows), np.einsum("ij,ij->i", packed[:, 9:12], rows)
+    )
