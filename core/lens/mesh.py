@@ -32,7 +32,7 @@ from ..shared import parallel
 from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
-from ..shared.vectors import dot, norm
+from ..shared.vectors import cross, dot, norm
 from .base import BranchRays, ExitRays, Lens
 from .refraction import fresnel_from_cosines, refract
 
@@ -153,8 +153,8 @@ class MeshLens(Lens):
             np.asarray(triangles, dtype=np.int64).reshape(-1, 3), rot, axis=1
         )[order]
         corners = self.vertices[self.triangles]
-        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        self.face_normals = _unit(cross)  # outward by the winding
+        c = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        self.face_normals = _unit(c)  # outward by the winding
         if corner_normals is None:
             cn = np.repeat(self.face_normals[:, None, :], 3, axis=1)
         else:
@@ -388,7 +388,7 @@ class MeshLens(Lens):
         # The s and p powers carried into this crossing's plane of incidence: both s
         # directions are across the ray, at an angle α (cos² α of each part stays);
         # at normal incidence (no plane) the last s direction is kept.
-        s_new = np.cross(d, nrm)
+        s_new = cross(d, nrm)
         s_len = norm(s_new)
         sd = seg.s_dir  # no s direction yet (columns compared: no short-axis reduction)
         first = (sd[:, 0] == 0.0) & (sd[:, 1] == 0.0) & (sd[:, 2] == 0.0)

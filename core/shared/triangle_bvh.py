@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
-from .vectors import column_bounds, corner_bounds, corner_mean, dot, norm
+from .vectors import column_bounds, corner_bounds, corner_mean, cross, dot, norm
 
 #: Rays below which a cast runs in the calling thread alone.
 THREAD_ROWS = 8192
@@ -104,7 +104,7 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
             lo.insert(0, np.fmin(lo[0][0::2], lo[0][1::2]))
             hi.insert(0, np.fmax(hi[0][0::2], hi[0][1::2]))
     e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-    normal = np.cross(e1, e2)
+    normal = cross(e1, e2)
     edge_scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
     return TriangleBvh(
         cones=_normal_cones(c, pad, leaf_size, len(lo)),
@@ -131,7 +131,7 @@ def _normal_cones(c, pad, leaf_size, levels):
     """Per level (4, 2^ℓ): the axis (unit) and sin of the half-angle of a cone holding
     the unit winding normals of every triangle below each node; a cone of 90° or more
     (or an empty node) gets 2, never culling."""
-    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    n = cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
     n = np.where(pad[:, None], np.nan, n).reshape(-1, leaf_size, 3)
     with np.errstate(invalid="ignore"):
