@@ -467,15 +467,18 @@ def build_layer(
         ]
         # per axis the footprint's quantiles and median: the view's spans and the warp's
         qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+        orders = [_joined(slot_orders, k) for k in (0, 1)]
         quant = [
-            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, _joined(slot_orders, k))
+            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, orders[k])
             for k, c in enumerate(c_all)
         ]
         if view is not None and len(frames):
             fr["res"] = _view_resolutions(quant, pixels, res)
             fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
-        axis = _warp_axes(c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors)
+        axis = _warp_axes(
+            c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors, orders[k]
+        )
         for name, val in zip(AXIS_FIELDS, axis, strict=True):
             fr[key + name] = val
     # every raster's texels in blocks of side × side (a raster of fewer uses a corner)
@@ -844,18 +847,24 @@ def _with_coarse(res: np.ndarray, coarse: np.ndarray, res_max: int, max_texels) 
     return res
 
 
-def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel):
+def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel, order=None):
     """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
     ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
     ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median
     (``quantiles`` (n_groups, 3): those three, `grouped_interp_quantiles`); the
     warp is flattened (s grown) until the finest texel, s·dξ, is the group's
-    ``min_texel`` (or the texels are uniform)."""
+    ``min_texel`` (or the texels are uniform). ``order``: `_group_order`'s of x, if
+    known: |x − c| along it falls then rises, two runs a stable sort merges in one
+    pass (the median distance's sort ~14× faster at 64 000 landings)."""
     lo, hi, c = quantiles[:, 0], quantiles[:, 1], quantiles[:, 2]
     span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
     if warp:
-        mad = grouped_interp_quantiles(np.abs(x - c[groups]), w, groups, n_groups, (0.5,))[:, 0]
+        dist = np.abs(x - c[groups])
+        o = None
+        if order is not None:  # by group, then distance (stable: ties in x's order)
+            o = order[_group_order(dist[order], groups[order], n_groups)]
+        mad = grouped_interp_quantiles(dist, w, groups, n_groups, (0.5,), o)[:, 0]
         s = np.maximum(mad, 1e-3 * span)
     else:
         s = 1e3 * span
