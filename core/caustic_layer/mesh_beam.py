@@ -35,6 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..shared.vectors import norm
 from . import shadow
 from .emitters import angular_factor, is_isotropic
 
@@ -127,7 +128,7 @@ def rays_at(bt, rows, iota, phi, frames, emitter, parallel: bool, rays: bool = T
     # the same values as gathered per ray first
     reach = None
     if not parallel:
-        reach = bt.radius / np.maximum(np.linalg.norm(bt.center - bt.points, axis=-1), bt.radius)
+        reach = bt.radius / np.maximum(norm(bt.center - bt.points), bt.radius)
     if not rays and (parallel or is_isotropic(emitter)):
         r = bt.radius[rows]
         if parallel:

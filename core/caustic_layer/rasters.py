@@ -467,15 +467,18 @@ def build_layer(
         ]
         # per axis the footprint's quantiles and median: the view's spans and the warp's
         qs = (0.5 * clip_fraction, 1.0 - 0.5 * clip_fraction, 0.5)
+        orders = [_joined(slot_orders, k) for k in (0, 1)]
         quant = [
-            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, _joined(slot_orders, k))
+            grouped_interp_quantiles(c, w_all, gid, len(frames), qs, orders[k])
             for k, c in enumerate(c_all)
         ]
         if view is not None and len(frames):
             fr["res"] = _view_resolutions(quant, pixels, res)
             fr["res"] = _with_coarse(fr["res"], coarse_of, res, max_texels)
     for key, k in (("u", 0), ("v", 1)) if not given else ():
-        axis = _warp_axes(c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors)
+        axis = _warp_axes(
+            c_all[k], w_all, gid, len(frames), quant[k], fr["res"], warp, floors, orders[k]
+        )
         for name, val in zip(AXIS_FIELDS, axis, strict=True):
             fr[key + name] = val
     # every raster's texels in blocks of side × side (a raster of fewer uses a corner)
@@ -591,10 +594,11 @@ def _accumulate_beams(members_g, ids, slot_of, fr, blur_shares, splat):
     acc = np.zeros(n_slots * side * side)
     out_acc = np.zeros(n_slots)
     cs = slot[corners]
-    same = (cs[:, 0] >= 0) & np.all(cs == cs[:, :1], axis=1) & (cflux > 0.0)
+    c0 = cs[:, 0]  # (columns compared: numpy's reductions along a short axis are slow)
+    same = (c0 >= 0) & (cs[:, 1] == c0) & (cs[:, 2] == c0) & (cs[:, 3] == c0) & (cflux > 0.0)
     # cells across receivers (or missing): each corner its density-weighted share
     mixed = ~same & (cflux > 0.0)
-    dsum = dens[mixed].sum(axis=1, keepdims=True)
+    dsum = _corner_sum(dens[mixed])[:, None]
     share = np.where(dsum > 0.0, dens[mixed] / np.where(dsum > 0.0, dsum, 1.0), 0.25)
     share = (share * cflux[mixed, None]).reshape(-1)
     cm = corners[mixed].reshape(-1)
@@ -843,18 +847,24 @@ def _with_coarse(res: np.ndarray, coarse: np.ndarray, res_max: int, max_texels) 
     return res
 
 
-def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel):
+def _warp_axes(x, w, groups, n_groups, quantiles, res, warp, min_texel, order=None):
     """(c, s, ξ0, dξ) of one raster axis per group, each (n_groups,): texel lines at
     ``c + s·sinh(ξ0 + i·dξ)`` over the weighted quantiles ``clip_fraction/2`` and
     ``1 − clip_fraction/2`` of ``x`` (a texel of margin), centred on its median
     (``quantiles`` (n_groups, 3): those three, `grouped_interp_quantiles`); the
     warp is flattened (s grown) until the finest texel, s·dξ, is the group's
-    ``min_texel`` (or the texels are uniform)."""
+    ``min_texel`` (or the texels are uniform). ``order``: `_group_order`'s of x, if
+    known: |x − c| along it falls then rises, two runs a stable sort merges in one
+    pass (the median distance's sort ~14× faster at 64 000 landings)."""
     lo, hi, c = quantiles[:, 0], quantiles[:, 1], quantiles[:, 2]
     span = np.maximum(hi - lo, 1e-12 * (1.0 + np.abs(lo) + np.abs(hi)))
     lo, hi = lo - span / res, hi + span / res  # a texel of margin
     if warp:
-        mad = grouped_interp_quantiles(np.abs(x - c[groups]), w, groups, n_groups, (0.5,))[:, 0]
+        dist = np.abs(x - c[groups])
+        o = None
+        if order is not None:  # by group, then distance (stable: ties in x's order)
+            o = order[_group_order(dist[order], groups[order], n_groups)]
+        mad = grouped_interp_quantiles(dist, w, groups, n_groups, (0.5,), o)[:, 0]
         s = np.maximum(mad, 1e-3 * span)
     else:
         s = 1e3 * span
@@ -883,16 +893,26 @@ def _edges(axis, res):
     return c + s * np.sinh(xi0 + dxi * np.arange(res + 1))
 
 
-def _asinh(u):
+def _asinh(u, out=None, scratch=None):
     """arcsinh by its logarithm, odd by construction (twice numpy's speed; the same to
-    a few ulps)."""
-    a = np.abs(u)
-    t = a * a  # in place from here: the same arithmetic, two temporaries, not six
+    a few ulps); into ``out`` with ``scratch`` (arrays of u's shape) if given."""
+    a = np.abs(u, out=scratch)
+    t = np.multiply(a, a, out=out)  # in place from here: the same arithmetic
     t += 1.0
     np.sqrt(t, out=t)
     t += a
     np.log(t, out=t)
     return np.copysign(t, u, out=t)
+
+
+class _SplatBuffers:
+    """A splat level's scratch arrays for one block of ``n`` sub-cells: four float,
+    two integer and two boolean (reused block after block: no fresh pages)."""
+
+    def __init__(self, n: int):
+        self.floats = [np.empty(n) for _ in range(4)]
+        self.ints = [np.empty(n, dtype=np.int64) for _ in range(2)]
+        self.bools = [np.empty(n, dtype=bool) for _ in range(2)]
 
 
 def _texel_index(x, fr, key, slots):
@@ -991,9 +1011,9 @@ def _splat_cells(
     blend into its continuous blur instead of K separate copies."""
     x, y = corner_xy  # (C, 4)
     # sub-cells per side: the quad's extent in local texels at its centre
-    tx = _local_texel(x.mean(1), fr, "u", slots)
-    ty = _local_texel(y.mean(1), fr, "v", slots)
-    size = np.maximum(np.ptp(x, axis=1) / tx, np.ptp(y, axis=1) / ty)
+    tx = _local_texel(_corner_sum(x) / 4.0, fr, "u", slots)
+    ty = _local_texel(_corner_sum(y) / 4.0, fr, "v", slots)
+    size = np.maximum(_corner_ptp(x) / tx, _corner_ptp(y) / ty)
     m = np.clip(np.ceil(per_texel * size), 1, m_max).astype(np.int64)
     # A dim cell's sampling error is a small share of the image: the cells that need
     # more than ``m_free`` sub-cells per side (the wide faint halo, past the folds) get
@@ -1004,9 +1024,9 @@ def _splat_cells(
     total = int(np.sum(m * m))
     if total > max_subcells:  # keep memory bounded: coarser sub-cells
         m = np.maximum(1, (m * np.sqrt(max_subcells / total)).astype(np.int64))
-    dsum = dens.sum(axis=1)
+    dsum = _corner_sum(dens)
     dens = np.where(dsum[:, None] > 0.0, dens, 1.0)
-    dsum = dens.sum(axis=1)
+    dsum = _corner_sum(dens)
     # The warp's argument (x − c)/s at the corners: the bilinear sub-cells commute with
     # that affine map, so they are placed in it directly (per raster constants gathered
     # once per cell, not per sub-cell).
@@ -1025,32 +1045,74 @@ def _splat_cells(
         g = (np.arange(mm) + 0.5) / mm
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
-        px = _rows_matmul(xn[sel], bw.T)  # (c, q)
-        py = _rows_matmul(yn[sel], bw.T)
-        if jitter is not None:
-            a, b = _share_points(n_sub, px.shape, *(x[sel] for x in shares))
-            j = jitter[sel]
-            px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[sel, None]
-            py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[sel, None]
-        # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
-        w = _rows_matmul(dens[sel] * (flux[sel] / (0.25 * len(s) * dsum[sel]))[:, None], bw.T)
-        ix, iy = (
-            _floor_index(_asinh(p), x0[sel, None], dx[sel, None])
-            for p, x0, dx in ((px, xi0u, dxiu), (py, xi0v, dxiv))
-        )
-
-        def xy(move):  # the plane coordinates of the sub-cells beyond a fine raster
-            def plane(p, s, c):
-                return (
-                    p[move] * np.broadcast_to(s, p.shape)[move] + np.broadcast_to(c, p.shape)[move]
-                )
-
-            return (
-                plane(px, su[sel, None], fr["uc"][slots[sel], None]),
-                plane(py, sv[sel, None], fr["vc"][slots[sel], None]),
-            )
-
-        return _texel_sums(len(acc), len(out_acc), ix, iy, slots[sel][:, None], w, fr, xy)
+        q = len(s)
+        n, n_out, side = len(acc), len(out_acc), fr["side"]
+        outer_any = bool(np.any(fr["outer"] >= 0))
+        idx_all = np.empty(len(sel) * q, dtype=np.int64)
+        w_all = np.empty(len(sel) * q)
+        moved = []  # per block: (x, y, raster, flux) of the sub-cells beyond a fine raster
+        # in blocks of cells whose sub-cells' temporaries stay small (cache-sized, reused
+        # by the allocator: a level's whole arrays, ~6 MB each, cost their page faults
+        # every time), written into the level's arrays in order: the same elements
+        per = max(1, SPLAT_BLOCK // q)
+        buf = _SplatBuffers(min(per, len(sel)) * q)
+        for a0 in range(0, len(sel), per):
+            rs = sel[a0 : a0 + per]
+            shape = (len(rs), q)
+            px, py, t, tmp = (b[: len(rs) * q].reshape(shape) for b in buf.floats)
+            ix, iy = (b[: len(rs) * q].reshape(shape) for b in buf.ints)
+            inside, out_ = (b[: len(rs) * q].reshape(shape) for b in buf.bools)
+            span = slice(a0 * q, a0 * q + len(rs) * q)
+            w = w_all[span].reshape(shape)
+            np.matmul(xn[rs], bw.T, out=px)  # (c, q)
+            np.matmul(yn[rs], bw.T, out=py)
+            if jitter is not None:
+                a, b = _share_points(n_sub + a0 * q, shape, *(x[rs] for x in shares))
+                j = jitter[rs]
+                px += (a * j[:, None, 0, 0] + b * j[:, None, 1, 0]) / su[rs, None]
+                py += (a * j[:, None, 0, 1] + b * j[:, None, 1, 1]) / sv[rs, None]
+            # the m × m midpoints weigh each corner q/4 in all: the cell's flux exactly
+            np.matmul(dens[rs] * (flux[rs] / (0.25 * q * dsum[rs]))[:, None], bw.T, out=w)
+            for p, x0, dx, i in ((px, xi0u, dxiu, ix), (py, xi0v, dxiv, iy)):
+                _asinh(p, out=t, scratch=tmp)
+                t -= x0[rs, None]
+                t /= dx[rs, None]
+                np.floor(t, out=t)
+                np.copyto(i, t, casting="unsafe")  # (as astype(np.int64))
+            sl = slots[rs][:, None]
+            res = fr["res"].astype(np.uint64)[sl]
+            # unsigned: a negative index compares as huge (one test per side)
+            np.less(ix.view(np.uint64), res, out=inside)
+            np.less(iy.view(np.uint64), res, out=out_)
+            inside &= out_
+            np.logical_not(inside, out=out_)
+            if outer_any:  # beyond a fine raster: into its coarse one (`_texel_sums`)
+                move = out_ & (fr["outer"][sl] >= 0)
+                if np.any(move):
+                    moved.append(
+                        (
+                            px[move] * np.broadcast_to(su[rs, None], shape)[move]
+                            + np.broadcast_to(fr["uc"][sl], shape)[move],
+                            py[move] * np.broadcast_to(sv[rs, None], shape)[move]
+                            + np.broadcast_to(fr["vc"][sl], shape)[move],
+                            np.broadcast_to(fr["outer"][sl], shape)[move],
+                            w[move],
+                        )
+                    )
+                    np.copyto(w, 0.0, where=move)
+            idx = idx_all[span].reshape(shape)
+            np.multiply(sl, side, out=idx)
+            idx += iy
+            idx *= side
+            idx += ix
+            np.copyto(idx, np.broadcast_to(n + sl, shape), where=out_)
+        sums = []
+        if moved:  # as `_texel_sums`: the moved sub-cells' sums first, in their order
+            mx, my, to, mf = (np.concatenate(c) for c in zip(*moved, strict=True))
+            ix, iy = _texel_index(mx, fr, "u", to), _texel_index(my, fr, "v", to)
+            sums += _texel_sums(n, n_out, ix, iy, to, mf, fr)
+        sums.append(np.bincount(idx_all, weights=w_all, minlength=n + n_out))
+        return sums
 
     # the levels side by side in threads, their sums added in the levels' order: the
     # same additions as one level after the other
@@ -1060,6 +1122,28 @@ def _splat_cells(
             acc += both[:n]
             out_acc += both[n:]
     return int(first[-1])
+
+
+#: Sub-cells a splat level handles at once (`_splat_cells`): its temporaries 256 KB.
+SPLAT_BLOCK = 1 << 15
+
+
+def _corner_sum(a) -> np.ndarray:
+    """``a.sum(axis=1)`` of (C, 4) corner values, bit for bit (numpy adds a row of four
+    in turn), without numpy's slow reduction along a short axis (as `_corner_ptp`)."""
+    s = a[:, 0] + a[:, 1]
+    s += a[:, 2]
+    s += a[:, 3]
+    return s
+
+
+def _corner_ptp(a) -> np.ndarray:
+    """``np.ptp(a, axis=1)`` of (C, 4) corner values (exact: maxima and minima), four
+    columns compared instead of a short-axis reduction (~10× faster at 25 000 cells)."""
+    c0, c1, c2, c3 = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    return np.maximum(np.maximum(c0, c1), np.maximum(c2, c3)) - np.minimum(
+        np.minimum(c0, c1), np.minimum(c2, c3)
+    )
 
 
 def _floor_index(xi, xi0, dxi) -> np.ndarray:

@@ -197,24 +197,27 @@ def _intersect_planes(g: PlaneGrids, o, d, t_min, t_max):
 
 def _locate(g: PlaneGrids, o, d, pl, t):
     """The triangle of plane ``pl`` (per ray) under each ray's hit at ``t`` (−1: none)
-    and its barycentric (u, v), through the plane's 2-D grid."""
+    and its barycentric (u, v), through the plane's 2-D grid. (Per coordinate, not
+    (N, 2) pairs: numpy's reductions and gathers along a short axis are slow.)"""
     m = len(o)
     tri_out = np.full(m, -1, dtype=np.int64)
     u_out, v_out = np.zeros(m), np.zeros(m)
     p = o + t[:, None] * d
-    xy = np.stack([np.einsum("ij,ij->i", p, g.au[pl]), np.einsum("ij,ij->i", p, g.av[pl])], 1)
-    cij = np.floor((xy - g.lo[pl]) / g.cell[pl]).astype(np.int64)
-    inside = np.all((cij >= 0) & (cij < g.dims[pl]), axis=1)
+    x, y = np.einsum("ij,ij->i", p, g.au[pl]), np.einsum("ij,ij->i", p, g.av[pl])
+    ci = np.floor((x - g.lo[pl, 0]) / g.cell[pl, 0]).astype(np.int64)
+    cj = np.floor((y - g.lo[pl, 1]) / g.cell[pl, 1]).astype(np.int64)
+    di, dj = g.dims[pl, 0], g.dims[pl, 1]
+    inside = (ci >= 0) & (ci < di) & (cj >= 0) & (cj < dj)
     ray = np.nonzero(inside)[0]
-    pl, xy, cij = pl[inside], xy[inside], cij[inside]
-    cid = g.base[pl] + cij[:, 0] * g.dims[pl, 1] + cij[:, 1]
+    x, y = x[ray], y[ray]
+    cid = g.base[pl[ray]] + ci[ray] * dj[ray] + cj[ray]
     s0, s1 = g.cell_start[cid], g.cell_start[cid + 1]
     cnt = s1 - s0
     k = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     q = np.repeat(np.arange(len(ray)), cnt)
     tri = g.cell_tris[np.repeat(s0, cnt) + k]
     a, inv = g.tri_a[tri], g.tri_inv[tri]
-    rx, ry = xy[q, 0] - a[:, 0], xy[q, 1] - a[:, 1]
+    rx, ry = x[q] - a[:, 0], y[q] - a[:, 1]
     u = inv[:, 0, 0] * rx + inv[:, 0, 1] * ry  # the 2 × 2 products written out: no einsum
     v = inv[:, 1, 0] * rx + inv[:, 1, 1] * ry
     eps = 1e-12

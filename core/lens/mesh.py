@@ -32,6 +32,7 @@ from ..shared import parallel
 from ..shared.surface_walk import build_walk, intersect_convex
 from ..shared.triangle_bvh import build_bvh
 from ..shared.triangle_bvh import intersect as bvh_intersect
+from ..shared.vectors import cross, dot, norm
 from .base import BranchRays, ExitRays, Lens
 from .refraction import fresnel_from_cosines, refract
 
@@ -60,11 +61,11 @@ def canonical_order(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot(a, b)
 
 
 def _unit(v):
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = norm(v)[..., None]
     return v / np.where(n > 0.0, n, 1.0)
 
 
@@ -152,8 +153,8 @@ class MeshLens(Lens):
             np.asarray(triangles, dtype=np.int64).reshape(-1, 3), rot, axis=1
         )[order]
         corners = self.vertices[self.triangles]
-        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        self.face_normals = _unit(cross)  # outward by the winding
+        c = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        self.face_normals = _unit(c)  # outward by the winding
         if corner_normals is None:
             cn = np.repeat(self.face_normals[:, None, :], 3, axis=1)
         else:
@@ -354,7 +355,7 @@ class MeshLens(Lens):
         totally reflects."""
         ng = self.face_normals[tri]
         exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
-        inside = np.where(exiting, np.linalg.norm(p - seg.at, axis=1), 0.0)  # from the surface
+        inside = np.where(exiting, norm(p - seg.at), 0.0)  # from the surface
         # a piece's light leaves it where it entered it (pieces never overlap)
         att = 1.0  # clear glass (the usual): no exponentials, nothing absorbed
         if self.triangle_absorption.any():
@@ -387,9 +388,10 @@ class MeshLens(Lens):
         # The s and p powers carried into this crossing's plane of incidence: both s
         # directions are across the ray, at an angle α (cos² α of each part stays);
         # at normal incidence (no plane) the last s direction is kept.
-        s_new = np.cross(d, nrm)
-        s_len = np.linalg.norm(s_new, axis=1)
-        first = ~np.any(seg.s_dir, axis=1)
+        s_new = cross(d, nrm)
+        s_len = norm(s_new)
+        sd = seg.s_dir  # no s direction yet (columns compared: no short-axis reduction)
+        first = (sd[:, 0] == 0.0) & (sd[:, 1] == 0.0) & (sd[:, 2] == 0.0)
         plane = s_len > 1e-12
         s_new = np.where(plane[:, None], s_new / np.maximum(s_len, 1e-300)[:, None], seg.s_dir)
         c2 = np.where(first | ~plane, 1.0, _dot(seg.s_dir, s_new) ** 2)

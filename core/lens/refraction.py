@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..shared.vectors import dot, norm
+
 __all__ = [
     "Refraction",
     "refract",
@@ -21,7 +23,7 @@ __all__ = [
 
 
 def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
+    return dot(a, b)
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,7 @@ def refract(d, normals, eta) -> Refraction:
     tir = k < 0.0
     cos_t = np.sqrt(np.maximum(k, 0.0))
     t = eta[..., None] * d + (eta * cos_i - cos_t)[..., None] * normals
-    return Refraction(t / np.linalg.norm(t, axis=-1)[..., None], cos_i, cos_t, tir)
+    return Refraction(t / norm(t)[..., None], cos_i, cos_t, tir)
 
 
 def fresnel_from_cosines(cos_i, cos_t, n1, n2):

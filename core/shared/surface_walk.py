@@ -7,12 +7,17 @@ within its bounds (the BVH's own Möller–Trumbore test, `triangle_bvh.hit_slot
 same arithmetic and tolerances) is *the* hit: accepting it needs no search for a
 nearer one. A walk starts near the hit: where the ray's line meets the ellipsoid
 inscribed in the mesh's bounding box, looked up in a cube map of the triangles around
-its centre (exact for an ellipsoid pebble, a few triangles off for a lens, a rod or a
-cube); from there it steps across the edge the line passes beyond (the most negative
-barycentric of the line's point on the triangle's plane), a few steps at most. The
+its centre (each texel the triangle whose centre is nearest in direction: exact for
+an ellipsoid pebble, a few triangles off for a lens, a rod or a cube); from there it
+steps across the edge the line passes beyond (the most negative barycentric of the
+line's point on the triangle's plane), a few steps at most. The
 same ellipsoid grown to hold every vertex holds the mesh: a line that misses it surely
-misses. A ray whose walk leaves the mesh, turns to the wrong side, cycles or runs out
-of steps is cast against the BVH: the walk only ever skips a traversal. The hits
+misses; so does a line that a walk carries across a silhouette edge (one face turned
+toward it, the other away) and that passes beyond that edge's plane along the line (a
+supporting plane of the convex mesh) by more than `SILHOUETTE_MARGIN`: the rays beside
+the glass within that ellipsoid stop there. A ray whose walk leaves the mesh, turns to
+the wrong side, cycles or runs out of steps is cast against the BVH: the walk only
+ever skips a traversal. The hits
 therefore equal the BVH's (with one side asked, the BVH also stops at its first hit
 found); where a ray passes exactly through an edge or a vertex (both triangles within
 the tolerance) either triangle may be the one reported, as in the BVH.
@@ -34,16 +39,27 @@ from .triangle_bvh import (
     no_hits,
     ray_arrays,
 )
+from .vectors import column_bounds, corner_mean, cross, dot, norm
 
 #: Steps a walk may take before its ray is handed to the BVH.
 STEPS = 12
+#: A line farther than this (times the mesh's size) beyond a silhouette edge's plane
+#: surely misses (`_beyond_silhouette`): the rays that pass beside the glass within its
+#: bounding ellipsoid stop there instead of walking all their steps, twice, and then
+#: traversing the BVH. And the least |cos| between a face and the line (times its
+#: edges' lengths) for the face to count as turned toward or away from it.
+SILHOUETTE_MARGIN = 1e-6
+SILHOUETTE_COS = 1e-6
 #: The cube map's texels per triangle, and its side at most (texels per face side).
-#: A texel holds the triangle whose centre is nearest (filled outward from those in
-#: it), so a finer map guesses the triangle under a point more often: on the
-#: glass_generate_speed pebble, 12 a triangle against 3 made the walks' triangle tests
-#: 12 % (1 984 triangles) and 34 % (19 800) fewer; 24 gained nothing more.
-MAP_PER_TRIANGLE = 12.0
+#: A texel holds the triangle whose centre's direction is nearest its own among the
+#: centres in its 3 × 3 texels (`SEED_REACH`), then among its neighbours' choices
+#: (`_fill`). Before, the last centre to fall in a texel, the empty texels filled from
+#: the first neighbour found, at 12 a triangle: the speed bench's 2 000-triangle
+#: Generate walked 576 steps (hit tests of a few rays each, Python between them);
+#: with the nearest centres at 4 a triangle 149 (19 800 triangles: 611 -> 226).
+MAP_PER_TRIANGLE = 4.0
 MAP_SIDE = 256
+SEED_REACH = 1
 #: Rays from which the walks are split over threads: a walk's steps are short numpy
 #: calls on the rays still walking, the Python between them holding the GIL (as
 #: `core.lens.mesh.WALK_ROWS`, which calls this with the whole first wave: ~17 000 rays
@@ -101,7 +117,7 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     v = bvh.vertices[tris.reshape(-1)] if t else np.zeros((1, 3))
     axes = _box_axes(v)
     loc = v @ axes
-    lo, hi = loc.min(axis=0), loc.max(axis=0)
+    lo, hi = column_bounds(loc)
     center, half = axes @ (0.5 * (lo + hi)), np.maximum(0.5 * (hi - lo), 1e-300)
     walk = SurfaceWalk(bvh, across.reshape(t, 3), slot, center, half, None, 0.0, axes)
     # a hair more than the farthest vertex: rounding never makes a hit a miss
@@ -109,10 +125,11 @@ def build_walk(bvh: TriangleBvh) -> SurfaceWalk:
     m = int(np.clip(np.sqrt(t * MAP_PER_TRIANGLE / 6.0), 1, MAP_SIDE))
     cube = np.zeros((6, m, m), dtype=np.int64)
     if t:
-        cen = bvh.vertices[tris].mean(axis=1)
+        cen = corner_mean(bvh.vertices[tris])
         cube = np.full((6, m, m), -1, dtype=np.int64)
-        cube[_texel(walk.local(cen, cen)[0], m)] = np.arange(t)
-        cube = _fill(cube)
+        loc_c = walk.local(cen, cen)[0]
+        unit = loc_c / np.maximum(norm(loc_c), 1e-300)[:, None]
+        cube = _fill(_nearest_centres(_texel(loc_c, m), unit, m), unit)
     return dataclasses.replace(walk, cube=cube, reach=reach)
 
 
@@ -126,8 +143,11 @@ def _box_axes(v) -> np.ndarray:
     _, vecs = np.linalg.eigh(c.T @ c)
 
     def volume(axes):
-        return float(np.prod(np.ptp(v @ axes, axis=0) + 1e-12 * np.ptp(v, axis=0).max()))
+        lo, hi = column_bounds(v @ axes)
+        return float(np.prod(hi - lo + 1e-12 * span))
 
+    lo, hi = column_bounds(v)
+    span = (hi - lo).max()
     return vecs if volume(vecs) < 0.99 * volume(np.eye(3)) else np.eye(3)
 
 
@@ -143,18 +163,72 @@ def _texel(q, m):
     return face, i, j
 
 
-def _fill(cube):
-    """Empty texels take a neighbour's triangle (within a face); a face with none at
-    all, triangle 0 (a start far off: the walk or the BVH still finds the hit)."""
-    for _ in range(2 * cube.shape[1]):
-        if not (cube < 0).any():
+def _texel_directions(m: int) -> np.ndarray:
+    """(6, m, m, 3) the unit direction through each cube-map texel's centre (as
+    `_texel` reads them), float32."""
+    g = (np.arange(m) + 0.5) / m * 2.0 - 1.0
+    dirs = np.zeros((6, m, m, 3))
+    for f in range(6):
+        major = f // 2
+        dirs[f, ..., major] = -1.0 if f % 2 else 1.0
+        dirs[f, ..., (major + 1) % 3] = g[:, None]
+        dirs[f, ..., (major + 2) % 3] = g[None, :]
+    return (dirs / norm(dirs)[..., None]).astype(np.float32)
+
+
+def _nearest_centres(texels, centers, m: int) -> np.ndarray:
+    """(6, m, m) cube map: each texel within `SEED_REACH` texels of some triangle's
+    centre (its direction ``centers``, unit; in the texels ``texels``) holds the one
+    whose centre is nearest its own direction (not the last that fell in it: a UV
+    sphere's pole crowds a fan of thin triangles into a few texels), the others −1."""
+    face, i, j = texels
+    tri = np.arange(len(face), dtype=np.int64)
+    dirs = _texel_directions(m).reshape(-1, 3)
+    c32 = centers.astype(np.float32)
+    best = np.full(6 * m * m, -1, dtype=np.int64)
+    r = SEED_REACH
+    for di in range(-r, r + 1):
+        for dj in range(-r, r + 1):
+            ii, jj = i + di, j + dj
+            ok = (ii >= 0) & (ii < m) & (jj >= 0) & (jj < m)
+            to = ((face * m + ii) * m + jj)[ok]
+            cos = np.einsum("ij,ij->i", dirs[to], c32[ok])
+            # the nearest as the largest key: cos in the high bits, the triangle below
+            key = ((cos.astype(np.float64) + 1.0) * (1 << 30)).astype(np.int64) << 31
+            np.maximum.at(best, to, key | tri[ok])
+    return np.where(best >= 0, best & ((1 << 31) - 1), -1).reshape(6, m, m)
+
+
+def _fill(cube, centers):
+    """Each texel the nearest centre (direction, ``centers``) among its own and its 8
+    neighbours' (within a face), one neighbour direction after the other (so a centre
+    travels on along each pass: jump flooding's last step); texels still empty
+    from a neighbour, and a face with none at all triangle 0 (a start far off: the
+    walk or the BVH still finds the hit)."""
+    m = cube.shape[1]
+    dirs = _texel_directions(m)
+    none = len(centers)
+    c32 = np.concatenate([centers, np.zeros((1, 3))]).astype(np.float32)
+    cur = np.where(cube >= 0, cube, none)
+    cos = np.where(cur < none, np.einsum("fijk,fijk->fij", dirs, c32[cur]), -np.inf)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == 0 and dj == 0:
+                continue
+            pad = np.pad(cur, ((0, 0), (1, 1), (1, 1)), constant_values=none)
+            tri = pad[:, 1 + di : 1 + di + m, 1 + dj : 1 + dj + m]
+            c = np.einsum("fijk,fijk->fij", dirs, c32[tri])
+            better = (c > cos) & (tri < none)
+            cur = np.where(better, tri, cur)
+            cos = np.where(better, c, cos)
+    for _ in range(2 * m):
+        if not (cur == none).any():
             break
         for ax in (1, 2):
             for sh in (1, -1):
-                nb = np.roll(cube, sh, axis=ax)
-                take = (cube < 0) & (nb >= 0)
-                cube = np.where(take, nb, cube)
-    return np.maximum(cube, 0)
+                nb = np.roll(cur, sh, axis=ax)
+                cur = np.where((cur == none) & (nb < none), nb, cur)
+    return np.where(cur < none, cur, 0)
 
 
 def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
@@ -165,10 +239,10 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
     for the rays whose first walk did not arrive. And which rays surely miss: their
     line misses the grown ellipsoid, or meets it only outside (t_min, t_max]."""
     p, q = walk.local(o, d)
-    ia = 1.0 / np.maximum(np.einsum("ij,ij->i", q, q), 1e-300)
+    ia = 1.0 / np.maximum(dot(q, q), 1e-300)
     # the line's closest approach to the centre (stable however far the origin is)
-    tc = -np.einsum("ij,ij->i", p, q) * ia
-    h2 = np.einsum("ij,ij->i", p + tc[:, None] * q, p + tc[:, None] * q)
+    tc = -dot(p, q) * ia
+    h2 = dot(p + tc[:, None] * q, p + tc[:, None] * q)
     half_chord = np.sqrt(np.maximum(1.0 - h2, 0.0) * ia)
     t = tc + np.where(side < 0, half_chord, -half_chord)
     m = walk.cube.shape[1]
@@ -186,17 +260,23 @@ def aim(walk: SurfaceWalk, o, d, side, t_min, t_max):
 
     wide = np.sqrt(np.maximum(walk.reach**2 - h2, 0.0) * ia)
     miss = (h2 > walk.reach**2) | (tc + wide <= t_min) | (tc - wide > t_max)
-    return start, second, miss & np.any(d != 0.0, axis=1)
+    return start, second, miss & ((d[:, 0] != 0.0) | (d[:, 1] != 0.0) | (d[:, 2] != 0.0))
 
 
 def _walk_from(walk, o, d, side, t_min, t_max, start):
     """(triangle, t, u, v) of the rays' walks from the triangles ``start``; triangle
-    −1 where a walk did not arrive."""
+    −1 where a walk did not arrive. And which of those surely miss the mesh: their
+    line passed beyond a silhouette edge (`_beyond_silhouette`), so no second walk
+    and no BVH cast is needed (a BVH miss: the same columns)."""
     tri, tt, uu, vv = no_hits(len(o))
+    missed = np.zeros(len(o), dtype=bool)
     ray = np.arange(len(o))
     cur = start
-    dn = np.linalg.norm(d, axis=1)
+    dn = norm(d)
     prev = np.full(len(ray), -1, dtype=np.int64)
+    margin = SILHOUETTE_MARGIN * float(np.max(walk.half)) * walk.reach
+    # a line from inside meets the mesh: only rays from outside may pass beside it
+    outside = bool(np.any(side > 0))
     for _ in range(STEPS):
         if len(ray) == 0:
             break
@@ -213,8 +293,53 @@ def _walk_from(walk, o, d, side, t_min, t_max, start):
         stuck = (det == 0.0) | (np.minimum(np.minimum(w, u), v) >= -1e-12)
         stuck |= (step < 0) | (step == prev)
         go = ~good & ~stuck
+        if outside:
+            gone = _beyond_silhouette(walk, (o, d, dn, ray), cur, corner, step, det, go, margin)
+            missed[ray[gone]] = True
+            go &= ~gone
         ray, prev, cur = ray[go], cur[go], step[go]
-    return tri, tt, uu, vv
+    return tri, tt, uu, vv, missed
+
+
+def _beyond_silhouette(walk, rays, cur, corner, step, det, go, margin) -> np.ndarray:
+    """Which of the rows ``go`` (stepping from triangle ``cur`` across the edge opposite
+    ``corner`` to ``step``) surely miss the mesh. Where one of the edge's faces turns
+    toward the line and the other away (a silhouette edge: both clearly, not grazing),
+    the plane through the edge along the line supports the convex mesh (its normal is
+    in the edge's cone of face normals): the whole mesh lies on the side of the
+    current face's third corner. A line beyond that plane by more than ``margin``
+    (far above the triangle test's tolerances and a 'convex' mesh's float32 folds)
+    meets no triangle: the BVH would find none."""
+    out = np.zeros(len(go), dtype=bool)
+    rows = np.flatnonzero(go)
+    if len(rows) == 0:
+        return out
+    o, d, dn, ray = rays  # all the walk's rays, and which are walking (``go`` of these)
+    row_c = walk.bvh.packed[walk.slot[cur[rows]]]
+    row_n = walk.bvh.packed[walk.slot[step[rows]]]
+    dr = d[ray[rows]]
+    det_n = -dot(dr, row_n[:, 0:3])
+    det_c = det[rows]
+    tol = SILHOUETTE_COS * dn[ray[rows]]
+    sil = ((det_c > tol * row_c[:, 12]) & (det_n < -tol * row_n[:, 12])) | (
+        (det_c < -tol * row_c[:, 12]) & (det_n > tol * row_n[:, 12])
+    )
+    rows, row_c, dr = rows[sil], row_c[sil], dr[sil]
+    if len(rows) == 0:
+        return out
+    # the current face's corners: v0, v0 + e1, v0 + e2 (corner k: w, u, v's)
+    v0 = row_c[:, 3:6]
+    corners = np.stack([v0, v0 + row_c[:, 6:9], v0 + row_c[:, 9:12]], axis=1)
+    k = corner[rows]
+    n = np.arange(len(rows))
+    a, b, inner = corners[n, (k + 1) % 3], corners[n, (k + 2) % 3], corners[n, k]
+    m = cross(b - a, dr)
+    lim = margin * norm(m)
+    s_in = dot(m, inner - a)
+    s_line = dot(m, o[ray[rows]] - a)
+    beyond = ((s_in > lim) & (s_line < -lim)) | ((s_in < -lim) & (s_line > lim))
+    out[rows[beyond]] = True
+    return out
 
 
 def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=np.inf) -> Hits:
@@ -234,10 +359,10 @@ def intersect_convex(walk: SurfaceWalk, origins, dirs, facing, t_min=0.0, t_max=
         out = (tri[block], tt[block], uu[block], vv[block])  # views: written in place
         guess = start[ray]
         for _ in range(2):  # rays whose first walk did not arrive: from the second guess
-            found = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess)
+            *found, missed = _walk_from(walk, o_[ray], d_[ray], s_[ray], lo[ray], hi[ray], guess)
             for col, val in zip(out, found, strict=True):
                 col[ray] = val
-            ray = ray[out[0][ray] < 0]
+            ray = ray[(out[0][ray] < 0) & ~missed]
             if len(ray) == 0:
                 break
             guess = second(ray)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import parallel
+from .vectors import column_bounds, corner_bounds, corner_mean, cross, dot, norm
 
 #: Rays below which a cast runs in the calling thread alone.
 THREAD_ROWS = 8192
@@ -76,9 +77,9 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
     v = np.asarray(vertices, dtype=float)
     tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     corners = v[tris]  # (T, 3, 3)
-    cen = corners.mean(axis=1)
+    cen = corner_mean(corners)
     if len(tris):
-        lo_c, hi_c = cen.min(axis=0), cen.max(axis=0)
+        lo_c, hi_c = column_bounds(cen)
     else:
         lo_c = hi_c = np.zeros(3)
     cells = ((cen - lo_c) / np.maximum(hi_c - lo_c, 1e-300) * 1023.0).astype(np.int64)
@@ -93,8 +94,9 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
     pad = tri_index < 0
     # Empty boxes are NaN: every slab comparison with them is false (±inf would let
     # every ray through), and fmin/fmax skip them in the reductions.
-    tlo = np.where(pad[:, None], np.nan, c.min(axis=1)).reshape(-1, leaf_size, 3)
-    thi = np.where(pad[:, None], np.nan, c.max(axis=1)).reshape(-1, leaf_size, 3)
+    c_lo, c_hi = corner_bounds(c)
+    tlo = np.where(pad[:, None], np.nan, c_lo).reshape(-1, leaf_size, 3)
+    thi = np.where(pad[:, None], np.nan, c_hi).reshape(-1, leaf_size, 3)
     with np.errstate(invalid="ignore"):
         lo = [np.fmin.reduce(tlo, axis=1)]
         hi = [np.fmax.reduce(thi, axis=1)]
@@ -102,7 +104,7 @@ def build_bvh(vertices, triangles, leaf_size: int = 4) -> TriangleBvh:
             lo.insert(0, np.fmin(lo[0][0::2], lo[0][1::2]))
             hi.insert(0, np.fmax(hi[0][0::2], hi[0][1::2]))
     e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-    normal = np.cross(e1, e2)
+    normal = cross(e1, e2)
     edge_scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
     return TriangleBvh(
         cones=_normal_cones(c, pad, leaf_size, len(lo)),
@@ -129,7 +131,7 @@ def _normal_cones(c, pad, leaf_size, levels):
     """Per level (4, 2^ℓ): the axis (unit) and sin of the half-angle of a cone holding
     the unit winding normals of every triangle below each node; a cone of 90° or more
     (or an empty node) gets 2, never culling."""
-    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    n = cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
     n = np.where(pad[:, None], np.nan, n).reshape(-1, leaf_size, 3)
     with np.errstate(invalid="ignore"):
@@ -213,7 +215,7 @@ def _intersect_chunk(bvh, o, d, t_min, t_max, side):
     # 1/d with zero components replaced by a tiny signed number: slabs stay finite.
     safe = np.where(np.abs(d) < 1e-300, np.where(d < 0.0, -1e-300, 1e-300), d)
     inv = 1.0 / safe
-    unit = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    unit = d / np.maximum(norm(d), 1e-300)[:, None]
     rays = np.ascontiguousarray(np.concatenate([inv, o * inv, unit], axis=1).T)  # (9, n)
     depth = len(bvh.lo) - 1
     split = min(depth, SPLIT_LEVEL)
@@ -225,7 +227,7 @@ def _intersect_chunk(bvh, o, d, t_min, t_max, side):
     best = t_max.copy()
     uu = np.zeros(n)
     vv = np.zeros(n)
-    dn = np.linalg.norm(d, axis=1)
+    dn = norm(d)
     done = np.zeros(n, dtype=bool)  # rays with a side are done at their first hit
     for r, nd in _nearest_first(ray, node, near, n, best, done):
         r, nd, nr_ = _descend(bvh, rays, t_min, best, r, nd, split, depth, sided)
@@ -327,7 +329,7 @@ def hit_slots(bvh, o, d, dn, slot):
     as :func:`moller_trumbore`."""
     row = bvh.packed[slot]
     nrm = row[:, 0:3]
-    det = -np.einsum("ij,ij->i", d, nrm)
+    det = -dot(d, nrm)
     ok = np.abs(det) > 1e-14 * row[:, 12] * dn
     inv = 1.0 / np.where(ok, det, 1.0)
     s = o - row[:, 3:6]
@@ -337,9 +339,9 @@ def hit_slots(bvh, o, d, dn, slot):
     c[:, 0] = sy * dz - sz * dy
     c[:, 1] = sz * dx - sx * dz
     c[:, 2] = sx * dy - sy * dx
-    u = np.einsum("ij,ij->i", row[:, 9:12], c) * inv
-    v = -np.einsum("ij,ij->i", row[:, 6:9], c) * inv
-    t = np.einsum("ij,ij->i", s, nrm) * inv
+    u = dot(row[:, 9:12], c) * inv
+    v = -dot(row[:, 6:9], c) * inv
+    t = dot(s, nrm) * inv
     eps = 1e-12
     ok &= (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
     return t, u, v, ok, det
