@@ -613,34 +613,22 @@ def _between_rows(prof: BeamProfile, kept, todo) -> None:
     """A coarse table's rows `todo` (not computed: every row between two of `kept`)
     from the computed rows `kept` around them (`coarse_rows`): linear in the row
     index, as the texture reads between rows (the intensity and the intensity ×
-    slope). Each run of gaps of one size in one pass, on views of its rows."""
+    slope, `_linear_rows`)."""
     table, slope = prof.table, prof.slope
+    _linear_rows([table], kept)
+    if slope is None:
+        return
+    product = slope * table  # at the kept rows; the rows between from them
+    _linear_rows([product], kept)
+    inner, s_inner = table[todo], product[todo]
+    lit = inner > 0.0  # then over the intensity; the bin's middle where none is
     K = table.shape[1]
     u_edges = np.arange(K + 1) / K
     g_edges = math.radians(prof.gamma_max_deg) * u_edges * u_edges
-    mid = np.tan(0.5 * (g_edges[:-1] + g_edges[1:]))
-    gap = np.diff(kept)
-    starts = np.flatnonzero(np.r_[True, gap[1:] != gap[:-1]])
-    for a, b in zip(starts, np.r_[starts[1:], gap.size], strict=True):
-        step, n = int(gap[a]), int(b - a)
-        if step < 2:
-            continue
-        rows = slice(int(kept[a]), int(kept[b]) + 1)  # n gaps of `step` rows
-        t = (np.arange(1, step) / step)[None, :, None]
-        ends = table[rows][::step]
-        inner = table[rows][:-1].reshape(n, step, -1)[:, 1:]
-        # start + t × change, written in place (no temporaries of the rows between;
-        # the same sums: addition commutes)
-        np.multiply(t, (ends[1:] - ends[:-1])[:, None], out=inner)
-        inner += ends[:-1, None]
-        if slope is not None:
-            s_ends = slope[rows][::step] * ends
-            s_inner = slope[rows][:-1].reshape(n, step, -1)[:, 1:]
-            np.multiply(t, (s_ends[1:] - s_ends[:-1])[:, None], out=s_inner)
-            s_inner += s_ends[:-1, None]  # the product, then over the intensity
-            lit = inner > 0.0
-            np.divide(s_inner, inner, out=s_inner, where=lit)
-            np.copyto(s_inner, np.broadcast_to(mid, s_inner.shape), where=~lit)
+    mid = np.broadcast_to(np.tan(0.5 * (g_edges[:-1] + g_edges[1:])), s_inner.shape)
+    np.divide(s_inner, inner, out=s_inner, where=lit)
+    np.copyto(s_inner, mid, where=~lit)
+    slope[todo] = s_inner
 
 
 def coarse_rows(smooth: np.ndarray, Z: np.ndarray, end: float) -> np.ndarray:

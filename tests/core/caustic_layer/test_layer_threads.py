@@ -52,11 +52,16 @@ def test_the_splat_in_threads_draws_the_same_layer_bit_for_bit(monkeypatch):
     assert levels and max(levels) >= 3
     assert sorted(p.coarse for p in inline.patches) == [False, True]
     assert inline.n_subcells == both.n_subcells > 0
-    for a, b in zip(inline.patches, both.patches, strict=True):
-        assert np.array_equal(a.irradiance, b.irradiance)
-        assert a.flux == b.flux and a.flux_outside == b.flux_outside
-    assert inline.flux_in_rasters == both.flux_in_rasters
-    assert inline.flux_outside == both.flux_outside
+    _assert_same_layer(inline, both)
+
+
+def _assert_same_layer(a, b):
+    """Two layers' irradiance and fluxes, bit for bit."""
+    for p, q in zip(a.patches, b.patches, strict=True):
+        assert np.array_equal(p.irradiance, q.irradiance)
+        assert p.flux == q.flux and p.flux_outside == q.flux_outside
+    assert a.flux_in_rasters == b.flux_in_rasters
+    assert a.flux_outside == b.flux_outside
 
 
 @pytest.mark.parametrize("n", [0, 1, 5])
@@ -93,8 +98,4 @@ def test_the_splat_in_blocks_draws_the_same_layer_bit_for_bit(monkeypatch):
     monkeypatch.setattr(rasters, "SPLAT_BLOCK", 1000)
     blocks = _layer()
     assert whole.n_subcells == blocks.n_subcells > 100_000
-    for a, b in zip(whole.patches, blocks.patches, strict=True):
-        assert np.array_equal(a.irradiance, b.irradiance)
-        assert a.flux == b.flux and a.flux_outside == b.flux_outside
-    assert whole.flux_in_rasters == blocks.flux_in_rasters
-    assert whole.flux_outside == blocks.flux_outside
+    _assert_same_layer(whole, blocks)
