@@ -952,21 +952,13 @@ def _texel_sums(n, n_out, ix, iy, slots, flux, fr, xy=None) -> list[np.ndarray]:
     """What `_accumulate` adds, as the arrays (n + n_out,) it adds in turn (the texels
     of all rasters' blocks, then the flux beyond each raster): what lands beyond a
     raster into its coarse one first, then the rest."""
-    side = fr["side"]
-    res = fr["res"].astype(np.uint64)[slots]
     sums = []
-    # unsigned: a negative index compares as huge (one test per side); the texels
-    # beyond a raster go to bin n + slot, so one bincount takes both
-    inside = (ix.view(np.uint64) < res) & (iy.view(np.uint64) < res)
+    inside = _inside(ix, iy, slots, fr)
     if xy is not None and np.any(fr["outer"] >= 0):
-        outer = fr["outer"][slots]  # per cell in a splat (cells, 1): not per sub-cell
+        outer = fr["outer"][slots]
         move = ~inside & (outer >= 0)
-        if np.any(move):
-            # ``xy``: the plane coordinates, or a function giving those of the rows moved
-            if callable(xy):
-                x, y = xy(move)
-            else:
-                x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
+        if np.any(move):  # ``xy``: the plane coordinates
+            x, y = (np.broadcast_to(a, inside.shape)[move] for a in xy)
             to = np.broadcast_to(outer, inside.shape)[move]
             flux = np.broadcast_to(flux, inside.shape)
             sums += _texel_sums(
@@ -979,9 +971,33 @@ def _texel_sums(n, n_out, ix, iy, slots, flux, fr, xy=None) -> list[np.ndarray]:
                 fr,
             )
             flux = np.where(move, 0.0, flux)
-    idx = np.where(inside, (slots * side + iy) * side + ix, n + slots)
+    idx = _bins(ix, iy, slots, ~inside, fr, n)
     sums.append(np.bincount(idx.reshape(-1), weights=flux.reshape(-1), minlength=n + n_out))
     return sums
+
+
+def _inside(ix, iy, slots, fr, out=None, scratch=None) -> np.ndarray:
+    """Whether texel (ix, iy) lies within raster ``slots`` (broadcast; into ``out``,
+    with ``scratch`` of its shape, if given). Unsigned: a negative index compares as
+    huge, one test per side."""
+    res = fr["res"].astype(np.uint64)[slots]
+    inside = np.less(ix.view(np.uint64), res, out=out)
+    inside &= np.less(iy.view(np.uint64), res, out=scratch)
+    return inside
+
+
+def _bins(ix, iy, slots, beyond, fr, n, out=None) -> np.ndarray:
+    """Each texel's bin for one bincount of all rasters: (ix, iy) in raster ``slots``'s
+    block of ``fr["side"]``², or ``n + slot`` where ``beyond`` it (into ``out`` if given)."""
+    side = fr["side"]
+    if out is None:
+        out = np.empty(np.broadcast_shapes(ix.shape, np.shape(slots)), dtype=np.int64)
+    np.multiply(slots, side, out=out)
+    out += iy
+    out *= side
+    out += ix
+    np.copyto(out, n + slots, where=beyond)
+    return out
 
 
 def _splat_cells(
@@ -1046,7 +1062,7 @@ def _splat_cells(
         s, t = (a.reshape(-1) for a in np.meshgrid(g, g, indexing="ij"))
         bw = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=1)  # (q, 4)
         q = len(s)
-        n, n_out, side = len(acc), len(out_acc), fr["side"]
+        n, n_out = len(acc), len(out_acc)
         outer_any = bool(np.any(fr["outer"] >= 0))
         idx_all = np.empty(len(sel) * q, dtype=np.int64)
         w_all = np.empty(len(sel) * q)
@@ -1080,11 +1096,7 @@ def _splat_cells(
                 np.floor(t, out=t)
                 np.copyto(i, t, casting="unsafe")  # (as astype(np.int64))
             sl = slots[rs][:, None]
-            res = fr["res"].astype(np.uint64)[sl]
-            # unsigned: a negative index compares as huge (one test per side)
-            np.less(ix.view(np.uint64), res, out=inside)
-            np.less(iy.view(np.uint64), res, out=out_)
-            inside &= out_
+            _inside(ix, iy, sl, fr, out=inside, scratch=out_)
             np.logical_not(inside, out=out_)
             if outer_any:  # beyond a fine raster: into its coarse one (`_texel_sums`)
                 move = out_ & (fr["outer"][sl] >= 0)
@@ -1100,12 +1112,7 @@ def _splat_cells(
                         )
                     )
                     np.copyto(w, 0.0, where=move)
-            idx = idx_all[span].reshape(shape)
-            np.multiply(sl, side, out=idx)
-            idx += iy
-            idx *= side
-            idx += ix
-            np.copyto(idx, np.broadcast_to(n + sl, shape), where=out_)
+            _bins(ix, iy, sl, out_, fr, n, out=idx_all[span].reshape(shape))
         sums = []
         if moved:  # as `_texel_sums`: the moved sub-cells' sums first, in their order
             mx, my, to, mf = (np.concatenate(c) for c in zip(*moved, strict=True))
@@ -1124,7 +1131,10 @@ def _splat_cells(
     return int(first[-1])
 
 
-#: Sub-cells a splat level handles at once (`_splat_cells`): its temporaries 256 KB.
+#: Sub-cells a splat level handles at once (`_splat_cells`): its temporaries 256 KB;
+#: and its products of cells × 4 corners by the sub-cells' weights small enough that
+#: OpenBLAS runs each on one thread (its threads cost far more than they save on a
+#: product 4 deep: 8.9 ms wall against 0.22 ms for (4145, 4) @ (4, 64)).
 SPLAT_BLOCK = 1 << 15
 
 
@@ -1144,27 +1154,6 @@ def _corner_ptp(a) -> np.ndarray:
     return np.maximum(np.maximum(c0, c1), np.maximum(c2, c3)) - np.minimum(
         np.minimum(c0, c1), np.minimum(c2, c3)
     )
-
-
-def _floor_index(xi, xi0, dxi) -> np.ndarray:
-    """⌊(ξ − ξ0) / dξ⌋ as integers, ``xi`` overwritten (a splat's large temporaries)."""
-    xi -= xi0
-    xi /= dxi
-    return np.floor(xi, out=xi).astype(np.int64)
-
-
-def _rows_matmul(a, b, limit: int = 1 << 18):
-    """``a @ b`` in blocks of rows small enough (rows × b's size ≤ ``limit``) that
-    OpenBLAS runs each on one thread: for a product 4 deep its threads cost far more
-    than they save (measured 4.4 ms CPU, 8.9 ms wall for (4145, 4) @ (4, 64) against
-    0.22 ms in blocks, worst on a busy machine)."""
-    n = max(1, limit // max(b.shape[0] * b.shape[1], 1))
-    if len(a) <= n:
-        return a @ b
-    out = np.empty((len(a), b.shape[1]), dtype=np.result_type(a, b))
-    for i in range(0, len(a), n):
-        np.matmul(a[i : i + n], b, out=out[i : i + n])
-    return out
 
 
 #: Roberts' R2 sequence (the plastic number): well spread points in the unit square.
