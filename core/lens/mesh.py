@@ -60,10 +60,6 @@ def canonical_order(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rot, order
 
 
-def _dot(a, b):
-    return dot(a, b)
-
-
 def _unit(v):
     n = norm(v)[..., None]
     return v / np.where(n > 0.0, n, 1.0)
@@ -226,7 +222,7 @@ class MeshLens(Lens):
             # size either way: a fold below FLAT_SIN (of the far vertex's distance)
             # is flat (a ray grazing so close to the plane carries no flux to speak of)
             slack = tol + FLAT_SIN * np.linalg.norm(off, axis=2)
-            if (_dot(off, n[:, None, :]) > slack).any():
+            if (dot(off, n[:, None, :]) > slack).any():
                 return False
         return True
 
@@ -263,7 +259,7 @@ class MeshLens(Lens):
 
         smooth = np.ones(len(ta), dtype=bool)
         for vtx in (lo, hi):
-            smooth &= _dot(normal_at(ta, vtx), normal_at(tb, vtx)) >= SMOOTH_COS
+            smooth &= dot(normal_at(ta, vtx), normal_at(tb, vtx)) >= SMOOTH_COS
         return _components(ta[smooth], tb[smooth], len(self.triangles))
 
     # ------------------------------------------------------------------ the walk
@@ -354,7 +350,7 @@ class MeshLens(Lens):
         Fresnel transmittances t_s, t_p and 1 − t_s, 1 − t_p) and where the crossing
         totally reflects."""
         ng = self.face_normals[tri]
-        exiting = _dot(seg.direction, ng) > 0.0  # the hit seen from inside
+        exiting = dot(seg.direction, ng) > 0.0  # the hit seen from inside
         inside = np.where(exiting, norm(p - seg.at), 0.0)  # from the surface
         # a piece's light leaves it where it entered it (pieces never overlap)
         att = 1.0  # clear glass (the usual): no exponentials, nothing absorbed
@@ -365,22 +361,22 @@ class MeshLens(Lens):
         cn = self.corner_normals[tri]
         bary = np.stack([1.0 - u - v, u, v], axis=1)
         ns = _unit(np.einsum("nk,nki->ni", bary, cn))
-        ns = np.where((_dot(ns, ng) < 0.0)[:, None], -ns, ns)
+        ns = np.where((dot(ns, ng) < 0.0)[:, None], -ns, ns)
         sgn = np.where(exiting, -1.0, 1.0)[:, None]
         facing = sgn * ng  # geometric normal toward the incoming side
         nsf = sgn * ns
         ior = self.triangle_ior[tri]
         eta = np.where(exiting, ior, 1.0 / ior)
         d = seg.direction
-        use_geo = _dot(d, nsf) >= 0.0  # the shading normal meets the ray from behind
+        use_geo = dot(d, nsf) >= 0.0  # the shading normal meets the ray from behind
         nrm = np.where(use_geo[:, None], facing, nsf)
         rf = refract(d, nrm, eta)
-        refl = d - 2.0 * _dot(d, nrm)[:, None] * nrm
-        wrong = (~rf.tir & (_dot(rf.directions, facing) >= 0.0)) | (_dot(refl, facing) <= 0.0)
+        refl = d - 2.0 * dot(d, nrm)[:, None] * nrm
+        wrong = (~rf.tir & (dot(rf.directions, facing) >= 0.0)) | (dot(refl, facing) <= 0.0)
         if wrong.any():  # bent back by the shading normal: the geometric one there
             nrm = np.where(wrong[:, None], facing, nrm)
             rf = refract(d, nrm, eta)
-            refl = d - 2.0 * _dot(d, nrm)[:, None] * nrm
+            refl = d - 2.0 * dot(d, nrm)[:, None] * nrm
         n1 = np.where(exiting, ior, 1.0)
         n2 = np.where(exiting, 1.0, ior)
         ts, tp = fresnel_from_cosines(rf.cos_i, rf.cos_t, n1, n2)
@@ -394,7 +390,7 @@ class MeshLens(Lens):
         first = (sd[:, 0] == 0.0) & (sd[:, 1] == 0.0) & (sd[:, 2] == 0.0)
         plane = s_len > 1e-12
         s_new = np.where(plane[:, None], s_new / np.maximum(s_len, 1e-300)[:, None], seg.s_dir)
-        c2 = np.where(first | ~plane, 1.0, _dot(seg.s_dir, s_new) ** 2)
+        c2 = np.where(first | ~plane, 1.0, dot(seg.s_dir, s_new) ** 2)
         ws = (seg.ws * c2 + seg.wp * (1.0 - c2)) * att
         wp = (seg.ws * (1.0 - c2) + seg.wp * c2) * att
         g = groups[tri].astype(np.uint64) * np.uint64(2)

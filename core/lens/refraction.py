@@ -22,10 +22,6 @@ __all__ = [
 ]
 
 
-def _dot(a, b):
-    return dot(a, b)
-
-
 @dataclass(frozen=True)
 class Refraction:
     """Refracted rays (…): unit ``directions`` (…, 3), the cosines of incidence and of
@@ -47,7 +43,7 @@ def refract(d, normals, eta) -> Refraction:
     ``t = eta d + (eta cos_i − cos_t) normal``, renormalised; ``1 − sin²`` as
     ``(1 − c)(1 + c)`` (no cancellation near normal incidence)."""
     eta = np.asarray(eta, dtype=float)
-    cos_i = np.clip(-_dot(d, normals), 0.0, 1.0)
+    cos_i = np.clip(-dot(d, normals), 0.0, 1.0)
     k = 1.0 - eta * eta * (1.0 - cos_i) * (1.0 + cos_i)  # cos² of the refraction angle
     tir = k < 0.0
     cos_t = np.sqrt(np.maximum(k, 0.0))
